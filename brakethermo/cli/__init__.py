@@ -1,0 +1,19 @@
+"""Command-line interface: thin Typer commands that parse, call a pipeline, render.
+
+Each command lives in its own module and registers itself on :data:`app`.
+"""
+
+from __future__ import annotations
+
+from brakethermo.cli._app import app
+
+# Command modules register on import; keep one line per module, sorted.
+from brakethermo.cli import inspect_cmd  # noqa: F401, E402  isort: skip
+
+
+def main() -> None:
+    """Console-script entry point."""
+    app()
+
+
+__all__ = ["app", "main"]

@@ -1,0 +1,52 @@
+"""The Typer application object and the user-error boundary shared by all commands."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import click
+import typer
+from rich.console import Console
+from typer.core import TyperGroup
+
+from brakethermo import __version__
+from brakethermo.errors import BrakethermoError
+
+console = Console()
+err_console = Console(stderr=True)
+
+
+class _UserErrorGroup(TyperGroup):
+    """Turn :class:`BrakethermoError` into one red line and its exit code, no traceback."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except BrakethermoError as exc:
+            err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+            ctx.exit(exc.exit_code)
+
+
+app = typer.Typer(
+    cls=_UserErrorGroup,
+    name="brakethermo",
+    help="Carbon brake-disc temperature across the radius, from one IR spot sensor.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+
+
+def _version(value: bool) -> None:
+    if value:
+        console.print(f"brakethermo {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(
+        False, "--version", callback=_version, is_eager=True, help="Show the version and exit."
+    ),
+) -> None:
+    """Carbon brake-disc temperature across the radius, from one IR spot sensor."""

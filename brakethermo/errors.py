@@ -1,0 +1,38 @@
+"""Errors a user can act on, and the exit codes of OUTPUTS.md."""
+
+from __future__ import annotations
+
+EXIT_OK = 0
+EXIT_BAD_INPUT = 1
+EXIT_USAGE = 2
+EXIT_BATCH_PARTIAL = 3
+
+
+class BrakethermoError(Exception):
+    """A problem with the user's input data or configuration.
+
+    The CLI prints the message on one line and exits with code 1; it never shows a
+    traceback for these. Messages name the file, the channel (where there is one),
+    the problem and the fix.
+    """
+
+    exit_code = EXIT_BAD_INPUT
+
+    def __init__(self, message: str, *, path: object | None = None, channel: str | None = None):
+        self.path = path
+        self.channel = channel
+        prefix = []
+        if path is not None:
+            prefix.append(str(path))
+        if channel is not None:
+            prefix.append(f"channel '{channel}'")
+        self.detail = message
+        super().__init__(": ".join([*prefix, message]) if prefix else message)
+
+
+class DataError(BrakethermoError):
+    """The session file cannot be read or does not hold what the command needs."""
+
+
+class ConfigError(BrakethermoError):
+    """A TOML configuration (datasheet, aliases, tuning, track, h law) is invalid."""

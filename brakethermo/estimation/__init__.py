@@ -1,0 +1,1 @@
+"""Model-agnostic estimation engine: sigma-point filters and smoothers, EKF, KF, RLS."""

@@ -1,0 +1,161 @@
+"""The channel-table abstraction every reader produces and every pipeline consumes.
+
+A :class:`Session` is one logged session on the OUTPUTS.md time base: a 10 Hz grid
+``t = 0.0, 0.1, ...`` seconds from the earliest sample of any channel, canonical
+channel names, SI units inside (temperatures in degC, pressures in Pa, speeds in m/s,
+angular speeds in rad/s), the lap number of each grid point and the session facts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from brakethermo.errors import DataError
+
+GRID_DT = 0.1  # s, the OUTPUTS.md time base
+
+
+@dataclass(frozen=True)
+class ChannelInfo:
+    """Where a canonical channel came from and what resampling did to it.
+
+    Attributes
+    ----------
+    name : str
+        Canonical channel name (``speed``, ``disc_temp_spot3``, ...).
+    source : str
+        Name of the channel in the file (topic, ``topic.field`` or column).
+    unit : str
+        Unit string found in the file (the canonical unit when the file gave none).
+    si_unit : str
+        Unit of the values held in :attr:`Session.frame`.
+    rate_hz : float
+        Native sample rate (median of the sample spacing), Hz.
+    samples : int
+        Number of native samples.
+    gaps : tuple of (float, float)
+        Gaps longer than the bridging limit, as ``(start_s, duration_s)``; the
+        10 Hz values inside them are NaN.
+    spikes : int
+        Isolated spikes rejected (IR temperature channels only).
+    """
+
+    name: str
+    source: str
+    unit: str
+    si_unit: str
+    rate_hz: float
+    samples: int
+    gaps: tuple[tuple[float, float], ...] = ()
+    spikes: int = 0
+
+
+@dataclass(frozen=True)
+class Lap:
+    """One lap: number (0 = out-lap), start time and duration on the session grid, s."""
+
+    lap: int
+    start_s: float
+    duration_s: float
+
+
+@dataclass(frozen=True)
+class Session:
+    """A session resampled to the 10 Hz grid, canonical names, SI units.
+
+    Attributes
+    ----------
+    path : Path
+        The file the session was read from.
+    frame : pandas.DataFrame
+        Columns ``time`` (float64 s), ``lap`` (int64) and one float64 column per
+        canonical channel present, in SI units; NaN inside reported gaps.
+    channels : dict of str to ChannelInfo
+        One entry per canonical channel in :attr:`frame`.
+    laps : tuple of Lap
+    metadata : dict of str to str
+        Session facts (``vehicle``, ``track``, ``date``, ``disc``, ``ambient_temp_c``...).
+    aliases : dict of str to tuple of str
+        The names tried for each canonical channel, for error messages.
+    available : tuple of str
+        Every channel name the file holds (source names), for error messages.
+    start_epoch_s : float or None
+        Absolute time of grid point 0 when the file carried epoch timestamps.
+    """
+
+    path: Path
+    frame: pd.DataFrame
+    channels: dict[str, ChannelInfo]
+    laps: tuple[Lap, ...]
+    metadata: dict[str, str] = field(default_factory=dict)
+    aliases: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    available: tuple[str, ...] = ()
+    start_epoch_s: float | None = None
+
+    @property
+    def time(self) -> np.ndarray:
+        """Grid time, s."""
+        return self.frame["time"].to_numpy()
+
+    @property
+    def lap(self) -> np.ndarray:
+        """Lap number of each grid point."""
+        return self.frame["lap"].to_numpy()
+
+    def has(self, name: str) -> bool:
+        """Whether canonical channel ``name`` is present."""
+        return name in self.channels
+
+    def require(self, *names: str) -> None:
+        """Raise a :class:`DataError` naming the first missing canonical channel.
+
+        The message lists the aliases that were tried and the channels the file has,
+        so the user can fix the alias table (``--aliases FILE``).
+        """
+        for name in names:
+            if name not in self.channels:
+                tried = ", ".join(self.aliases.get(name, (name,)))
+                have = ", ".join(self.available) or "none"
+                raise DataError(
+                    f"required channel is missing (tried: {tried}); the file has: {have}."
+                    " Add the file's name for it to an alias table and pass --aliases FILE",
+                    path=self.path,
+                    channel=name,
+                )
+
+    def values(self, name: str) -> np.ndarray:
+        """Values of canonical channel ``name`` on the grid, SI units."""
+        self.require(name)
+        return self.frame[name].to_numpy(dtype=float)
+
+    def ambient_c(self, override_c: float | None = None) -> np.ndarray:
+        """Ambient temperature on the grid, degC.
+
+        From the ``ambient_temp`` channel (gaps filled), else the session's
+        ``ambient_temp_c`` fact, else ``override_c``; else a :class:`DataError`.
+        """
+        n = len(self.frame)
+        if override_c is not None:
+            return np.full(n, float(override_c))
+        if self.has("ambient_temp"):
+            amb = pd.Series(self.values("ambient_temp")).ffill().bfill().to_numpy()
+            if np.isfinite(amb).all():
+                return amb
+        if "ambient_temp_c" in self.metadata:
+            try:
+                return np.full(n, float(self.metadata["ambient_temp_c"]))
+            except ValueError:
+                raise DataError(
+                    f"session fact ambient_temp_c={self.metadata['ambient_temp_c']!r} is not"
+                    " a number; fix it or pass --ambient",
+                    path=self.path,
+                ) from None
+        raise DataError(
+            "no ambient temperature: no 'ambient_temp' channel and no session fact"
+            " 'ambient_temp_c'; pass --ambient DEGC",
+            path=self.path,
+        )

@@ -1,0 +1,1 @@
+"""Pipelines: file -> session -> model + filter -> results. No CLI, no rendering."""

@@ -1,0 +1,1 @@
+"""Per-lap reports (HTML + PNG), summaries and MCAP export."""

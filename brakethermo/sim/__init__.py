@@ -1,0 +1,1 @@
+"""Truth models and session writers. Never imported by the estimator."""

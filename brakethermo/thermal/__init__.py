@@ -1,0 +1,1 @@
+"""Disc datasheet, 1D finite-element disc model, braking power and h(V) law."""
