@@ -85,6 +85,9 @@ class Session:
         Every channel name the file holds (source names), for error messages.
     start_epoch_s : float or None
         Absolute time of grid point 0 when the file carried epoch timestamps.
+    warnings : tuple of str
+        Things the reader recovered from (a truncated file, bridged gaps...), to show
+        the user.
     """
 
     path: Path
@@ -95,6 +98,7 @@ class Session:
     aliases: dict[str, tuple[str, ...]] = field(default_factory=dict)
     available: tuple[str, ...] = ()
     start_epoch_s: float | None = None
+    warnings: tuple[str, ...] = ()
 
     @property
     def time(self) -> np.ndarray:
