@@ -1,0 +1,175 @@
+"""Seconds per lap (1000 steps at 10 Hz) of our UKF (+ unscented RTS smoother) vs filterpy.
+
+Both filters run the SAME disc model (``DiscFEModel``, the 1-layer paper model) on the
+SAME simulated data:
+
+* ``estimate`` — state = N node temperatures, spot 3 measured (linear interpolation);
+* ``identify-h`` — N = 51, state = [T_1..T_51, h] with h a random walk, four spots.
+
+filterpy's ``UnscentedKalmanFilter`` calls the model once per sigma point (its fx is
+per point); ours calls it once per step for all 2n + 1 points. filterpy is slow at
+large N, so it is timed on ``--fp-steps`` steps and scaled to 1000 (said in the
+output). filterpy has no smoother that takes inputs, so the ratio compares filters
+only; our smoother time is shown next to it. BLAS is pinned to one thread.
+
+Run: ``python benchmarks/bench_filter.py [--steps 1000] [--fp-steps 200]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+
+import numpy as np
+from filterpy.kalman import MerweScaledSigmaPoints
+from filterpy.kalman import UnscentedKalmanFilter as FilterpyUKF
+from threadpoolctl import threadpool_limits
+
+from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
+from brakethermo.thermal.disc import load_disc
+from brakethermo.thermal.model import DiscFEModel
+
+STEPS_PER_LAP = 1000
+T_AMB = 25.0
+H_TRUE = 90.0  # W/(m^2 K)
+ALPHA, BETA, KAPPA = 0.1, 2.0, 0.0
+ESTIMATE_NODES = (10, 20, 50, 100, 150)
+TARGETS = {("estimate", 10): 0.05, ("estimate", 150): 1.0, ("identify-h", 51): 0.5}
+
+
+def braking_power(K: int) -> np.ndarray:
+    """A lap-like cycle: 1.5 s of 40 kW braking every 6 s, W."""
+    return np.where((np.arange(K) % 60) < 15, 4.0e4, 0.0)
+
+
+class Case:
+    """One benchmark case: batched model f, noise, measurement, data and prior."""
+
+    def __init__(self, kind: str, N: int, K: int, seed: int = 0) -> None:
+        disc = load_disc()
+        model = DiscFEModel(disc, N)
+        q = braking_power(K)
+        rng = np.random.default_rng(seed)
+        self.kind, self.N = kind, N
+        if kind == "estimate":
+            H = model.spot_matrix([disc.spot_radii[2]])
+
+            def f(X: np.ndarray, k: int) -> np.ndarray:
+                return model.step(X, q[k], H_TRUE, T_AMB)
+
+            n = N
+            Q = np.eye(n) * 0.5
+            x_true = model.initial_state(150.0)
+            x0, P0 = model.initial_state(140.0), np.eye(n) * 100.0
+        else:
+            Hs = model.spot_matrix(disc.spot_radii)
+            H = np.hstack([Hs, np.zeros((Hs.shape[0], 1))])
+
+            def f(X: np.ndarray, k: int) -> np.ndarray:
+                out = np.empty_like(X)
+                out[:, :N] = model.step(X[:, :N], q[k], X[:, N], T_AMB)
+                out[:, N] = X[:, N]
+                return out
+
+            n = N + 1
+            Q = np.diag(np.r_[np.full(N, 0.5), 4.0])
+            x_true = np.r_[model.initial_state(150.0), H_TRUE]
+            x0 = np.r_[model.initial_state(140.0), 60.0]
+            P0 = np.diag(np.r_[np.full(N, 100.0), 400.0])
+        m = H.shape[0]
+        R = np.eye(m) * 4.0
+        y = np.empty((K, m))
+        x = x_true
+        for k in range(K):
+            y[k] = H @ x + rng.normal(0.0, 2.0, m)
+            x = f(x[None], k)[0]
+        self.f, self.Q, self.R, self.H, self.y, self.x0, self.P0, self.n = f, Q, R, H, y, x0, P0, n
+
+
+def time_ours(case: Case, smoother: bool) -> tuple[float, float, np.ndarray]:
+    """(filter s/lap, smoother s/lap, filtered means)."""
+    ukf = UnscentedKalmanFilter(case.f, case.Q, case.R, H=case.H, alpha=ALPHA, beta=BETA)
+    store = "smoother" if smoother else "diag"
+    warm = ukf.run(case.x0, case.P0, case.y[:3], store=store)  # compile / warm up
+    if smoother:
+        urts_smooth(warm)
+    K = case.y.shape[0]
+    t = time.perf_counter()
+    res = ukf.run(case.x0, case.P0, case.y, store=store)
+    t_f = time.perf_counter() - t
+    t_s = 0.0
+    if smoother:
+        t = time.perf_counter()
+        urts_smooth(res)
+        t_s = time.perf_counter() - t
+    return t_f / K * STEPS_PER_LAP, t_s / K * STEPS_PER_LAP, res.x_filt
+
+
+def time_filterpy(case: Case, K: int) -> tuple[float, np.ndarray]:
+    """filterpy UKF on the first K steps: (s/lap, filtered means)."""
+    n = case.n
+    pts = MerweScaledSigmaPoints(n, alpha=ALPHA, beta=BETA, kappa=KAPPA)
+    f, H = case.f, case.H
+    fp = FilterpyUKF(
+        dim_x=n,
+        dim_z=H.shape[0],
+        dt=0.1,
+        hx=lambda x: H @ x,
+        fx=lambda x, dt, k: f(x[None], k)[0],
+        points=pts,
+    )
+    fp.x, fp.P, fp.Q, fp.R = case.x0.copy(), case.P0.copy(), case.Q, case.R
+    fp.sigmas_f = pts.sigma_points(fp.x, fp.P)
+    xs = np.empty((K, n))
+    t = time.perf_counter()
+    for k in range(K):
+        if k > 0:
+            fp.predict(k=k - 1)
+        fp.update(case.y[k])
+        xs[k] = fp.x
+    return (time.perf_counter() - t) / K * STEPS_PER_LAP, xs
+
+
+def row(kind: str, N: int, steps: int, fp_steps: int, out: Callable[[str], None]) -> None:
+    case = Case(kind, N, steps)
+    smoother = kind == "estimate"
+    t_f, t_s, xs = time_ours(case, smoother=True)
+    if not smoother:
+        t_f, _, xs = time_ours(case, smoother=False)
+    k_fp = min(fp_steps, steps)
+    t_fp, xs_fp = time_filterpy(case, k_fp)
+    dx = float(np.max(np.abs(xs[:k_fp] - xs_fp)))
+    target = TARGETS.get((kind, N))
+    total = t_f + t_s if smoother else t_f
+    out(
+        f"{kind:>10} {N:>4} {case.n:>4} {t_f:>9.4f} {t_s:>9.4f} {total:>9.4f} {t_fp:>9.3f}"
+        f" {k_fp:>6} {t_fp / t_f:>7.1f} {dx:>9.1e} "
+        + ("" if target is None else f"{target:>6}  {'ok' if total <= target else 'MISSED'}")
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=STEPS_PER_LAP, help="steps timed for ours")
+    ap.add_argument("--fp-steps", type=int, default=200, help="steps timed for filterpy")
+    args = ap.parse_args()
+    print("s/lap = seconds per 1000 steps; BLAS pinned to 1 thread; model = DiscFEModel, L = 1")
+    print(f"filterpy timed on min(--fp-steps={args.fp_steps}, --steps) steps, scaled to 1000")
+    print(
+        "ratio = filterpy / ours (filter only); |dx| = max |ours - filterpy| of the filtered"
+        " means over the filterpy steps, degC"
+    )
+    print(
+        f"{'case':>10} {'N':>4} {'n':>4} {'ours_filt':>9} {'ours_smth':>9} {'ours_tot':>9}"
+        f" {'filterpy':>9} {'fp_stp':>6} {'ratio':>7} {'|dx|':>9} target"
+    )
+    with threadpool_limits(1):
+        for N in ESTIMATE_NODES:
+            row("estimate", N, args.steps, args.fp_steps, print)
+        row("identify-h", 51, args.steps, args.fp_steps, print)
+    print("estimate: ours_tot = filter + unscented RTS smoother; identify-h: filter only")
+
+
+if __name__ == "__main__":
+    main()

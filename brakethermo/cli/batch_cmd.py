@@ -1,0 +1,130 @@
+"""``brakethermo batch FOLDER --out OUT``: every session of a folder, reports on disk."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from brakethermo.cli._app import app, console
+from brakethermo.pipelines.batch import BatchOptions, BatchResult, SessionOutcome, run_batch
+
+STATUS_STYLE = {"ok": "green", "skipped": "cyan", "failed": "bold red"}
+
+
+def _table(result: BatchResult, out: Path) -> Table:
+    table = Table(title=f"batch: {len(result.outcomes)} sessions -> {out}", title_justify="left")
+    for col, justify in (
+        ("file", "left"),
+        ("kind", "left"),
+        ("laps", "right"),
+        ("status", "left"),
+        ("wall s", "right"),
+        ("peak S1..S4 °C", "right"),
+        ("h law", "left"),
+    ):
+        table.add_column(col, justify=justify)  # type: ignore[arg-type]
+    for o in result.outcomes:
+        peaks = " ".join(
+            f"{o.peaks[s]:.0f}" if s in o.peaks else "-"
+            for s in ("spot1", "spot2", "spot3", "spot4")
+        )
+        status = f"[{STATUS_STYLE.get(o.status, 'white')}]{o.status}[/]"
+        if o.status == "failed":
+            status += f": {o.reason}"
+        table.add_row(
+            o.name,
+            o.kind or "-",
+            str(o.laps) if o.laps else "-",
+            status,
+            f"{o.wall_s:.1f}" if o.status != "skipped" else "-",
+            peaks if o.peaks else "-",
+            o.h_law_source or "-",
+        )
+    return table
+
+
+@app.command("batch")
+def batch(
+    folder: Annotated[
+        Path, typer.Argument(help="Folder searched recursively for .mcap, .parquet, .csv sessions.")
+    ],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output root; one folder per session.")],
+    h_law: Annotated[
+        Path | None,
+        typer.Option(
+            "--h-law",
+            help="h law TOML for race (single-spot) sessions; default: the most recent "
+            "law identified in this batch, else the shipped default.",
+        ),
+    ] = None,
+    workers: Annotated[int, typer.Option(min=1, help="Local worker processes.")] = 1,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(help="Dask scheduler address (tcp://host:8786); also DASK_SCHEDULER_ADDRESS."),
+    ] = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Re-process sessions whose outputs are up to date.")
+    ] = False,
+    nodes: Annotated[int | None, typer.Option(min=3, help="Finite-element nodes.")] = None,
+    aliases: Annotated[Path | None, typer.Option(help="Channel alias TOML.")] = None,
+    mcap_out: Annotated[
+        bool,
+        typer.Option("--mcap-out", help="Also write OUT/<session>/estimate.mcap for Foxglove."),
+    ] = False,
+    no_reports: Annotated[
+        bool, typer.Option("--no-reports", help="Skip the per-lap HTML reports.")
+    ] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+) -> None:
+    """Estimate every session in FOLDER and write per-lap reports; failures are isolated."""
+    options = BatchOptions(
+        out=out,
+        h_law=h_law,
+        nodes=nodes,
+        aliases=aliases,
+        reports=not no_reports,
+        mcap_out=mcap_out,
+        workers=workers,
+        scheduler=scheduler,
+        force=force,
+    )
+    if as_json:
+        result = run_batch(folder, options)
+        print(json.dumps(result.to_json(), indent=2))
+    else:
+        progress = Progress(
+            TextColumn("[bold]{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[last]}"),
+            TimeElapsedColumn(),
+            console=console,
+        )
+        with progress:
+            files = progress.add_task("sessions", total=None, last="")
+            laps = progress.add_task("laps", total=None, last="")
+
+            def on_event(kind: str, payload: SessionOutcome | int) -> None:
+                if kind == "start":
+                    progress.update(files, total=int(payload))  # type: ignore[arg-type]
+                    return
+                assert isinstance(payload, SessionOutcome)
+                progress.update(files, advance=1, last=f"{payload.name}: {payload.status}")
+                task = progress.tasks[laps]
+                progress.update(laps, total=(task.total or 0) + payload.laps, advance=payload.laps)
+
+            result = run_batch(folder, options, on_event=on_event)
+        console.print(_table(result, out))
+        totals = result.timing_totals()
+        share = "  ".join(f"{k.removesuffix('_s')} {v:.1f} s" for k, v in totals.items())
+        console.print(f"wall time {result.wall_s:.1f} s" + (f"  ({share})" if share else ""))
+        console.print(f"open [bold]{out / '<session>' / 'index.html'}[/] for the lap reports")
+        for o in result.failed:
+            console.print(f"[bold red]failed:[/] {o.path}: {o.reason}", soft_wrap=True)
+    if result.exit_code:
+        raise typer.Exit(result.exit_code)

@@ -1,0 +1,113 @@
+"""``brakethermo inspect SESSION``: channels, units, rates, gaps and laps of a session."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.table import Table
+
+from brakethermo.cli._app import app, console
+from brakethermo.io import Session, load_session
+from brakethermo.io.aliases import resolve
+
+
+def summary(session: Session) -> dict[str, Any]:
+    """The machine-readable summary printed by ``inspect --json``."""
+    mapped = set(resolve(session.aliases, session.available).values())
+    return {
+        "path": str(session.path),
+        "channels": [
+            {
+                "name": c.name,
+                "source": c.source,
+                "unit": c.unit,
+                "si_unit": c.si_unit,
+                "rate_hz": round(c.rate_hz, 6),
+                "samples": c.samples,
+                "gaps": [[round(s, 6), round(d, 6)] for s, d in c.gaps],
+                "spikes": c.spikes,
+            }
+            for c in session.channels.values()
+        ],
+        "laps": [
+            {"lap": lap.lap, "start_s": round(lap.start_s, 6),
+             "duration_s": round(lap.duration_s, 6)}
+            for lap in session.laps
+        ],
+        "session": session.metadata,
+        "duration_s": float(session.time[-1]) if len(session.frame) else 0.0,
+        "grid_points": len(session.frame),
+        "start_epoch_s": session.start_epoch_s,
+        "unmapped": [n for n in session.available if n not in mapped],
+        "warnings": list(session.warnings),
+    }
+
+
+def _render(session: Session) -> None:
+    channels = Table(title=f"{session.path.name}: channels", title_justify="left")
+    channels.add_column("channel", no_wrap=True)
+    channels.add_column("source", overflow="fold")
+    channels.add_column("unit", no_wrap=True)
+    for col in ("rate Hz", "samples", "gaps", "spikes"):
+        channels.add_column(col, justify="right", no_wrap=True)
+    for c in session.channels.values():
+        gap_text = "-" if not c.gaps else f"{len(c.gaps)} ({sum(d for _, d in c.gaps):.1f} s)"
+        channels.add_row(c.name, c.source, c.unit, f"{c.rate_hz:.1f}", str(c.samples),
+                         gap_text, str(c.spikes))
+    console.print(channels)
+    info = summary(session)
+    if info["unmapped"]:
+        console.print("[dim]not mapped to a canonical channel:[/] " + ", ".join(info["unmapped"]))
+
+    laps = Table(title="laps", title_justify="left")
+    laps.add_column("lap", justify="right")
+    laps.add_column("start s", justify="right")
+    laps.add_column("lap time", justify="right")
+    for lap in session.laps:
+        minutes, seconds = divmod(lap.duration_s, 60.0)
+        label = "out-lap" if lap.lap == 0 else str(lap.lap)
+        laps.add_row(label, f"{lap.start_s:.2f}", f"{int(minutes)}:{seconds:06.3f}")
+    console.print(laps)
+
+    facts = Table(title="session", title_justify="left", show_header=False)
+    facts.add_column("key")
+    facts.add_column("value")
+    for key, value in session.metadata.items():
+        facts.add_row(key, str(value))
+    facts.add_row("duration", f"{info['duration_s']:.1f} s ({info['grid_points']} points at 10 Hz)")
+    if session.start_epoch_s is not None:
+        facts.add_row("start (epoch s)", f"{session.start_epoch_s:.3f}")
+    console.print(facts)
+    for warning in session.warnings:
+        console.print(f"[yellow]warning:[/] {warning}", highlight=False)
+
+
+@app.command("inspect")
+def inspect(
+    session_file: Annotated[
+        Path, typer.Argument(metavar="SESSION", help="MCAP, Parquet or CSV session file.")
+    ],
+    aliases: Annotated[
+        Path | None,
+        typer.Option("--aliases", help="Alias TOML merged over the shipped channel names."),
+    ] = None,
+    gap_limit: Annotated[
+        float, typer.Option("--gap-limit", help="Longest gap bridged by interpolation, s.")
+    ] = 1.0,
+    require: Annotated[
+        list[str] | None,
+        typer.Option("--require", metavar="CHANNEL",
+                     help="Fail unless this canonical channel is present (repeatable)."),
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead.")] = False,
+) -> None:
+    """Channels, units, rates, gaps and laps of a logged session."""
+    session = load_session(session_file, aliases=aliases, gap_limit_s=gap_limit)
+    session.require(*(require or ()))
+    if as_json:
+        typer.echo(json.dumps(summary(session)))
+    else:
+        _render(session)

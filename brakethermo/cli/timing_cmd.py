@@ -1,0 +1,69 @@
+"""``brakethermo timing-check SESSION``: per-lap estimate wall time against the race budget."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from brakethermo.cli._app import app, console
+from brakethermo.errors import BrakethermoError
+from brakethermo.pipelines.timing import TimingReport, time_laps
+
+
+def _table(report: TimingReport, name: str) -> Table:
+    table = Table(
+        title=f"{name}: estimate wall time per lap (budget {report.budget_per_lap_s:.1f} s/lap)",
+        title_justify="left",
+    )
+    for col in ("lap", "data s", "wall s", "share of budget"):
+        table.add_column(col, justify="right")
+    for t in report.laps:
+        share = t.wall_s / report.budget_per_lap_s
+        style = "bold red" if share > 1 else ("yellow" if share > 0.5 else "green")
+        table.add_row(str(t.lap), f"{t.data_s:.1f}", f"{t.wall_s:.3f}", f"[{style}]{share:.1%}[/]")
+    return table
+
+
+@app.command("timing-check")
+def timing_check(
+    session_path: Annotated[Path, typer.Argument(metavar="SESSION", help="Session file.")],
+    budget_s: Annotated[float, typer.Option(min=0.0, help="Budget for a whole race, s.")] = 300.0,
+    race_laps: Annotated[int, typer.Option(min=1, help="Laps in that race.")] = 25,
+    h_law: Annotated[Path | None, typer.Option("--h-law", help="h law TOML.")] = None,
+    nodes: Annotated[int | None, typer.Option(min=3, help="Finite-element nodes.")] = None,
+    aliases: Annotated[Path | None, typer.Option(help="Channel alias TOML.")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+) -> None:
+    """Estimate each lap on its own; fail (exit 1) if the slowest lap exceeds its budget."""
+    from brakethermo.io.load import load_session
+    from brakethermo.pipelines.estimate import EstimateOptions, estimate_from_session
+
+    session = load_session(session_path, aliases=aliases)
+    options = replace(EstimateOptions(h_law=h_law, nodes=nodes, aliases=aliases), score=False)
+    report = time_laps(session, lambda s: estimate_from_session(s, options), budget_s, race_laps)
+    if as_json:
+        print(json.dumps(report.to_json(), indent=2))
+    else:
+        console.print(_table(report, session_path.name))
+        console.print(
+            f"start-up {report.startup_s:.2f} s, total {report.total_s:.2f} s for "
+            f"{len(report.laps)} laps"
+        )
+    if not report.passed:
+        worst = report.worst
+        raise BrakethermoError(
+            f"lap {worst.lap} took {worst.wall_s:.2f} s to estimate, over the budget of "
+            f"{report.budget_per_lap_s:.2f} s/lap ({budget_s:g} s for {race_laps} laps);"
+            " use fewer --nodes or profile the filter",
+            path=session_path,
+        )
+    if not as_json:
+        console.print(
+            f"[green]ok:[/] worst lap {report.worst.lap} {report.worst.wall_s:.2f} s "
+            f"<= {report.budget_per_lap_s:.2f} s/lap"
+        )

@@ -1,0 +1,320 @@
+"""The forward filtering loop shared by the sigma-point and extended Kalman filters.
+
+A filter supplies two pieces: ``predict`` (eq. 32-37 for the UKF, 26-27 linearised for
+the EKF) returning the prior and the cross-covariance C_k = cov(x_k, x_{k+1}), and,
+for a nonlinear measurement, ``moments`` returning the predicted measurement, its
+covariance without R and the state-measurement cross-covariance (eq. 41-44). The
+update (eq. 45-47, or 28-31 for a linear H), NaN handling, gating, covariance repair,
+storage and the smoother's gains are common and live here.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.linalg import cho_factor, cho_solve
+from scipy.stats import chi2
+
+from brakethermo.errors import ConfigError
+from brakethermo.estimation.covariance import CovarianceGuard, symmetrise
+from brakethermo.estimation.results import FilterResult
+
+Array = NDArray[np.float64]
+Store = Literal["full", "smoother", "diag"]
+MatrixOrCallable = Array | Callable[[int], Array]
+STORES = ("full", "smoother", "diag")
+_LOG_2PI = math.log(2.0 * math.pi)
+# From this state size on, the smoother's gains are stored as float32 by default: for a
+# 25 000-step race at n = 30 (10 nodes x 3 layers) two float64 (K, n, n) stacks are
+# 360 MB, and first writes to fresh memory (page faults) cost as much as the arithmetic
+# on this class of machine; float32 halves both at ~1e-7 relative precision, far below
+# the temperature uncertainty.
+FLOAT32_STORE_N = 24
+MAX_STORE_BYTES = 4 * 2**30
+
+
+class Predictor(Protocol):
+    """x_{k+1}^-, P_{k+1}^-, C_k from the posterior (x_k, P_k = L L')."""
+
+    def __call__(self, x: Array, P: Array, L: Array, k: int) -> tuple[Array, Array, Array]: ...
+
+
+class Moments(Protocol):
+    """mu_k, S_k - R_k, C_xy from the prior (x_k^-, P_k^- = L L')."""
+
+    def __call__(self, x: Array, P: Array, L: Array, k: int) -> tuple[Array, Array, Array]: ...
+
+
+def as_provider(M: MatrixOrCallable, shape: tuple[int, ...], name: str) -> Callable[[int], Array]:
+    """Turn a constant matrix or a callable of the step into a callable of the step."""
+    if callable(M):
+        return M
+    A = np.array(M, dtype=np.float64)
+    if A.ndim == 0 and shape == (1, 1):
+        A = A.reshape(1, 1)
+    if A.shape != shape:
+        raise ConfigError(f"{name} must have shape {shape}, got {A.shape}")
+    if not np.all(np.isfinite(A)):
+        raise ConfigError(f"{name} holds non-finite values")
+    A.setflags(write=False)
+    return lambda k: A
+
+
+def check_prior(x0: Array, P0: Array, y: Array) -> tuple[Array, Array, Array]:
+    """Validate and normalise the initial prior and the measurement array."""
+    x0 = np.array(x0, dtype=np.float64).reshape(-1)
+    n = x0.shape[0]
+    P0 = np.array(P0, dtype=np.float64)
+    if P0.shape != (n, n):
+        raise ConfigError(f"P0 must have shape ({n}, {n}) to match x0, got {P0.shape}")
+    if not (np.all(np.isfinite(x0)) and np.all(np.isfinite(P0))):
+        raise ConfigError("x0 and P0 must be finite")
+    y = np.asarray(y, dtype=np.float64)
+    if y.ndim == 1:
+        y = y[:, None]
+    if y.ndim != 2 or y.shape[0] < 1:
+        raise ConfigError(f"measurements y must have shape (K, m) with K >= 1, got {y.shape}")
+    return x0, symmetrise(P0.copy()), y
+
+
+@dataclass
+class Buffers:
+    """Preallocated outputs of a forward pass; unused ones are empty arrays."""
+
+    x_pred: Array
+    x_filt: Array
+    var_pred: Array
+    var_filt: Array
+    P_pred: Array
+    P_filt: Array
+    cross: Array
+    G: Array
+    Sigma: Array
+    innovation: Array
+    innovation_var: Array
+    nis: Array
+    loglik: Array
+    n_obs: NDArray[np.int64]
+    rejected: NDArray[np.bool_]
+    M: Array
+    readout: Array
+    readout_var: Array
+    full: bool
+    gains: bool
+    store: str
+
+    def result(self, P_last: Array, repair_steps: list[int]) -> FilterResult:
+        """Freeze into a FilterResult; arrays not kept by ``store`` become None."""
+        has_ro = self.M.shape[0] > 0
+        return FilterResult(
+            x_pred=self.x_pred,
+            x_filt=self.x_filt,
+            var_pred=self.var_pred,
+            var_filt=self.var_filt,
+            P_pred=self.P_pred if self.full else None,
+            P_filt=self.P_filt if self.full else None,
+            cross=self.cross if self.full else None,
+            G=self.G if self.gains else None,
+            Sigma=self.Sigma if self.gains else None,
+            P_last=P_last.copy(),
+            innovation=self.innovation,
+            innovation_var=self.innovation_var,
+            nis=self.nis,
+            loglik=self.loglik,
+            n_obs=self.n_obs,
+            rejected=self.rejected,
+            readout=self.readout if has_ro else None,
+            readout_var=self.readout_var if has_ro else None,
+            n_repairs=len(repair_steps),
+            repair_steps=tuple(repair_steps),
+            store=self.store,
+        )
+
+
+def readout_matrix(readout: Array | None, n: int) -> Array:
+    """The readout matrix M (p, n); (0, n) when there is none."""
+    if readout is None:
+        return np.zeros((0, n))
+    M = np.ascontiguousarray(np.atleast_2d(np.asarray(readout, dtype=np.float64)))
+    if M.ndim != 2 or M.shape[1] != n:
+        raise ConfigError(f"readout matrix must have {n} columns, got shape {M.shape}")
+    return M
+
+
+def allocate(
+    K: int,
+    n: int,
+    m: int,
+    readout: Array | None,
+    store: Store,
+    store_dtype: type[np.floating] | np.dtype | None,
+) -> Buffers:
+    """Allocate the outputs for K steps; covariance stacks only as ``store`` needs."""
+    if store not in STORES:
+        raise ConfigError(f"store must be one of {STORES}, got {store!r}")
+    if store_dtype is None:
+        store_dtype = np.float64 if n < FLOAT32_STORE_N else np.float32
+    if np.dtype(store_dtype) not in (np.dtype(np.float64), np.dtype(np.float32)):
+        raise ConfigError(f"store_dtype must be float64 or float32, got {store_dtype}")
+    full = store == "full"
+    gains = store in ("full", "smoother")
+    stacks = (3 * 8 if full else 0) + (2 * np.dtype(store_dtype).itemsize if gains else 0)
+    need = stacks * K * n * n
+    if need > MAX_STORE_BYTES:
+        raise ConfigError(
+            f"store={store!r} would hold {need / 2**30:.1f} GiB of covariances for {K} steps "
+            f"at state size {n} (limit {MAX_STORE_BYTES / 2**30:.0f} GiB); use store='diag' "
+            "(filter only) or split the run"
+        )
+    nf, ng = (K, max(K - 1, 0)) if full else (0, 0)
+    ngain = max(K - 1, 0) if gains else 0
+    M = readout_matrix(readout, n)
+    p = M.shape[0]
+    return Buffers(
+        x_pred=np.empty((K, n)),
+        x_filt=np.empty((K, n)),
+        var_pred=np.empty((K, n)),
+        var_filt=np.empty((K, n)),
+        P_pred=np.empty((nf, n, n)),
+        P_filt=np.empty((nf, n, n)),
+        cross=np.empty((ng, n, n)),
+        G=np.empty((ngain, n, n), dtype=store_dtype),
+        Sigma=np.empty((ngain, n, n), dtype=store_dtype),
+        innovation=np.full((K, m), np.nan),
+        innovation_var=np.full((K, m), np.nan),
+        nis=np.full(K, np.nan),
+        loglik=np.zeros(K),
+        n_obs=np.zeros(K, dtype=np.int64),
+        rejected=np.zeros(K, dtype=bool),
+        M=M,
+        readout=np.empty((K if p else 0, p)),
+        readout_var=np.empty((K if p else 0, p)),
+        full=full,
+        gains=gains,
+        store=store,
+    )
+
+
+def gate_thresholds(gate: float | None, m: int) -> Array:
+    """Chi-square NIS thresholds indexed by the number of used components; 0 = no gate."""
+    thr = np.zeros(m + 1)
+    if gate is not None:
+        thr[1:] = chi2.ppf(gate, np.arange(1, m + 1))
+    return thr
+
+
+def run_forward(
+    predict: Predictor,
+    moments: Moments | None,
+    H_of: Callable[[int], Array] | None,
+    R_of: Callable[[int], Array],
+    x0: Array,
+    P0: Array,
+    y: Array,
+    *,
+    store: Store,
+    store_dtype: type[np.floating] | np.dtype | None,
+    readout: Array | None,
+    gate: float | None,
+    guard: CovarianceGuard,
+    needs_prior_factor: bool,
+) -> FilterResult:
+    """Run the filter over all steps; see the filter classes for the meaning of arguments."""
+    x0, P0, y = check_prior(x0, P0, y)
+    K, m = y.shape
+    n = x0.shape[0]
+    out = allocate(K, n, m, readout, store, store_dtype)
+    M, has_ro, full, gains = out.M, out.M.shape[0] > 0, out.full, out.gains
+    finite = np.isfinite(y)
+    all_obs = finite.all(axis=1)
+    any_obs = finite.any(axis=1)
+    thresholds = gate_thresholds(gate, m)
+    # the prior's factor is only needed by a sigma-point measurement update at step 0
+    x, P, L = x0, P0, None
+    if needs_prior_factor:
+        L, P = guard.cholesky(P0, 0)
+
+    for k in range(K):
+        out.x_pred[k] = x
+        out.var_pred[k] = np.diagonal(P)
+        if full:
+            out.P_pred[k] = P
+        if any_obs[k]:
+            R = R_of(k)
+            if moments is None:
+                H = H_of(k)
+                PHt = P @ H.T
+                mu, S0, Cxy = H @ x, H @ PHt, PHt
+            else:
+                mu, S0, Cxy = moments(x, P, L, k)
+            if all_obs[k]:
+                idx = None
+                yk = y[k]
+            else:
+                idx = np.flatnonzero(finite[k])
+                yk = y[k, idx]
+                mu, S0, Cxy, R = mu[idx], S0[np.ix_(idx, idx)], Cxy[:, idx], R[np.ix_(idx, idx)]
+            nu = yk - mu
+            S = S0 + R
+            mk = nu.shape[0]
+            if mk == 1:
+                s = S[0, 0]
+                if not s > 0.0:
+                    S = guard.repair(S, k)
+                    s = S[0, 0]
+                Kg = Cxy / s
+                nis_k = nu[0] * nu[0] / s
+                logdet = math.log(s)
+            else:
+                try:
+                    cf = cho_factor(S, lower=True, check_finite=False)
+                except np.linalg.LinAlgError:
+                    S = guard.repair(S, k)
+                    cf = cho_factor(S, lower=True, check_finite=False)
+                Kg = cho_solve(cf, Cxy.T, check_finite=False).T  # eq. 45, no inverse
+                nis_k = float(nu @ cho_solve(cf, nu, check_finite=False))
+                logdet = 2.0 * float(np.sum(np.log(np.diagonal(cf[0]))))
+            if idx is None:
+                out.innovation[k] = nu
+                out.innovation_var[k] = np.diagonal(S)
+            else:
+                out.innovation[k, idx] = nu
+                out.innovation_var[k, idx] = np.diagonal(S)
+            if thresholds[mk] > 0.0 and nis_k > thresholds[mk]:
+                out.rejected[k] = True
+            else:
+                x = x + Kg @ nu  # eq. 46
+                P = symmetrise(P - Kg @ Cxy.T)  # eq. 47, K S K' = K C_xy'
+                out.n_obs[k] = mk
+                out.nis[k] = nis_k
+                out.loglik[k] = -0.5 * (nis_k + logdet + mk * _LOG_2PI)
+        if k < K - 1:
+            L, P = guard.cholesky(P, k)  # the posterior as factored is the one stored
+        out.x_filt[k] = x
+        out.var_filt[k] = np.diagonal(P)
+        if full:
+            out.P_filt[k] = P
+        if has_ro:
+            out.readout[k] = M @ x
+            out.readout_var[k] = np.einsum("ij,jk,ik->i", M, P, M)
+        if k == K - 1:
+            break
+        x_next, P_next, C = predict(x, P, L, k)
+        P_next = symmetrise(P_next)
+        if full:
+            out.cross[k] = C
+        if gains or needs_prior_factor:
+            L_next, P_next = guard.cholesky(P_next, k + 1)
+        if gains:
+            G = cho_solve((L_next, True), C.T, check_finite=False).T  # G_k = C_k (P_{k+1}^-)^-1
+            out.G[k] = G
+            out.Sigma[k] = symmetrise(P - G @ C.T)  # P_k - G_k P_{k+1}^- G_k'
+        L = L_next if (gains or needs_prior_factor) else None
+        x, P = x_next, P_next
+
+    return out.result(P, guard.repair_steps)

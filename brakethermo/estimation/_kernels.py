@@ -1,0 +1,430 @@
+"""Numba kernels running everything of a UKF step except the model call.
+
+For small states (n up to a few tens) the per-step cost of a numpy UKF is Python and
+dispatch overhead, not arithmetic. These kernels do one whole step — unscented moments
+of the propagated sigma set (eq. 36-37), the smoother's gain, the linear measurement
+update (eq. 28-31), covariance repair and the next sigma set (eq. 32-34) — in one
+compiled call, so a step costs one model call plus one kernel call. They mirror
+``_forward.run_forward`` operation by operation; the tests hold the two paths equal.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_LOG_2PI = math.log(2.0 * math.pi)
+
+
+@njit(cache=True)
+def _symmetrise(P):
+    n = P.shape[0]
+    for i in range(n):
+        for j in range(i + 1, n):
+            v = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = v
+            P[j, i] = v
+
+
+@njit(cache=True)
+def _chol(P, L):
+    """Lower Cholesky factor into L; False if P is not (numerically) positive definite."""
+    n = P.shape[0]
+    for j in range(n):
+        s = P[j, j]
+        for p in range(j):
+            s -= L[j, p] * L[j, p]
+        if not s > 0.0:
+            return False
+        d = math.sqrt(s)
+        L[j, j] = d
+        for i in range(j + 1, n):
+            t = P[i, j]
+            for p in range(j):
+                t -= L[i, p] * L[j, p]
+            L[i, j] = t / d
+        for i in range(j):
+            L[i, j] = 0.0
+    return True
+
+
+@njit(cache=True)
+def _repair(P, abs_floor):
+    """Eigenvalue clipping in place, as CovarianceGuard.repair."""
+    n = P.shape[0]
+    for i in range(n):
+        for j in range(n):
+            if not math.isfinite(P[i, j]):
+                P[i, j] = 0.0
+    _symmetrise(P)
+    w, V = np.linalg.eigh(P)
+    floor = max(1e-12 * np.max(np.abs(w)), abs_floor)
+    for i in range(n):
+        w[i] = max(w[i], floor)
+    Pn = (V * w) @ V.T
+    P[:, :] = Pn
+    _symmetrise(P)
+
+
+@njit(cache=True)
+def _factor(P, L, k, abs_floor, repairs):
+    """Factor P, repairing (and counting in repairs[k]) if needed; P may be changed."""
+    if _chol(P, L):
+        return
+    repairs[k] += 1
+    _repair(P, abs_floor)
+    if _chol(P, L):
+        return
+    n = P.shape[0]
+    jitter = abs_floor + 1e-9 * np.max(np.diag(P))
+    for i in range(n):
+        P[i, i] += jitter
+    _chol(P, L)
+
+
+@njit(cache=True)
+def _update(
+    k, x, P, H, R, y, gate_thr, abs_floor, repairs, innov, innov_var, nis, loglik, n_obs, rejected
+):
+    """Linear measurement update with missing components (eq. 28-31), in place."""
+    n = x.shape[0]
+    m = y.shape[0]
+    idx = np.empty(m, dtype=np.int64)
+    mk = 0
+    for i in range(m):
+        if math.isfinite(y[i]):
+            idx[mk] = i
+            mk += 1
+    if mk == 0:
+        return
+    Cxy = np.empty((n, mk))
+    for i in range(n):
+        for a in range(mk):
+            r = idx[a]
+            t = 0.0
+            for j in range(n):
+                t += P[i, j] * H[r, j]
+            Cxy[i, a] = t
+    S = np.empty((mk, mk))
+    nu = np.empty(mk)
+    for a in range(mk):
+        r = idx[a]
+        t = y[r]
+        for j in range(n):
+            t -= H[r, j] * x[j]
+        nu[a] = t
+        for b in range(mk):
+            s = R[r, idx[b]]
+            for j in range(n):
+                s += H[r, j] * Cxy[j, b]
+            S[a, b] = s
+    Kg = np.empty((n, mk))
+    if mk == 1:
+        s = S[0, 0]
+        if not s > 0.0:
+            repairs[k] += 1
+            s = max(s, max(1e-12 * abs(s), abs_floor))
+            S[0, 0] = s
+        for i in range(n):
+            Kg[i, 0] = Cxy[i, 0] / s
+        nis_k = nu[0] * nu[0] / s
+        logdet = math.log(s)
+    else:
+        _symmetrise(S)
+        Ls = np.empty((mk, mk))
+        if not _chol(S, Ls):
+            repairs[k] += 1
+            _repair(S, abs_floor)
+            _chol(S, Ls)
+        logdet = 0.0
+        for a in range(mk):
+            logdet += 2.0 * math.log(Ls[a, a])
+        # K' = S^-1 Cxy' by two triangular solves, column by column of Cxy'
+        for i in range(n):
+            z = np.empty(mk)
+            for a in range(mk):
+                t = Cxy[i, a]
+                for b in range(a):
+                    t -= Ls[a, b] * z[b]
+                z[a] = t / Ls[a, a]
+            for a in range(mk - 1, -1, -1):
+                t = z[a]
+                for b in range(a + 1, mk):
+                    t -= Ls[b, a] * Kg[i, b]
+                Kg[i, a] = t / Ls[a, a]
+        z = np.empty(mk)
+        for a in range(mk):
+            t = nu[a]
+            for b in range(a):
+                t -= Ls[a, b] * z[b]
+            z[a] = t / Ls[a, a]
+        nis_k = 0.0
+        for a in range(mk):
+            nis_k += z[a] * z[a]
+    for a in range(mk):
+        innov[k, idx[a]] = nu[a]
+        innov_var[k, idx[a]] = S[a, a]
+    if gate_thr[mk] > 0.0 and nis_k > gate_thr[mk]:
+        rejected[k] = True
+        return
+    for i in range(n):
+        t = 0.0
+        for a in range(mk):
+            t += Kg[i, a] * nu[a]
+        x[i] += t
+    for i in range(n):
+        for j in range(i, n):
+            t = 0.0
+            for a in range(mk):
+                t += Kg[i, a] * Cxy[j, a]
+            # eq. 47 with K S K' = K C_xy'; symmetrised as in the numpy path
+            v = P[i, j] - 0.5 * (t + _dot_row(Kg, Cxy, j, i, mk))
+            P[i, j] = v
+            P[j, i] = v
+    n_obs[k] = mk
+    nis[k] = nis_k
+    loglik[k] = -0.5 * (nis_k + logdet + mk * _LOG_2PI)
+
+
+@njit(cache=True)
+def _dot_row(A, B, i, j, mk):
+    t = 0.0
+    for a in range(mk):
+        t += A[i, a] * B[j, a]
+    return t
+
+
+@njit(cache=True)
+def _sigma(x, L, c, X):
+    n = x.shape[0]
+    for i in range(n):
+        X[0, i] = x[i]
+    for j in range(n):
+        for i in range(n):
+            d = c * L[i, j]
+            X[1 + j, i] = x[i] + d
+            X[1 + n + j, i] = x[i] - d
+
+
+@njit(cache=True)
+def _record_posterior(k, x, P, x_filt, var_filt, P_filt_all, full, M, ro, ro_var):
+    n = x.shape[0]
+    for i in range(n):
+        x_filt[k, i] = x[i]
+        var_filt[k, i] = P[i, i]
+    if full:
+        P_filt_all[k] = P
+    for r in range(M.shape[0]):
+        t = 0.0
+        v = 0.0
+        for i in range(n):
+            t += M[r, i] * x[i]
+            mp = 0.0
+            for j in range(n):
+                mp += M[r, j] * P[j, i]
+            v += mp * M[r, i]
+        ro[k, r] = t
+        ro_var[k, r] = v
+
+
+@njit(cache=True)
+def ukf_first(
+    x,
+    P,
+    L,
+    X,
+    c,
+    H,
+    R,
+    y,
+    gate_thr,
+    abs_floor,
+    repairs,
+    last,
+    x_pred,
+    var_pred,
+    P_pred_all,
+    x_filt,
+    var_filt,
+    P_filt_all,
+    full,
+    M,
+    ro,
+    ro_var,
+    innov,
+    innov_var,
+    nis,
+    loglik,
+    n_obs,
+    rejected,
+):
+    """Step 0: record the prior, update with y[0], factor and draw the first sigma set."""
+    n = x.shape[0]
+    for i in range(n):
+        x_pred[0, i] = x[i]
+        var_pred[0, i] = P[i, i]
+    if full:
+        P_pred_all[0] = P
+    _update(
+        0,
+        x,
+        P,
+        H,
+        R,
+        y,
+        gate_thr,
+        abs_floor,
+        repairs,
+        innov,
+        innov_var,
+        nis,
+        loglik,
+        n_obs,
+        rejected,
+    )
+    if not last:
+        _factor(P, L, 0, abs_floor, repairs)
+        _sigma(x, L, c, X)
+    _record_posterior(0, x, P, x_filt, var_filt, P_filt_all, full, M, ro, ro_var)
+
+
+@njit(cache=True)
+def ukf_step(
+    k,
+    Xf,
+    x,
+    P,
+    L,
+    X,
+    Wm,
+    Wc,
+    c,
+    Q,
+    H,
+    R,
+    y,
+    gate_thr,
+    abs_floor,
+    repairs,
+    last,
+    x_pred,
+    var_pred,
+    P_pred_all,
+    x_filt,
+    var_filt,
+    P_filt_all,
+    cross,
+    G_all,
+    Sigma_all,
+    full,
+    gains,
+    M,
+    ro,
+    ro_var,
+    innov,
+    innov_var,
+    nis,
+    loglik,
+    n_obs,
+    rejected,
+):
+    """From the propagated sigma set Xf = f(X, k): prior of step k+1, gains, update, next set."""
+    n = x.shape[0]
+    kp = k + 1
+    xp = Wm @ Xf  # eq. 36
+    D = Xf - xp
+    Pp = (D.T * Wc) @ D + Q  # eq. 37
+    _symmetrise(Pp)
+    # C_k = L (D+ - D-) / (2c): the sigma deviations are +-c L_j, weights 1/(2c^2)
+    C = L @ ((D[1 : n + 1] - D[n + 1 :]) * (0.5 / c))
+    if full:
+        cross[k] = C
+    if gains:
+        Lp = np.empty((n, n))
+        _factor(Pp, Lp, kp, abs_floor, repairs)
+        # G' = (Lp Lp')^-1 C' by forward then backward substitution, rows contiguous
+        Gt = np.ascontiguousarray(C.T)
+        for a in range(n):
+            for b in range(a):
+                lab = Lp[a, b]
+                for col in range(n):
+                    Gt[a, col] -= lab * Gt[b, col]
+            inv = 1.0 / Lp[a, a]
+            for col in range(n):
+                Gt[a, col] *= inv
+        for a in range(n - 1, -1, -1):
+            for b in range(a + 1, n):
+                lba = Lp[b, a]
+                for col in range(n):
+                    Gt[a, col] -= lba * Gt[b, col]
+            inv = 1.0 / Lp[a, a]
+            for col in range(n):
+                Gt[a, col] *= inv
+        CG = C @ Gt  # (G C')'
+        for i in range(n):
+            for j in range(i, n):
+                v = P[i, j] - 0.5 * (CG[i, j] + CG[j, i])
+                Sigma_all[k, i, j] = v
+                Sigma_all[k, j, i] = v
+        G_all[k] = Gt.T
+    for i in range(n):
+        x[i] = xp[i]
+        x_pred[kp, i] = xp[i]
+        var_pred[kp, i] = Pp[i, i]
+    P[:, :] = Pp
+    if full:
+        P_pred_all[kp] = P
+    _update(
+        kp,
+        x,
+        P,
+        H,
+        R,
+        y,
+        gate_thr,
+        abs_floor,
+        repairs,
+        innov,
+        innov_var,
+        nis,
+        loglik,
+        n_obs,
+        rejected,
+    )
+    if not last:
+        _factor(P, L, kp, abs_floor, repairs)
+        _sigma(x, L, c, X)
+    _record_posterior(kp, x, P, x_filt, var_filt, P_filt_all, full, M, ro, ro_var)
+
+
+@njit(cache=True)
+def rts_backward(x_filt, x_pred, G_all, Sigma_all, P_last, x_s, var_s, P_all, full, M, ro, ro_var):
+    """Backward RTS recursion with stored gains (see urts.py), in place into the outputs."""
+    K, n = x_filt.shape
+    xs = x_filt[K - 1].copy()
+    Ps = P_last.copy()
+    d = np.empty(n)
+    for k in range(K - 1, -1, -1):
+        if k < K - 1:
+            for i in range(n):
+                d[i] = xs[i] - x_pred[k + 1, i]
+            for i in range(n):
+                t = x_filt[k, i]
+                for j in range(n):
+                    t += G_all[k, i, j] * d[j]
+                xs[i] = t
+            G = G_all[k].astype(np.float64)
+            GPG = (G @ Ps) @ G.T
+            for i in range(n):
+                for j in range(i, n):
+                    v = 0.5 * (Sigma_all[k, i, j] + Sigma_all[k, j, i] + GPG[i, j] + GPG[j, i])
+                    Ps[i, j] = v
+                    Ps[j, i] = v
+        for i in range(n):
+            x_s[k, i] = xs[i]
+            var_s[k, i] = Ps[i, i]
+        if full:
+            P_all[k] = Ps
+        _record_posterior(k, xs, Ps, x_s, var_s, P_all, False, M, ro, ro_var)

@@ -1,0 +1,108 @@
+"""Linear Kalman filter and exact RTS smoother, written out plainly (paper eq. 26-31).
+
+A reference for the sigma-point machinery: it shares no code with it, so agreement
+between the two on linear models is an independent check.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from brakethermo.errors import ConfigError
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class LinearFilterResult:
+    """Means and full covariances of a linear Kalman filter pass (K steps).
+
+    Attributes
+    ----------
+    x_pred, x_filt : ndarray (K, n) — prior / posterior means.
+    P_pred, P_filt : ndarray (K, n, n) — prior / posterior covariances.
+    loglik : ndarray (K,) — log-likelihood of each step's used measurements.
+    """
+
+    x_pred: Array
+    x_filt: Array
+    P_pred: Array
+    P_filt: Array
+    loglik: Array
+
+
+def kalman_filter(
+    A: Array,
+    Q: Array,
+    H: Array,
+    R: Array,
+    x0: Array,
+    P0: Array,
+    y: Array,
+    b: Array | None = None,
+) -> LinearFilterResult:
+    """Linear KF for x_{k+1} = A x_k + b_k + q_k, y_k = H x_k + r_k.
+
+    Parameters
+    ----------
+    A : ndarray (n, n) — transition matrix.
+    Q : ndarray (n, n) — process-noise covariance.
+    H : ndarray (m, n) — measurement matrix.
+    R : ndarray (m, m) — measurement-noise covariance.
+    x0, P0 : ndarray (n,), (n, n) — prior at step 0 (before y[0]).
+    y : ndarray (K, m) — measurements, NaN = missing component.
+    b : ndarray (K, n), optional — known input added to step k -> k+1.
+
+    Returns
+    -------
+    LinearFilterResult
+    """
+    y = np.asarray(y, dtype=np.float64)
+    if y.ndim == 1:
+        y = y[:, None]
+    K, n = y.shape[0], A.shape[0]
+    if b is not None and b.shape != (K, n):
+        raise ConfigError(f"input b must have shape ({K}, {n}), got {b.shape}")
+    x_pred, x_filt = np.empty((K, n)), np.empty((K, n))
+    P_pred, P_filt = np.empty((K, n, n)), np.empty((K, n, n))
+    loglik = np.zeros(K)
+    x, P = np.array(x0, dtype=np.float64), np.array(P0, dtype=np.float64)
+    for k in range(K):
+        if k > 0:
+            x = A @ x + (0.0 if b is None else b[k - 1])  # eq. 26
+            P = A @ P @ A.T + Q  # eq. 27
+        x_pred[k], P_pred[k] = x, P
+        i = np.isfinite(y[k])
+        if i.any():
+            Hk, Rk = H[i], R[np.ix_(i, i)]
+            S = Hk @ P @ Hk.T + Rk  # eq. 28
+            Kg = np.linalg.solve(S, Hk @ P).T  # eq. 29 (S and P symmetric)
+            nu = y[k, i] - Hk @ x
+            x = x + Kg @ nu  # eq. 30
+            P = P - Kg @ S @ Kg.T  # eq. 31
+            P = 0.5 * (P + P.T)
+            _, logdet = np.linalg.slogdet(2.0 * np.pi * S)
+            loglik[k] = -0.5 * (nu @ np.linalg.solve(S, nu) + logdet)
+        x_filt[k], P_filt[k] = x, P
+    return LinearFilterResult(x_pred, x_filt, P_pred, P_filt, loglik)
+
+
+def rts_smoother(A: Array, result: LinearFilterResult) -> tuple[Array, Array]:
+    """Exact Rauch-Tung-Striebel smoother for the linear model of :func:`kalman_filter`.
+
+    Returns
+    -------
+    x_smooth : ndarray (K, n)
+    P_smooth : ndarray (K, n, n)
+    """
+    x_s, P_s = result.x_filt.copy(), result.P_filt.copy()
+    for k in range(x_s.shape[0] - 2, -1, -1):
+        Pp = result.P_pred[k + 1]
+        G = np.linalg.solve(Pp, A @ result.P_filt[k]).T  # P_k A' (P_{k+1}^-)^-1
+        x_s[k] = result.x_filt[k] + G @ (x_s[k + 1] - result.x_pred[k + 1])
+        P_s[k] = result.P_filt[k] + G @ (P_s[k + 1] - Pp) @ G.T
+        P_s[k] = 0.5 * (P_s[k] + P_s[k].T)
+    return x_s, P_s

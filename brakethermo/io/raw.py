@@ -1,0 +1,84 @@
+"""The native-rate channel table every reader returns, before aliases, units and resampling."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+# Timestamps above this many nanoseconds (about 3 years) are absolute epoch times.
+EPOCH_THRESHOLD_NS = 1.0e17
+EPOCH_THRESHOLD_S = EPOCH_THRESHOLD_NS * 1e-9
+
+
+@dataclass(frozen=True)
+class RawChannel:
+    """One channel as stored in the file.
+
+    Attributes
+    ----------
+    name : str
+        Source name (topic, ``topic.field`` or column).
+    t : ndarray
+        Sample times, s from the session start (the earliest sample of any channel);
+        not necessarily sorted.
+    v : ndarray
+        Samples in the file's unit (float64).
+    unit : str or None
+        Unit string from the file, ``None`` when the file gives none.
+    """
+
+    name: str
+    t: np.ndarray
+    v: np.ndarray
+    unit: str | None = None
+
+
+@dataclass(frozen=True)
+class RawSession:
+    """Everything a reader extracted from one file, at native rates."""
+
+    path: Path
+    channels: tuple[RawChannel, ...]
+    metadata: dict[str, str] = field(default_factory=dict)
+    start_epoch_s: float | None = None
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Source names of all channels, in file order."""
+        return tuple(c.name for c in self.channels)
+
+    @property
+    def end_s(self) -> float:
+        """Time of the last sample of any channel, s."""
+        ends = [float(c.t.max()) for c in self.channels if c.t.size]
+        return max(ends, default=0.0)
+
+
+def rebase_ns(times_ns: list[np.ndarray]) -> tuple[list[np.ndarray], float | None]:
+    """Shift integer nanosecond timestamps so the earliest of all is 0 and convert to s.
+
+    Returns
+    -------
+    times_s : list of ndarray
+        Float64 seconds from the earliest timestamp.
+    start_epoch_s : float or None
+        The earliest timestamp as epoch seconds, when the timestamps are absolute.
+    """
+    starts = [int(t.min()) for t in times_ns if t.size]
+    if not starts:
+        return [np.asarray(t, dtype=np.float64) for t in times_ns], None
+    t0 = min(starts)
+    out = [(t.astype(np.int64) - np.int64(t0)).astype(np.float64) * 1e-9 for t in times_ns]
+    return out, (t0 * 1e-9 if t0 > EPOCH_THRESHOLD_NS else None)
+
+
+def rebase_s(times_s: list[np.ndarray]) -> tuple[list[np.ndarray], float | None]:
+    """Float-seconds counterpart of :func:`rebase_ns`."""
+    starts = [float(np.nanmin(t)) for t in times_s if t.size]
+    if not starts:
+        return list(times_s), None
+    t0 = min(starts)
+    return [t - t0 for t in times_s], (t0 if t0 > EPOCH_THRESHOLD_S else None)

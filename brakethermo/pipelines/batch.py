@@ -1,0 +1,706 @@
+"""``batch``: every session of a folder to estimates, per-lap reports and (optionally) MCAP.
+
+The unit of work is one session (:func:`process_session`); the same function runs
+in-process, in local worker processes or on a Dask distributed cluster. Multi-spot
+(test) sessions are identified and estimated first, so single-spot (race) sessions can
+be estimated with the most recent h law identified in the same batch.
+
+Each session's outputs go to ``OUT/<name>/`` through :func:`atomic_dir`: a failure or
+an interruption leaves the previous outputs as they were. A manifest in that directory
+(hash of the input bytes, of the options and the package version) lets a re-run skip
+sessions whose outputs are up to date.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing
+import os
+import shutil
+import time
+import traceback
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Literal, Protocol
+
+import numpy as np
+import pandas as pd
+
+from brakethermo import __version__
+from brakethermo.errors import EXIT_BATCH_PARTIAL, EXIT_OK, BrakethermoError, ConfigError
+from brakethermo.io.atomic import atomic_dir, write_text_atomic
+from brakethermo.io.session import Session
+from brakethermo.thermal.disc import DiscSpec
+
+SESSION_SUFFIXES = (".mcap", ".parquet", ".csv")
+TRUTH_SUFFIX = ".truth.parquet"  # simulator truth: for scoring only, never an input
+MANIFEST = "batch_manifest.json"
+MULTI_SPOT = tuple(f"disc_temp_spot{i}" for i in range(1, 5))
+DEFAULT_LAW = "default (shipped)"
+SCHEDULER_TIMEOUT_S = 10.0  # connecting to a Dask scheduler
+
+Status = Literal["ok", "skipped", "failed", "deferred"]
+Kind = Literal["multi", "single"]
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """What a batch run does; only :meth:`output_key` fields change the outputs.
+
+    Attributes
+    ----------
+    out : Path
+        Output root; each session writes ``out/<name>/``.
+    h_law : Path or None
+        h law TOML for single-spot sessions; None means the most recent law
+        identified in this batch, else the shipped default.
+    nodes : int or None
+        Finite-element nodes of the estimate (the pipeline's default when None).
+    aliases : Path or None
+        User alias table for the readers.
+    reports : bool
+        Write the per-lap reports.
+    mcap_out : bool
+        Write ``estimate.mcap`` beside the estimate.
+    workers : int
+        Local worker processes (1 runs in this process).
+    scheduler : str or None
+        Dask scheduler address (``tcp://host:8786``); overrides ``workers``.
+    force : bool
+        Re-process sessions whose outputs are up to date.
+    """
+
+    out: Path
+    h_law: Path | None = None
+    nodes: int | None = None
+    aliases: Path | None = None
+    reports: bool = True
+    mcap_out: bool = False
+    workers: int = 1
+    scheduler: str | None = None
+    force: bool = False
+
+    def output_key(self) -> str:
+        """Hash of everything in the options that changes a session's outputs."""
+        aliases = file_sha256(self.aliases) if self.aliases is not None else None
+        key = {
+            "nodes": self.nodes,
+            "aliases": aliases,
+            "reports": self.reports,
+            "mcap_out": self.mcap_out,
+        }
+        return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
+
+
+@dataclass(frozen=True)
+class RunOutput:
+    """What the science of one session produced (written into the staging directory).
+
+    Attributes
+    ----------
+    frame : DataFrame
+        Estimate frame of OUTPUTS.md.
+    node_radii : ndarray — m
+    h_law : Path or None
+        The ``h_law.toml`` identified from this session (multi-spot only), in the stage.
+    timings : dict of str to float — s
+        Wall time of the steps, e.g. ``identify_s``, ``estimate_s``, ``write_s``.
+    disc : DiscSpec or None
+        The datasheet the session was processed with (the session's ``disc`` fact or
+        the default disc when None).
+    """
+
+    frame: pd.DataFrame
+    node_radii: np.ndarray
+    h_law: Path | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+    disc: DiscSpec | None = None
+
+
+class SessionRunner(Protocol):
+    """The science of a batch: load a session; identify and/or estimate it."""
+
+    def load(self, path: Path, options: BatchOptions) -> Session:
+        """Read a session file."""
+        ...
+
+    def run(
+        self, session: Session, stage: Path, options: BatchOptions, h_law: Path | None
+    ) -> RunOutput:
+        """Identify (multi-spot) and estimate ``session``, writing outputs into ``stage``.
+
+        ``h_law`` is the law to estimate a single-spot session with (None: default).
+        """
+        ...
+
+
+@dataclass(frozen=True)
+class SessionTask:
+    """One session to process.
+
+    Attributes
+    ----------
+    path : Path
+        Session file.
+    name : str
+        Output directory name under ``options.out``.
+    options : BatchOptions
+    input_sha256 : str
+        Hash of the file's bytes (for the manifest).
+    h_law : Path or None
+        Law for a single-spot session; None means the shipped default.
+    h_law_source : str
+        Where that law comes from, for the table (``given``, ``identified: <name>``,
+        ``default (shipped)``).
+    defer_single : bool
+        Return a single-spot session unprocessed (status ``deferred``, loaded session
+        attached) because its h law is not known yet.
+    session : Session or None
+        Already loaded session (a deferred one), to avoid reading the file again.
+    """
+
+    path: Path
+    name: str
+    options: BatchOptions
+    input_sha256: str
+    h_law: Path | None = None
+    h_law_source: str = DEFAULT_LAW
+    defer_single: bool = False
+    session: Session | None = None
+
+
+@dataclass
+class SessionOutcome:
+    """What happened to one session.
+
+    Attributes
+    ----------
+    path : Path
+    name : str
+    status : {"ok", "skipped", "failed", "deferred"}
+    kind : {"multi", "single"} or None
+        None when the file could not be read.
+    laps : int
+    wall_s : float — s
+    peaks : dict of str to float — degC
+        Peak estimated temperature per spot over the session.
+    reason : str
+        Why it failed (or why it was skipped).
+    h_law_source : str
+        The h law a single-spot session was estimated with; for a multi-spot one,
+        ``identified``.
+    h_law_file : str or None
+        Path of the law identified from this session (multi-spot).
+    session_date : str
+        The session's ``date`` fact, to find the most recent identified law.
+    timings : dict of str to float — s
+        ``read_s``, ``identify_s``, ``estimate_s``, ``report_s``, ``mcap_s``...
+    session : Session or None
+        The loaded session of a deferred outcome.
+    """
+
+    path: Path
+    name: str
+    status: Status
+    kind: Kind | None = None
+    laps: int = 0
+    wall_s: float = 0.0
+    peaks: dict[str, float] = field(default_factory=dict)
+    reason: str = ""
+    h_law_source: str = ""
+    h_law_file: str | None = None
+    session_date: str = ""
+    timings: dict[str, float] = field(default_factory=dict)
+    session: Session | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-able record (without the session)."""
+        return {
+            "file": str(self.path),
+            "name": self.name,
+            "status": self.status,
+            "kind": self.kind,
+            "laps": self.laps,
+            "wall_s": round(self.wall_s, 3),
+            "peaks_c": {k: round(v, 1) for k, v in self.peaks.items()},
+            "reason": self.reason,
+            "h_law": self.h_law_source,
+            "timings_s": {k: round(v, 3) for k, v in self.timings.items()},
+        }
+
+
+@dataclass
+class BatchResult:
+    """Outcome of :func:`run_batch`, one entry per session file in discovery order."""
+
+    outcomes: list[SessionOutcome]
+    wall_s: float
+
+    @property
+    def failed(self) -> list[SessionOutcome]:
+        """The sessions that failed."""
+        return [o for o in self.outcomes if o.status == "failed"]
+
+    @property
+    def exit_code(self) -> int:
+        """0, or 3 when any session failed (OUTPUTS.md)."""
+        return EXIT_BATCH_PARTIAL if self.failed else EXIT_OK
+
+    def timing_totals(self) -> dict[str, float]:
+        """Sum of each step's wall time over the processed sessions, s."""
+        totals: dict[str, float] = {}
+        for o in self.outcomes:
+            for k, v in o.timings.items():
+                totals[k] = totals.get(k, 0.0) + v
+        return totals
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-able summary of the run."""
+        return {
+            "wall_s": round(self.wall_s, 3),
+            "exit_code": self.exit_code,
+            "timings_s": {k: round(v, 3) for k, v in self.timing_totals().items()},
+            "sessions": [o.to_json() for o in self.outcomes],
+        }
+
+
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with Path(path).open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def discover_sessions(folder: str | Path, exclude: Iterable[Path] = ()) -> list[Path]:
+    """Session files under ``folder``, recursively, sorted.
+
+    MCAP, Parquet and CSV files (extension case-insensitive); simulator truth files
+    (``*.truth.parquet``), hidden files and directories, and anything under
+    ``exclude`` (the output root when it lies inside the folder) are left out.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ConfigError("is not a folder; give the folder holding the session files", path=folder)
+    excluded = [Path(e).resolve() for e in exclude]
+    found = []
+    for path in folder.rglob("*"):
+        rel = path.relative_to(folder)
+        if any(part.startswith(".") for part in rel.parts):
+            continue
+        if path.suffix.lower() not in SESSION_SUFFIXES or path.name.lower().endswith(TRUTH_SUFFIX):
+            continue
+        resolved = path.resolve()
+        if any(resolved.is_relative_to(e) for e in excluded) or not path.is_file():
+            continue
+        found.append(path)
+    return sorted(found)
+
+
+def output_names(files: list[Path], folder: Path) -> list[str]:
+    """Output directory name of each file: its stem, made unique when stems collide.
+
+    Colliding files are named after their path inside the folder, parts joined
+    by ``__`` (and the extension appended if that still collides).
+    """
+    stems = [f.stem for f in files]
+    names = []
+    for f, stem in zip(files, stems, strict=True):
+        if stems.count(stem) == 1:
+            names.append(stem)
+            continue
+        rel = f.relative_to(folder)
+        names.append("__".join((*rel.parent.parts, stem)))
+    for i, name in enumerate(names):
+        if names.count(name) > 1:
+            names[i] = f"{name}_{files[i].suffix.lstrip('.').lower()}"
+    return names
+
+
+def is_multi_spot(session: Session) -> bool:
+    """Whether a session carries the four-spot sensor (a test session)."""
+    return all(session.has(c) for c in MULTI_SPOT)
+
+
+def read_manifest(out_dir: Path) -> dict[str, Any] | None:
+    """The batch manifest of a session's output directory, or None."""
+    try:
+        return json.loads((out_dir / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _peaks(frame: pd.DataFrame) -> dict[str, float]:
+    return {
+        s: float(np.nanmax(frame[s].to_numpy(dtype=float)))
+        for s in ("spot1", "spot2", "spot3", "spot4", "contact_avg")
+        if s in frame and np.isfinite(frame[s].to_numpy(dtype=float)).any()
+    }
+
+
+def _reason(exc: BaseException) -> str:
+    if isinstance(exc, BrakethermoError):
+        return str(exc)
+    where = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+    at = f" (at {Path(where.filename).name}:{where.lineno})" if where else ""
+    return f"internal error {type(exc).__name__}: {exc}{at}"
+
+
+def process_session(task: SessionTask, runner: SessionRunner | None = None) -> SessionOutcome:
+    """Process one session into ``options.out/<name>/``, never raising.
+
+    Loads the session (unless the task carries it), identifies and estimates it
+    through ``runner``, writes the per-lap reports, the MCAP export if asked, and the
+    manifest last; everything in a staging directory that replaces the old output
+    directory only when complete.
+
+    Parameters
+    ----------
+    task : SessionTask
+    runner : SessionRunner, optional
+        The science; :class:`PipelineRunner` (the project's pipelines) by default.
+    """
+    runner = runner or PipelineRunner()
+    t0 = time.perf_counter()
+    outcome = SessionOutcome(path=task.path, name=task.name, status="failed")
+    try:
+        session = task.session
+        if session is None:
+            session = runner.load(task.path, task.options)
+        outcome.timings["read_s"] = time.perf_counter() - t0
+        outcome.kind = "multi" if is_multi_spot(session) else "single"
+        outcome.session_date = str(session.metadata.get("date", ""))
+        if outcome.kind == "single" and task.defer_single:
+            outcome.status, outcome.session = "deferred", session
+            outcome.wall_s = time.perf_counter() - t0
+            return outcome
+        _write_outputs(task, session, runner, outcome)
+        outcome.status = "ok"
+    except Exception as exc:  # one bad file never stops the batch
+        outcome.status, outcome.reason = "failed", _reason(exc)
+    outcome.wall_s = time.perf_counter() - t0
+    return outcome
+
+
+def _write_outputs(
+    task: SessionTask, session: Session, runner: SessionRunner, outcome: SessionOutcome
+) -> None:
+    from brakethermo.report.lap_report import write_session_report
+    from brakethermo.report.mcap_export import write_estimate_mcap
+
+    target = task.options.out / task.name
+    single = outcome.kind == "single"
+    with atomic_dir(target) as stage:
+        run = runner.run(session, stage, task.options, task.h_law if single else None)
+        outcome.timings.update(run.timings)
+        if task.options.reports:
+            t = time.perf_counter()
+            write_session_report(
+                run.frame, session, stage, node_radii=run.node_radii, disc=run.disc
+            )
+            outcome.timings["report_s"] = time.perf_counter() - t
+        if task.options.mcap_out:
+            t = time.perf_counter()
+            write_estimate_mcap(
+                run.frame,
+                stage / "estimate.mcap",
+                node_radii=run.node_radii,
+                **({"spot_radii": run.disc.spot_radii} if run.disc is not None else {}),
+                start_epoch_s=session.start_epoch_s,
+                source=task.path.name,
+            )
+            outcome.timings["mcap_s"] = time.perf_counter() - t
+        outcome.laps = int(pd.unique(run.frame["lap"]).size)
+        outcome.peaks = _peaks(run.frame)
+        if single:
+            outcome.h_law_source = task.h_law_source
+            law_sha = file_sha256(task.h_law) if task.h_law is not None else DEFAULT_LAW
+        else:
+            outcome.h_law_source = "identified"
+            law_sha = file_sha256(run.h_law) if run.h_law is not None else None
+            if run.h_law is not None:
+                outcome.h_law_file = str(target / run.h_law.relative_to(stage))
+        manifest = {
+            "input": str(task.path),
+            "input_sha256": task.input_sha256,
+            "options_key": task.options.output_key(),
+            "version": __version__,
+            "kind": outcome.kind,
+            "h_law_sha256": law_sha,
+            "h_law_source": outcome.h_law_source,
+            "h_law_file": outcome.h_law_file,
+            "session_date": outcome.session_date,
+            "laps": outcome.laps,
+            "peaks_c": outcome.peaks,
+        }
+        write_text_atomic(stage / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+
+
+class PipelineRunner:
+    """The project's pipelines: ``identify-h`` then ``estimate`` (multi-spot), ``estimate``."""
+
+    def load(self, path: Path, options: BatchOptions) -> Session:
+        """Read ``path`` with the project's readers."""
+        from brakethermo.io.load import load_session
+
+        return load_session(path, aliases=options.aliases)
+
+    def run(
+        self, session: Session, stage: Path, options: BatchOptions, h_law: Path | None
+    ) -> RunOutput:
+        """Identify (multi-spot) and estimate, writing the pipelines' outputs into ``stage``."""
+        from brakethermo.pipelines.estimate import (
+            EstimateOptions,
+            disc_of,
+            estimate_from_session,
+            write_estimate,
+        )
+
+        timings: dict[str, float] = {}
+        law_out = None
+        if is_multi_spot(session):
+            from brakethermo.pipelines.identify_h import (
+                IdentifyOptions,
+                identify_from_session,
+                write_identify,
+            )
+
+            t = time.perf_counter()
+            ident = identify_from_session(session, IdentifyOptions(aliases=options.aliases))
+            timings["identify_s"] = time.perf_counter() - t
+            t = time.perf_counter()
+            _flatten(write_identify(ident, stage), stage)
+            timings["write_s"] = time.perf_counter() - t
+            law_out = stage / "h_law.toml"
+            h_law = law_out
+        t = time.perf_counter()
+        estimate_options = EstimateOptions(h_law=h_law, nodes=options.nodes, aliases=options.aliases)
+        result = estimate_from_session(session, estimate_options)
+        timings["estimate_s"] = time.perf_counter() - t
+        for step in ("filter_s", "smoother_s", "scoring_s"):
+            if step in result.timings:
+                timings[f"estimate_{step}"] = result.timings[step]
+        t = time.perf_counter()
+        _flatten(write_estimate(result, stage), stage)
+        timings["write_s"] = timings.get("write_s", 0.0) + time.perf_counter() - t
+        return RunOutput(result.frame, np.asarray(result.node_radii), law_out, timings,
+                         disc=disc_of(result))
+
+
+def _flatten(written: Path, stage: Path) -> None:
+    """Move what a pipeline writer put in ``stage/<stem>/`` up into ``stage``."""
+    sub = Path(written)
+    if sub.is_file():
+        sub = sub.parent
+    if sub.resolve() == stage.resolve() or not sub.is_dir():
+        return
+    for item in sub.iterdir():
+        os.replace(item, stage / item.name)
+    shutil.rmtree(sub, ignore_errors=True)
+
+
+# ----------------------------------------------------------------------------- orchestration
+
+Job = Callable[[SessionTask], SessionOutcome]
+Event = Callable[[str, SessionOutcome | int], None]
+
+
+@contextmanager
+def _executor(options: BatchOptions) -> Iterator[Executor | None]:
+    """The executor the options ask for; None means run in this process."""
+    address = options.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
+    if address:
+        from distributed import Client
+
+        try:
+            client = Client(address, timeout=f"{SCHEDULER_TIMEOUT_S}s")
+        except (OSError, TimeoutError) as exc:
+            raise ConfigError(
+                f"cannot reach the Dask scheduler at {address} ({exc}); check the address"
+                " or run without --scheduler"
+            ) from None
+        try:
+            yield client.get_executor(pure=False)
+        finally:
+            client.close()
+    elif options.workers > 1:
+        ctx = multiprocessing.get_context("spawn")  # no fork of a threaded parent
+        with ProcessPoolExecutor(max_workers=options.workers, mp_context=ctx) as pool:
+            yield pool
+    else:
+        yield None
+
+
+def _run_tasks(
+    tasks: list[SessionTask], executor: Executor | None, job: Job, on_event: Event | None
+) -> list[SessionOutcome]:
+    outcomes: list[SessionOutcome] = []
+
+    def finished(outcome: SessionOutcome) -> None:
+        outcomes.append(outcome)
+        if on_event is not None and outcome.status != "deferred":
+            on_event("done", outcome)
+
+    if executor is None:
+        for task in tasks:
+            finished(job(task))
+        return outcomes
+    futures: dict[Future, SessionTask] = {executor.submit(job, t): t for t in tasks}
+    for fut in as_completed(futures):
+        task = futures[fut]
+        try:
+            outcome = fut.result()
+        except Exception as exc:  # a worker died; the session is lost, not the batch
+            outcome = SessionOutcome(task.path, task.name, "failed", reason=_reason(exc))
+        finished(outcome)
+    return outcomes
+
+
+def _up_to_date(manifest: dict[str, Any] | None, sha: str, key: str) -> bool:
+    return (
+        manifest is not None
+        and manifest.get("input_sha256") == sha
+        and manifest.get("options_key") == key
+        and manifest.get("version") == __version__
+    )
+
+
+def _skipped(path: Path, name: str, manifest: dict[str, Any], out: Path) -> SessionOutcome:
+    law_file = out / name / "h_law.toml" if manifest.get("kind") == "multi" else None
+    return SessionOutcome(
+        path=path,
+        name=name,
+        status="skipped",
+        kind=manifest.get("kind"),
+        laps=int(manifest.get("laps", 0)),
+        peaks=dict(manifest.get("peaks_c", {})),
+        reason="up to date",
+        h_law_source=str(manifest.get("h_law_source", "")),
+        h_law_file=str(law_file) if law_file is not None and law_file.is_file() else None,
+        session_date=str(manifest.get("session_date", "")),
+    )
+
+
+def _latest_law(outcomes: Iterable[SessionOutcome]) -> tuple[Path | None, str]:
+    """The law of the most recent multi-spot session (session date, then file time)."""
+    laws = [o for o in outcomes if o.kind == "multi" and o.h_law_file and o.status != "failed"]
+    if not laws:
+        return None, DEFAULT_LAW
+
+    def recency(o: SessionOutcome) -> tuple[str, float]:
+        try:
+            mtime = o.path.stat().st_mtime
+        except OSError:
+            mtime = 0.0
+        return o.session_date, mtime
+
+    best = max(laws, key=recency)
+    return Path(str(best.h_law_file)), f"identified: {best.name}"
+
+
+def run_batch(
+    folder: str | Path,
+    options: BatchOptions,
+    *,
+    job: Job = process_session,
+    on_event: Event | None = None,
+) -> BatchResult:
+    """Process every session file under ``folder`` (see the module docstring).
+
+    Parameters
+    ----------
+    folder : path
+        Searched recursively for ``.mcap``, ``.parquet``, ``.csv`` session files.
+    options : BatchOptions
+    job : callable, optional
+        ``SessionTask -> SessionOutcome``; :func:`process_session` by default. It must
+        be picklable for worker processes and Dask.
+    on_event : callable, optional
+        ``on_event("start", n_files)`` once, then ``on_event("done", outcome)`` as each
+        session finishes (or is skipped) — for progress display.
+
+    Returns
+    -------
+    BatchResult
+        One outcome per file; :attr:`BatchResult.exit_code` is 3 when any failed.
+    """
+    t0 = time.perf_counter()
+    folder = Path(folder)
+    out = Path(options.out)
+    if options.h_law is not None and not Path(options.h_law).is_file():
+        raise ConfigError("h law file not found; check --h-law", path=options.h_law)
+    files = discover_sessions(folder, exclude=[out])
+    names = output_names(files, folder)
+    if on_event is not None:
+        on_event("start", len(files))
+    key = options.output_key()
+    given_sha = file_sha256(options.h_law) if options.h_law is not None else None
+
+    done: dict[Path, SessionOutcome] = {}
+    known_single: list[tuple[Path, str, str, dict[str, Any]]] = []
+    first: list[SessionTask] = []
+    for path, name in zip(files, names, strict=True):
+        try:
+            sha = file_sha256(path)
+        except OSError as exc:
+            done[path] = SessionOutcome(path, name, "failed", reason=f"{path}: cannot read ({exc})")
+            continue
+        manifest = None if options.force else read_manifest(out / name)
+        if _up_to_date(manifest, sha, key):
+            assert manifest is not None
+            if manifest.get("kind") == "multi" or (
+                given_sha is not None and manifest.get("h_law_sha256") == given_sha
+            ):
+                done[path] = _skipped(path, name, manifest, out)
+                continue
+            if given_sha is None and manifest.get("kind") == "single":
+                known_single.append((path, name, sha, manifest))
+                continue
+        first.append(
+            SessionTask(
+                path=path,
+                name=name,
+                options=options,
+                input_sha256=sha,
+                h_law=options.h_law,
+                h_law_source="given" if options.h_law is not None else DEFAULT_LAW,
+                defer_single=options.h_law is None,
+            )
+        )
+    if on_event is not None:
+        for o in done.values():
+            on_event("done", o)
+
+    with _executor(options) as executor:
+        for o in _run_tasks(first, executor, job, on_event):
+            done[o.path] = o
+        law, law_source = _latest_law(done.values())
+        law_sha = file_sha256(law) if law is not None else DEFAULT_LAW
+        second: list[SessionTask] = []
+        for path, name, sha, manifest in known_single:
+            if manifest.get("h_law_sha256") == law_sha:
+                done[path] = _skipped(path, name, manifest, out)
+                if on_event is not None:
+                    on_event("done", done[path])
+                continue
+            second.append(SessionTask(path, name, options, sha, law, law_source))
+        for o in [o for o in done.values() if o.status == "deferred"]:
+            task = next(t for t in first if t.path == o.path)
+            second.append(
+                replace(
+                    task, h_law=law, h_law_source=law_source, defer_single=False, session=o.session
+                )
+            )
+        for o in _run_tasks(second, executor, job, on_event):
+            first_pass = done.get(o.path)
+            if first_pass is not None and first_pass.status == "deferred":
+                # The file was read in the first pass; count that read in this session.
+                o.wall_s += first_pass.wall_s
+                o.timings["read_s"] = o.timings.get("read_s", 0.0) + first_pass.timings["read_s"]
+            done[o.path] = o
+    return BatchResult([done[p] for p in files], time.perf_counter() - t0)

@@ -1,0 +1,364 @@
+"""``estimate``: disc temperature at every radius from one IR spot (paper §4.2, §5.2–5.3).
+
+State = node temperatures of the layered 1D-FE model (+ the braking-power scale as a
+random walk); one spot measured; h from the identified law; an unscented RTS smoother
+on top of the UKF, since the work is offline. On a multi-spot session the unmeasured
+spots validate the estimate (the paper's Tables 3 and 4).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from brakethermo import __version__
+from brakethermo.errors import DataError
+from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
+from brakethermo.io.load import load_session
+from brakethermo.io.session import Session
+from brakethermo.pipelines import scoring
+from brakethermo.pipelines.disc_ssm import SCALE_PARAM, DiscStateSpace, RandomWalkParam
+from brakethermo.pipelines.inputs import DiscInputs, disc_inputs
+from brakethermo.pipelines.models import disc_for, h_law_for
+from brakethermo.pipelines.outputs import write_json, write_parquet
+from brakethermo.pipelines.summary import lap_summaries
+from brakethermo.pipelines.tuning import EstimateTuning, load_tuning
+from brakethermo.thermal.disc import DiscSpec
+from brakethermo.thermal.model import DiscFEModel
+
+SENSOR_FLOOR_C = 100.0  # IR pyrometers read nothing useful below this (datasheet floor)
+
+
+@dataclass(frozen=True)
+class EstimateOptions:
+    """What the user chose on the command line; ``None`` means the tuning file's value.
+
+    Attributes
+    ----------
+    spot : int
+        Spot (1..4) used as the filter's measurement; 3 is the race sensor.
+    h_law : path, optional
+        ``h_law.toml`` from identify-h; default: the law shipped for the disc.
+    disc : str or path, optional
+        Datasheet id or file; default: the session's ``disc`` fact, else cc-340-8.
+    tuning : path, optional
+        Filter tuning TOML overlaid on ``configs/tuning.toml``.
+    nodes, layers : int, optional
+    smoother, adapt_power : bool, optional
+    aliases : path, optional
+    ambient_c : float, optional — degC
+    score : bool
+        Score against the unmeasured spots when the session has them.
+    """
+
+    spot: int = 3
+    h_law: str | Path | None = None
+    disc: str | Path | None = None
+    tuning: str | Path | None = None
+    nodes: int | None = None
+    layers: int | None = None
+    smoother: bool | None = None
+    adapt_power: bool | None = None
+    aliases: str | Path | None = None
+    ambient_c: float | None = None
+    score: bool = True
+
+    def resolve(self, tuning: EstimateTuning) -> EstimateTuning:
+        """The tuning with this run's overrides applied."""
+        overrides = {
+            k: v
+            for k, v in (
+                ("nodes", self.nodes),
+                ("layers", self.layers),
+                ("smoother", self.smoother),
+                ("adapt_power", self.adapt_power),
+            )
+            if v is not None
+        }
+        return replace(tuning, **overrides)
+
+
+@dataclass
+class EstimateResult:
+    """Everything ``estimate`` computed for one session.
+
+    Attributes
+    ----------
+    session : Session
+    frame : pandas.DataFrame
+        The OUTPUTS.md ``estimate.parquet`` table.
+    node_radii : ndarray — m
+    summary : dict
+        The ``summary.json`` content.
+    scores : dict or None
+        Tables 3/4, peak errors and coverage on a multi-spot session.
+    open_loop : ndarray (K, 4) or None — degC
+        The open-loop 1D-FE spot temperatures (for scoring and reports).
+    timings : dict of str to float — s
+    """
+
+    session: Session
+    frame: pd.DataFrame
+    node_radii: np.ndarray
+    summary: dict[str, Any]
+    scores: dict[str, Any] | None
+    open_loop: np.ndarray | None
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def stem(self) -> str:
+        return self.session.path.stem
+
+
+def _measurement(inputs: DiscInputs, spot: int, path: Path) -> np.ndarray:
+    if spot not in (1, 2, 3, 4):
+        raise DataError(f"--spot must be 1..4, got {spot}", path=path)
+    if spot not in inputs.measured:
+        have = ", ".join(f"spot {s}" for s in inputs.measured)
+        raise DataError(
+            f"cannot measure spot {spot}: the session logs {have}; choose --spot from those",
+            path=path,
+        )
+    y = inputs.spots[:, spot - 1].copy()
+    y[y <= SENSOR_FLOOR_C] = np.nan  # at the pyrometer floor the reading is no information
+    if not np.isfinite(y).any():
+        raise DataError(
+            f"spot {spot} has no reading above the sensor floor ({SENSOR_FLOOR_C:.0f} degC)",
+            path=path,
+        )
+    return y
+
+
+def _initial_temperature(y: np.ndarray, t_amb: np.ndarray) -> float:
+    """First temperature: the first valid reading if it comes in the first 5 s, else ambient."""
+    first = np.flatnonzero(np.isfinite(y))
+    if first.size and first[0] < 50:
+        return float(y[first[0]])
+    return float(t_amb[0])
+
+
+def build_state_space(
+    model: DiscFEModel, inputs: DiscInputs, h: np.ndarray, tuning: EstimateTuning
+) -> DiscStateSpace:
+    """The estimate filter's state space: nodes (+ braking-power scale)."""
+    params = []
+    if tuning.adapt_power:
+        scale = RandomWalkParam(
+            SCALE_PARAM, 1.0, tuning.init_sigma_scale, tuning.sigma_scale_step, lower=0.05
+        )
+        params.append(scale)
+    return DiscStateSpace(
+        model, inputs.q_brk, inputs.t_amb, h, params,
+        sigma_temp=tuning.sigma_temp, sigma_crown=tuning.sigma_crown,
+    )  # fmt: skip
+
+
+def estimate_from_session(session: Session, options: EstimateOptions) -> EstimateResult:
+    """Run the estimator on a loaded session (see :func:`estimate_session`)."""
+    t_start = time.perf_counter()
+    tuning = options.resolve(load_tuning(options.tuning)[0])
+    disc = disc_for(session, options.disc)
+    record, law_path = h_law_for(disc, options.h_law)
+    inputs = disc_inputs(session, disc, options.ambient_c)
+    y = _measurement(inputs, options.spot, session.path)
+    h = record.law(inputs.speed)
+    kz_ratio = float(record.extra.get("kz_ratio", 1.0))
+    model = DiscFEModel(
+        disc, tuning.nodes, tuning.layers, weights=record.weights, kz_ratio=kz_ratio
+    )
+    ssm = build_state_space(model, inputs, h, tuning)
+
+    spot_radii = np.asarray(disc.spot_radii)
+    H_spots = ssm.H(spot_radii)
+    readout = np.vstack([H_spots, H_spots[1:4].mean(axis=0, keepdims=True)])
+    if tuning.adapt_power:
+        readout = np.vstack([readout, ssm.selector(SCALE_PARAM)])
+    x0, P0 = ssm.prior(model.initial_state(_initial_temperature(y, inputs.t_amb)),
+                       tuning.init_sigma_temp)
+    ukf = UnscentedKalmanFilter(
+        ssm.f, ssm.Q, np.array([[tuning.sigma_meas**2]]), H=ssm.H([spot_radii[options.spot - 1]]),
+        alpha=tuning.alpha, beta=tuning.beta, kappa=tuning.kappa,
+    )  # fmt: skip
+    t_filter = time.perf_counter()
+    forward = ukf.run(
+        x0, P0, y[:, None], store="smoother" if tuning.smoother else "diag", readout=readout
+    )
+    t_smooth = time.perf_counter()
+    if tuning.smoother:
+        smoothed = urts_smooth(forward, store="diag", readout=readout)
+        states, out, out_var = smoothed.x_smooth, smoothed.readout, smoothed.readout_var
+    else:
+        states, out, out_var = forward.x_filt, forward.readout, forward.readout_var
+    t_done = time.perf_counter()
+
+    frame = _estimate_frame(inputs, model, states, out, np.sqrt(np.maximum(out_var, 0.0)),
+                            tuning, h)
+    open_loop = None
+    scores = None
+    if options.score and len(inputs.measured) > 1:
+        T_ol = model.open_loop(x0[: model.n_state], inputs.q_brk[:-1], h[:-1], inputs.t_amb[:-1])
+        open_loop = T_ol @ model.spot_matrix(spot_radii).T
+        scores = score_estimate(frame, forward.readout[:, :4], open_loop, inputs, options.spot,
+                                tuning.sigma_meas, tuning.smoother)
+    t_end = time.perf_counter()
+    timings = {
+        "setup_s": t_filter - t_start,
+        "filter_s": t_smooth - t_filter,
+        "smoother_s": t_done - t_smooth,
+        "scoring_s": t_end - t_done,
+        "total_s": t_end - t_start,
+    }
+    summary = {
+        "session": str(session.path),
+        "metadata": session.metadata,
+        "laps": lap_summaries(frame, session.laps, disc.window_c),
+        "run": {
+            "brakethermo": __version__,
+            "disc": disc.id,
+            "h_law": str(law_path),
+            "nodes": tuning.nodes,
+            "layers": tuning.layers,
+            "kz_ratio": kz_ratio,
+            "crown_weights": [float(w) for w in model.weights],
+            "filter": "UKF (Merwe scaled sigma points)",
+            "smoother": tuning.smoother,
+            "adapt_power": tuning.adapt_power,
+            "measured_spot": options.spot,
+            "steps": len(frame),
+            "covariance_repairs": forward.n_repairs,
+            "log_likelihood": forward.log_likelihood,
+            "mean_nis": float(np.nanmean(forward.nis)),
+            "wall_time_s": timings["total_s"],
+            "timings_s": timings,
+            "warnings": list(session.warnings) + list(inputs.warnings),
+        },
+        "scores": scores,
+    }
+    return EstimateResult(session, frame, model.radii.copy(), summary, scores, open_loop, timings)
+
+
+def _estimate_frame(
+    inputs: DiscInputs,
+    model: DiscFEModel,
+    states: np.ndarray,
+    out: np.ndarray,
+    std: np.ndarray,
+    tuning: EstimateTuning,
+    h: np.ndarray,
+) -> pd.DataFrame:
+    cols: dict[str, np.ndarray] = {"time": inputs.time, "lap": inputs.lap.astype(np.int64)}
+    for i in range(4):
+        cols[f"spot{i + 1}"] = out[:, i]
+        cols[f"spot{i + 1}_std"] = std[:, i]
+    cols["contact_avg"] = out[:, 4]
+    cols["contact_avg_std"] = std[:, 4]
+    for k, j in enumerate(model.face_index):
+        cols[f"node_{k}"] = states[:, j]
+    if model.layers > 1:
+        mid = model.face_index + model.layers - 1
+        for k, j in enumerate(mid):
+            cols[f"mid_{k}"] = states[:, j]
+    if tuning.adapt_power:
+        cols["power_scale"] = out[:, 5]
+        cols["power_scale_std"] = std[:, 5]
+    cols["braking_power"] = inputs.q_brk
+    cols["h"] = h
+    return pd.DataFrame(cols)
+
+
+def score_estimate(
+    frame: pd.DataFrame,
+    filtered: np.ndarray,
+    open_loop: np.ndarray,
+    inputs: DiscInputs,
+    spot: int,
+    sigma_meas: float,
+    smoothed: bool,
+) -> dict[str, Any]:
+    """The paper's Tables 3 and 4 on a multi-spot session, plus peaks and coverage.
+
+    The reference is the measured spots (each with its sensor noise), as in the paper.
+    """
+    ref = inputs.spots.copy()
+    ref[ref <= SENSOR_FLOOR_C] = np.nan
+    smooth = frame[[f"spot{i}" for i in range(1, 5)]].to_numpy()
+    std = frame[[f"spot{i}_std" for i in range(1, 5)]].to_numpy()
+    baseline = scoring.single_spot_baseline(ref[:, spot - 1])
+    rows = [
+        scoring.score_method("smoother" if smoothed else "filter", smooth, ref),
+        *([scoring.score_method("filter", filtered, ref)] if smoothed else []),
+        scoring.score_method("open-loop 1D-FE", open_loop, ref),
+        scoring.score_method("single-spot", baseline, ref),
+    ]
+    base = rows[-1]
+    validation = [i for i in range(1, 5) if i != spot]
+    braking = inputs.braking
+    return {
+        "reference": "measured spots",
+        "measured_spot": spot,
+        "table": [r.as_dict() for r in rows],
+        "contact_ratio_vs_single_spot": {
+            r.method: r.contact_rmse / base.contact_rmse for r in rows[:-1]
+        },
+        "peak": {
+            f"spot{i}": scoring.peak_errors(smooth[:, i - 1], ref[:, i - 1], braking)
+            for i in range(1, 5)
+        },
+        "coverage95": {
+            f"spot{i}": scoring.coverage(smooth[:, i - 1], std[:, i - 1], ref[:, i - 1],
+                                         extra_var=sigma_meas**2)
+            for i in validation
+        },
+    }
+
+
+def estimate_session(path: str | Path, options: EstimateOptions | None = None) -> EstimateResult:
+    """Load a session file and estimate its disc temperatures.
+
+    Parameters
+    ----------
+    path : str or Path
+        Session file (MCAP, Parquet or CSV).
+    options : EstimateOptions, optional
+
+    Returns
+    -------
+    EstimateResult
+    """
+    options = options or EstimateOptions()
+    t0 = time.perf_counter()
+    session = load_session(path, aliases=options.aliases)
+    read_s = time.perf_counter() - t0
+    result = estimate_from_session(session, options)
+    result.timings["read_s"] = read_s
+    result.summary["run"]["timings_s"]["read_s"] = read_s
+    return result
+
+
+def write_estimate(result: EstimateResult, out_dir: str | Path) -> Path:
+    """Write ``<out_dir>/<stem>/estimate.parquet`` and ``summary.json``; return the folder."""
+    folder = Path(out_dir) / result.stem
+    field_meta: dict[str, dict[str, str]] = {"time": {"unit": "s"}}
+    for col in result.frame.columns:
+        if col.startswith(("spot", "contact_avg", "node_", "mid_")):
+            field_meta[col] = {"unit": "degC"}
+    for k, r in enumerate(result.node_radii):
+        field_meta[f"node_{k}"]["radius_m"] = repr(float(r))
+        if f"mid_{k}" in field_meta:
+            field_meta[f"mid_{k}"]["radius_m"] = repr(float(r))
+    field_meta["braking_power"] = {"unit": "W"}
+    field_meta["h"] = {"unit": "W/(m2 K)"}
+    write_parquet(folder / "estimate.parquet", result.frame, field_meta,
+                  {"brakethermo": __version__, "session": str(result.session.path)})
+    write_json(folder / "summary.json", result.summary)
+    return folder
+
+
+def disc_of(result: EstimateResult) -> DiscSpec:
+    """The datasheet the result was computed with."""
+    return disc_for(result.session, result.summary["run"]["disc"])

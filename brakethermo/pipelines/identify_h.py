@@ -1,0 +1,332 @@
+"""``identify-h``: the disc convection law h(V) from a four-spot test session (§4.1, §5.1).
+
+1. Joint UKF + unscented RTS smoother on the fine 51-node model, state
+   ``[T_1..T_N, h]`` with h a Gaussian random walk (eq. 48–50) and all four spots
+   measured by linear interpolation (eq. 53).
+2. The law h(V) — power law below the knee, cubic above, joined continuously — fitted
+   on off-brake samples only, weighted by the posterior variance of h.
+3. Beyond the paper, which tuned the crown weights by hand (§5.3): the mean pad-crown
+   weights w_1..w_3, the through-thickness conductivity ratio of the layered estimation
+   model and the mean braking-power scale, fitted by least squares of the open-loop
+   estimation model against the four spots, with h from the fitted law.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import least_squares
+
+from brakethermo import __version__
+from brakethermo.errors import DataError
+from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
+from brakethermo.io.load import load_session
+from brakethermo.io.session import GRID_DT, Session
+from brakethermo.pipelines.disc_ssm import H_PARAM, DiscStateSpace, RandomWalkParam
+from brakethermo.pipelines.estimate import SENSOR_FLOOR_C
+from brakethermo.pipelines.inputs import MULTI_SPOT, DiscInputs, disc_inputs
+from brakethermo.pipelines.models import disc_for
+from brakethermo.pipelines.outputs import write_json, write_parquet
+from brakethermo.pipelines.tuning import EstimateTuning, IdentifyTuning, load_tuning
+from brakethermo.thermal.disc import DiscSpec
+from brakethermo.thermal.hlaw import HLaw
+from brakethermo.thermal.model import DiscFEModel
+from brakethermo.thermal.power import normalise_weights
+
+AFTER_BRAKE_S = 2.0  # s after release still excluded from the fit: the face is settling
+H_MIN = 1.0  # W/(m² K), floor the model sees for a sigma point's h
+
+
+@dataclass(frozen=True)
+class IdentifyOptions:
+    """Command-line choices; ``None`` means the tuning file's value."""
+
+    disc: str | Path | None = None
+    tuning: str | Path | None = None
+    nodes: int | None = None
+    aliases: str | Path | None = None
+    ambient_c: float | None = None
+    fit_structure: bool = True
+
+
+@dataclass(frozen=True)
+class StructureFit:
+    """Mean crown weights, through-thickness ratio and power scale of the estimation model.
+
+    Attributes
+    ----------
+    weights : tuple of 3 float — normalised to eq. 8
+    kz_ratio : float — k_z / k(T)
+    power_scale : float — mean braking power relative to the datasheet formula
+    nodes, layers : int — the estimation model they were fitted for
+    rmse_c : dict of str to float — degC, open-loop RMSE per spot after the fit
+    rmse_uniform_c : dict of str to float — degC, with uniform weights, kz_ratio 1, scale 1
+    """
+
+    weights: tuple[float, float, float]
+    kz_ratio: float
+    power_scale: float
+    nodes: int
+    layers: int
+    rmse_c: dict[str, float]
+    rmse_uniform_c: dict[str, float]
+
+
+@dataclass
+class IdentifyResult:
+    """What identify-h found for one session."""
+
+    session: Session
+    law: HLaw
+    law_ukf: HLaw
+    samples: pd.DataFrame
+    structure: StructureFit | None
+    fit_mask: np.ndarray
+    summary: dict[str, Any]
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def stem(self) -> str:
+        return self.session.path.stem
+
+
+def _measurements(inputs: DiscInputs, path: Path) -> np.ndarray:
+    if not inputs.is_multi_spot:
+        raise DataError(
+            "identify-h needs a test session with the four-spot sensor "
+            f"({', '.join(MULTI_SPOT)}); this one logs spot(s) "
+            f"{', '.join(map(str, inputs.measured))} only",
+            path=path,
+        )
+    y = inputs.spots.copy()
+    y[y <= SENSOR_FLOOR_C] = np.nan
+    return y
+
+
+def _initial_profile(radii: np.ndarray, spot_radii: np.ndarray, y: np.ndarray,
+                     t_amb: float) -> np.ndarray:
+    """Node temperatures interpolated from the first readings (ambient if there are none)."""
+    first = y[: int(5.0 / GRID_DT)]
+    vals = np.array([col[np.isfinite(col)][0] if np.isfinite(col).any() else np.nan
+                     for col in first.T])
+    ok = np.isfinite(vals)
+    if not ok.any():
+        return np.full(radii.size, t_amb)
+    return np.interp(radii, spot_radii[ok], vals[ok])
+
+
+def off_brake_mask(braking: np.ndarray, after_s: float = AFTER_BRAKE_S) -> np.ndarray:
+    """Grid points off the brakes and at least ``after_s`` past the last release."""
+    pad = round(after_s / GRID_DT)
+    recent = np.convolve(braking.astype(float), np.ones(pad + 1), mode="full")[: braking.size]
+    return recent == 0
+
+
+def identify_h_samples(
+    inputs: DiscInputs, y: np.ndarray, disc: DiscSpec, tuning: IdentifyTuning
+) -> tuple[np.ndarray, np.ndarray, Any]:
+    """Posterior mean and std of h on the grid (joint UKF + smoother, eq. 48–53)."""
+    model = DiscFEModel(disc, tuning.nodes, tuning.layers)
+    h_param = RandomWalkParam(H_PARAM, tuning.h_init, tuning.h_init_sigma, tuning.h_step, H_MIN)
+    ssm = DiscStateSpace(
+        model, inputs.q_brk, inputs.t_amb, None, [h_param],
+        sigma_temp=tuning.sigma_temp, sigma_crown=tuning.sigma_crown,
+    )  # fmt: skip
+    spot_radii = np.asarray(disc.spot_radii)
+    T0 = _initial_profile(model.radii, spot_radii, y, float(inputs.t_amb[0]))
+    x0, P0 = ssm.prior(np.repeat(T0, model.layers), tuning.init_sigma_temp)
+    ukf = UnscentedKalmanFilter(
+        ssm.f, ssm.Q, np.eye(4) * tuning.sigma_meas**2, H=ssm.H(spot_radii),
+        alpha=tuning.alpha, beta=tuning.beta, kappa=tuning.kappa,
+    )  # fmt: skip
+    sel = ssm.selector(H_PARAM)
+    forward = ukf.run(x0, P0, y, store="smoother", readout=sel)
+    smoothed = urts_smooth(forward, store="diag", readout=sel)
+    return smoothed.readout[:, 0], np.sqrt(np.maximum(smoothed.readout_var[:, 0], 0.0)), forward
+
+
+def _spot_rmse(pred: np.ndarray, y: np.ndarray) -> dict[str, float]:
+    err = pred - y
+    return {f"spot{i + 1}": float(np.sqrt(np.nanmean(err[:, i] ** 2))) for i in range(4)}
+
+
+def fit_structure(
+    inputs: DiscInputs, y: np.ndarray, disc: DiscSpec, law0: HLaw, est: EstimateTuning
+) -> tuple[HLaw, StructureFit]:
+    """Refine h(V) jointly with the estimation model's structure (output error).
+
+    Parameters are the law's ``log a, b, c_1, c_2``, the crown weights ``log w_1, log
+    w_2`` (``w_3`` fixed, renormalised to eq. 8), ``log kz_ratio`` and ``log scale``;
+    the residual is the open-loop layered model minus the four measured spots over the
+    whole session (robust soft-L1 loss). Starting from the UKF law ``law0``, this removes
+    what the one-layer identification model folds into h after every braking. The cubic
+    term is held at zero here: a session has too few samples above the knee to pin four
+    coefficients there, and a free cubic swings between them.
+    """
+    spot_radii = np.asarray(disc.spot_radii)
+    v = inputs.speed[:-1]
+    q, t_amb = inputs.q_brk[:-1], inputs.t_amb[:-1]
+    T0 = _initial_profile(
+        DiscFEModel(disc, est.nodes, 1).radii, spot_radii, y, float(inputs.t_amb[0])
+    )
+    ok = np.isfinite(y)
+
+    def unpack(p: np.ndarray) -> tuple[HLaw, np.ndarray, float, float]:
+        law = HLaw(v_ref=law0.v_ref, a=float(np.exp(p[0])), b=p[1], c=(p[2], p[3], 0.0),
+                   knee=law0.knee)
+        w = normalise_weights(np.exp([p[4], p[5], 0.0]), disc.crown_edges)
+        return law, w, float(np.exp(p[6])), float(np.exp(p[7]))
+
+    def run(p: np.ndarray) -> np.ndarray:
+        law, w, kz, scale = unpack(p)
+        model = DiscFEModel(disc, est.nodes, est.layers, weights=w, kz_ratio=kz)
+        T = model.open_loop(np.repeat(T0, est.layers), q, law(v), t_amb, scale=scale)
+        return T @ model.spot_matrix(spot_radii).T
+
+    def residual(p: np.ndarray) -> np.ndarray:
+        return (run(p) - y)[ok]
+
+    slope = law0.a * law0.b * law0.knee ** (law0.b - 1.0)  # power-law slope at the knee
+    p0 = np.array([np.log(max(law0.a, 1.0)), law0.b, slope, 0.0, 0.0, 0.0, 0.0, 0.0])
+    lo = np.array([np.log(1.0), 0.0, -np.inf, -np.inf, *np.log([0.05, 0.05, 0.02, 0.5])])
+    hi = np.array([np.log(2000.0), 3.0, np.inf, np.inf, *np.log([20.0, 20.0, 5.0, 2.0])])
+    p0 = np.clip(p0, lo + 1e-6, hi - 1e-6)
+    sol = least_squares(residual, p0, bounds=(lo, hi), x_scale="jac", diff_step=1e-3,
+                        loss="soft_l1", f_scale=20.0, ftol=1e-4, xtol=1e-4, max_nfev=30)
+    law, w, kz, scale = unpack(sol.x)
+    uniform = np.array([*p0[:4], 0.0, 0.0, 0.0, 0.0])
+    return law, StructureFit(
+        weights=(float(w[0]), float(w[1]), float(w[2])),
+        kz_ratio=kz,
+        power_scale=scale,
+        nodes=est.nodes,
+        layers=est.layers,
+        rmse_c=_spot_rmse(run(sol.x), y),
+        rmse_uniform_c=_spot_rmse(run(uniform), y),
+    )
+
+
+def _law_dict(law: HLaw) -> dict[str, Any]:
+    return {"v_ref_kmh": law.v_ref * 3.6, "knee": law.knee, "a": law.a, "b": law.b,
+            "c": [law.c0, *law.c]}
+
+
+def identify_from_session(session: Session, options: IdentifyOptions) -> IdentifyResult:
+    """Run identify-h on a loaded session (see :func:`identify_h`)."""
+    t0 = time.perf_counter()
+    est_tuning, tuning = load_tuning(options.tuning)
+    if options.nodes is not None:
+        tuning = replace(tuning, nodes=options.nodes)
+    disc = disc_for(session, options.disc)
+    inputs = disc_inputs(session, disc, options.ambient_c)
+    y = _measurements(inputs, session.path)
+    h_mean, h_std, forward = identify_h_samples(inputs, y, disc, tuning)
+    t_ukf = time.perf_counter()
+
+    braking = inputs.braking
+    fit_mask = off_brake_mask(braking) & np.isfinite(y).all(axis=1) & (inputs.speed > 1.0)
+    law_ukf = HLaw.fit(inputs.speed[fit_mask], h_mean[fit_mask], 1.0 / h_std[fit_mask] ** 2,
+                       v_ref=disc.v_ref, knee=tuning.knee)
+    t_law = time.perf_counter()
+    law, structure = law_ukf, None
+    if options.fit_structure:
+        law, structure = fit_structure(inputs, y, disc, law_ukf, est_tuning)
+    t_end = time.perf_counter()
+
+    samples = pd.DataFrame({
+        "time": inputs.time,
+        "lap": inputs.lap.astype(np.int64),
+        "speed": inputs.speed,
+        "h": h_mean,
+        "h_std": h_std,
+        "braking": braking,
+    })
+    residual = h_mean[fit_mask] - law_ukf(inputs.speed[fit_mask])
+    timings = {"ukf_s": t_ukf - t0, "law_s": t_law - t_ukf, "structure_s": t_end - t_law,
+               "total_s": t_end - t0}
+    summary = {
+        "session": str(session.path),
+        "metadata": session.metadata,
+        "law": _law_dict(law),
+        "law_ukf_only": _law_dict(law_ukf),
+        "fit": {
+            "samples_off_brake": int(fit_mask.sum()),
+            "samples_total": int(fit_mask.size),
+            "ukf_law_residual_rms": float(np.sqrt(np.mean(residual**2))),
+            "h_std_median": float(np.median(h_std[fit_mask])),
+        },
+        "structure": None if structure is None else {
+            "weights": list(structure.weights),
+            "kz_ratio": structure.kz_ratio,
+            "power_scale": structure.power_scale,
+            "nodes": structure.nodes,
+            "layers": structure.layers,
+            "open_loop_rmse_c": structure.rmse_c,
+            "open_loop_rmse_uniform_c": structure.rmse_uniform_c,
+        },
+        "run": {
+            "brakethermo": __version__,
+            "disc": disc.id,
+            "nodes": tuning.nodes,
+            "layers": tuning.layers,
+            "filter": "joint UKF + unscented RTS smoother, h as random walk",
+            "covariance_repairs": forward.n_repairs,
+            "mean_nis": float(np.nanmean(forward.nis)),
+            "timings_s": timings,
+            "wall_time_s": timings["total_s"],
+            "warnings": list(session.warnings) + list(inputs.warnings),
+        },
+    }
+    return IdentifyResult(session, law, law_ukf, samples, structure, fit_mask, summary, timings)
+
+
+def identify_h(path: str | Path, options: IdentifyOptions | None = None) -> IdentifyResult:
+    """Identify h(V) (and the estimation model's structure) from a four-spot session.
+
+    Parameters
+    ----------
+    path : str or Path
+        Test session with ``disc_temp_spot1..4``.
+    options : IdentifyOptions, optional
+
+    Returns
+    -------
+    IdentifyResult
+    """
+    options = options or IdentifyOptions()
+    t0 = time.perf_counter()
+    session = load_session(path, aliases=options.aliases)
+    read_s = time.perf_counter() - t0
+    result = identify_from_session(session, options)
+    result.timings["read_s"] = read_s
+    return result
+
+
+def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
+    """Write ``h_law.toml``, ``h_samples.parquet``, ``identify.json`` and the h(V) plot."""
+    from brakethermo.report.hplot import plot_h_law
+
+    folder = Path(out_dir) / result.stem
+    folder.mkdir(parents=True, exist_ok=True)
+    s = result.structure
+    extra: dict[str, Any] = {"session": str(result.session.path), "brakethermo": __version__}
+    if s is not None:
+        extra.update(kz_ratio=s.kz_ratio, power_scale=s.power_scale, nodes=s.nodes,
+                     layers=s.layers)
+    result.law.to_toml(folder / "h_law.toml", weights=s.weights if s else (1.0, 1.0, 1.0),
+                       extra=extra)
+    write_parquet(
+        folder / "h_samples.parquet", result.samples,
+        {"time": {"unit": "s"}, "speed": {"unit": "m/s"}, "h": {"unit": "W/(m2 K)"},
+         "h_std": {"unit": "W/(m2 K)"}},
+        {"brakethermo": __version__, "session": str(result.session.path)},
+    )  # fmt: skip
+    write_json(folder / "identify.json", result.summary)
+    plot_h_law(result.samples, result.fit_mask, result.law, folder / "h_law.png",
+               title=result.stem)
+    return folder

@@ -1,0 +1,114 @@
+"""Model inputs on the 10 Hz grid, derived from a session's channels."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from brakethermo.io.session import Session
+from brakethermo.thermal.disc import DiscSpec
+
+MULTI_SPOT = ("disc_temp_spot1", "disc_temp_spot2", "disc_temp_spot3", "disc_temp_spot4")
+SINGLE_SPOT = "disc_temp"
+SINGLE_SPOT_INDEX = 3  # the race sensor sits at the spot-3 radius (CHANNELS.md §2)
+
+
+@dataclass(frozen=True)
+class DiscInputs:
+    """Everything the disc model and the filter read from a session, on the grid.
+
+    Attributes
+    ----------
+    time : ndarray — s
+    lap : ndarray of int
+    speed : ndarray — m/s
+    q_brk : ndarray — W
+        Braking power entering this disc at nominal friction (datasheet formula).
+    t_amb : ndarray — degC
+    spots : ndarray — degC, shape (K, 4)
+        Measured spot temperatures; NaN where a spot is not logged or in a gap.
+    measured : tuple of int
+        Spot numbers (1..4) the session logs.
+    warnings : tuple of str
+    """
+
+    time: np.ndarray
+    lap: np.ndarray
+    speed: np.ndarray
+    q_brk: np.ndarray
+    t_amb: np.ndarray
+    spots: np.ndarray
+    measured: tuple[int, ...]
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def braking(self) -> np.ndarray:
+        """Grid points where the brake is applied (more than 1 % of the peak power)."""
+        peak = np.nanmax(self.q_brk) if self.q_brk.size else 0.0
+        return self.q_brk > 0.01 * max(peak, 1.0)
+
+    @property
+    def is_multi_spot(self) -> bool:
+        return len(self.measured) == 4
+
+
+def _bridge(values: np.ndarray) -> tuple[np.ndarray, int]:
+    """Linearly interpolate NaNs (edges held); return the filled array and NaN count."""
+    bad = ~np.isfinite(values)
+    n_bad = int(bad.sum())
+    if n_bad == 0:
+        return values, 0
+    if n_bad == values.size:
+        return np.zeros_like(values), n_bad
+    idx = np.arange(values.size)
+    filled = values.copy()
+    filled[bad] = np.interp(idx[bad], idx[~bad], values[~bad])
+    return filled, n_bad
+
+
+def disc_inputs(session: Session, disc: DiscSpec, ambient_c: float | None = None) -> DiscInputs:
+    """Build :class:`DiscInputs` from a session.
+
+    Braking power follows the datasheet, ``Q = share · torque_per_Pa · p · ω``. Wheel
+    speed falls back to ``speed / tyre_rolling_radius`` when the session has no
+    ``wheel_speed_front``; gaps in the inputs are bridged linearly and reported.
+    """
+    session.require("speed", "brake_pressure_front")
+    warnings: list[str] = []
+    speed, n_speed = _bridge(session.values("speed"))
+    pressure, n_p = _bridge(session.values("brake_pressure_front"))
+    if session.has("wheel_speed_front"):
+        omega, n_w = _bridge(session.values("wheel_speed_front"))
+    else:
+        omega, n_w = speed / disc.tyre_rolling_radius, 0
+        warnings.append(
+            "no wheel_speed_front channel: wheel speed taken as speed / tyre rolling radius"
+        )
+    for name, n in (("speed", n_speed), ("brake_pressure_front", n_p), ("wheel_speed_front", n_w)):
+        if n:
+            warnings.append(f"{name}: {n * 0.1:.1f} s of gaps bridged by linear interpolation")
+    q_brk = disc.braking_power(np.clip(pressure, 0.0, None), omega)
+
+    n = len(session.frame)
+    spots = np.full((n, 4), np.nan)
+    measured: list[int] = []
+    for i, name in enumerate(MULTI_SPOT):
+        if session.has(name):
+            spots[:, i] = session.values(name)
+            measured.append(i + 1)
+    if not measured and session.has(SINGLE_SPOT):
+        spots[:, SINGLE_SPOT_INDEX - 1] = session.values(SINGLE_SPOT)
+        measured.append(SINGLE_SPOT_INDEX)
+    if not measured:
+        session.require(SINGLE_SPOT)
+    return DiscInputs(
+        time=session.time,
+        lap=session.lap,
+        speed=speed,
+        q_brk=q_brk,
+        t_amb=session.ambient_c(ambient_c),
+        spots=spots,
+        measured=tuple(measured),
+        warnings=tuple(warnings),
+    )

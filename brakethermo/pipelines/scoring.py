@@ -1,0 +1,116 @@
+"""Accuracy tables of the paper (Tables 3 and 4), peak errors and band coverage.
+
+Scores compare estimated spot temperatures with a reference: the measured spots of a
+multi-spot session (what the paper does), or simulator truth in benchmarks. The spot
+used as the filter's measurement is scored too, as in the paper.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+CONTACT_SPOTS = (2, 3, 4)  # spot numbers inside the pad contact band
+Z95 = 1.959963984540054
+
+
+def contact_average(spots: np.ndarray) -> np.ndarray:
+    """Mean of spots 2..4, degC; ``spots`` has shape (K, 4)."""
+    return spots[:, 1:4].mean(axis=1)
+
+
+def rmse(estimate: np.ndarray, reference: np.ndarray, mask: np.ndarray | None = None) -> float:
+    """Root-mean-square error over the grid points where both are finite (and ``mask``)."""
+    ok = np.isfinite(estimate) & np.isfinite(reference)
+    if mask is not None:
+        ok &= mask
+    if not ok.any():
+        return float("nan")
+    return float(np.sqrt(np.mean((estimate[ok] - reference[ok]) ** 2)))
+
+
+def segments(flag: np.ndarray, min_len: int = 1) -> list[tuple[int, int]]:
+    """Contiguous runs of True in ``flag`` as half-open index ranges ``(start, stop)``."""
+    padded = np.concatenate(([False], flag.astype(bool), [False]))
+    edges = np.flatnonzero(np.diff(padded.astype(np.int8)))
+    runs = edges.reshape(-1, 2)
+    return [(int(a), int(b)) for a, b in runs if b - a >= min_len]
+
+
+@dataclass(frozen=True)
+class MethodScore:
+    """RMSE (degC) of one method per spot (1..4) and of the contact-band average."""
+
+    method: str
+    spot_rmse: tuple[float, float, float, float]
+    contact_rmse: float
+
+    def as_dict(self) -> dict[str, float | str]:
+        row: dict[str, float | str] = {"method": self.method}
+        row.update({f"spot{i + 1}": v for i, v in enumerate(self.spot_rmse)})
+        row["contact_avg"] = self.contact_rmse
+        return row
+
+
+def score_method(
+    method: str, spots_est: np.ndarray, reference: np.ndarray, mask: np.ndarray | None = None
+) -> MethodScore:
+    """Score a method's (K, 4) spot estimates against a (K, 4) reference."""
+    per_spot = tuple(rmse(spots_est[:, i], reference[:, i], mask) for i in range(4))
+    contact = rmse(contact_average(spots_est), contact_average(reference), mask)
+    return MethodScore(method, per_spot, contact)  # type: ignore[arg-type]
+
+
+def single_spot_baseline(measured_spot: np.ndarray) -> np.ndarray:
+    """The pre-paper practice: the one spot reading copied to every spot, shape (K, 4)."""
+    return np.repeat(measured_spot[:, None], 4, axis=1)
+
+
+def peak_errors(
+    estimate: np.ndarray, reference: np.ndarray, braking: np.ndarray, dt: float = 0.1,
+    settle_s: float = 3.0,
+) -> dict[str, float]:
+    """Relative peak error per braking zone at one spot.
+
+    Each zone runs from the brake application to ``settle_s`` after release, where the
+    face peak occurs. Returns the mean absolute and the worst relative error (%) and the
+    signed error of the session's highest peak.
+    """
+    pad = round(settle_s / dt)
+    errors = []
+    for a, b in segments(braking, min_len=5):
+        stop = min(b + pad, len(reference))
+        ref = reference[a:stop]
+        est = estimate[a:stop]
+        if not np.isfinite(ref).any() or not np.isfinite(est).any():
+            continue
+        errors.append((np.nanmax(est) - np.nanmax(ref)) / np.nanmax(ref) * 100.0)
+    if not errors:
+        return {"zones": 0, "mean_abs_pct": float("nan"), "worst_pct": float("nan"),
+                "max_peak_pct": float("nan")}
+    arr = np.asarray(errors)
+    ref_peak = np.nanmax(reference)
+    est_peak = np.nanmax(estimate[np.isfinite(reference)])
+    return {
+        "zones": len(errors),
+        "mean_abs_pct": float(np.mean(np.abs(arr))),
+        "worst_pct": float(arr[np.argmax(np.abs(arr))]),
+        "max_peak_pct": float((est_peak - ref_peak) / ref_peak * 100.0),
+    }
+
+
+def coverage(
+    estimate: np.ndarray, std: np.ndarray, reference: np.ndarray, extra_var: float = 0.0,
+    level_z: float = Z95,
+) -> float:
+    """Fraction of finite reference points inside ``estimate ± z·sqrt(std² + extra_var)``.
+
+    ``extra_var`` (degC²) adds the sensor noise when the reference is a measurement
+    rather than the true temperature.
+    """
+    ok = np.isfinite(estimate) & np.isfinite(reference) & np.isfinite(std)
+    if not ok.any():
+        return float("nan")
+    half = level_z * np.sqrt(std[ok] ** 2 + extra_var)
+    return float(np.mean(np.abs(estimate[ok] - reference[ok]) <= half))

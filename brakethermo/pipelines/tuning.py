@@ -1,0 +1,122 @@
+"""Filter tuning for the disc pipelines, loaded from TOML with validation."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+from brakethermo.config import config_dir, load_toml
+from brakethermo.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class SigmaPointTuning:
+    """Merwe scaled sigma-point parameters (dimensionless)."""
+
+    alpha: float = 0.5
+    beta: float = 2.0
+    kappa: float = 0.0
+
+
+@dataclass(frozen=True)
+class EstimateTuning(SigmaPointTuning):
+    """Tuning of the race-session estimator (state: node temperatures [+ power scale]).
+
+    Attributes
+    ----------
+    nodes, layers : int
+        Radial nodes and through-thickness layers of the model.
+    smoother, adapt_power : bool
+    sigma_meas : float — degC
+    sigma_temp : float — degC per step
+    sigma_crown : float — relative share of braking power, per crown
+    sigma_scale_step : float — per step
+    init_sigma_temp : float — degC
+    init_sigma_scale : float — dimensionless
+    """
+
+    nodes: int = 10
+    layers: int = 3
+    smoother: bool = True
+    adapt_power: bool = True
+    sigma_meas: float = 5.0
+    sigma_temp: float = 0.2
+    sigma_crown: float = 0.35
+    sigma_scale_step: float = 0.003
+    init_sigma_temp: float = 40.0
+    init_sigma_scale: float = 0.15
+
+
+@dataclass(frozen=True)
+class IdentifyTuning(SigmaPointTuning):
+    """Tuning of the h identification (state: node temperatures and h, eq. 50).
+
+    Attributes
+    ----------
+    h_init, h_init_sigma : float — W/(m² K)
+    h_step : float — W/(m² K) per step, the random walk of h (eq. 48)
+    knee : float — fraction of V_ref where h(V) changes branch
+    """
+
+    nodes: int = 51
+    layers: int = 1
+    sigma_meas: float = 5.0
+    sigma_temp: float = 0.2
+    sigma_crown: float = 0.35
+    h_init: float = 100.0
+    h_init_sigma: float = 60.0
+    h_step: float = 4.0
+    init_sigma_temp: float = 40.0
+    knee: float = 0.8
+
+
+T = TypeVar("T", bound=SigmaPointTuning)
+
+
+def _build(cls: type[T], table: dict[str, Any], path: Path, section: str) -> T:
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(table) - set(fields))
+    if unknown:
+        raise ConfigError(
+            f"[{section}] has unknown keys {unknown}; known keys: {sorted(fields)}", path=path
+        )
+    values: dict[str, Any] = {}
+    for key, raw in table.items():
+        kind = type(getattr(cls(), key))
+        if kind is bool and not isinstance(raw, bool):
+            raise ConfigError(f"[{section}] {key} must be true or false", path=path)
+        try:
+            values[key] = kind(raw)
+        except (TypeError, ValueError):
+            raise ConfigError(f"[{section}] {key} must be a {kind.__name__}", path=path) from None
+    tuning = cls(**values)
+    positive = [k for k, v in dataclasses.asdict(tuning).items()
+                if isinstance(v, int | float) and not isinstance(v, bool)
+                and k not in ("kappa", "beta") and v <= 0]
+    if positive:
+        raise ConfigError(f"[{section}] must be > 0: {', '.join(positive)}", path=path)
+    if getattr(tuning, "nodes", 10) < 10:
+        raise ConfigError(f"[{section}] nodes must be >= 10 (one node per spot)", path=path)
+    return tuning
+
+
+def load_tuning(path: str | Path | None = None) -> tuple[EstimateTuning, IdentifyTuning]:
+    """Load the shipped tuning, overlaid with a user's TOML file when given."""
+    shipped = config_dir() / "tuning.toml"
+    base = load_toml(shipped)
+    user_path = Path(path) if path is not None else shipped
+    if path is not None:
+        user = load_toml(user_path)
+        extra = sorted(set(user) - {"estimate", "identify"})
+        if extra:
+            raise ConfigError(
+                f"unknown sections {extra}; expected [estimate] and [identify]", path=user_path
+            )
+        for section in ("estimate", "identify"):
+            base[section] = {**base.get(section, {}), **user.get(section, {})}
+    return (
+        _build(EstimateTuning, base.get("estimate", {}), user_path, "estimate"),
+        _build(IdentifyTuning, base.get("identify", {}), user_path, "identify"),
+    )

@@ -1,0 +1,173 @@
+"""Braking zones from the front brake pressure, and the per-zone temperature table.
+
+A braking zone is a stretch of the 10 Hz grid where the line pressure stays above a
+threshold, short releases bridged (a rider who eases off mid-corner is still in the
+same zone). The zone's thermal "cycle" runs from its start to the start of the next
+zone: the disc heats during braking, peaks just after release, then cools on the
+straight; the table reports that cycle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+BAR = 1.0e5  # Pa
+KMH = 3.6  # (km/h) per (m/s)
+SPOTS = ("spot1", "spot2", "spot3", "spot4")
+TIME_TOL = 1e-6  # s
+
+
+@dataclass(frozen=True)
+class ZoneDetection:
+    """Thresholds of the braking-zone detector.
+
+    Attributes
+    ----------
+    on_pa : float — Pa
+        Line pressure above which the rider is braking.
+    bridge_s : float — s
+        Releases shorter than this are bridged into one zone.
+    min_duration_s : float — s
+        Zones shorter than this (pressure blips) are dropped.
+    """
+
+    on_pa: float = 3.0 * BAR
+    bridge_s: float = 0.6
+    min_duration_s: float = 0.4
+
+
+def detect_zones(
+    time: np.ndarray, pressure_pa: np.ndarray, detection: ZoneDetection | None = None
+) -> np.ndarray:
+    """Index ranges of the braking zones on the grid.
+
+    Parameters
+    ----------
+    time : ndarray — s
+        Grid time, increasing.
+    pressure_pa : ndarray — Pa
+        Front brake line pressure on the same grid; NaN counts as not braking.
+    detection : ZoneDetection, optional
+
+    Returns
+    -------
+    ndarray of int, shape (n_zones, 2)
+        ``[start, stop)`` grid indices of each zone, in time order.
+    """
+    det = detection or ZoneDetection()
+    braking = np.nan_to_num(np.asarray(pressure_pa, dtype=float), nan=0.0) > det.on_pa
+    edges = np.diff(np.concatenate(([0], braking.astype(np.int8), [0])))
+    starts = np.flatnonzero(edges == 1)
+    stops = np.flatnonzero(edges == -1)
+    if starts.size == 0:
+        return np.empty((0, 2), dtype=np.int64)
+    t = np.asarray(time, dtype=float)
+    t_ext = np.append(t, t[-1] + (t[-1] - t[-2] if t.size > 1 else 0.1))
+    # Bridge short releases: a gap joins its neighbours when it is shorter than bridge_s.
+    # Durations are differences of grid times; the tolerance keeps 4 x 0.1 s >= 0.4 s.
+    gap = t_ext[starts[1:]] - t_ext[stops[:-1]]
+    separate = gap >= det.bridge_s - TIME_TOL
+    keep_start = np.concatenate(([True], separate))
+    keep_stop = np.concatenate((separate, [True]))
+    starts, stops = starts[keep_start], stops[keep_stop]
+    long_enough = (t_ext[stops] - t_ext[starts]) >= det.min_duration_s - TIME_TOL
+    return np.column_stack((starts[long_enough], stops[long_enough])).astype(np.int64)
+
+
+def zone_table(
+    estimate: pd.DataFrame,
+    speed_ms: np.ndarray,
+    pressure_pa: np.ndarray,
+    zones: np.ndarray,
+    window_c: tuple[float, float],
+) -> pd.DataFrame:
+    """One row per braking zone: what the disc did through that braking cycle.
+
+    Parameters
+    ----------
+    estimate : DataFrame
+        Estimate frame (OUTPUTS.md): ``time``, ``lap``, ``spot1..4``, ``contact_avg``.
+    speed_ms : ndarray — m/s
+        Vehicle speed on the same grid.
+    pressure_pa : ndarray — Pa
+        Brake line pressure on the same grid.
+    zones : ndarray of int, shape (n, 2)
+        From :func:`detect_zones`.
+    window_c : (float, float) — degC
+        Operating window.
+
+    Returns
+    -------
+    DataFrame
+        Columns ``zone`` (1-based within its lap), ``lap``, ``start_s`` (lap time of the
+        brake application, s), ``duration_s``, ``entry_speed_kmh``, ``min_speed_kmh``,
+        ``peak_pressure_bar``, ``peak_spot1..4`` (degC), ``peak_contact``, ``rise_k``
+        (contact-band rise from brake application to peak, K), ``cooling_k`` (drop from
+        the peak to the next brake application, K), ``below_s``, ``inside_s``,
+        ``above_s`` (contact band vs the window over the cycle, s).
+    """
+    columns = [
+        "zone",
+        "lap",
+        "start_s",
+        "duration_s",
+        "entry_speed_kmh",
+        "min_speed_kmh",
+        "peak_pressure_bar",
+        *(f"peak_{s}" for s in SPOTS),
+        "peak_contact",
+        "rise_k",
+        "cooling_k",
+        "below_s",
+        "inside_s",
+        "above_s",
+    ]
+    n = len(estimate)
+    if len(zones) == 0 or n == 0:
+        return pd.DataFrame({c: pd.Series(dtype=float) for c in columns})
+    time = estimate["time"].to_numpy(dtype=float)
+    lap = estimate["lap"].to_numpy()
+    dt = float(np.median(np.diff(time))) if n > 1 else 0.1
+    starts, stops = zones[:, 0], zones[:, 1]
+    # A zone's cycle ends where the next zone starts (or where the data ends).
+    cycle_end = np.append(starts[1:], n)
+    contact = estimate["contact_avg"].to_numpy(dtype=float)
+
+    def cycle_max(values: np.ndarray) -> np.ndarray:
+        # reduceat over the zone starts spans exactly [start_i, start_{i+1}).
+        return np.fmax.reduceat(values, starts)
+
+    peak_contact = cycle_max(contact)
+    lap_start_time = pd.Series(time).groupby(lap).transform("min").to_numpy()
+    lo, hi = window_c
+    below = np.add.reduceat((contact < lo).astype(float), starts) * dt
+    above = np.add.reduceat((contact > hi).astype(float), starts) * dt
+    valid = np.add.reduceat(np.isfinite(contact).astype(float), starts) * dt
+    p_peak = cycle_max(np.nan_to_num(np.asarray(pressure_pa, dtype=float), nan=0.0))
+    # Stops bound the braking part; reduceat over [start, stop) needs interleaved indices.
+    brake_idx = np.column_stack((starts, stops)).ravel()
+    brake_idx = brake_idx[brake_idx < n]
+    v_min = np.fmin.reduceat(np.asarray(speed_ms, dtype=float), brake_idx)[::2][: len(starts)]
+    zone_lap = lap[starts]
+    table = pd.DataFrame(
+        {
+            "lap": zone_lap,
+            "start_s": time[starts] - lap_start_time[starts],
+            "duration_s": (stops - starts) * dt,
+            "entry_speed_kmh": np.asarray(speed_ms, dtype=float)[starts] * KMH,
+            "min_speed_kmh": v_min * KMH,
+            "peak_pressure_bar": p_peak / BAR,
+            **{f"peak_{s}": cycle_max(estimate[s].to_numpy(dtype=float)) for s in SPOTS},
+            "peak_contact": peak_contact,
+            "rise_k": peak_contact - contact[starts],
+            "cooling_k": peak_contact - contact[np.minimum(cycle_end, n - 1)],
+            "below_s": below,
+            "inside_s": valid - below - above,
+            "above_s": above,
+        }
+    )
+    table.insert(0, "zone", table.groupby("lap").cumcount() + 1)
+    return table[columns]

@@ -1,0 +1,422 @@
+"""Figures of the per-lap report, built once per session and refilled for every lap.
+
+Creating a matplotlib figure costs far more than drawing it, so :class:`LapFigures`
+creates its four figures and all their artists once; :meth:`LapFigures.render` only
+swaps the data of the existing artists and draws. All four figures share the same
+width and horizontal margins, so stacked in the HTML page their time axes line up.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.collections import PolyCollection
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+
+SPOT_COLOURS = ("#1f77b4", "#2ca02c", "#ff7f0e", "#d62728")  # spot1 (inner) .. spot4 (outer)
+CONTACT_COLOUR = "#6a3d9a"
+WINDOW_COLOUR = "#2ca02c"
+ZONE_COLOUR = "#9e9e9e"
+TEMP_NORM = Normalize(vmin=0.0, vmax=1000.0)  # degC; fixed so colours compare lap to lap
+FIG_WIDTH = 11.0  # in
+DPI = 100
+LEFT, RIGHT = 0.07, 0.83  # figure fractions shared by every figure, so time axes align
+MAX_ZONE_LABELS = 40
+HEATMAP_ROWS = 96  # radial rows of the heat-map image
+
+plt.rcParams.update(
+    {
+        "font.size": 10,
+        "axes.titlesize": 11,
+        "axes.labelsize": 10,
+        "legend.fontsize": 9,
+        "axes.grid": True,
+        "grid.alpha": 0.3,
+        "axes.spines.top": False,
+    }
+)
+
+
+@dataclass(frozen=True)
+class LapData:
+    """What one lap's figures show; all arrays on the lap's 10 Hz grid.
+
+    Attributes
+    ----------
+    t : ndarray — s
+        Time from the lap start.
+    spot, spot_std : ndarray, shape (4, n) — degC
+        Estimated spot temperatures and their 1-sigma.
+    measured : ndarray, shape (4, n) — degC
+        Measured spot temperatures, NaN where a spot has no sensor.
+    contact, contact_std : ndarray — degC
+        Contact-band average and its 1-sigma.
+    nodes : ndarray, shape (n_nodes, n) — degC
+        Node temperatures.
+    speed_kmh : ndarray — km/h
+    pressure_bar : ndarray — bar
+    zones_t : ndarray, shape (n_zones, 2) — s
+        Start and end of each braking zone, lap time.
+    """
+
+    t: np.ndarray
+    spot: np.ndarray
+    spot_std: np.ndarray
+    measured: np.ndarray
+    contact: np.ndarray
+    contact_std: np.ndarray
+    nodes: np.ndarray
+    speed_kmh: np.ndarray
+    pressure_bar: np.ndarray
+    zones_t: np.ndarray
+
+
+def _figure(height: float) -> Figure:
+    fig = plt.figure(figsize=(FIG_WIDTH, height), dpi=DPI)
+    fig.subplots_adjust(left=LEFT, right=RIGHT, top=0.86, bottom=0.17)
+    return fig
+
+
+def _limits(*arrays: np.ndarray, pad: float = 0.06) -> tuple[float, float]:
+    lo = min((np.nanmin(a) for a in arrays if np.isfinite(a).any()), default=0.0)
+    hi = max((np.nanmax(a) for a in arrays if np.isfinite(a).any()), default=1.0)
+    span = max(hi - lo, 1.0)
+    return lo - pad * span, hi + pad * span
+
+
+def _png(fig: Figure) -> bytes:
+    buf = io.BytesIO()
+    # Fast deflate: the PNGs are written once and embedded once; size matters less.
+    fig.savefig(buf, format="png", dpi=DPI, pil_kwargs={"compress_level": 1})
+    return buf.getvalue()
+
+
+class _ZoneMarks:
+    """Grey spans over the braking zones and their labels B1, B2... on one axes."""
+
+    def __init__(self, ax: plt.Axes, labels: bool):
+        self.spans = PolyCollection(
+            [],
+            facecolors=ZONE_COLOUR,
+            alpha=0.15,
+            edgecolors="none",
+            transform=ax.get_xaxis_transform(),
+            zorder=0,
+        )
+        ax.add_collection(self.spans, autolim=False)
+        self.labels = [
+            ax.text(
+                0,
+                1.01,
+                "",
+                transform=ax.get_xaxis_transform(),
+                ha="center",
+                va="bottom",
+                fontsize=8,
+                color="#555555",
+                visible=False,
+            )
+            for _ in range(MAX_ZONE_LABELS if labels else 0)
+        ]
+
+    def update(self, zones_t: np.ndarray) -> None:
+        x0, x1 = zones_t[:, 0], zones_t[:, 1]
+        verts = np.stack(
+            [
+                np.column_stack((x0, np.zeros_like(x0))),
+                np.column_stack((x1, np.zeros_like(x0))),
+                np.column_stack((x1, np.ones_like(x0))),
+                np.column_stack((x0, np.ones_like(x0))),
+            ],
+            axis=1,
+        )
+        self.spans.set_verts(verts)
+        for i, text in enumerate(self.labels):
+            text.set_visible(i < len(zones_t))
+            if i < len(zones_t):
+                text.set_x(0.5 * (x0[i] + x1[i]))
+                text.set_text(f"B{i + 1}")
+
+
+class LapFigures:
+    """The four per-lap figures, reused across the laps of a session.
+
+    Parameters
+    ----------
+    node_radii : ndarray — m
+        Radius of each node of the estimate.
+    spot_radii : tuple of float — m
+        Radii of spot 1..4.
+    window_c : (float, float) — degC
+        Operating window.
+    r_int, r_est : float — m
+        Inner and outer radius of the carbon ring (heat-map extent).
+    """
+
+    names = ("spots", "heatmap", "contact", "context")
+
+    def __init__(
+        self,
+        node_radii: np.ndarray,
+        spot_radii: tuple[float, ...],
+        window_c: tuple[float, float],
+        r_int: float,
+        r_est: float,
+    ):
+        self.window_c = window_c
+        radii = np.asarray(node_radii, dtype=float)
+        order = np.argsort(radii)
+        self._node_order = order
+        self._r_grid = np.linspace(r_int, r_est, HEATMAP_ROWS)
+        # Linear interpolation from the (possibly non-uniform) nodes onto the image rows,
+        # as one matrix so each lap's heat map is a single product.
+        eye = np.eye(radii.size)
+        self._interp = np.stack(
+            [np.interp(self._r_grid, radii[order], eye[i]) for i in range(radii.size)], axis=1
+        )
+        self._build_spots()
+        self._build_heatmap(spot_radii, r_int, r_est)
+        self._build_contact()
+        self._build_context()
+
+    def _build_spots(self) -> None:
+        fig = self.fig_spots = _figure(3.9)
+        ax = self.ax_spots = fig.add_subplot()
+        self.zone_spots = _ZoneMarks(ax, labels=True)
+        self.spot_bands, self.spot_lines, self.meas_lines = [], [], []
+        for i, colour in enumerate(SPOT_COLOURS):
+            self.spot_bands.append(
+                ax.fill_between([0, 1], [0, 0], [0, 0], color=colour, alpha=0.2, linewidth=0)
+            )
+            (line,) = ax.plot([], [], color=colour, linewidth=1.6, label=f"spot {i + 1} estimate")
+            (meas,) = ax.plot(
+                [],
+                [],
+                linestyle="none",
+                marker=".",
+                markersize=2.5,
+                color=colour,
+                markeredgecolor="black",
+                markeredgewidth=0.2,
+                alpha=0.8,
+                label=f"spot {i + 1} measured",
+            )
+            self.spot_lines.append(line)
+            self.meas_lines.append(meas)
+        ax.set_xlabel("lap time [s]")
+        ax.set_ylabel("disc temperature [°C]")
+        ax.set_title(
+            "Spot temperatures: estimate ±1σ (bands) and IR measurement (dots)", loc="left", pad=14
+        )
+
+    def _build_heatmap(self, spot_radii: tuple[float, ...], r_int: float, r_est: float) -> None:
+        fig = self.fig_heatmap = _figure(3.9)
+        ax = self.ax_heatmap = fig.add_subplot()
+        ax.grid(False)
+        self.image = ax.imshow(
+            np.zeros((HEATMAP_ROWS, 2)),
+            aspect="auto",
+            origin="lower",
+            cmap="inferno",
+            norm=TEMP_NORM,
+            extent=(0.0, 1.0, r_int * 1e3, r_est * 1e3),
+            interpolation="nearest",
+        )
+        for i, r in enumerate(spot_radii):
+            ax.axhline(r * 1e3, color=SPOT_COLOURS[i], linestyle="--", linewidth=1.0)
+            ax.annotate(
+                f"S{i + 1}",
+                xy=(1.0, r * 1e3),
+                xycoords=("axes fraction", "data"),
+                xytext=(3, 0),
+                textcoords="offset points",
+                va="center",
+                color=SPOT_COLOURS[i],
+                fontsize=9,
+                fontweight="bold",
+            )
+        self._contours = None
+        cax = fig.add_axes((RIGHT + 0.045, 0.17, 0.015, 0.69))
+        cbar = fig.colorbar(self.image, cax=cax)
+        cbar.set_label("temperature [°C]")
+        for edge in self.window_c:
+            cax.axhline(edge, color="white", linewidth=1.6)
+            cax.axhline(edge, color=WINDOW_COLOUR, linewidth=1.0, linestyle="--")
+        ax.set_xlabel("lap time [s]")
+        ax.set_ylabel("radius [mm]")
+        ax.set_title(
+            f"Disc temperature across the radius (dashed contours: window "
+            f"{self.window_c[0]:.0f}–{self.window_c[1]:.0f} °C)",
+            loc="left",
+        )
+
+    def _build_contact(self) -> None:
+        fig = self.fig_contact = _figure(3.2)
+        ax = self.ax_contact = fig.add_subplot()
+        lo, hi = self.window_c
+        ax.axhspan(
+            lo, hi, color=WINDOW_COLOUR, alpha=0.12, zorder=0, label=f"window {lo:.0f}–{hi:.0f} °C"
+        )
+        self.zone_contact = _ZoneMarks(ax, labels=False)
+        self.contact_band = ax.fill_between(
+            [0, 1], [0, 0], [0, 0], color=CONTACT_COLOUR, alpha=0.25, linewidth=0, label="±1σ"
+        )
+        (self.contact_line,) = ax.plot(
+            [], [], color=CONTACT_COLOUR, linewidth=1.8, label="contact avg"
+        )
+        ax.set_xlabel("lap time [s]")
+        ax.set_ylabel("temperature [°C]")
+        ax.set_title("Contact-band average (spots 2–4) against the operating window", loc="left")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+
+    def _build_context(self) -> None:
+        fig = self.fig_context = _figure(3.0)
+        ax = self.ax_speed = fig.add_subplot()
+        self.zone_context = _ZoneMarks(ax, labels=True)
+        (self.speed_line,) = ax.plot([], [], color="#333333", linewidth=1.3, label="speed")
+        ax.set_xlabel("lap time [s]")
+        ax.set_ylabel("speed [km/h]")
+        self.ax_pressure = ax.twinx()
+        self.ax_pressure.grid(False)
+        (self.pressure_line,) = self.ax_pressure.plot(
+            [], [], color="#c2185b", linewidth=1.1, label="brake pressure"
+        )
+        self.ax_pressure.set_ylabel("brake pressure [bar]", color="#c2185b")
+        self.ax_pressure.tick_params(axis="y", colors="#c2185b")
+        # Axis colours tell the two curves apart; a legend would not fit beside the twin axis.
+        ax.set_title(
+            "Speed (black) and front brake pressure (red); grey: braking zones", loc="left", pad=14
+        )
+
+    def render(self, lap: LapData) -> dict[str, bytes]:
+        """Fill the figures with one lap and return each as PNG bytes, keyed by name."""
+        t = lap.t
+        t_max = float(t[-1]) if t.size else 1.0
+        t_max = max(t_max, 0.1)
+        has_meas = np.isfinite(lap.measured).any(axis=1)
+
+        for i in range(4):
+            lo = lap.spot[i] - lap.spot_std[i]
+            hi = lap.spot[i] + lap.spot_std[i]
+            self.spot_bands[i].set_data(t, lo, hi)
+            self.spot_lines[i].set_data(t, lap.spot[i])
+            self.meas_lines[i].set_data(t, lap.measured[i])
+        self.ax_spots.set_xlim(0.0, t_max)
+        self.ax_spots.set_ylim(
+            *_limits(lap.spot - lap.spot_std, lap.spot + lap.spot_std, lap.measured)
+        )
+        handles = self.spot_lines + [
+            m for m, has in zip(self.meas_lines, has_meas, strict=True) if has
+        ]
+        self.ax_spots.legend(
+            handles=handles,
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+            frameon=False,
+            markerscale=4,
+        )
+        self.zone_spots.update(lap.zones_t)
+
+        field = self._interp @ lap.nodes[self._node_order]
+        self.image.set_data(field)
+        self.image.set_extent((0.0, t_max, *self.image.get_extent()[2:]))
+        self.ax_heatmap.set_xlim(0.0, t_max)
+        if self._contours is not None:
+            self._contours.remove()
+        levels = [v for v in self.window_c if np.nanmin(field) < v < np.nanmax(field)]
+        self._contours = None
+        if levels and t.size > 1:
+            r_mm = self._r_grid * 1e3
+            self._contours = self.ax_heatmap.contour(
+                t, r_mm, field, levels=levels, colors="white", linewidths=1.0, linestyles="--"
+            )
+
+        self.contact_band.set_data(t, lap.contact - lap.contact_std, lap.contact + lap.contact_std)
+        self.contact_line.set_data(t, lap.contact)
+        self.ax_contact.set_xlim(0.0, t_max)
+        lo, hi = _limits(lap.contact - lap.contact_std, lap.contact + lap.contact_std)
+        self.ax_contact.set_ylim(min(lo, self.window_c[0] - 50), max(hi, self.window_c[1] + 50))
+        self.zone_contact.update(lap.zones_t)
+
+        self.speed_line.set_data(t, lap.speed_kmh)
+        self.pressure_line.set_data(t, lap.pressure_bar)
+        self.ax_speed.set_xlim(0.0, t_max)
+        self.ax_speed.set_ylim(0.0, _limits(lap.speed_kmh)[1])
+        self.ax_pressure.set_ylim(0.0, max(_limits(lap.pressure_bar)[1], 1.0))
+        self.zone_context.update(lap.zones_t)
+
+        return {
+            "spots": _png(self.fig_spots),
+            "heatmap": _png(self.fig_heatmap),
+            "contact": _png(self.fig_contact),
+            "context": _png(self.fig_context),
+        }
+
+    def close(self) -> None:
+        """Release the figures."""
+        for fig in (self.fig_spots, self.fig_heatmap, self.fig_contact, self.fig_context):
+            plt.close(fig)
+
+
+def trend_figure(
+    laps: np.ndarray,
+    peak_spot: np.ndarray,
+    mean_contact: np.ndarray,
+    inside_pct: np.ndarray,
+    window_c: tuple[float, float],
+) -> bytes:
+    """Lap-by-lap trend of a session as PNG bytes.
+
+    Parameters
+    ----------
+    laps : ndarray of int
+        Lap numbers.
+    peak_spot : ndarray, shape (4, n_laps) — degC
+        Peak estimated temperature of each spot per lap.
+    mean_contact : ndarray — degC
+        Mean contact-band temperature per lap.
+    inside_pct : ndarray — %
+        Share of the lap the contact band spent inside the window.
+    window_c : (float, float) — degC
+    """
+    fig = plt.figure(figsize=(FIG_WIDTH, 5.6), dpi=DPI)
+    ax_t, ax_w = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2.2, 1]})
+    fig.subplots_adjust(left=LEFT, right=RIGHT, top=0.93, bottom=0.1, hspace=0.12)
+    lo, hi = window_c
+    ax_t.axhspan(
+        lo, hi, color=WINDOW_COLOUR, alpha=0.12, zorder=0, label=f"window {lo:.0f}–{hi:.0f} °C"
+    )
+    for i, colour in enumerate(SPOT_COLOURS):
+        ax_t.plot(
+            laps, peak_spot[i], marker="o", markersize=4, color=colour, label=f"peak spot {i + 1}"
+        )
+    ax_t.plot(
+        laps,
+        mean_contact,
+        marker="s",
+        markersize=4,
+        color=CONTACT_COLOUR,
+        linestyle="--",
+        label="mean contact band",
+    )
+    ax_t.set_ylabel("temperature [°C]")
+    ax_t.set_title(
+        "Lap by lap: peak spot temperatures and mean contact-band temperature", loc="left"
+    )
+    ax_t.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    ax_w.bar(laps, inside_pct, color=WINDOW_COLOUR, alpha=0.8, width=0.7)
+    ax_w.set_ylim(0, 100)
+    ax_w.set_ylabel("in window [%]")
+    ax_w.set_xlabel("lap")
+    ax_w.set_xticks(laps)
+    png = _png(fig)
+    plt.close(fig)
+    return png

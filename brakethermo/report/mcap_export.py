@@ -1,0 +1,195 @@
+"""Export an estimate as MCAP JSON topics, to open in Foxglove beside the source log.
+
+Topics (``message_encoding = "json"``, ``jsonschema`` schemas, unit in the channel
+metadata under ``unit``, as CHANNELS.md reads them back):
+
+- ``/brakethermo/spot1`` … ``/brakethermo/spot4`` and ``/brakethermo/contact_avg``:
+  ``{"value", "std", "lower", "upper"}`` — estimate, 1-sigma and the ±1σ band edges,
+  degC; the spot radius in the channel metadata ``radius_m``;
+- ``/brakethermo/disc_nodes``: ``{"temperature": [...]}`` — node temperatures, degC,
+  node radii (m) as a JSON list in the channel metadata ``radius_m``;
+- ``/brakethermo/lap``: ``{"value"}`` — lap number;
+- any other numeric column of the frame (``power_scale``...) as ``{"value"[, "std"]}``.
+
+``log_time`` is in nanoseconds on the session time base: relative to the session start,
+or absolute epoch time when the source carried it (so both logs line up in Foxglove).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from mcap.writer import CompressionType, Writer
+
+from brakethermo import __version__
+from brakethermo.io.atomic import atomic_path
+
+PREFIX = "/brakethermo/"
+SPOT_RADII_DEFAULT = (0.111, 0.130, 0.146, 0.162)  # m, cc-340-8 (CHANNELS.md §5)
+
+_BAND_SCHEMA = {
+    "type": "object",
+    "properties": {
+        "value": {"type": ["number", "null"], "description": "estimate"},
+        "std": {"type": ["number", "null"], "description": "1-sigma"},
+        "lower": {"type": ["number", "null"], "description": "estimate - 1 sigma"},
+        "upper": {"type": ["number", "null"], "description": "estimate + 1 sigma"},
+    },
+}
+_VALUE_SCHEMA = {"type": "object", "properties": {"value": {"type": ["number", "null"]}}}
+_VALUE_STD_SCHEMA = {
+    "type": "object",
+    "properties": {"value": {"type": ["number", "null"]}, "std": {"type": ["number", "null"]}},
+}
+_NODES_SCHEMA = {
+    "type": "object",
+    "properties": {
+        "temperature": {
+            "type": "array",
+            "items": {"type": ["number", "null"]},
+            "description": "node temperatures from the inner to the outer radius, degC",
+        }
+    },
+}
+
+
+def _fmt(values: np.ndarray, decimals: int = 3) -> list[str]:
+    """Numbers as JSON text; NaN and inf become ``null`` (JSON has no NaN)."""
+    values = np.asarray(values, dtype=float)
+    text = np.char.mod(f"%.{decimals}f", np.nan_to_num(values, nan=0.0, posinf=0.0, neginf=0.0))
+    text[~np.isfinite(values)] = "null"
+    return text.tolist()
+
+
+def log_times_ns(time_s: np.ndarray, start_epoch_s: float | None) -> np.ndarray:
+    """Message log times, ns: grid time plus the session's epoch start when known."""
+    start_ns = round(start_epoch_s * 1e9) if start_epoch_s is not None else 0
+    return start_ns + np.rint(np.asarray(time_s, dtype=float) * 1e9).astype(np.int64)
+
+
+def write_estimate_mcap(
+    frame: pd.DataFrame,
+    path: str | Path,
+    *,
+    node_radii: Sequence[float] | np.ndarray | None = None,
+    spot_radii: Sequence[float] = SPOT_RADII_DEFAULT,
+    start_epoch_s: float | None = None,
+    source: str = "",
+) -> Path:
+    """Write an estimate frame to ``path`` as MCAP (zstd chunks), atomically.
+
+    Parameters
+    ----------
+    frame : DataFrame
+        Estimate frame of OUTPUTS.md.
+    path : path
+        Target ``.mcap`` file.
+    node_radii : array — m, optional
+        Radius of each ``node_<k>``; stored in the node channel's metadata.
+    spot_radii : sequence of float — m
+        Radii of spot 1..4, stored in the spot channels' metadata.
+    start_epoch_s : float — s, optional
+        Epoch time of grid point 0 when the source log carried absolute time.
+    source : str
+        Name of the source log, recorded in the file's metadata.
+    """
+    path = Path(path)
+    t_ns = log_times_ns(frame["time"].to_numpy(), start_epoch_s)
+    nodes = sorted(
+        (c for c in frame.columns if c.startswith("node_") and c[5:].isdigit()),
+        key=lambda c: int(c[5:]),
+    )
+    banded = [c for c in ("spot1", "spot2", "spot3", "spot4", "contact_avg") if c in frame]
+    skip = {"time", "lap", *banded, *(f"{c}_std" for c in banded), *nodes}
+    extra = [
+        c
+        for c in frame.columns
+        if c not in skip and not c.endswith("_std") and pd.api.types.is_numeric_dtype(frame[c])
+    ]
+
+    with atomic_path(path) as tmp, tmp.open("wb") as fh:
+        writer = Writer(fh, compression=CompressionType.ZSTD)
+        writer.start(profile="", library=f"brakethermo {__version__}")
+
+        def channel(topic: str, schema: dict, name: str, meta: dict[str, str]) -> int:
+            sid = writer.register_schema(
+                name=name, encoding="jsonschema", data=json.dumps(schema).encode()
+            )
+            return writer.register_channel(
+                topic=PREFIX + topic, message_encoding="json", schema_id=sid, metadata=meta
+            )
+
+        streams: list[tuple[int, list[str]]] = []
+        for col in banded:
+            value = frame[col].to_numpy(dtype=float)
+            std_col = f"{col}_std"
+            std = (
+                frame[std_col].to_numpy(dtype=float)
+                if std_col in frame
+                else np.full_like(value, np.nan)
+            )
+            meta = {"unit": "degC", "description": f"estimated {col} temperature with 1-sigma"}
+            if col.startswith("spot"):
+                meta["radius_m"] = repr(float(spot_radii[int(col[4:]) - 1]))
+            cid = channel(col, _BAND_SCHEMA, "brakethermo.Band", meta)
+            v, s, lo, hi = _fmt(value), _fmt(std), _fmt(value - std), _fmt(value + std)
+            streams.append(
+                (
+                    cid,
+                    [
+                        f'{{"value":{a},"std":{b},"lower":{c},"upper":{d}}}'
+                        for a, b, c, d in zip(v, s, lo, hi, strict=True)
+                    ],
+                )
+            )
+        if nodes:
+            radii = (
+                [round(float(r), 9) for r in node_radii]
+                if node_radii is not None
+                else [float("nan")] * len(nodes)
+            )
+            meta = {
+                "unit": "degC",
+                "radius_m": json.dumps(radii),
+                "description": "node temperatures, inner to outer radius",
+            }
+            cid = channel("disc_nodes", _NODES_SCHEMA, "brakethermo.DiscNodes", meta)
+            cells = np.array([_fmt(frame[c].to_numpy(dtype=float), 2) for c in nodes]).T
+            streams.append((cid, ['{"temperature":[' + ",".join(row) + "]}" for row in cells]))
+        if "lap" in frame:
+            cid = channel("lap", _VALUE_SCHEMA, "brakethermo.Value", {"unit": ""})
+            streams.append((cid, [f'{{"value":{int(x)}}}' for x in frame["lap"].to_numpy()]))
+        for col in extra:
+            value = _fmt(frame[col].to_numpy(dtype=float), 6)
+            std_col = f"{col}_std"
+            if std_col in frame:
+                std = _fmt(frame[std_col].to_numpy(dtype=float), 6)
+                cid = channel(col, _VALUE_STD_SCHEMA, "brakethermo.ValueStd", {"unit": ""})
+                msgs = [f'{{"value":{a},"std":{b}}}' for a, b in zip(value, std, strict=True)]
+            else:
+                cid = channel(col, _VALUE_SCHEMA, "brakethermo.Value", {"unit": ""})
+                msgs = [f'{{"value":{a}}}' for a in value]
+            streams.append((cid, msgs))
+
+        times = t_ns.tolist()
+        # Time-ordered interleaving so readers replay without reordering.
+        for k, t in enumerate(times):
+            for cid, msgs in streams:
+                writer.add_message(
+                    channel_id=cid, log_time=t, publish_time=t, sequence=k, data=msgs[k].encode()
+                )
+        writer.add_metadata(
+            "brakethermo",
+            {
+                "version": __version__,
+                "source": source,
+                "start_epoch_s": "" if start_epoch_s is None else repr(float(start_epoch_s)),
+                "time_base": "epoch" if start_epoch_s is not None else "session start",
+            },
+        )
+        writer.finish()
+    return path

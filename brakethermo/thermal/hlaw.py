@@ -1,0 +1,298 @@
+"""Convection coefficient as a function of forward speed, h(V) (paper 000 §5.1).
+
+With ``x = V / V_ref`` and the knee ``x_k`` (0.8 in the paper)::
+
+    h = a x^b                                          x <  x_k   (power law)
+    h = c0 + c1 u + c2 u^2 + c3 u^3,  u = x - x_k      x >= x_k   (cubic)
+    c0 = a x_k^b                                       (continuous at the knee)
+
+Only the value is continuous at the knee, as in the paper: the slope is left free
+because the knee is a physical change of regime (above ~0.8 V_ref tyre deformation
+exposes the disc to the free stream), which a slope constraint would smooth away.
+``h`` is clipped at 0 so an extrapolated cubic can never make the disc gain heat from
+cooling air.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from brakethermo.config import load_toml
+from brakethermo.errors import ConfigError, DataError
+from brakethermo.io.atomic import write_text_atomic
+
+KMH = 1.0 / 3.6  # m/s per km/h
+TABLE_SPEEDS_KMH = np.arange(0.0, 361.0, 10.0)
+MIN_SAMPLES_POWER = 5  # below the knee, to fit a and b
+MIN_SAMPLES_CUBIC = 6  # above the knee, to fit c1..c3; else a straight continuation
+
+
+@dataclass(frozen=True)
+class HLaw:
+    """Power law below the knee, cubic above (module docstring).
+
+    Attributes
+    ----------
+    v_ref : float — m/s
+        Reference speed of the normalisation.
+    a : float — W/(m^2 K)
+        Power-law factor (h at V_ref on the power branch).
+    b : float — dimensionless
+        Power-law exponent.
+    c : tuple of 3 float — W/(m^2 K)
+        Cubic coefficients c1, c2, c3 in ``u = V/V_ref - knee``; c0 follows from continuity.
+    knee : float — dimensionless
+        Knee ``x_k`` as a fraction of V_ref.
+    """
+
+    v_ref: float
+    a: float
+    b: float
+    c: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    knee: float = 0.8
+
+    def __post_init__(self) -> None:
+        if len(self.c) != 3:
+            raise ValueError("HLaw needs three cubic coefficients c1, c2, c3")
+        for name in ("v_ref", "a", "b", "knee"):  # plain floats, also from numpy scalars
+            object.__setattr__(self, name, float(getattr(self, name)))
+        object.__setattr__(self, "c", tuple(float(v) for v in self.c))
+        if not all(math.isfinite(v) for v in (self.v_ref, self.a, self.b, self.knee, *self.c)):
+            raise ValueError("HLaw coefficients must be finite")
+        if self.v_ref <= 0 or self.a < 0 or self.b < 0 or not 0 < self.knee:
+            raise ValueError("HLaw needs v_ref > 0, a >= 0, b >= 0 and knee > 0")
+
+    @classmethod
+    def constant(cls, h: float, v_ref: float = 350.0 * KMH) -> HLaw:
+        """A speed-independent law ``h(V) = h`` (W/(m^2 K))."""
+        return cls(v_ref=v_ref, a=float(h), b=0.0)
+
+    @property
+    def c0(self) -> float:
+        """Cubic constant term, ``a knee^b`` (continuity at the knee), W/(m^2 K)."""
+        return self.a * self.knee**self.b
+
+    def __call__(self, v_mps: float | np.ndarray) -> np.ndarray:
+        """h in W/(m^2 K) at forward speed ``v_mps`` (m/s; the sign is ignored)."""
+        x = np.abs(np.asarray(v_mps, dtype=float)) / self.v_ref
+        u = x - self.knee
+        c1, c2, c3 = self.c
+        cubic = self.c0 + u * (c1 + u * (c2 + u * c3))
+        power = self.a * np.power(np.minimum(x, self.knee), self.b)
+        return np.maximum(np.where(x < self.knee, power, cubic), 0.0)
+
+    # --------------------------------------------------------------------- fit
+    @classmethod
+    def fit(
+        cls,
+        v_mps: np.ndarray,
+        h: np.ndarray,
+        weights: np.ndarray | None = None,
+        *,
+        v_ref: float,
+        knee: float = 0.8,
+        robust: bool = True,
+    ) -> HLaw:
+        """Fit the law to samples of h (e.g. UKF posterior means off the brakes).
+
+        Parameters
+        ----------
+        v_mps : ndarray — m/s
+            Forward speed of each sample.
+        h : ndarray — W/(m^2 K)
+            Identified convection coefficient.
+        weights : ndarray, optional — 1/(W/(m^2 K))^2
+            Per-sample weights, e.g. ``1 / h_std**2`` from the filter; NaN or non-positive
+            weights drop the sample.
+        v_ref : float — m/s
+            Reference speed.
+        knee : float
+            Knee as a fraction of ``v_ref``.
+        robust : bool
+            Huber loss (scale from the median absolute residual of a plain fit), so the
+            noisy low-speed samples (paper §5.1) do not drag the law.
+
+        Raises
+        ------
+        DataError
+            Too few usable samples below the knee.
+        """
+        v = np.abs(np.asarray(v_mps, dtype=float)).ravel()
+        y = np.asarray(h, dtype=float).ravel()
+        w = np.ones_like(y) if weights is None else np.asarray(weights, dtype=float).ravel()
+        if not v.shape == y.shape == w.shape:
+            raise ValueError("v_mps, h and weights must have the same length")
+        keep = np.isfinite(v) & np.isfinite(y) & np.isfinite(w) & (w > 0)
+        x, y, sw = v[keep] / v_ref, y[keep], np.sqrt(w[keep] / np.mean(w[keep]))
+        low = (x < knee) & (x > 0.05 * knee) & (y > 0)
+        if np.count_nonzero(low) < MIN_SAMPLES_POWER:
+            raise DataError(
+                f"only {np.count_nonzero(low)} usable h samples below {knee:.2f} V_ref; the law"
+                f" needs at least {MIN_SAMPLES_POWER} — use a session with more off-brake running"
+            )
+        # start: weighted log-log line through the power branch
+        A = np.stack([np.ones(np.count_nonzero(low)), np.log(x[low])], axis=1)
+        coef = np.linalg.lstsq(A * sw[low, None], np.log(y[low]) * sw[low], rcond=None)[0]
+        a0, b0 = math.exp(coef[0]), float(np.clip(coef[1], 0.0, 5.0))
+        with_cubic = np.count_nonzero(x >= knee) >= MIN_SAMPLES_CUBIC
+
+        def unpack(p: np.ndarray) -> HLaw:
+            if with_cubic:
+                return cls(v_ref=v_ref, a=p[0], b=p[1], c=(p[2], p[3], p[4]), knee=knee)
+            # too little data above the knee: continue the power law with its slope
+            slope = p[0] * p[1] * knee ** (p[1] - 1.0)
+            return cls(v_ref=v_ref, a=p[0], b=p[1], c=(slope, 0.0, 0.0), knee=knee)
+
+        def residual(p: np.ndarray) -> np.ndarray:
+            return sw * (unpack(p)(x * v_ref) - y)
+
+        p0 = np.array([a0, b0, a0 * b0 * knee ** (b0 - 1.0), 0.0, 0.0][: 5 if with_cubic else 2])
+        lo = [0.0, 0.0] + [-np.inf] * (len(p0) - 2)
+        hi = [np.inf, 5.0] + [np.inf] * (len(p0) - 2)
+        p0 = np.clip(p0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+        sol = least_squares(residual, p0, bounds=(lo, hi), x_scale="jac")
+        if robust:
+            r = residual(sol.x)
+            scale = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+            if scale > 0:
+                sol = least_squares(
+                    residual, sol.x, bounds=(lo, hi), loss="huber", f_scale=1.345 * scale,
+                    x_scale="jac",
+                )  # fmt: skip
+        return unpack(sol.x)
+
+    # -------------------------------------------------------------------- TOML
+    def tabulate(self) -> tuple[np.ndarray, np.ndarray]:
+        """Speeds 0..360 km/h in steps of 10 and h there (OUTPUTS.md ``[tabulated]``)."""
+        return TABLE_SPEEDS_KMH.copy(), self(TABLE_SPEEDS_KMH * KMH)
+
+    def to_toml(
+        self,
+        path: str | Path,
+        weights: Sequence[float] = (1.0, 1.0, 1.0),
+        extra: Mapping[str, Any] | None = None,
+    ) -> None:
+        """Write ``h_law.toml`` (OUTPUTS.md layout) atomically.
+
+        Parameters
+        ----------
+        path : str or Path
+        weights : sequence of 3 float
+            Pad-crown power weights w_1..w_3 (eq. 6–8), stored in ``[weights]``.
+        extra : mapping, optional
+            Further identified values (str, bool, int, float, lists of them, or one level
+            of nested mappings), stored under ``[extra]``.
+        """
+        w = [float(v) for v in weights]
+        if len(w) != 3 or not all(math.isfinite(v) and v >= 0 for v in w):
+            raise ValueError(f"weights must be three finite values >= 0, got {weights}")
+        speeds, hs = self.tabulate()
+        lines = [
+            "# brakethermo h(V) convection law, paper 000 §5.1. x = V / v_ref, h in W/(m^2 K):",
+            "#   h = a * x^b                                   for x < knee",
+            "#   h = c[0] + c[1] u + c[2] u^2 + c[3] u^3, u = x - knee, for x >= knee",
+            "#   c[0] = a * knee^b (continuous at the knee); h is clipped at 0.",
+            'kind = "power-cubic"',
+            f"v_ref_kmh = {_fmt(round(self.v_ref / KMH, 9))}",
+            f"v_ref_mps = {_fmt(self.v_ref)}  # exact; v_ref_kmh is for people",
+            f"knee = {_fmt(self.knee)}",
+            "",
+            "[power]",
+            f"a = {_fmt(self.a)}",
+            f"b = {_fmt(self.b)}",
+            "",
+            "[cubic]",
+            f"c = {_fmt([self.c0, *self.c])}",
+            "",
+            "[weights]  # pad-crown power weights w_1..w_3 (eq. 6-8)",
+            f"w = {_fmt(w)}",
+            "",
+            "[tabulated]",
+            f"speed_kmh = {_fmt(list(speeds))}",
+            f"h = {_fmt(list(hs))}",
+        ]
+        if extra:
+            lines += ["", "[extra]"]
+            tables = {k: v for k, v in extra.items() if isinstance(v, Mapping)}
+            lines += [f"{k} = {_fmt(v)}" for k, v in extra.items() if k not in tables]
+            for name, table in tables.items():
+                lines += ["", f"[extra.{name}]"] + [f"{k} = {_fmt(v)}" for k, v in table.items()]
+        write_text_atomic(path, "\n".join(lines) + "\n")
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> HLaw:
+        """Read the law from an ``h_law.toml`` (:func:`read_h_law` also gives weights)."""
+        return read_h_law(path).law
+
+
+@dataclass(frozen=True)
+class HLawRecord:
+    """Everything an ``h_law.toml`` holds: the law, crown weights and extra values."""
+
+    law: HLaw
+    weights: tuple[float, float, float]
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def read_h_law(path: str | Path) -> HLawRecord:
+    """Read and validate an ``h_law.toml``.
+
+    Raises
+    ------
+    ConfigError
+        Missing keys, wrong types, non-finite values or a cubic that is not continuous
+        with the power law at the knee.
+    """
+    path = Path(path)
+    raw = load_toml(path)
+    try:
+        v_ref = float(raw["v_ref_mps"]) if "v_ref_mps" in raw else float(raw["v_ref_kmh"]) * KMH
+        knee = float(raw["knee"])
+        a, b = float(raw["power"]["a"]), float(raw["power"]["b"])
+        c = [float(v) for v in raw["cubic"]["c"]]
+        w = tuple(float(v) for v in raw.get("weights", {}).get("w", (1.0, 1.0, 1.0)))
+    except KeyError as exc:
+        raise ConfigError(f"missing key {exc}; write the file with identify-h", path=path) from None
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"invalid value ({exc})", path=path) from None
+    if len(c) != 4:
+        raise ConfigError("[cubic] c must hold four coefficients c0..c3", path=path)
+    if len(w) != 3 or not all(math.isfinite(v) and v >= 0 for v in w) or sum(w) <= 0:
+        raise ConfigError("[weights] w must be three finite values >= 0, not all 0", path=path)
+    try:
+        law = HLaw(v_ref=v_ref, a=a, b=b, c=(c[1], c[2], c[3]), knee=knee)
+    except ValueError as exc:
+        raise ConfigError(str(exc), path=path) from None
+    if not math.isclose(c[0], law.c0, rel_tol=1e-6, abs_tol=1e-9):
+        raise ConfigError(
+            f"[cubic] c[0] = {c[0]} must equal a * knee^b = {law.c0} (continuity)", path=path
+        )
+    extra = raw.get("extra", {})
+    if not isinstance(extra, dict):
+        raise ConfigError("[extra] must be a table", path=path)
+    return HLawRecord(law=law, weights=(w[0], w[1], w[2]), extra=extra)
+
+
+def _fmt(value: Any) -> str:
+    """TOML literal of a scalar, string or list (floats round-trip exactly)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | np.integer):
+        return str(int(value))
+    if isinstance(value, float | np.floating):
+        v = float(value)
+        if not math.isfinite(v):
+            raise ValueError(f"cannot store non-finite value {v} in TOML")
+        return repr(v)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, Sequence | np.ndarray):
+        return "[" + ", ".join(_fmt(v) for v in value) + "]"
+    raise TypeError(f"cannot store {type(value).__name__} in h_law.toml")

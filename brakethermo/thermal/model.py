@@ -1,0 +1,662 @@
+"""Batched 1D radial finite-element disc model with through-thickness layers (eq. 1–15).
+
+State layout
+------------
+``N`` radial nodes times ``L`` layers, node-major: state index ``i * L + j`` is radial
+node ``i``, layer ``j``; layer 0 is the face the IR sensor sees, layer ``L - 1`` touches
+the mid-plane. With this ordering radial coupling has offset ``L`` and through-thickness
+coupling offset 1, so the system is banded with half-bandwidth ``L`` (tridiagonal for
+the paper's one-layer model, ``L = 1``).
+
+Layers are finite volumes across the half thickness; the mid-plane is a symmetry plane
+(adiabatic), so layer ``j`` stands for the two mirrored slices of thickness
+``s / (2 L)`` and all energies and powers are those of the whole disc.
+
+Discretisation choices
+----------------------
+* Lumped capacity matrix (row sums of the consistent axisymmetric one) and lumped face
+  convection/radiation: the system stays banded with a positive diagonal and
+  non-positive off-diagonals (an M-matrix), so backward Euler is monotone — no
+  undershoots below ambient after a braking spike — and the LDL^T solve needs no
+  pivoting. Lumping keeps second-order spatial accuracy for linear elements.
+* c(T) per node, k(T) per element at the mean of its two nodes, radiation — all from the
+  previous step (eq. 15). Radiation leaves both faces of the face layer; the rims only
+  convect (paper, after eq. 12), with the same ``h`` as the faces.
+* ``Q`` is the power entering this disc; the friction flux is integrated exactly against
+  the shape functions, so the injected power is ``Q`` for any mesh (``power.py``).
+* ``h`` is used as given (no clipping): a slightly negative sigma-point ``h`` keeps the
+  matrix positive definite because ``M/dt`` dominates (~1e5 W/(m^2 K) per face area).
+
+Per-member or shared matrix
+---------------------------
+:meth:`DiscFEModel.step` by default builds and factorises one matrix per batch member
+from that member's own previous state: the exact eq. 15 for every sigma point, which is
+what an unscented filter needs (and the only choice when ``h``, ``kz_ratio`` or the load
+differ per member). ``shared_matrix_from=x_ref`` builds one matrix from ``x_ref`` and
+solves all members with it (radiation stays per member): exact when c and k are
+constant, otherwise a linearisation of the properties about ``x_ref`` — meant for linear
+Kalman filters/smoothers and EKF-style use. With numba both cost about the same per
+member, since the fused kernel assembles a matrix for little more than its solve.
+
+Extension points
+----------------
+The power distribution (``weights``, ``power_shape`` or a per-step ``load``), ``h``
+(any law, evaluated by the caller), a braking-power ``scale`` and ``kz_ratio`` are
+explicit inputs; sensor lag or bias act on the output (:meth:`spot_matrix`) and are
+composed outside the model.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from brakethermo.thermal.banded import HAVE_NUMBA, factor_banded, solve_factored
+from brakethermo.thermal.disc import DiscSpec
+from brakethermo.thermal.fe import (
+    conduction_factors,
+    interpolation_matrix,
+    nodal_areas,
+    piecewise_flux_load,
+    radial_nodes,
+)
+from brakethermo.thermal.power import crown_load, normalise_weights, shape_load
+
+SIGMA = 5.670374419e-8  # W/(m^2 K^4), Stefan–Boltzmann
+KELVIN = 273.15
+_BLOCK = 32  # members per kernel block: work arrays of N = 150 stay in L2 cache
+
+
+def _ramp_table(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """A table linear between points and constant outside as ramps (branch-free).
+
+    ``y(t) = y_0 + sum_m slope_m * clip(t - x_m, 0, width_m)``, identical to
+    :func:`numpy.interp`; the kernel evaluates it with min/max only so it vectorises.
+
+    Returns
+    -------
+    x0, slope, width : ndarray
+    y0 : float
+    """
+    return x[:-1].copy(), np.diff(y) / np.diff(x), np.diff(x), float(y[0])
+
+
+if HAVE_NUMBA:
+    import numba
+
+    @numba.njit(cache=True, nogil=True, inline="always", fastmath=True)
+    def _ramp_nb(
+        t: float, tab: tuple[np.ndarray, np.ndarray, np.ndarray, float]
+    ) -> float:  # pragma: no cover - compiled
+        x0, slope, width, v = tab
+        for m in range(x0.size):
+            v += slope[m] * min(max(t - x0[m], 0.0), width[m])
+        return v
+
+    @numba.njit(cache=True, nogil=True, fastmath=True)
+    def _step_block(  # pragma: no cover - compiled; equal to system() + banded solve (tested)
+        out: np.ndarray,
+        T: np.ndarray,
+        Tm: np.ndarray,
+        Qs: np.ndarray,
+        ta: np.ndarray,
+        h: np.ndarray,
+        kz: np.ndarray,
+        load: np.ndarray,
+        N: int,
+        L: int,
+        dt: float,
+        cap_geo: np.ndarray,
+        cond_geo: np.ndarray,
+        z_geo: np.ndarray,
+        area: np.ndarray,
+        rad_geo: np.ndarray,
+        c_tab: tuple[np.ndarray, np.ndarray, np.ndarray, float],
+        k_tab: tuple[np.ndarray, np.ndarray, np.ndarray, float],
+        z_tab: tuple[np.ndarray, np.ndarray, np.ndarray, float],
+    ) -> np.ndarray:
+        """Eq. 15 for B members into ``out``; matrices from ``Tm`` (B rows or 1 shared).
+
+        ``load`` holds the nodal shares of ``Q``, one row per member or one shared row.
+
+        ``h`` and ``kz`` have one value per matrix; ``Qs`` (= scale Q) and ``ta`` per member.
+        Batch innermost: the LDL^T recurrences of different members are independent, so
+        the inner loops vectorise instead of waiting on one member's divisions.
+        """
+        B, n = T.shape
+        Bm = Tm.shape[0]
+        Tt = np.empty((n, B))
+        for b in range(B):
+            for s in range(n):
+                Tt[s, b] = T[b, s]
+        Tmt = Tt
+        if Bm != B:
+            Tmt = np.empty((n, Bm))
+            for b in range(Bm):
+                for s in range(n):
+                    Tmt[s, b] = Tm[b, s]
+        inv_dt = 1.0 / dt
+        # matrices: D = diagonal, E[o - 1, s] = A[s + o, s]; Md = M / dt (eq. 15)
+        D = np.empty((n, Bm))
+        Md = np.empty((n, Bm))
+        E = np.zeros((L, n, Bm))
+        for s in range(n):
+            i = s // L
+            for b in range(Bm):
+                Md[s, b] = cap_geo[i] * _ramp_nb(Tmt[s, b], c_tab) * inv_dt
+                D[s, b] = Md[s, b] + h[b] * area[s]
+        for s in range(n - L):
+            g = cond_geo[s // L]
+            for b in range(Bm):
+                G = g * _ramp_nb(0.5 * (Tmt[s, b] + Tmt[s + L, b]), k_tab)
+                D[s, b] += G
+                D[s + L, b] += G
+                E[L - 1, s, b] = -G
+        for i in range(N):
+            for j in range(L - 1):
+                s = i * L + j
+                for b in range(Bm):
+                    G = kz[b] * z_geo[i] * _ramp_nb(0.5 * (Tmt[s, b] + Tmt[s + 1, b]), z_tab)
+                    D[s, b] += G
+                    D[s + 1, b] += G
+                    E[0, s, b] = -G
+        # right-hand sides M/dt T + p, radiation lagged (eq. 15)
+        MdB, hB = Md, h
+        if Bm != B:
+            MdB = np.empty((n, B))
+            for s in range(n):
+                for b in range(B):
+                    MdB[s, b] = Md[s, 0]
+            hB = np.full(B, h[0])
+        X = np.empty((n, B))
+        for s in range(n):
+            for b in range(B):
+                X[s, b] = MdB[s, b] * Tt[s, b] + hB[b] * area[s] * ta[b]
+        shared_load = load.shape[0] != B
+        for i in range(N):
+            s = i * L
+            for b in range(B):
+                tk = Tt[s, b] + KELVIN
+                tak = ta[b] + KELVIN
+                share = load[0, i] if shared_load else load[b, i]
+                X[s, b] += Qs[b] * share - rad_geo[i] * (
+                    (tk * tk) * (tk * tk) - (tak * tak) * (tak * tak)
+                )
+        # LDL^T (as banded._factor_numpy), D <- 1/D
+        for s in range(n):
+            m = min(L, n - 1 - s)
+            for b in range(Bm):
+                D[s, b] = 1.0 / D[s, b]
+            for o1 in range(1, m + 1):
+                for o2 in range(o1, m + 1):
+                    if o2 == o1:
+                        for b in range(Bm):
+                            D[s + o1, b] -= E[o1 - 1, s, b] * E[o1 - 1, s, b] * D[s, b]
+                    else:
+                        for b in range(Bm):
+                            E[o2 - o1 - 1, s + o1, b] -= E[o2 - 1, s, b] * E[o1 - 1, s, b] * D[s, b]
+            for o in range(m):
+                for b in range(Bm):
+                    E[o, s, b] *= D[s, b]
+        if Bm != B:  # one shared factor: spread it so the solve loops stay gather-free
+            D1, E1 = D, E
+            D = np.empty((n, B))
+            E = np.empty((L, n, B))
+            for s in range(n):
+                for b in range(B):
+                    D[s, b] = D1[s, 0]
+                    for o in range(L):
+                        E[o, s, b] = E1[o, s, 0]
+        for s in range(n):
+            for o in range(1, min(L, n - 1 - s) + 1):
+                for b in range(B):
+                    X[s + o, b] -= E[o - 1, s, b] * X[s, b]
+        for s in range(n):
+            for b in range(B):
+                X[s, b] *= D[s, b]
+        for s in range(n - 2, -1, -1):
+            for o in range(1, min(L, n - 1 - s) + 1):
+                for b in range(B):
+                    X[s, b] -= E[o - 1, s, b] * X[s + o, b]
+        for b in range(B):
+            for s in range(n):
+                out[b, s] = X[s, b]
+
+    @numba.njit(cache=True, nogil=True)
+    def _step_nb(  # pragma: no cover - compiled
+        T: np.ndarray,
+        Tm: np.ndarray,
+        Qs: np.ndarray,
+        ta: np.ndarray,
+        h: np.ndarray,
+        kz: np.ndarray,
+        load: np.ndarray,
+        *geometry: Any,
+    ) -> np.ndarray:
+        """:func:`_step_block` over blocks of members that keep the work arrays in cache."""
+        B = T.shape[0]
+        out = np.empty_like(T)
+        shared = Tm.shape[0] != B
+        shared_load = load.shape[0] != B
+        for b0 in range(0, B, _BLOCK):
+            b1 = min(b0 + _BLOCK, B)
+            m0, m1 = (0, 1) if shared else (b0, b1)
+            l0, l1 = (0, 1) if shared_load else (b0, b1)
+            _step_block(
+                out[b0:b1], T[b0:b1], Tm[m0:m1], Qs[b0:b1], ta[b0:b1], h[m0:m1], kz[m0:m1],
+                load[l0:l1], *geometry,
+            )  # fmt: skip
+        return out
+
+
+def _owned(a: np.ndarray) -> np.ndarray:
+    """C-contiguous, writeable float64 (one numba signature for every caller)."""
+    if a.dtype == np.float64 and a.flags.c_contiguous and a.flags.writeable:
+        return a
+    return np.array(a, dtype=np.float64, order="C")
+
+
+@dataclass(frozen=True)
+class PowerTerms:
+    """Heat flows of one step, W per batch member (see :meth:`DiscFEModel.power_terms`)."""
+
+    friction: np.ndarray
+    convection: np.ndarray
+    radiation: np.ndarray
+
+    @property
+    def net(self) -> np.ndarray:
+        """Net power into the disc, W."""
+        return self.friction - self.convection - self.radiation
+
+
+def _enthalpy_table(temp_c: np.ndarray, c: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """``e(T) = int_0^T c dT`` (J/kg) for a c table linear between points, constant outside.
+
+    With ``c`` written as ramps (:func:`_ramp_table`) each ramp integrates in closed form.
+    """
+    x0, slope, width, c0 = _ramp_table(temp_c, c)
+
+    def ramp_integral(t: np.ndarray) -> np.ndarray:
+        u = np.asarray(t, dtype=float)[..., None] - x0
+        inside = np.clip(u, 0.0, width)
+        return (slope * (0.5 * inside**2 + width * np.maximum(u - width, 0.0))).sum(axis=-1)
+
+    return lambda t: c0 * np.asarray(t, dtype=float) + ramp_integral(t) - ramp_integral(0.0)
+
+
+class DiscFEModel:
+    """Batched backward-Euler 1D-FE disc model (eq. 15), one matrix per batch member.
+
+    Parameters
+    ----------
+    disc : DiscSpec
+        Datasheet (geometry, ``rho``, ``c(T)``, ``k(T)``, emissivity, pad crowns).
+    n_nodes : int
+        Radial nodes N (>= 2; the paper uses 10 and 51).
+    layers : int
+        Through-thickness layers L over the half thickness (1 = the paper's model).
+    weights : sequence of 3 float
+        Pad-crown weights w_1..w_3 (eq. 6–8), normalised to conserve power.
+    power_shape : ndarray (N,) or callable, optional
+        Replaces the crown distribution: nodal shares of ``Q`` (normalised to sum 1) or a
+        radial flux shape ``f(r_m)`` integrated by :func:`power.shape_load`.
+    kz_ratio : float
+        Multiplier of the through-thickness conductivity (``L > 1`` only); a batch can
+        override it per member in :meth:`step` (e.g. an identified parameter).
+    k_z : float, optional — W/(m K)
+        Constant through-thickness conductivity; by default it is the in-plane ``k(T)``
+        (carbon–carbon is orthotropic, so the ratio is a real unknown).
+    dt : float — s
+        Time step (0.1 s = the 10 Hz grid).
+    use_numba : bool or None
+        Banded kernel: numba when installed (``None``), or force numba / numpy.
+    """
+
+    def __init__(
+        self,
+        disc: DiscSpec,
+        n_nodes: int = 10,
+        layers: int = 1,
+        *,
+        weights: Sequence[float] = (1.0, 1.0, 1.0),
+        power_shape: np.ndarray | Callable[[np.ndarray], np.ndarray] | None = None,
+        kz_ratio: float = 1.0,
+        k_z: float | None = None,
+        dt: float = 0.1,
+        use_numba: bool | None = None,
+    ) -> None:
+        if n_nodes < 2 or layers < 1:
+            raise ValueError("need n_nodes >= 2 and layers >= 1")
+        if dt <= 0 or kz_ratio <= 0 or (k_z is not None and k_z <= 0):
+            raise ValueError("dt, kz_ratio and k_z must be > 0")
+        self.disc = disc
+        self.n_nodes = int(n_nodes)
+        self.layers = int(layers)
+        self.n_state = self.n_nodes * self.layers
+        self.dt = float(dt)
+        self.kz_ratio = float(kz_ratio)
+        self.use_numba = HAVE_NUMBA if use_numba is None else bool(use_numba)
+        self.radii = radial_nodes(disc.r_int, disc.r_est, self.n_nodes)
+        self.face_index = np.arange(self.n_nodes) * self.layers
+
+        self.weights: np.ndarray | None  # normalised crown weights (eq. 8), if crowns
+        if power_shape is None:
+            self.weights = normalise_weights(weights, disc.crown_edges)
+            self.load = crown_load(self.radii, disc.crown_edges, self.weights)
+        elif callable(power_shape):
+            self.weights = None
+            self.load = shape_load(self.radii, power_shape)
+        else:
+            b = np.asarray(power_shape, dtype=float)
+            if b.shape != (self.n_nodes,) or np.any(b < 0) or b.sum() <= 0:
+                raise ValueError(f"power_shape must be {self.n_nodes} shares >= 0")
+            self.weights = None
+            self.load = b / b.sum()
+
+        N, L, s = self.n_nodes, self.layers, disc.thickness
+        a = nodal_areas(self.radii)
+        t_layer = s / L  # both mirrored slices of one layer
+        self._c_tab = (np.asarray(disc.c_temp_c, float), np.asarray(disc.c_value, float))
+        self._k_tab = (np.asarray(disc.k_temp_c, float), np.asarray(disc.k_value, float))
+        self._z_tab = self._k_tab if k_z is None else (np.zeros(1), np.full(1, float(k_z)))
+        # Geometric factors that the step multiplies by material properties or h.
+        self._cap_geo = (disc.density * a * t_layer)[:, None]  # (N, 1): times c -> J/K
+        self._cond_geo = (t_layer * conduction_factors(self.radii))[:, None]  # times k -> W/K
+        # two interfaces (mirrored halves), cell-centre distance s / (2 L)
+        self._z_geo = (4.0 * L * a / s)[:, None]  # times k_z -> W/K
+        area = np.zeros((N, L))
+        area[:, 0] = 2.0 * a  # both faces (eq. 3)
+        area[0, :] += 2.0 * np.pi * self.radii[0] * t_layer  # inner rim (eq. 11)
+        area[-1, :] += 2.0 * np.pi * self.radii[-1] * t_layer  # outer rim (eq. 12)
+        self._area = area  # times h -> W/K
+        self._rad_geo = 2.0 * a * SIGMA * disc.emissivity  # (N,), both faces (eq. 4)
+        self._enthalpy = _enthalpy_table(*self._c_tab)
+        self._kernel_args = (
+            N, L, self.dt, self._cap_geo[:, 0].copy(), self._cond_geo[:, 0].copy(),
+            self._z_geo[:, 0].copy(), area.ravel().copy(), self._rad_geo,
+            _ramp_table(*self._c_tab), _ramp_table(*self._k_tab), _ramp_table(*self._z_tab),
+        )  # fmt: skip
+
+    # ------------------------------------------------------------------ helpers
+    def _batch(self, T: np.ndarray) -> tuple[np.ndarray, bool]:
+        T = np.asarray(T, dtype=float)
+        single = T.ndim == 1
+        T2 = T[None, :] if single else T
+        if T2.ndim != 2 or T2.shape[1] != self.n_state:
+            raise ValueError(f"T must have shape (B, {self.n_state}), got {T.shape}")
+        return T2, single
+
+    @staticmethod
+    def _per_member(x: float | np.ndarray, B: int) -> np.ndarray:
+        """``x`` as a fresh or owned, writeable, C-contiguous float64 array of shape (B,).
+
+        Writeable and contiguous so that numba sees one array type on every call (a
+        read-only broadcast view would trigger a second compilation).
+        """
+        a = np.asarray(x, dtype=np.float64)
+        if a.ndim == 0:
+            return np.full(B, float(a))
+        if a.shape != (B,):
+            a = np.broadcast_to(a, (B,))
+        if not (a.flags.c_contiguous and a.flags.writeable):
+            a = a.copy()
+        return a
+
+    def initial_state(self, t_c: float) -> np.ndarray:
+        """Uniform temperature ``t_c`` (degC) at every node, shape (n_state,)."""
+        return np.full(self.n_state, float(t_c))
+
+    def spot_matrix(self, radii: Sequence[float] | np.ndarray) -> np.ndarray:
+        """Measurement matrix of face temperatures at ``radii`` (m), shape (m, n_state).
+
+        Linear interpolation between the two face nodes around each radius (eq. 53).
+        """
+        H = np.zeros((np.size(radii), self.n_state))
+        H[:, self.face_index] = interpolation_matrix(self.radii, radii)
+        return H
+
+    def capacity(self, T: np.ndarray) -> np.ndarray:
+        """Lumped heat capacity of each state at temperature ``T`` (degC), J/K."""
+        T2, single = self._batch(T)
+        C = self._cap_geo * np.interp(T2.reshape(-1, self.n_nodes, self.layers), *self._c_tab)
+        C = C.reshape(T2.shape)
+        return C[0] if single else C
+
+    def energy(self, T: np.ndarray) -> np.ndarray | float:
+        """Heat stored relative to a disc at 0 degC, ``sum rho V_i int_0^T_i c dT``, J."""
+        T2, single = self._batch(T)
+        e = self._enthalpy(T2).reshape(-1, self.n_nodes, self.layers)
+        E = (self._cap_geo * e).sum(axis=(1, 2))
+        return float(E[0]) if single else E
+
+    # ---------------------------------------------------------------- assembly
+    def _conductances(
+        self, T3: np.ndarray, kz_ratio: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Radial ``G_r`` (B, N-1, L) and through-thickness ``G_z`` (B, N, L-1), W/K."""
+        k_r = np.interp(0.5 * (T3[:, :-1] + T3[:, 1:]), *self._k_tab)
+        G_r = k_r * self._cond_geo
+        if self.layers == 1:
+            return G_r, None
+        k_z = np.interp(0.5 * (T3[:, :, :-1] + T3[:, :, 1:]), *self._z_tab)
+        return G_r, kz_ratio[:, None, None] * k_z * self._z_geo
+
+    def crown_basis(self) -> np.ndarray:
+        """Nodal load of each pad crown alone, shape (3, N), per W of ``Q``.
+
+        For crown weights ``w`` satisfying eq. 8 the load is ``w @ crown_basis()``, so a
+        filter with the weights in its state can form one load row per sigma point and
+        pass it to :meth:`step` as ``load``.
+        """
+        edges = self.disc.crown_edges
+        flux = 1.0 / (np.pi * (edges[-1] ** 2 - edges[0] ** 2))
+        return np.stack([piecewise_flux_load(self.radii, edges, flux * e) for e in np.eye(3)])
+
+    def _load_rows(self, load: np.ndarray | None, B: int) -> np.ndarray:
+        """Nodal shares of ``Q`` as (1, N) or (B, N) rows."""
+        if load is None:
+            return self.load[None, :]
+        rows = np.asarray(load, dtype=np.float64)
+        rows = rows[None, :] if rows.ndim == 1 else rows
+        if rows.shape not in ((1, self.n_nodes), (B, self.n_nodes)):
+            raise ValueError(f"load must have shape ({self.n_nodes},) or ({B}, {self.n_nodes})")
+        return _owned(rows)
+
+    def _rhs(
+        self,
+        T3: np.ndarray,
+        Mdt: np.ndarray,
+        h_b: np.ndarray,
+        ta: np.ndarray,
+        Qs: np.ndarray,
+        load: np.ndarray,
+    ) -> np.ndarray:
+        """``M/dt T + p`` (eq. 15): convection to ambient, friction and lagged radiation."""
+        p = (h_b[:, None, None] * self._area) * ta[:, None, None]
+        p[:, :, 0] += Qs[:, None] * load - self._radiation(T3[:, :, 0], ta)
+        return (Mdt * T3 + p).reshape(T3.shape[0], self.n_state)
+
+    def system(
+        self,
+        T: np.ndarray,
+        q: float | np.ndarray,
+        h: float | np.ndarray,
+        t_amb: float | np.ndarray,
+        scale: float | np.ndarray = 1.0,
+        kz_ratio: float | np.ndarray | None = None,
+        load: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Banded system of eq. 15 for each batch member (arguments as :meth:`step`).
+
+        Returns
+        -------
+        ab : ndarray, shape (B, L + 1, n_state)
+            ``M/dt + A_cond + A_conv`` at the previous state, lower band storage
+            (:mod:`brakethermo.thermal.banded`).
+        rhs : ndarray, shape (B, n_state) — W
+            ``M/dt T_{k-1} + p_{k-1}``.
+        """
+        T2, _ = self._batch(T)
+        B = T2.shape[0]
+        h_b = self._per_member(h, B)
+        T3 = T2.reshape(B, self.n_nodes, self.layers)
+        kz = self._per_member(self.kz_ratio if kz_ratio is None else kz_ratio, B)
+        ab, Mdt = self._matrix(T3, h_b, kz)
+        Qs = self._per_member(q, B) * self._per_member(scale, B)
+        rhs = self._rhs(T3, Mdt, h_b, self._per_member(t_amb, B), Qs, self._load_rows(load, B))
+        return ab, rhs
+
+    def _matrix(
+        self, T3: np.ndarray, h_b: np.ndarray, kz: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``M/dt + A_cond + A_conv`` in band storage, and ``M/dt`` as (B, N, L)."""
+        B, N, L, n = T3.shape[0], self.n_nodes, self.layers, self.n_state
+        Mdt = self._cap_geo * np.interp(T3, *self._c_tab) / self.dt  # eq. 15
+        G_r, G_z = self._conductances(T3, kz)
+
+        diag = Mdt + h_b[:, None, None] * self._area  # A_conv lumped (eq. 3, 11, 12)
+        diag[:, :-1] += G_r
+        diag[:, 1:] += G_r
+        ab = np.zeros((B, L + 1, n))
+        ab[:, L, : (N - 1) * L] = -G_r.reshape(B, -1)
+        if G_z is not None:
+            diag[:, :, :-1] += G_z
+            diag[:, :, 1:] += G_z
+            off1 = np.zeros((B, N, L))
+            off1[:, :, :-1] = -G_z
+            ab[:, 1, :] = off1.reshape(B, n)
+        ab[:, 0, :] = diag.reshape(B, n)
+        return ab, Mdt
+
+    def _radiation(self, T_face: np.ndarray, t_amb: np.ndarray) -> np.ndarray:
+        """Radiated power per face node, W (eq. 4, lagged one step)."""
+        return self._rad_geo * ((T_face + KELVIN) ** 4 - (t_amb[:, None] + KELVIN) ** 4)
+
+    # -------------------------------------------------------------------- step
+    def step(
+        self,
+        T: np.ndarray,
+        q: float | np.ndarray,
+        h: float | np.ndarray,
+        t_amb: float | np.ndarray,
+        scale: float | np.ndarray = 1.0,
+        *,
+        kz_ratio: float | np.ndarray | None = None,
+        load: np.ndarray | None = None,
+        shared_matrix_from: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Advance every batch member by one backward-Euler step (eq. 15).
+
+        Parameters
+        ----------
+        T : ndarray, shape (B, n_state) or (n_state,) — degC
+            Temperatures at step k-1.
+        q : float or ndarray (B,) — W
+            Braking power into this disc over the step.
+        h : float or ndarray (B,) — W/(m^2 K)
+            Convection coefficient (faces and rims).
+        t_amb : float or ndarray (B,) — degC
+            Ambient temperature.
+        scale : float or ndarray (B,) — dimensionless
+            Braking-power scale factor (e.g. a filter's friction-coefficient state).
+        kz_ratio : float or ndarray (B,), optional
+            Through-thickness conductivity multiplier; defaults to the model's.
+        load : ndarray (N,) or (B, N), optional — dimensionless
+            Nodal shares of ``Q`` on the face layer (sum 1 to conserve power); defaults to
+            the model's crown distribution. See :meth:`crown_basis`.
+        shared_matrix_from : ndarray (n_state,), optional — degC
+            Build ``M``, ``A_cond`` from this one state and factorise once for all
+            members (``h`` and ``kz_ratio`` must then be common); radiation stays per
+            member. Exact when c and k are constant, an approximation otherwise.
+
+        Returns
+        -------
+        ndarray, same shape as ``T`` — degC
+        """
+        T2, single = self._batch(T)
+        B = T2.shape[0]
+        h_b = self._per_member(h, B)
+        kz = self._per_member(self.kz_ratio if kz_ratio is None else kz_ratio, B)
+        Qs = self._per_member(q, B) * self._per_member(scale, B)
+        ta = self._per_member(t_amb, B)
+        rows = self._load_rows(load, B)
+        if shared_matrix_from is not None:
+            if np.any(h_b != h_b[0]) or np.any(kz != kz[0]):
+                raise ValueError("shared_matrix_from needs one h and kz_ratio for all members")
+            Tm = np.asarray(shared_matrix_from, dtype=np.float64).reshape(1, self.n_state)
+        else:
+            Tm = T2
+        if self.use_numba:
+            Bm = Tm.shape[0]
+            args = (_owned(T2), _owned(Tm), Qs, ta, h_b[:Bm].copy(), kz[:Bm].copy(), rows)
+            out = _step_nb(*args, *self._kernel_args)
+        else:
+            N, L, Bm = self.n_nodes, self.layers, Tm.shape[0]
+            ab, Mdt = self._matrix(Tm.reshape(Bm, N, L), h_b[:Bm], kz[:Bm])
+            rhs = self._rhs(T2.reshape(B, N, L), Mdt, h_b, ta, Qs, rows)
+            out = solve_factored(factor_banded(ab, use_numba=False), rhs, use_numba=False)
+        return out[0] if single else out
+
+    def open_loop(
+        self,
+        T0: np.ndarray,
+        q: np.ndarray,
+        h: np.ndarray,
+        t_amb: np.ndarray,
+        scale: float | np.ndarray = 1.0,
+    ) -> np.ndarray:
+        """Open-loop simulation (the 1D-FE baseline).
+
+        Parameters
+        ----------
+        T0 : ndarray (n_state,) — degC
+        q, h, t_amb : ndarray (K,) — W, W/(m^2 K), degC
+            Inputs of steps 1..K (step k uses the inputs at k-1, eq. 15).
+        scale : float or ndarray (K,)
+            Braking-power scale per step.
+
+        Returns
+        -------
+        ndarray, shape (K + 1, n_state) — degC, row 0 = ``T0``
+        """
+        q = np.asarray(q, dtype=float)
+        K = q.size
+        h = np.broadcast_to(np.asarray(h, dtype=float), (K,))
+        t_amb = np.broadcast_to(np.asarray(t_amb, dtype=float), (K,))
+        scale = np.broadcast_to(np.asarray(scale, dtype=float), (K,))
+        out = np.empty((K + 1, self.n_state))
+        out[0] = T0
+        for k in range(K):
+            out[k + 1] = self.step(out[k], q[k], h[k], t_amb[k], scale[k])
+        return out
+
+    def power_terms(
+        self,
+        T_prev: np.ndarray,
+        T_new: np.ndarray,
+        q: float | np.ndarray,
+        h: float | np.ndarray,
+        t_amb: float | np.ndarray,
+        scale: float | np.ndarray = 1.0,
+        load: np.ndarray | None = None,
+    ) -> PowerTerms:
+        """Heat flows of the step ``T_prev -> T_new`` as the scheme computes them, W.
+
+        Convection uses ``T_new`` (implicit), radiation and friction ``T_prev`` inputs, so
+        ``sum(capacity(T_prev) (T_new - T_prev)) = dt * net`` to round-off.
+        """
+        P2, _ = self._batch(T_prev)
+        N2, _ = self._batch(T_new)
+        B = P2.shape[0]
+        ta = self._per_member(t_amb, B)
+        h_b = self._per_member(h, B)
+        theta = N2.reshape(B, self.n_nodes, self.layers) - ta[:, None, None]
+        conv = h_b * (self._area * theta).sum(axis=(1, 2))
+        rad = self._radiation(P2.reshape(B, self.n_nodes, self.layers)[:, :, 0], ta).sum(axis=1)
+        shares = self._load_rows(load, B).sum(axis=1)
+        fric = self._per_member(q, B) * self._per_member(scale, B) * shares
+        return PowerTerms(friction=fric, convection=conv, radiation=rad)

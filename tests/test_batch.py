@@ -1,0 +1,264 @@
+"""batch: failure isolation, idempotence, atomic outputs, worker processes and Dask.
+
+The science is a synthetic runner (real readers, a heat-balance estimate frame), so
+these tests exercise the orchestration, the writers and the reports independently of
+the estimation pipelines.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from _synth_race import (
+    estimate_frame,
+    write_estimate_parquet,
+    write_session_csv,
+    write_session_parquet,
+)
+from typer.testing import CliRunner
+
+from brakethermo.errors import EXIT_BATCH_PARTIAL
+from brakethermo.io.atomic import write_text_atomic
+from brakethermo.io.load import load_session
+from brakethermo.io.session import Session
+from brakethermo.pipelines import batch as batch_mod
+from brakethermo.pipelines.batch import (
+    MANIFEST,
+    BatchOptions,
+    RunOutput,
+    discover_sessions,
+    output_names,
+    process_session,
+    run_batch,
+)
+
+
+class SynthRunner:
+    """Real reader; estimate = synthetic heat balance; multi-spot writes an h law."""
+
+    def load(self, path: Path, options: BatchOptions) -> Session:
+        return load_session(path, aliases=options.aliases)
+
+    def run(
+        self, session: Session, stage: Path, options: BatchOptions, h_law: Path | None
+    ) -> RunOutput:
+        t = time.perf_counter()
+        est, radii = estimate_frame(session.frame, n_nodes=options.nodes or 11)
+        write_estimate_parquet(est, radii, stage / "estimate.parquet")
+        law = None
+        if batch_mod.is_multi_spot(session):
+            law = stage / "h_law.toml"
+            write_text_atomic(law, f'source = "{session.path.name}"\n')
+        else:
+            write_text_atomic(stage / "law_used.txt", str(h_law))
+        return RunOutput(est, radii, law, {"estimate_s": time.perf_counter() - t})
+
+
+JOB = functools.partial(process_session, runner=SynthRunner())
+
+
+@pytest.fixture
+def folder(tmp_path: Path) -> Path:
+    src = tmp_path / "download"
+    (src / "day1").mkdir(parents=True)
+    write_session_parquet(
+        src / "day1" / "test_am.parquet", 1, seed=1, multi=True, date="2026-05-01"
+    )
+    write_session_parquet(src / "test_pm.parquet", 1, seed=2, multi=True, date="2026-05-02")
+    write_session_parquet(src / "race.parquet", 2, seed=3)
+    write_session_csv(src / "day1" / "fp1.csv", 1, seed=4)
+    # Simulator truth beside a session: never an input.
+    write_session_parquet(src / "race.truth.parquet", 1, seed=5)
+    # A logger that lost power mid-write, and a file that is not a session at all.
+    good = (src / "race.parquet").read_bytes()
+    (src / "truncated.parquet").write_bytes(good[: len(good) // 3])
+    (src / "garbage.mcap").write_bytes(b"\x89MCAP0\r\n" + bytes(range(256)) * 4)
+    return src
+
+
+def _options(tmp_path: Path, **kw) -> BatchOptions:
+    return BatchOptions(out=tmp_path / "out", **kw)
+
+
+def test_discovery_skips_truth_and_hidden(folder: Path) -> None:
+    (folder / ".cache").mkdir()
+    write_session_csv(folder / ".cache" / "old.csv", 1)
+    names = [p.name for p in discover_sessions(folder)]
+    assert names == [
+        "fp1.csv",
+        "test_am.parquet",
+        "garbage.mcap",
+        "race.parquet",
+        "test_pm.parquet",
+        "truncated.parquet",
+    ]
+
+
+def test_output_names_are_unique(tmp_path: Path) -> None:
+    files = [
+        tmp_path / "a" / "s.csv",
+        tmp_path / "b" / "s.csv",
+        tmp_path / "a" / "s.mcap",
+        tmp_path / "t.csv",
+    ]
+    names = output_names(files, tmp_path)
+    assert len(set(names)) == len(names)
+    assert names[-1] == "t"
+
+
+def test_failures_isolated_and_rerun_skips(folder: Path, tmp_path: Path) -> None:
+    options = _options(tmp_path)
+    events: list[str] = []
+    result = run_batch(folder, options, job=JOB, on_event=lambda k, p: events.append(k))
+    by_name = {o.name: o for o in result.outcomes}
+    assert set(by_name) == {"test_am", "test_pm", "race", "fp1", "truncated", "garbage"}
+    assert result.exit_code == EXIT_BATCH_PARTIAL
+    assert {o.name for o in result.failed} == {"truncated", "garbage"}
+    for o in result.failed:
+        assert str(o.path) in o.reason and "internal error" not in o.reason
+    assert events[0] == "start" and events.count("done") == 6
+    out = options.out
+    for name in ("test_am", "test_pm", "race", "fp1"):
+        assert by_name[name].status == "ok"
+        assert (out / name / "index.html").is_file()
+        assert (out / name / "lap_00" / "index.html").is_file()
+        assert (out / name / MANIFEST).is_file()
+    assert (out / "race" / "lap_01" / "spots.png").is_file()
+    # Multi-spot sessions are identified first; race sessions use the most recent law.
+    assert by_name["test_pm"].kind == "multi" and by_name["race"].kind == "single"
+    assert by_name["race"].h_law_source == "identified: test_pm"
+    assert (out / "race" / "law_used.txt").read_text() == str(out / "test_pm" / "h_law.toml")
+    assert by_name["race"].laps == 2 and by_name["race"].peaks["spot3"] > 200
+    assert not (out / "truncated").exists()
+
+    again = run_batch(folder, options, job=JOB)
+    assert {o.name: o.status for o in again.outcomes} == {
+        "test_am": "skipped",
+        "test_pm": "skipped",
+        "race": "skipped",
+        "fp1": "skipped",
+        "truncated": "failed",
+        "garbage": "failed",
+    }
+    assert again.exit_code == EXIT_BATCH_PARTIAL
+    assert {o.name: o.laps for o in again.outcomes}["race"] == 2
+
+    # A changed input is re-processed; the others stay skipped.
+    write_session_csv(folder / "day1" / "fp1.csv", 1, seed=9)
+    third = {o.name: o.status for o in run_batch(folder, options, job=JOB).outcomes}
+    assert third["fp1"] == "ok" and third["race"] == "skipped"
+    forced = run_batch(folder, _options(tmp_path, force=True), job=JOB)
+    assert {o.status for o in forced.outcomes} == {"ok", "failed"}
+
+
+def test_given_h_law_used_and_part_of_the_key(folder: Path, tmp_path: Path) -> None:
+    law = tmp_path / "law.toml"
+    law.write_text("a = 1\n")
+    options = _options(tmp_path, h_law=law, reports=False)
+    first = {o.name: o for o in run_batch(folder, options, job=JOB).outcomes}
+    assert first["race"].h_law_source == "given"
+    assert (options.out / "race" / "law_used.txt").read_text() == str(law)
+    law.write_text("a = 2\n")
+    second = {o.name: o.status for o in run_batch(folder, options, job=JOB).outcomes}
+    assert second["race"] == "ok" and second["test_am"] == "skipped"
+
+
+def test_default_law_without_multi_spot_sessions(tmp_path: Path) -> None:
+    src = tmp_path / "race_only"
+    src.mkdir()
+    write_session_parquet(src / "race.parquet", 1)
+    (o,) = run_batch(src, _options(tmp_path), job=JOB).outcomes
+    assert o.status == "ok" and o.h_law_source == batch_mod.DEFAULT_LAW
+
+
+def test_interrupted_write_leaves_old_report(folder: Path, tmp_path: Path, monkeypatch) -> None:
+    options = _options(tmp_path)
+    run_batch(folder, options, job=JOB)
+    race = options.out / "race"
+    before = {p.relative_to(race): p.read_bytes() for p in race.rglob("*") if p.is_file()}
+
+    from brakethermo.report import lap_report
+
+    def broken_report(estimate, session, out_dir, **kw):
+        (Path(out_dir) / "lap_00").mkdir(parents=True, exist_ok=True)
+        (Path(out_dir) / "lap_00" / "index.html").write_text("<html>half")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(lap_report, "write_session_report", broken_report)
+    result = run_batch(folder, _options(tmp_path, force=True), job=JOB)
+    race_outcome = next(o for o in result.outcomes if o.name == "race")
+    assert race_outcome.status == "failed" and "No space left" in race_outcome.reason
+    after = {p.relative_to(race): p.read_bytes() for p in race.rglob("*") if p.is_file()}
+    assert after == before
+    assert not [p for p in options.out.iterdir() if p.name.startswith(".")]
+
+
+def test_dask_local_cluster_matches_serial(folder: Path, tmp_path: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
+    ) as cluster:
+        options = _options(tmp_path, scheduler=cluster.scheduler_address)
+        result = run_batch(folder, options, job=JOB)
+    statuses = {o.name: o.status for o in result.outcomes}
+    assert statuses == {
+        "test_am": "ok",
+        "test_pm": "ok",
+        "race": "ok",
+        "fp1": "ok",
+        "truncated": "failed",
+        "garbage": "failed",
+    }
+    assert next(o for o in result.outcomes if o.name == "race").h_law_source == (
+        "identified: test_pm"
+    )
+    serial = _options(tmp_path / "serial")
+    run_batch(folder, serial, job=JOB)
+    race_d = json.loads((options.out / "race" / MANIFEST).read_text())
+    race_s = json.loads((serial.out / "race" / MANIFEST).read_text())
+    assert race_d["peaks_c"] == race_s["peaks_c"]
+
+
+def test_worker_processes(tmp_path: Path) -> None:
+    src = tmp_path / "two"
+    src.mkdir()
+    write_session_parquet(src / "a.parquet", 1, seed=1)
+    write_session_parquet(src / "b.parquet", 1, seed=2, multi=True)
+    (src / "c.csv").write_text("time,speed [furlong/fortnight]\n0,1\n")
+    result = run_batch(src, _options(tmp_path, workers=2), job=JOB)
+    assert [o.status for o in result.outcomes] == ["ok", "ok", "failed"]
+    assert "furlong" in result.outcomes[2].reason
+    assert result.outcomes[0].h_law_source == "identified: b"
+
+
+def test_unreachable_scheduler_is_a_user_error(tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.setattr(batch_mod, "SCHEDULER_TIMEOUT_S", 1.0)
+    src = tmp_path / "s"
+    src.mkdir()
+    write_session_parquet(src / "race.parquet", 1)
+    from brakethermo.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="Dask scheduler"):
+        run_batch(src, _options(tmp_path, scheduler="tcp://127.0.0.1:9"), job=JOB)
+
+
+def test_cli_exit_code_table_and_json(folder: Path, tmp_path: Path, monkeypatch) -> None:
+    from brakethermo.cli import app
+
+    monkeypatch.setattr(batch_mod, "PipelineRunner", SynthRunner)
+    out = tmp_path / "cli_out"
+    res = CliRunner().invoke(app, ["batch", str(folder), "--out", str(out), "--mcap-out"])
+    assert res.exit_code == EXIT_BATCH_PARTIAL, res.output
+    assert "truncated" in res.output and "failed" in res.output
+    assert (out / "race" / "estimate.mcap").is_file()
+    res = CliRunner().invoke(app, ["batch", str(folder), "--out", str(out), "--mcap-out", "--json"])
+    assert res.exit_code == EXIT_BATCH_PARTIAL
+    summary = json.loads(res.stdout)
+    statuses = {s["name"]: s["status"] for s in summary["sessions"]}
+    assert statuses["race"] == "skipped" and statuses["garbage"] == "failed"
+    assert np.isclose(sum(1 for s in summary["sessions"] if s["status"] == "failed"), 2)

@@ -1,0 +1,187 @@
+"""``brakethermo inspect``: the JSON summary, and one clear line + exit 1 for every bad input."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from test_io_roundtrip import CHANNELS, FACTS, write_csv, write_mcap
+from typer.testing import CliRunner
+
+from brakethermo.cli import app
+
+REFERENCE_MCAP = Path("/work/shared/reference/mcap")
+needs_reference = pytest.mark.skipif(
+    not REFERENCE_MCAP.is_dir(),
+    reason=f"third-party reference MCAP files not present at {REFERENCE_MCAP}",
+)
+
+
+def run(*args: str) -> tuple[int, str]:
+    result = CliRunner().invoke(app, ["inspect", *args])
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise result.exception
+    return result.exit_code, result.output
+
+
+def assert_user_error(args: list[str], *phrases: str) -> str:
+    code, output = run(*args)
+    assert code == 1, output
+    lines = [line for line in output.splitlines() if line.strip()]
+    assert len(lines) == 1, output
+    assert "Traceback" not in output
+    assert lines[0].startswith("error:")
+    for phrase in phrases:
+        assert phrase in lines[0], (phrase, lines[0])
+    return lines[0]
+
+
+def test_inspect_json(tmp_path: Path) -> None:
+    path = write_mcap(tmp_path / "s.mcap", grouped=True, epoch=True)
+    code, output = run(str(path), "--json")
+    assert code == 0, output
+    info = json.loads(output)
+    names = {c["name"]: c for c in info["channels"]}
+    assert set(names) == {c for _, _, c in CHANNELS.values() if c}
+    speed = names["speed"]
+    assert speed["source"] == "vFront" and speed["unit"] == "km/h"
+    assert speed["rate_hz"] == pytest.approx(100.0) and speed["samples"] == 4001
+    assert speed["gaps"] == []
+    assert names["disc_temp_spot2"]["source"] == "disc_temp.spot2"
+    assert [(lap["lap"], lap["start_s"], lap["duration_s"]) for lap in info["laps"]] == [
+        (0, 0.0, 5.0), (1, 5.0, 20.0), (2, 25.0, 15.0)]
+    assert info["session"] == FACTS
+    assert info["unmapped"] == ["rideHeight"]
+
+
+def test_inspect_rich_output(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("COLUMNS", "160")
+    code, output = run(str(write_csv(tmp_path / "s.csv")))
+    assert code == 0, output
+    for text in ("brake_pressure_front", "pBrakeF", "rpm", "out-lap", "0:20.000"):
+        assert text in output
+
+
+def test_inspect_reports_gaps_and_truncation(tmp_path: Path) -> None:
+    full = write_mcap(tmp_path / "full.mcap", chunk_size=8_192)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(full.read_bytes()[: int(full.stat().st_size * 0.7)])
+    code, output = run(str(cut), "--json")
+    assert code == 0
+    warnings = json.loads(output)["warnings"]
+    assert any("truncated" in w for w in warnings)
+
+
+def test_missing_required_channel(tmp_path: Path) -> None:
+    path = write_mcap(tmp_path / "s.mcap")
+    line = assert_user_error([str(path), "--require", "speed", "--require", "wheel_omega"],
+                             "channel 'wheel_omega'", "tried: wheel_omega, wWheel",
+                             "the file has: vFront", "--aliases")
+    assert str(path) in line
+
+
+def test_missing_file_directory_unknown_extension_empty(tmp_path: Path) -> None:
+    assert_user_error([str(tmp_path / "nope.mcap")], "file not found")
+    assert_user_error([str(tmp_path)], "is not a file")
+    other = tmp_path / "s.txt"
+    other.write_text("time,a\n0,1\n")
+    assert_user_error([str(other)], "unknown session file type '.txt'")
+    for ext in ("mcap", "parquet", "csv"):
+        empty = tmp_path / f"empty.{ext}"
+        empty.write_bytes(b"")
+        assert_user_error([str(empty)], "empty")
+
+
+def test_unreadable_parquet_and_csv(tmp_path: Path) -> None:
+    bad = tmp_path / "s.parquet"
+    bad.write_bytes(b"definitely not parquet" * 10)
+    assert_user_error([str(bad)], "not a readable Parquet file")
+    header_only = tmp_path / "h.csv"
+    header_only.write_text("time [s],vFront [km/h]\n")
+    assert_user_error([str(header_only)], "at least one channel and one data row")
+
+
+@needs_reference
+def test_bad_magic() -> None:
+    assert_user_error([str(REFERENCE_MCAP / "keelson_bad_magic.mcap")], "not a valid MCAP file")
+
+
+@needs_reference
+def test_mcap_without_channels() -> None:
+    assert_user_error([str(REFERENCE_MCAP / "keelson_empty.mcap")], "no channels")
+
+
+@needs_reference
+def test_cdr_encoding_not_supported() -> None:
+    assert_user_error([str(REFERENCE_MCAP / "mcap_arrow_cdr.mcap")],
+                      "encoding 'cdr' is not supported", "only JSON")
+
+
+def test_unknown_unit(tmp_path: Path) -> None:
+    path = tmp_path / "s.csv"
+    path.write_text("time [s],vFront [furlong/fortnight]\n0,1\n0.1,2\n")
+    assert_user_error([str(path)], str(path), "channel 'vFront'",
+                      "unknown unit 'furlong/fortnight'")
+
+
+def test_unit_of_wrong_kind(tmp_path: Path) -> None:
+    path = write_mcap(tmp_path / "s.mcap", channels={"vFront": (100.0, "bar", "speed")})
+    assert_user_error([str(path)], "channel 'vFront'", "pressure unit")
+
+
+def test_non_numeric_value_csv(tmp_path: Path) -> None:
+    path = tmp_path / "s.csv"
+    path.write_text("time,pBrakeF [bar]\n0,1.5\n0.1,2.5\n0.2,oops\n0.3,4\n")
+    assert_user_error([str(path)], "channel 'pBrakeF'", "'oops'", "data row 3")
+
+
+def test_non_numeric_value_mcap(tmp_path: Path) -> None:
+    path = write_mcap(tmp_path / "s.mcap", channels={"pBrakeF": (10.0, "bar", "")},
+                      payload='{{"value": "{v:.1f} bar"}}')
+    assert_user_error([str(path)], "channel 'pBrakeF'", "non-numeric value")
+
+
+def test_text_column_is_ignored_mixed_column_is_an_error(tmp_path: Path) -> None:
+    path = tmp_path / "s.csv"
+    path.write_text("time,vFront [km/h],comment\n0,1,pit exit\n0.1,2,\n0.2,3,box\n")
+    code, output = run(str(path), "--json")
+    assert code == 0, output
+    assert "column 'comment' holds text" in json.loads(output)["warnings"][0]
+
+
+def test_non_numeric_value_parquet(tmp_path: Path) -> None:
+    path = tmp_path / "s.parquet"
+    pq.write_table(pa.table({"time": [0.0, 0.1, 0.2], "pBrakeF": ["1.0", "2.0", "x"]}), path)
+    assert_user_error([str(path)], "channel 'pBrakeF'", "'x'", "row 3")
+    no_time = tmp_path / "t.parquet"
+    pq.write_table(pa.table({"t": [0.0, 0.1], "pBrakeF": [1.0, 2.0]}), no_time)
+    assert_user_error([str(no_time)], "no 'time' column", "t, pBrakeF")
+
+
+def test_duplicate_timestamps(tmp_path: Path) -> None:
+    path = tmp_path / "s.csv"
+    path.write_text("time,vFront [km/h]\n0,1\n0.1,2\n0.1,3\n0.2,4\n")
+    assert_user_error([str(path)], "channel 'vFront'", "1 duplicate timestamp(s)", "t = 0.1")
+
+
+def test_truncated_mcap_without_usable_data(tmp_path: Path) -> None:
+    full = write_mcap(tmp_path / "full.mcap", chunk_size=1 << 20)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(full.read_bytes()[:200])
+    assert_user_error([str(cut)], "truncated")
+
+
+def test_invalid_alias_file(tmp_path: Path) -> None:
+    session = write_csv(tmp_path / "s.csv")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[aliases\nspeed = 3")
+    assert_user_error([str(session), "--aliases", str(bad)], "invalid TOML")
+    wrong = tmp_path / "wrong.toml"
+    wrong.write_text('[aliases]\nsped = ["vFront"]\n')
+    assert_user_error([str(session), "--aliases", str(wrong)], "unknown canonical channel 'sped'")
+    shape = tmp_path / "shape.toml"
+    shape.write_text("[aliases]\nspeed = [1, 2]\n")
+    assert_user_error([str(session), "--aliases", str(shape)], "list of non-empty strings")

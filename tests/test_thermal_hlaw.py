@@ -1,0 +1,116 @@
+"""h(V) law: fit, continuity, TOML layout and validation."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from brakethermo.errors import ConfigError, DataError
+from brakethermo.thermal.hlaw import KMH, HLaw, read_h_law
+
+V_REF = 350.0 * KMH
+TRUE = HLaw(v_ref=V_REF, a=110.0, b=0.75, c=(260.0, 400.0, -150.0))
+
+
+def noisy_samples(seed: int, n: int = 4000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Off-brake samples: noisy at low speed (paper §5.1) plus a few gross outliers."""
+    rng = np.random.default_rng(seed)
+    v = rng.uniform(3.0, 95.0, n)
+    std = np.where(v < 25.0, 35.0, 4.0)
+    h = TRUE(v) + std * rng.standard_normal(n)
+    h[rng.choice(n, n // 50, replace=False)] += rng.uniform(150.0, 400.0, n // 50)
+    return v, h, std
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fit_recovers_known_law(seed: int) -> None:
+    v, h, std = noisy_samples(seed)
+    law = HLaw.fit(v, h, 1.0 / std**2, v_ref=V_REF)
+    grid = np.linspace(5.0, 95.0, 200)
+    assert np.max(np.abs(law(grid) / TRUE(grid) - 1.0)) < 0.03
+    assert law.b == pytest.approx(TRUE.b, abs=0.05)
+    plain = HLaw.fit(v, h, v_ref=V_REF, robust=False)  # outliers pull a plain fit up
+    assert np.mean(plain(grid) - TRUE(grid)) > np.mean(law(grid) - TRUE(grid))
+
+
+def test_fit_without_high_speed_data_continues_smoothly() -> None:
+    v, h, std = noisy_samples(5)
+    low = v < 0.75 * V_REF
+    law = HLaw.fit(v[low], h[low], 1.0 / std[low] ** 2, v_ref=V_REF)
+    eps = 1e-6
+    left = (law(0.8 * V_REF - eps) - law(0.8 * V_REF - 2 * eps)) / eps
+    right = (law(0.8 * V_REF + 2 * eps) - law(0.8 * V_REF + eps)) / eps
+    assert right == pytest.approx(left, rel=1e-3)
+    with pytest.raises(DataError, match="samples below"):
+        HLaw.fit(v[:3], h[:3], v_ref=V_REF)
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    a=st.floats(1.0, 500.0),
+    b=st.floats(0.0, 3.0),
+    c=st.tuples(*[st.floats(-1e3, 1e3)] * 3),
+    knee=st.floats(0.3, 1.2),
+)
+def test_continuous_at_knee(a: float, b: float, c: tuple, knee: float) -> None:
+    law = HLaw(v_ref=V_REF, a=a, b=b, c=c, knee=knee)
+    vk = knee * V_REF
+    below, above = law(vk * (1 - 1e-12)), law(vk)
+    assert below == pytest.approx(above, rel=1e-9, abs=1e-9)
+    assert np.all(law(np.linspace(0, 120, 50)) >= 0.0)
+
+
+def test_constant_law() -> None:
+    law = HLaw.constant(85.0)
+    np.testing.assert_allclose(law(np.array([0.0, 10.0, 0.8 * V_REF, 100.0, -30.0])), 85.0)
+
+
+def test_toml_round_trip_and_layout(tmp_path: Path) -> None:
+    path = tmp_path / "h_law.toml"
+    TRUE.to_toml(path, weights=(0.8, 1.1, 1.05), extra={"kz_ratio": 0.35, "fit": {"n": 12}})
+    record = read_h_law(path)
+    assert record.law == TRUE
+    assert HLaw.from_toml(path) == TRUE
+    assert record.weights == (0.8, 1.1, 1.05)
+    assert record.extra == {"kz_ratio": 0.35, "fit": {"n": 12}}
+    raw = tomllib.loads(path.read_text())
+    assert raw["v_ref_kmh"] == pytest.approx(350.0)
+    assert raw["knee"] == 0.8
+    assert raw["weights"]["w"] == [0.8, 1.1, 1.05]
+    speeds = np.array(raw["tabulated"]["speed_kmh"])
+    np.testing.assert_array_equal(speeds, np.arange(0.0, 361.0, 10.0))
+    np.testing.assert_allclose(raw["tabulated"]["h"], TRUE(speeds * KMH), rtol=1e-15)
+    a, b, c = raw["power"]["a"], raw["power"]["b"], raw["cubic"]["c"]
+    x = speeds / 350.0
+    u = x - 0.8
+    formula = np.where(x < 0.8, a * x**b, c[0] + c[1] * u + c[2] * u**2 + c[3] * u**3)
+    np.testing.assert_allclose(raw["tabulated"]["h"], np.maximum(formula, 0.0), rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("knee = 0.8\n[power]\na = 1.0\nb = 0.5\n[cubic]\nc = [1, 0, 0, 0]\n", "v_ref_kmh"),
+        ('v_ref_kmh = 350\nknee = 0.8\n[power]\na = "x"\nb = 0.5\n', "invalid value"),
+        ("v_ref_kmh = 350\nknee = 0.8\n[power]\na = 1.0\nb = 0.5\n[cubic]\nc = [2, 0, 0, 0]\n",
+         "continuity"),
+        ("v_ref_kmh = 350\nknee = 0.8\n[power]\na = 1.0\nb = 0.5\n[cubic]\nc = [1, 0, 0]\n",
+         "four"),
+        ("v_ref_kmh = 350\nknee = 0.8\n[power]\na = 1.0\nb = 0.0\n[cubic]\nc = [1, 0, 0, 0]\n"
+         "[weights]\nw = [1, -1, 1]\n", "weights"),
+        ("v_ref_kmh = -1\nknee = 0.8\n[power]\na = 1.0\nb = 0.0\n[cubic]\nc = [1, 0, 0, 0]\n",
+         "v_ref > 0"),
+        ("v_ref_kmh = 350\nknee = [\n", "invalid TOML"),
+    ],
+)  # fmt: skip
+def test_invalid_files_raise_config_error(tmp_path: Path, text: str, match: str) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=match) as info:
+        read_h_law(path)
+    assert str(path) in str(info.value)
