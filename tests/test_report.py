@@ -160,6 +160,9 @@ def test_mcap_export_round_trip(race, tmp_path: Path) -> None:
     _, est, radii = race
     est = est.copy()
     est["power_scale"] = np.linspace(0.9, 1.1, len(est))
+    est["braking_power"] = 1.0e4
+    for k in range(len(radii)):  # mid-plane temperatures, a second node family
+        est[f"mid_{k}"] = est[f"node_{k}"] - 5.0
     est.loc[5, "spot1"] = np.nan  # a gap stays a gap (JSON null)
     path = write_estimate_mcap(
         est,
@@ -202,6 +205,11 @@ def test_mcap_export_round_trip(race, tmp_path: Path) -> None:
     nodes = np.array([m["temperature"] for m in got["/brakethermo/disc_nodes"]])
     node_cols = [f"node_{k}" for k in range(len(radii))]
     np.testing.assert_allclose(nodes, est[node_cols].round(2).to_numpy(), atol=1e-9)
+    mid = np.array([m["temperature"] for m in got["/brakethermo/disc_mid"]])
+    np.testing.assert_allclose(mid, (est[node_cols] - 5.0).round(2).to_numpy(), atol=1e-9)
+    assert channels["/brakethermo/disc_mid"].metadata["unit"] == "degC"
+    assert channels["/brakethermo/braking_power"].metadata["unit"] == "W"
+    assert not any(t.startswith("/brakethermo/mid_") for t in channels)
     assert [m["value"] for m in got["/brakethermo/lap"]] == est["lap"].tolist()
     np.testing.assert_allclose(
         [m["value"] for m in got["/brakethermo/power_scale"]],

@@ -385,3 +385,39 @@ def test_writers_round_trip_any_channels(spec):
 def test_write_session_rejects_unknown_format(tmp_path: Path, short: SimResult):
     with pytest.raises(ConfigError, match="extension"):
         write_session(tmp_path / "s.txt", short.session)
+
+
+def test_simulate_command_writes_session_and_truth(tmp_path: Path):
+    from typer.testing import CliRunner
+
+    from brakethermo.cli import app
+
+    out = tmp_path / "run.parquet"
+    res = CliRunner().invoke(
+        app,
+        [
+            "simulate",
+            "--track",
+            "tight-like",
+            "--laps",
+            "1",
+            "--seed",
+            "2",
+            "--sensor",
+            "single",
+            "--effects",
+            "sensor_lag,emissivity_error",
+            "--out",
+            str(out),
+            "--json",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.stdout)
+    assert summary["effects"] == ["sensor_lag", "emissivity_error"]
+    assert out.is_file() and (tmp_path / "run.truth.parquet").is_file()
+    meta = json.loads(pq.read_schema(tmp_path / "run.truth.parquet").metadata[b"brakethermo_truth"])
+    assert meta["effect_levels"]["sensor_lag"] == "strong"
+    assert meta["effect_levels"]["slipstream"] == "mild"
+    bad = CliRunner().invoke(app, ["simulate", "--effects", "nope", "--out", str(out)])
+    assert bad.exit_code == 1 and "unknown effect" in bad.output

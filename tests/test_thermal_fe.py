@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,10 +15,12 @@ from scipy.special import i0, i1, k0, k1
 
 from brakethermo.thermal.banded import HAVE_NUMBA
 from brakethermo.thermal.disc import DiscSpec, load_disc
+from brakethermo.thermal.fe import nodal_areas
 from brakethermo.thermal.model import DiscFEModel
 
 K_CONST = 40.0  # W/(m K)
 C_CONST = 1200.0  # J/(kg K)
+_MODEL_L2 = DiscFEModel(load_disc("cc-340-8"), 13, 2, kz_ratio=0.3)
 
 
 @pytest.fixture(scope="module")
@@ -91,6 +96,38 @@ def test_steady_annular_fin_converges_second_order(linear_disc: DiscSpec, weight
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert errors[-1] < 2e-4
     assert np.all(orders > 1.7), (errors, orders)
+
+
+def test_steady_fin_with_inner_rim_heat_flux(linear_disc: DiscSpec) -> None:
+    """Heat Q enters through the inner rim (all of it at node 0), faces and rims convect.
+
+    -k theta'(r_i) 2 pi r_i s = Q - h theta(r_i) 2 pi r_i s, -k theta'(r_e) = h theta(r_e);
+    theta = A I0(m r) + B K0(m r).
+    """
+    h, q, t_amb = 60.0, 3.0e3, 20.0
+    spec = linear_disc
+    k, s, r_i, r_e = K_CONST, spec.thickness, spec.r_int, spec.r_est
+    m = np.sqrt(2.0 * h / (k * s))
+    rim = 2.0 * np.pi * r_i * s
+    A = np.array(
+        [
+            [-k * m * i1(m * r_i) * rim + h * i0(m * r_i) * rim,
+             k * m * k1(m * r_i) * rim + h * k0(m * r_i) * rim],
+            [-k * m * i1(m * r_e) - h * i0(m * r_e), k * m * k1(m * r_e) - h * k0(m * r_e)],
+        ]
+    )  # fmt: skip
+    coef = np.linalg.solve(A, [q, 0.0])
+    errors = []
+    for n in (11, 21, 41, 81):
+        model = DiscFEModel(spec, n, dt=1.0e12)
+        rim_load = np.zeros(n)
+        rim_load[0] = 1.0
+        T = model.step(model.initial_state(t_amb), q, h, t_amb, load=rim_load)
+        exact = coef[0] * i0(m * model.radii) + coef[1] * k0(m * model.radii)
+        errors.append(np.max(np.abs(T - t_amb - exact)) / np.max(exact))
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert errors[-1] < 1e-4
+    assert np.all(orders > 1.8), (errors, orders)
 
 
 def test_lumped_cooling_matches_exponential(linear_disc: DiscSpec) -> None:
@@ -300,4 +337,48 @@ def test_cooling_step_obeys_maximum_principle(t_amb, h, spread, seed) -> None:
     assert np.all(T_new >= t_amb - 1e-9)
 
 
-_MODEL_L2 = DiscFEModel(load_disc("cc-340-8"), 13, 2, kz_ratio=0.3)
+def test_model_works_without_numba(disc: DiscSpec, tmp_path: Path) -> None:
+    """With numba unimportable the numpy fallback is used and gives the same result."""
+    code = (
+        "import sys; sys.modules['numba'] = None\n"
+        "import numpy as np\n"
+        "from brakethermo.thermal.banded import HAVE_NUMBA\n"
+        "from brakethermo.thermal.disc import load_disc\n"
+        "from brakethermo.thermal.model import DiscFEModel\n"
+        "assert not HAVE_NUMBA\n"
+        "m = DiscFEModel(load_disc('cc-340-8'), 12, 2)\n"
+        "T = np.linspace(100.0, 600.0, 2 * m.n_state).reshape(2, -1)\n"
+        "np.save(sys.argv[1], m.step(T, 5.0e4, np.array([60.0, 90.0]), 20.0))\n"
+        "try:\n"
+        "    DiscFEModel(load_disc('cc-340-8'), 12, use_numba=True)\n"
+        "except RuntimeError as exc:\n"
+        "    assert 'numba is not installed' in str(exc)\n"
+        "else:\n"
+        "    raise AssertionError('use_numba=True must fail without numba')\n"
+    )
+    out = tmp_path / "fallback.npy"
+    subprocess.run([sys.executable, "-c", code, str(out)], check=True, timeout=120)
+    model = DiscFEModel(disc, 12, 2)
+    T = np.linspace(100.0, 600.0, 2 * model.n_state).reshape(2, -1)
+    expected = model.step(T, 5.0e4, np.array([60.0, 90.0]), 20.0)
+    np.testing.assert_allclose(np.load(out), expected, rtol=1e-12)
+
+
+def test_surface_temperature_brackets_face_layer(disc: DiscSpec) -> None:
+    model = DiscFEModel(disc, 15, 3, kz_ratio=0.3)
+    T = model.open_loop(model.initial_state(150.0), np.full(20, 7.0e4), 90.0, 25.0)[-1]
+    braking = model.surface_temperature(T, 7.0e4, 90.0, 25.0)
+    face = T[model.face_index]
+    contact = model.radii > disc.pad_r1 + 0.005
+    assert np.all(braking[contact] > face[contact] + 1.0)
+    # off the brakes the surface is cooled, so slightly below the face layer
+    cooling = model.surface_temperature(T, 0.0, 90.0, 25.0)
+    assert np.all(cooling < face)
+    assert np.all(cooling > face - 5.0)
+    # the jump follows the flux balance: k_z (T_s - T_face) / (s / 4L) = net flux
+    k_z = 0.3 * disc.conductivity(face)
+    flux_in = k_z * (braking - face) / (disc.thickness / 12.0)
+    sig = 5.670374419e-8 * disc.emissivity * ((face + 273.15) ** 4 - (25.0 + 273.15) ** 4)
+    friction = 7.0e4 * model.load / (2.0 * nodal_areas(model.radii))
+    expected = friction - 90.0 * (braking - 25.0) - sig
+    np.testing.assert_allclose(flux_in, expected, rtol=1e-10, atol=1e-6)

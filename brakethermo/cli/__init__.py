@@ -8,10 +8,12 @@ from __future__ import annotations
 from brakethermo.cli._app import app
 
 # Command modules register on import; keep one line per module, sorted.
-from brakethermo.cli import batch_cmd  # noqa: F401, E402  isort: skip
-from brakethermo.cli import inspect_cmd  # noqa: F401, E402  isort: skip
-from brakethermo.cli import simulate_cmd  # noqa: F401, E402  isort: skip
-from brakethermo.cli import timing_cmd  # noqa: F401, E402  isort: skip
+from brakethermo.cli import batch_cmd  # noqa: F401  isort: skip
+from brakethermo.cli import estimate_cmd  # noqa: F401  isort: skip
+from brakethermo.cli import identify_cmd  # noqa: F401  isort: skip
+from brakethermo.cli import inspect_cmd  # noqa: F401  isort: skip
+from brakethermo.cli import simulate_cmd  # noqa: F401  isort: skip
+from brakethermo.cli import timing_cmd  # noqa: F401  isort: skip
 
 
 def main() -> None:

@@ -120,8 +120,10 @@ def batch(
 
             result = run_batch(folder, options, on_event=on_event)
         console.print(_table(result, out))
-        totals = result.timing_totals()
-        share = "  ".join(f"{k.removesuffix('_s')} {v:.1f} s" for k, v in totals.items())
+        share = ", ".join(
+            f"{k.removesuffix('_s')} {v:.1f} s ({f:.0%})"
+            for k, (v, f) in result.step_shares().items()
+        )
         console.print(f"wall time {result.wall_s:.1f} s" + (f"  ({share})" if share else ""))
         console.print(f"open [bold]{out / '<session>' / 'index.html'}[/] for the lap reports")
         for o in result.failed:

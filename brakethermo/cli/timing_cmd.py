@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
@@ -44,7 +43,7 @@ def timing_check(
     from brakethermo.pipelines.estimate import EstimateOptions, estimate_from_session
 
     session = load_session(session_path, aliases=aliases)
-    options = replace(EstimateOptions(h_law=h_law, nodes=nodes, aliases=aliases), score=False)
+    options = EstimateOptions(h_law=h_law, nodes=nodes, aliases=aliases, score=False)
     report = time_laps(session, lambda s: estimate_from_session(s, options), budget_s, race_laps)
     if as_json:
         print(json.dumps(report.to_json(), indent=2))

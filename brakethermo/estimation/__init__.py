@@ -1,4 +1,15 @@
-"""Model-agnostic estimation engine: sigma-point filters and smoothers, EKF, KF, RLS."""
+"""Model-agnostic estimation engine: sigma-point filters and smoothers, EKF, KF, RLS.
+
+Usage (a batched model ``f(X (B, n), k) -> (B, n)`` advancing all rows from step k to
+k + 1, a linear measurement ``H`` and measurements ``y`` (K, m) with NaN for gaps)::
+
+    ukf = UnscentedKalmanFilter(f, Q, R, H=H)
+    res = ukf.run(x0, P0, y, store="smoother", readout=H_spots)   # FilterResult
+    sm = urts_smooth(res, readout=H_spots)                        # SmootherResult
+
+The smoother reuses the gains stored by the forward pass and never calls the model.
+Random-walk parameters are extra state components (:func:`augment_random_walk`).
+"""
 
 from brakethermo.estimation.augment import augment_random_walk
 from brakethermo.estimation.covariance import CovarianceGuard, symmetrise

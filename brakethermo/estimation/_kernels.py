@@ -16,9 +16,12 @@ import numpy as np
 from numba import njit
 
 _LOG_2PI = math.log(2.0 * math.pi)
+# Below this state size plain loops beat BLAS calls, whose fixed cost dominates tiny
+# products; above it the O(n^3) products go to BLAS.
+SMALL_N = 12
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _symmetrise(P):
     n = P.shape[0]
     for i in range(n):
@@ -28,7 +31,7 @@ def _symmetrise(P):
             P[j, i] = v
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _chol(P, L):
     """Lower Cholesky factor into L; False if P is not (numerically) positive definite."""
     n = P.shape[0]
@@ -50,7 +53,7 @@ def _chol(P, L):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _repair(P, abs_floor):
     """Eigenvalue clipping in place, as CovarianceGuard.repair."""
     n = P.shape[0]
@@ -68,7 +71,7 @@ def _repair(P, abs_floor):
     _symmetrise(P)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _factor(P, L, k, abs_floor, repairs):
     """Factor P, repairing (and counting in repairs[k]) if needed; P may be changed."""
     if _chol(P, L):
@@ -84,7 +87,7 @@ def _factor(P, L, k, abs_floor, repairs):
     _chol(P, L)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _update(
     k, x, P, H, R, y, gate_thr, abs_floor, repairs, innov, innov_var, nis, loglik, n_obs, rejected
 ):
@@ -188,7 +191,7 @@ def _update(
     loglik[k] = -0.5 * (nis_k + logdet + mk * _LOG_2PI)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _dot_row(A, B, i, j, mk):
     t = 0.0
     for a in range(mk):
@@ -196,7 +199,7 @@ def _dot_row(A, B, i, j, mk):
     return t
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _sigma(x, L, c, X):
     n = x.shape[0]
     for i in range(n):
@@ -208,7 +211,7 @@ def _sigma(x, L, c, X):
             X[1 + n + j, i] = x[i] - d
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _record_posterior(k, x, P, x_filt, var_filt, P_filt_all, full, M, ro, ro_var):
     n = x.shape[0]
     for i in range(n):
@@ -229,121 +232,83 @@ def _record_posterior(k, x, P, x_filt, var_filt, P_filt_all, full, M, ro, ro_var
         ro_var[k, r] = v
 
 
-@njit(cache=True)
-def ukf_first(
-    x,
-    P,
-    L,
-    X,
-    c,
-    H,
-    R,
-    y,
-    gate_thr,
-    abs_floor,
-    repairs,
-    last,
-    x_pred,
-    var_pred,
-    P_pred_all,
-    x_filt,
-    var_filt,
-    P_filt_all,
-    full,
-    M,
-    ro,
-    ro_var,
-    innov,
-    innov_var,
-    nis,
-    loglik,
-    n_obs,
-    rejected,
-):
-    """Step 0: record the prior, update with y[0], factor and draw the first sigma set."""
+@njit(cache=True, nogil=True)
+def _views(work):
+    """Sigma set X, posterior P, its factor L and mean x, packed in one work array."""
+    n = work.shape[1]
+    B = 2 * n + 1
+    return work[:B], work[B : B + n], work[B + n : B + 2 * n], work[B + 2 * n]
+
+
+@njit(cache=True, nogil=True)
+def ukf_first(work, par, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
+    """Step 0: record the prior, update with y[0], factor and draw the first sigma set.
+
+    ``work`` holds [X; P; L; x] (see ``_views``), ``par`` = [c, eigenvalue floor]; the
+    output stacks are those of ``_forward.Buffers``.
+    """
+    X, P, L, x = _views(work)
+    c, abs_floor = par[0], par[1]
     n = x.shape[0]
+    K = st.shape[1]
+    full = cov.shape[1] > 0
     for i in range(n):
-        x_pred[0, i] = x[i]
-        var_pred[0, i] = P[i, i]
+        st[0, 0, i] = x[i]
+        st[1, 0, i] = P[i, i]
     if full:
-        P_pred_all[0] = P
+        cov[0, 0] = P
     _update(
-        0,
-        x,
-        P,
-        H,
-        R,
-        y,
-        gate_thr,
-        abs_floor,
-        repairs,
-        innov,
-        innov_var,
-        nis,
-        loglik,
-        n_obs,
-        rejected,
-    )
-    if not last:
-        _factor(P, L, 0, abs_floor, repairs)
+        0, x, P, H, R, y[0], gate_thr, abs_floor, ic[1], iv[0], iv[1], sc[0], sc[1], ic[0], rej
+    )  # fmt: skip
+    if K > 1:
+        _factor(P, L, 0, abs_floor, ic[1])
         _sigma(x, L, c, X)
-    _record_posterior(0, x, P, x_filt, var_filt, P_filt_all, full, M, ro, ro_var)
+    _record_posterior(0, x, P, st[2], st[3], cov[1], full, M, ro[0], ro[1])
 
 
-@njit(cache=True)
-def ukf_step(
-    k,
-    Xf,
-    x,
-    P,
-    L,
-    X,
-    Wm,
-    Wc,
-    c,
-    Q,
-    H,
-    R,
-    y,
-    gate_thr,
-    abs_floor,
-    repairs,
-    last,
-    x_pred,
-    var_pred,
-    P_pred_all,
-    x_filt,
-    var_filt,
-    P_filt_all,
-    cross,
-    G_all,
-    Sigma_all,
-    full,
-    gains,
-    M,
-    ro,
-    ro_var,
-    innov,
-    innov_var,
-    nis,
-    loglik,
-    n_obs,
-    rejected,
-):
-    """From the propagated sigma set Xf = f(X, k): prior of step k+1, gains, update, next set."""
+@njit(cache=True, nogil=True)
+def ukf_step(k, Xf, work, W, par, gate_thr, Q, H, R, y, M, st, cov, gs, iv, sc, ic, rej, ro):
+    """From the propagated sigma set Xf = f(X, k): prior of step k+1, gains, update, next set.
+
+    Arguments as :func:`ukf_first`, plus ``W`` = [Wm; Wc] and the gain stack ``gs``.
+    """
+    X, P, L, x = _views(work)
+    Wm, Wc = W[0], W[1]
+    c, abs_floor = par[0], par[1]
     n = x.shape[0]
     kp = k + 1
-    xp = Wm @ Xf  # eq. 36
+    full = cov.shape[1] > 0
+    gains = gs.shape[1] > 0
+    B = Xf.shape[0]
+    xp = np.zeros(n)
+    for b in range(B):
+        for i in range(n):
+            xp[i] += Wm[b] * Xf[b, i]  # eq. 36
     D = Xf - xp
-    Pp = (D.T * Wc) @ D + Q  # eq. 37
-    _symmetrise(Pp)
     # C_k = L (D+ - D-) / (2c): the sigma deviations are +-c L_j, weights 1/(2c^2)
-    C = L @ ((D[1 : n + 1] - D[n + 1 :]) * (0.5 / c))
+    Dd = (D[1 : n + 1] - D[n + 1 :]) * (0.5 / c)
+    if n <= SMALL_N:
+        Pp = Q.copy()
+        for b in range(B):
+            for i in range(n):
+                a = Wc[b] * D[b, i]
+                for j in range(n):
+                    Pp[i, j] += a * D[b, j]  # eq. 37
+        C = np.zeros((n, n))
+        for i in range(n):
+            for j in range(i + 1):
+                a = L[i, j]
+                for col in range(n):
+                    C[i, col] += a * Dd[j, col]
+    else:
+        Pp = (D.T * Wc) @ D + Q  # eq. 37
+        C = L @ Dd
+    _symmetrise(Pp)
     if full:
-        cross[k] = C
+        cov[2, k] = C
     if gains:
         Lp = np.empty((n, n))
-        _factor(Pp, Lp, kp, abs_floor, repairs)
+        _factor(Pp, Lp, kp, abs_floor, ic[1])
         # G' = (Lp Lp')^-1 C' by forward then backward substitution, rows contiguous
         Gt = np.ascontiguousarray(C.T)
         for a in range(n):
@@ -362,44 +327,38 @@ def ukf_step(
             inv = 1.0 / Lp[a, a]
             for col in range(n):
                 Gt[a, col] *= inv
-        CG = C @ Gt  # (G C')'
+        if n <= SMALL_N:
+            CG = np.zeros((n, n))
+            for i in range(n):
+                for a in range(n):
+                    cia = C[i, a]
+                    for j in range(n):
+                        CG[i, j] += cia * Gt[a, j]
+        else:
+            CG = C @ Gt  # (G C')'
         for i in range(n):
             for j in range(i, n):
                 v = P[i, j] - 0.5 * (CG[i, j] + CG[j, i])
-                Sigma_all[k, i, j] = v
-                Sigma_all[k, j, i] = v
-        G_all[k] = Gt.T
+                gs[1, k, i, j] = v
+                gs[1, k, j, i] = v
+        gs[0, k] = Gt.T
     for i in range(n):
         x[i] = xp[i]
-        x_pred[kp, i] = xp[i]
-        var_pred[kp, i] = Pp[i, i]
+        st[0, kp, i] = xp[i]
+        st[1, kp, i] = Pp[i, i]
     P[:, :] = Pp
     if full:
-        P_pred_all[kp] = P
+        cov[0, kp] = P
     _update(
-        kp,
-        x,
-        P,
-        H,
-        R,
-        y,
-        gate_thr,
-        abs_floor,
-        repairs,
-        innov,
-        innov_var,
-        nis,
-        loglik,
-        n_obs,
-        rejected,
-    )
-    if not last:
-        _factor(P, L, kp, abs_floor, repairs)
+        kp, x, P, H, R, y[kp], gate_thr, abs_floor, ic[1], iv[0], iv[1], sc[0], sc[1], ic[0], rej
+    )  # fmt: skip
+    if kp < st.shape[1] - 1:
+        _factor(P, L, kp, abs_floor, ic[1])
         _sigma(x, L, c, X)
-    _record_posterior(kp, x, P, x_filt, var_filt, P_filt_all, full, M, ro, ro_var)
+    _record_posterior(kp, x, P, st[2], st[3], cov[1], full, M, ro[0], ro[1])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def rts_backward(x_filt, x_pred, G_all, Sigma_all, P_last, x_s, var_s, P_all, full, M, ro, ro_var):
     """Backward RTS recursion with stored gains (see urts.py), in place into the outputs."""
     K, n = x_filt.shape

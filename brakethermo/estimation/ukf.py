@@ -219,17 +219,17 @@ class UnscentedKalmanFilter:
         R_of = as_provider(self.R, (m, m), "R")
         H_of = as_provider(self.H, (m, n), "H")
         thr = gate_thresholds(self.gate, m)
-        repairs = np.zeros(K, dtype=np.int64)
-        x, P = x0.copy(), np.ascontiguousarray(P0)
-        L = np.zeros((n, n))
-        X = np.empty((2 * n + 1, n))
-        f, floor = self.f, self.eig_floor
-        common = (out.innovation, out.innovation_var, out.nis, out.loglik, out.n_obs, out.rejected)
-        _kernels.ukf_first(
-            x, P, L, X, w.c, _c(H_of(0)), _c(R_of(0)), y[0], thr, floor, repairs, K == 1,
-            out.x_pred, out.var_pred, out.P_pred, out.x_filt, out.var_filt, out.P_filt,
-            out.full, out.M, out.readout, out.readout_var, *common,
-        )  # fmt: skip
+        B = 2 * n + 1
+        work = np.zeros((B + 2 * n + 1, n))  # [X; P; L; x], see _kernels._views
+        X, P = work[:B], work[B : B + n]
+        P[:] = P0
+        work[B + 2 * n] = x0
+        W = np.stack([w.Wm, w.Wc])
+        par = np.array([w.c, self.eig_floor])
+        f, M = self.f, out.M
+        tail = (out.st, out.cov, out.gs, out.iv, out.sc, out.ic, out.rejected, out.ro)
+        _kernels.ukf_first(work, par, thr, _c(H_of(0)), _c(R_of(0)), y, M, out.st, out.cov,
+                           out.iv, out.sc, out.ic, out.rejected, out.ro)  # fmt: skip
         step = _kernels.ukf_step
         # constant matrices are converted once; callables are asked every step
         Qc = None if callable(self.Q) else _c(Q_of(0))
@@ -239,16 +239,17 @@ class UnscentedKalmanFilter:
             Xf = f(X, k)  # eq. 35, all sigma points in one call
             if Xf.shape != X.shape:
                 raise ConfigError(f"model f returned shape {Xf.shape}, expected {X.shape}")
+            if Xf.dtype != np.float64 or not Xf.flags.c_contiguous:
+                Xf = _c(Xf)
             step(
-                k, _c(Xf), x, P, L, X, w.Wm, w.Wc, w.c, _c(Q_of(k)) if Qc is None else Qc,
+                k, Xf, work, W, par, thr, _c(Q_of(k)) if Qc is None else Qc,
                 _c(H_of(k + 1)) if Hc is None else Hc, _c(R_of(k + 1)) if Rc is None else Rc,
-                y[k + 1], thr, floor, repairs, k + 2 == K, out.x_pred, out.var_pred, out.P_pred,
-                out.x_filt, out.var_filt, out.P_filt, out.cross, out.G, out.Sigma, out.full,
-                out.gains, out.M, out.readout, out.readout_var, *common,
+                y, M, *tail,
             )  # fmt: skip
+        repairs = out.ic[1]
         return out.result(P, np.repeat(np.arange(K), repairs).tolist())
 
 
 def _c(A: Array) -> Array:
-    """C-contiguous float64 view (or copy) for the kernels."""
-    return np.ascontiguousarray(A, dtype=np.float64)
+    """C-contiguous writable float64 array for the kernels (one compiled signature)."""
+    return np.require(A, dtype=np.float64, requirements=("C", "W"))

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from brakethermo.errors import ConfigError
+from brakethermo.estimation._forward import readout_matrix
 from brakethermo.estimation.covariance import symmetrise
 from brakethermo.estimation.results import FilterResult, SmootherResult
 from brakethermo.estimation.ukf import BACKENDS, HAVE_NUMBA, NUMBA_MAX_N, Backend
@@ -55,9 +56,7 @@ def urts_smooth(
     if store not in ("full", "diag"):
         raise ConfigError(f"smoother store must be 'full' or 'diag', got {store!r}")
     K, n = result.x_filt.shape
-    M = None if readout is None else np.atleast_2d(np.asarray(readout, dtype=np.float64))
-    if M is not None and M.shape[1] != n:
-        raise ConfigError(f"readout matrix must have {n} columns, got shape {M.shape}")
+    M = None if readout is None else readout_matrix(readout, n)
     x_s = np.empty((K, n))
     var_s = np.empty((K, n))
     P_all = np.empty((K, n, n)) if store == "full" else None

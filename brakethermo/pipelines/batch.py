@@ -41,6 +41,8 @@ TRUTH_SUFFIX = ".truth.parquet"  # simulator truth: for scoring only, never an i
 MANIFEST = "batch_manifest.json"
 MULTI_SPOT = tuple(f"disc_temp_spot{i}" for i in range(1, 5))
 DEFAULT_LAW = "default (shipped)"
+# Top-level steps of a session's wall time (sub-steps such as estimate_filter_s nest in them).
+STEPS = ("read_s", "identify_s", "estimate_s", "write_s", "report_s", "mcap_s")
 SCHEDULER_TIMEOUT_S = 10.0  # connecting to a Dask scheduler
 
 Status = Literal["ok", "skipped", "failed", "deferred"]
@@ -258,10 +260,18 @@ class BatchResult:
                 totals[k] = totals.get(k, 0.0) + v
         return totals
 
+    def step_shares(self) -> dict[str, tuple[float, float]]:
+        """Seconds and share of the summed session time of each top-level step."""
+        totals = self.timing_totals()
+        steps = {k: totals[k] for k in STEPS if k in totals}
+        whole = sum(steps.values()) or 1.0
+        return {k: (v, v / whole) for k, v in steps.items()}
+
     def to_json(self) -> dict[str, Any]:
         """JSON-able summary of the run."""
         return {
             "wall_s": round(self.wall_s, 3),
+            "step_share": {k: round(f, 4) for k, (_, f) in self.step_shares().items()},
             "exit_code": self.exit_code,
             "timings_s": {k: round(v, 3) for k, v in self.timing_totals().items()},
             "sessions": [o.to_json() for o in self.outcomes],
@@ -479,7 +489,9 @@ class PipelineRunner:
             law_out = stage / "h_law.toml"
             h_law = law_out
         t = time.perf_counter()
-        estimate_options = EstimateOptions(h_law=h_law, nodes=options.nodes, aliases=options.aliases)
+        estimate_options = EstimateOptions(
+            h_law=h_law, nodes=options.nodes, aliases=options.aliases
+        )
         result = estimate_from_session(session, estimate_options)
         timings["estimate_s"] = time.perf_counter() - t
         for step in ("filter_s", "smoother_s", "scoring_s"):
@@ -488,8 +500,9 @@ class PipelineRunner:
         t = time.perf_counter()
         _flatten(write_estimate(result, stage), stage)
         timings["write_s"] = timings.get("write_s", 0.0) + time.perf_counter() - t
-        return RunOutput(result.frame, np.asarray(result.node_radii), law_out, timings,
-                         disc=disc_of(result))
+        return RunOutput(
+            result.frame, np.asarray(result.node_radii), law_out, timings, disc=disc_of(result)
+        )
 
 
 def _flatten(written: Path, stage: Path) -> None:

@@ -9,9 +9,10 @@ braking power). Further effects plug in as further parameters.
 
 Process noise has two parts: white noise on every node, and the uncertainty of how the
 braking power splits over the three pad crowns (paper §2: the split changes from corner
-to corner and lap to lap). The second part scales with the braking power of the step,
-so the filter trusts the model while cooling and lets the measurement move the
-temperature profile while braking.
+to corner and lap to lap) at constant total. The second part scales with the braking
+power of the step, so the filter trusts the model while cooling and lets the
+measurement move the temperature profile while braking — and, since the split
+conserves power, a crown read hotter than predicted makes its neighbours cooler.
 """
 
 from __future__ import annotations
@@ -102,17 +103,19 @@ class DiscStateSpace:
         for p in self.params:
             Q[self.index[p.name], self.index[p.name]] = p.step_sigma**2
         self._Q_base = Q
-        G = self._crown_gain(model) * sigma_crown
         S = np.zeros((self.n, self.n))
-        S[: self.n_temp, : self.n_temp] = G @ G.T
+        S[: self.n_temp, : self.n_temp] = self._crown_covariance(model, sigma_crown)
         self._S_crown = S
 
     @staticmethod
-    def _crown_gain(model: DiscFEModel) -> np.ndarray:
-        """Temperature change of each state per watt of one crown's share, one step.
+    def _crown_covariance(model: DiscFEModel, sigma_crown: float) -> np.ndarray:
+        """Covariance of one step's temperature change per squared watt of braking power.
 
-        Column ``i`` is ``dt · share_i · load_i / C`` (K/W): the response to a relative
-        error in crown ``i``'s share of the braking power, at a typical temperature.
+        The split over the crowns changes at constant total power (paper §2), so the
+        shares ``s`` get the multinomial covariance ``sigma² (diag(s) - s s')`` whose rows
+        sum to zero; an error in the total is the power-scale state's job. Column ``i``
+        of ``G`` is the response of one step to a watt on crown ``i`` (``dt · load_i / C``,
+        K/W) at a typical temperature.
         """
         disc = model.disc
         edges = disc.crown_edges
@@ -121,9 +124,10 @@ class DiscStateSpace:
         cap = model.capacity(model.initial_state(C_TYPICAL_C))
         G = np.zeros((model.n_state, 3))
         for i in range(3):
-            load = crown_load(model.radii, edges, np.eye(3)[i])
-            G[model.face_index, i] = share[i] * load
-        return model.dt * G / cap[:, None]
+            G[model.face_index, i] = crown_load(model.radii, edges, np.eye(3)[i])
+        G *= model.dt / cap[:, None]
+        C_share = sigma_crown**2 * (np.diag(share) - np.outer(share, share))
+        return G @ C_share @ G.T
 
     # ----------------------------------------------------------- filter interface
     def _param(self, X: np.ndarray, name: str) -> np.ndarray | None:

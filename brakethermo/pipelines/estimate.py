@@ -24,7 +24,7 @@ from brakethermo.io.session import Session
 from brakethermo.pipelines import scoring
 from brakethermo.pipelines.disc_ssm import SCALE_PARAM, DiscStateSpace, RandomWalkParam
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs
-from brakethermo.pipelines.models import disc_for, h_law_for
+from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.summary import lap_summaries
 from brakethermo.pipelines.tuning import EstimateTuning, load_tuning
@@ -143,13 +143,15 @@ def _initial_temperature(y: np.ndarray, t_amb: np.ndarray) -> float:
 
 
 def build_state_space(
-    model: DiscFEModel, inputs: DiscInputs, h: np.ndarray, tuning: EstimateTuning
+    model: DiscFEModel, inputs: DiscInputs, h: np.ndarray, tuning: EstimateTuning,
+    power_scale: float = 1.0,
 ) -> DiscStateSpace:
     """The estimate filter's state space: nodes (+ braking-power scale)."""
     params = []
     if tuning.adapt_power:
         scale = RandomWalkParam(
-            SCALE_PARAM, 1.0, tuning.init_sigma_scale, tuning.sigma_scale_step, lower=0.05
+            SCALE_PARAM, power_scale, tuning.init_sigma_scale, tuning.sigma_scale_step,
+            lower=0.05,
         )
         params.append(scale)
     return DiscStateSpace(
@@ -158,20 +160,25 @@ def build_state_space(
     )  # fmt: skip
 
 
-def estimate_from_session(session: Session, options: EstimateOptions) -> EstimateResult:
-    """Run the estimator on a loaded session (see :func:`estimate_session`)."""
+def estimate_from_session(
+    session: Session, options: EstimateOptions, calibration: DiscCalibration | None = None
+) -> EstimateResult:
+    """Run the estimator on a loaded session (see :func:`estimate_session`).
+
+    ``calibration`` replaces the ``h_law.toml`` of ``options`` (identify-h uses it to
+    calibrate the bands on its own session).
+    """
     t_start = time.perf_counter()
     tuning = options.resolve(load_tuning(options.tuning)[0])
     disc = disc_for(session, options.disc)
-    record, law_path = h_law_for(disc, options.h_law)
+    cal = calibration or calibration_for(disc, options.h_law)
     inputs = disc_inputs(session, disc, options.ambient_c)
     y = _measurement(inputs, options.spot, session.path)
-    h = record.law(inputs.speed)
-    kz_ratio = float(record.extra.get("kz_ratio", 1.0))
+    h = cal.law(inputs.speed)
     model = DiscFEModel(
-        disc, tuning.nodes, tuning.layers, weights=record.weights, kz_ratio=kz_ratio
+        disc, tuning.nodes, tuning.layers, weights=cal.weights, kz_ratio=cal.kz_ratio
     )
-    ssm = build_state_space(model, inputs, h, tuning)
+    ssm = build_state_space(model, inputs, h, tuning, cal.power_scale)
 
     spot_radii = np.asarray(disc.spot_radii)
     H_spots = ssm.H(spot_radii)
@@ -196,12 +203,14 @@ def estimate_from_session(session: Session, options: EstimateOptions) -> Estimat
         states, out, out_var = forward.x_filt, forward.readout, forward.readout_var
     t_done = time.perf_counter()
 
-    frame = _estimate_frame(inputs, model, states, out, np.sqrt(np.maximum(out_var, 0.0)),
-                            tuning, h)
+    std = np.sqrt(np.maximum(out_var, 0.0))
+    std[:, :5] *= cal.band_scale  # temperatures only, not the power scale
+    frame = _estimate_frame(inputs, model, states, out, std, tuning, h)
     open_loop = None
     scores = None
     if options.score and len(inputs.measured) > 1:
-        T_ol = model.open_loop(x0[: model.n_state], inputs.q_brk[:-1], h[:-1], inputs.t_amb[:-1])
+        T_ol = model.open_loop(x0[: model.n_state], inputs.q_brk[:-1], h[:-1], inputs.t_amb[:-1],
+                               scale=cal.power_scale)
         open_loop = T_ol @ model.spot_matrix(spot_radii).T
         scores = score_estimate(frame, forward.readout[:, :4], open_loop, inputs, options.spot,
                                 tuning.sigma_meas, tuning.smoother)
@@ -220,10 +229,12 @@ def estimate_from_session(session: Session, options: EstimateOptions) -> Estimat
         "run": {
             "brakethermo": __version__,
             "disc": disc.id,
-            "h_law": str(law_path),
+            "h_law": cal.source,
             "nodes": tuning.nodes,
             "layers": tuning.layers,
-            "kz_ratio": kz_ratio,
+            "kz_ratio": cal.kz_ratio,
+            "power_scale_prior": cal.power_scale,
+            "band_scale": cal.band_scale,
             "crown_weights": [float(w) for w in model.weights],
             "filter": "UKF (Merwe scaled sigma points)",
             "smoother": tuning.smoother,

@@ -28,9 +28,9 @@ from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.load import load_session
 from brakethermo.io.session import GRID_DT, Session
 from brakethermo.pipelines.disc_ssm import H_PARAM, DiscStateSpace, RandomWalkParam
-from brakethermo.pipelines.estimate import SENSOR_FLOOR_C
+from brakethermo.pipelines.estimate import SENSOR_FLOOR_C, EstimateOptions, estimate_from_session
 from brakethermo.pipelines.inputs import MULTI_SPOT, DiscInputs, disc_inputs
-from brakethermo.pipelines.models import disc_for
+from brakethermo.pipelines.models import DiscCalibration, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.tuning import EstimateTuning, IdentifyTuning, load_tuning
 from brakethermo.thermal.disc import DiscSpec
@@ -84,6 +84,7 @@ class IdentifyResult:
     session: Session
     law: HLaw
     law_ukf: HLaw
+    calibration: DiscCalibration
     samples: pd.DataFrame
     structure: StructureFit | None
     fit_mask: np.ndarray
@@ -192,8 +193,9 @@ def fit_structure(
         return (run(p) - y)[ok]
 
     slope = law0.a * law0.b * law0.knee ** (law0.b - 1.0)  # power-law slope at the knee
-    p0 = np.array([np.log(max(law0.a, 1.0)), law0.b, slope, 0.0, 0.0, 0.0, 0.0, 0.0])
-    lo = np.array([np.log(1.0), 0.0, -np.inf, -np.inf, *np.log([0.05, 0.05, 0.02, 0.5])])
+    p0 = np.array([np.log(max(law0.a, 1.0)), law0.b, max(slope, 0.0), 0.0, 0.0, 0.0, 0.0, 0.0])
+    # c_1, c_2 >= 0: h does not fall with speed above the knee (the tyre exposes more disc)
+    lo = np.array([np.log(1.0), 0.0, 0.0, 0.0, *np.log([0.05, 0.05, 0.02, 0.5])])
     hi = np.array([np.log(2000.0), 3.0, np.inf, np.inf, *np.log([20.0, 20.0, 5.0, 2.0])])
     p0 = np.clip(p0, lo + 1e-6, hi - 1e-6)
     sol = least_squares(residual, p0, bounds=(lo, hi), x_scale="jac", diff_step=1e-3,
@@ -209,6 +211,57 @@ def fit_structure(
         rmse_c=_spot_rmse(run(sol.x), y),
         rmse_uniform_c=_spot_rmse(run(uniform), y),
     )
+
+
+def calibrate_band(
+    session: Session, calibration: DiscCalibration, options: IdentifyOptions,
+    sigma_meas: float, spot: int = 3, level: float = 0.95,
+) -> float:
+    """Factor on the estimator's 1-sigma for a true ``level`` band at unmeasured spots.
+
+    Runs the race estimator on this four-spot session with only ``spot`` measured and
+    finds, by bisection, the factor ``a`` for which a fraction ``level`` of the other
+    spots' readings lie within ``z · sqrt(a² sigma² + sigma_meas²)``. The filter's own
+    sigma only knows the noise it was told about; the structural error of a 1D model
+    (per-braking power split, the skin the layers do not resolve) shows up here.
+    """
+    from scipy.stats import norm
+
+    est = estimate_from_session(
+        session,
+        EstimateOptions(spot=spot, disc=options.disc, tuning=options.tuning,
+                        aliases=options.aliases, ambient_c=options.ambient_c, score=False),
+        calibration=calibration,
+    )  # fmt: skip
+    inputs_spots = np.column_stack(
+        [session.values(name) if session.has(name) else np.full(len(session.frame), np.nan)
+         for name in MULTI_SPOT]
+    )
+    err, std = [], []
+    for i in range(1, 5):
+        if i == spot:
+            continue
+        ref = inputs_spots[:, i - 1]
+        ok = np.isfinite(ref) & (ref > SENSOR_FLOOR_C)
+        err.append(est.frame[f"spot{i}"].to_numpy()[ok] - ref[ok])
+        std.append(est.frame[f"spot{i}_std"].to_numpy()[ok])
+    e, s = np.abs(np.concatenate(err)), np.concatenate(std)
+    if e.size == 0:
+        return 1.0
+    z = float(norm.ppf(0.5 + level / 2.0))
+
+    def covered(a: float) -> float:
+        return float(np.mean(e <= z * np.sqrt((a * s) ** 2 + sigma_meas**2)))
+
+    lo, hi = 1.0, 50.0
+    if covered(lo) >= level:
+        return lo
+    if covered(hi) < level:
+        return hi
+    for _ in range(40):
+        mid = np.sqrt(lo * hi)
+        lo, hi = (mid, hi) if covered(mid) < level else (lo, mid)
+    return float(hi)
 
 
 def _law_dict(law: HLaw) -> dict[str, Any]:
@@ -236,6 +289,16 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
     law, structure = law_ukf, None
     if options.fit_structure:
         law, structure = fit_structure(inputs, y, disc, law_ukf, est_tuning)
+    t_struct = time.perf_counter()
+    calibration = DiscCalibration(
+        law=law,
+        weights=structure.weights if structure else (1.0, 1.0, 1.0),
+        kz_ratio=structure.kz_ratio if structure else 1.0,
+        power_scale=structure.power_scale if structure else 1.0,
+        source=str(session.path),
+    )
+    band_scale = calibrate_band(session, calibration, options, est_tuning.sigma_meas)
+    calibration = replace(calibration, band_scale=band_scale)
     t_end = time.perf_counter()
 
     samples = pd.DataFrame({
@@ -247,8 +310,8 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         "braking": braking,
     })
     residual = h_mean[fit_mask] - law_ukf(inputs.speed[fit_mask])
-    timings = {"ukf_s": t_ukf - t0, "law_s": t_law - t_ukf, "structure_s": t_end - t_law,
-               "total_s": t_end - t0}
+    timings = {"ukf_s": t_ukf - t0, "law_s": t_law - t_ukf, "structure_s": t_struct - t_law,
+               "calibration_s": t_end - t_struct, "total_s": t_end - t0}
     summary = {
         "session": str(session.path),
         "metadata": session.metadata,
@@ -269,6 +332,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             "open_loop_rmse_c": structure.rmse_c,
             "open_loop_rmse_uniform_c": structure.rmse_uniform_c,
         },
+        "band_scale": band_scale,
         "run": {
             "brakethermo": __version__,
             "disc": disc.id,
@@ -282,7 +346,8 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             "warnings": list(session.warnings) + list(inputs.warnings),
         },
     }
-    return IdentifyResult(session, law, law_ukf, samples, structure, fit_mask, summary, timings)
+    return IdentifyResult(session, law, law_ukf, calibration, samples, structure, fit_mask,
+                          summary, timings)
 
 
 def identify_h(path: str | Path, options: IdentifyOptions | None = None) -> IdentifyResult:
@@ -313,13 +378,17 @@ def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
 
     folder = Path(out_dir) / result.stem
     folder.mkdir(parents=True, exist_ok=True)
-    s = result.structure
-    extra: dict[str, Any] = {"session": str(result.session.path), "brakethermo": __version__}
-    if s is not None:
-        extra.update(kz_ratio=s.kz_ratio, power_scale=s.power_scale, nodes=s.nodes,
-                     layers=s.layers)
-    result.law.to_toml(folder / "h_law.toml", weights=s.weights if s else (1.0, 1.0, 1.0),
-                       extra=extra)
+    cal = result.calibration
+    extra: dict[str, Any] = {
+        "session": str(result.session.path),
+        "brakethermo": __version__,
+        "kz_ratio": cal.kz_ratio,
+        "power_scale": cal.power_scale,
+        "band_scale": cal.band_scale,
+    }
+    if result.structure is not None:
+        extra.update(nodes=result.structure.nodes, layers=result.structure.layers)
+    result.law.to_toml(folder / "h_law.toml", weights=cal.weights, extra=extra)
     write_parquet(
         folder / "h_samples.parquet", result.samples,
         {"time": {"unit": "s"}, "speed": {"unit": "m/s"}, "h": {"unit": "W/(m2 K)"},

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from brakethermo.config import config_dir
 from brakethermo.errors import ConfigError
 from brakethermo.io.session import Session
 from brakethermo.thermal.disc import DiscSpec, load_disc
-from brakethermo.thermal.hlaw import HLawRecord, read_h_law
+from brakethermo.thermal.hlaw import HLaw, read_h_law
 
 DEFAULT_DISC = "cc-340-8"
 
@@ -24,12 +25,57 @@ def shipped_h_law(disc: DiscSpec) -> Path | None:
     return path if path.is_file() else None
 
 
-def h_law_for(disc: DiscSpec, h_law: str | Path | None) -> tuple[HLawRecord, Path]:
-    """Read the user's h law file, or the one shipped for the disc."""
+@dataclass(frozen=True)
+class DiscCalibration:
+    """What identify-h learns about a disc installation and estimate relies on.
+
+    Attributes
+    ----------
+    law : HLaw
+        Convection law h(V).
+    weights : tuple of 3 float
+        Mean pad-crown power weights (eq. 6–8).
+    kz_ratio : float
+        Through-thickness over in-plane conductivity of the layered model.
+    power_scale : float
+        Mean braking power relative to the datasheet formula (friction vs nominal).
+    band_scale : float
+        Factor on the filter's 1-sigma that makes the 95 % band cover the unmeasured
+        spots of the identification session.
+    source : str
+        Where it came from (file path).
+    """
+
+    law: HLaw
+    weights: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    kz_ratio: float = 1.0
+    power_scale: float = 1.0
+    band_scale: float = 1.0
+    source: str = ""
+
+
+def read_calibration(path: str | Path) -> DiscCalibration:
+    """Read an ``h_law.toml`` written by identify-h."""
+    record = read_h_law(path)
+    extra = record.extra
+    try:
+        values = {k: float(extra.get(k, 1.0)) for k in ("kz_ratio", "power_scale", "band_scale")}
+    except (TypeError, ValueError):
+        raise ConfigError(
+            "[extra] kz_ratio, power_scale and band_scale must be numbers", path=path
+        ) from None
+    bad = [k for k, v in values.items() if not v > 0]
+    if bad:
+        raise ConfigError(f"[extra] {', '.join(bad)} must be > 0", path=path)
+    return DiscCalibration(law=record.law, weights=record.weights, source=str(path), **values)
+
+
+def calibration_for(disc: DiscSpec, h_law: str | Path | None) -> DiscCalibration:
+    """The user's ``h_law.toml``, or the one shipped for the disc."""
     path = Path(h_law) if h_law is not None else shipped_h_law(disc)
     if path is None:
         raise ConfigError(
             f"no h(V) law for disc '{disc.id}': run `brakethermo identify-h` on a multi-spot"
             " test session and pass its h_law.toml with --h-law"
         )
-    return read_h_law(path), path
+    return read_calibration(path)

@@ -25,7 +25,6 @@ SPOT_COLOURS = ("#1f77b4", "#2ca02c", "#ff7f0e", "#d62728")  # spot1 (inner) .. 
 CONTACT_COLOUR = "#6a3d9a"
 WINDOW_COLOUR = "#2ca02c"
 ZONE_COLOUR = "#9e9e9e"
-TEMP_NORM = Normalize(vmin=0.0, vmax=1000.0)  # degC; fixed so colours compare lap to lap
 FIG_WIDTH = 11.0  # in
 DPI = 100
 LEFT, RIGHT = 0.07, 0.83  # figure fractions shared by every figure, so time axes align
@@ -159,6 +158,9 @@ class LapFigures:
         Operating window.
     r_int, r_est : float — m
         Inner and outer radius of the carbon ring (heat-map extent).
+    temp_range_c : (float, float) — degC
+        Colour scale of the heat map; one scale for the whole session so that colours
+        compare lap to lap.
     """
 
     names = ("spots", "heatmap", "contact", "context")
@@ -170,8 +172,10 @@ class LapFigures:
         window_c: tuple[float, float],
         r_int: float,
         r_est: float,
+        temp_range_c: tuple[float, float] = (0.0, 1000.0),
     ):
         self.window_c = window_c
+        self.norm = Normalize(vmin=temp_range_c[0], vmax=temp_range_c[1])
         radii = np.asarray(node_radii, dtype=float)
         order = np.argsort(radii)
         self._node_order = order
@@ -226,7 +230,7 @@ class LapFigures:
             aspect="auto",
             origin="lower",
             cmap="inferno",
-            norm=TEMP_NORM,
+            norm=self.norm,
             extent=(0.0, 1.0, r_int * 1e3, r_est * 1e3),
             interpolation="nearest",
         )

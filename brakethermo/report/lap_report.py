@@ -164,6 +164,15 @@ def _facts(session: Session | None) -> str:
     return " · ".join(str(session.metadata[k]) for k in keys if session.metadata.get(k))
 
 
+def _colour_range(nodes: np.ndarray, step: float = 50.0) -> tuple[float, float]:
+    """Heat-map colour range of a session: its node temperatures, out to ``step`` degC."""
+    if not np.isfinite(nodes).any():
+        return 0.0, 1000.0
+    lo = step * np.floor(np.nanmin(nodes) / step)
+    hi = step * np.ceil(np.nanmax(nodes) / step)
+    return float(lo), float(max(hi, lo + step))
+
+
 def _environment() -> Environment:
     return Environment(
         loader=PackageLoader("brakethermo.report", "templates"),
@@ -243,7 +252,9 @@ def write_session_report(
     lap_numbers = [int(v) for v in stats.index]
     lap_slices = pd.Series(np.arange(len(laps_col))).groupby(laps_col).agg(["min", "max"])
 
-    figs = LapFigures(node_radii, disc.spot_radii, disc.window_c, disc.r_int, disc.r_est)
+    figs = LapFigures(
+        node_radii, disc.spot_radii, disc.window_c, disc.r_int, disc.r_est, _colour_range(nodes)
+    )
     render_s = 0.0
     pages: dict[int, Path] = {}
     try:

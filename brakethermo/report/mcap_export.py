@@ -7,7 +7,8 @@ metadata under ``unit``, as CHANNELS.md reads them back):
   ``{"value", "std", "lower", "upper"}`` — estimate, 1-sigma and the ±1σ band edges,
   degC; the spot radius in the channel metadata ``radius_m``;
 - ``/brakethermo/disc_nodes``: ``{"temperature": [...]}`` — node temperatures, degC,
-  node radii (m) as a JSON list in the channel metadata ``radius_m``;
+  node radii (m) as a JSON list in the channel metadata ``radius_m``; other column
+  families ``<name>_<k>`` likewise (``mid_<k>``, mid-plane temperatures: ``disc_mid``);
 - ``/brakethermo/lap``: ``{"value"}`` — lap number;
 - any other numeric column of the frame (``power_scale``...) as ``{"value"[, "std"]}``.
 
@@ -18,7 +19,8 @@ or absolute epoch time when the source carried it (so both logs line up in Foxgl
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+import re
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +31,10 @@ from brakethermo import __version__
 from brakethermo.io.atomic import atomic_path
 
 PREFIX = "/brakethermo/"
+ARRAY_TOPICS = {"node": "disc_nodes", "mid": "disc_mid"}
+ARRAY_UNITS = {"node": "degC", "mid": "degC"}
+SCALAR_UNITS = {"braking_power": "W", "h": "W/(m2 K)", "power_scale": ""}
+_ARRAY_COLUMN = re.compile(r"^([A-Za-z]+)_(\d+)$")
 SPOT_RADII_DEFAULT = (0.111, 0.130, 0.146, 0.162)  # m, cc-340-8 (CHANNELS.md §5)
 
 _BAND_SCHEMA = {
@@ -65,6 +71,16 @@ def _fmt(values: np.ndarray, decimals: int = 3) -> list[str]:
     return text.tolist()
 
 
+def _array_families(columns: Iterable[str]) -> dict[str, list[str]]:
+    """Columns ``<family>_<k>`` (``node_0``, ``mid_3``...) grouped by family, in k order."""
+    families: dict[str, list[tuple[int, str]]] = {}
+    for col in columns:
+        match = _ARRAY_COLUMN.match(str(col))
+        if match:
+            families.setdefault(match.group(1), []).append((int(match.group(2)), str(col)))
+    return {f: [c for _, c in sorted(cols)] for f, cols in families.items()}
+
+
 def log_times_ns(time_s: np.ndarray, start_epoch_s: float | None) -> np.ndarray:
     """Message log times, ns: grid time plus the session's epoch start when known."""
     start_ns = round(start_epoch_s * 1e9) if start_epoch_s is not None else 0
@@ -99,12 +115,11 @@ def write_estimate_mcap(
     """
     path = Path(path)
     t_ns = log_times_ns(frame["time"].to_numpy(), start_epoch_s)
-    nodes = sorted(
-        (c for c in frame.columns if c.startswith("node_") and c[5:].isdigit()),
-        key=lambda c: int(c[5:]),
-    )
+    families = _array_families(frame.columns)
+    nodes = families.pop("node", [])
     banded = [c for c in ("spot1", "spot2", "spot3", "spot4", "contact_avg") if c in frame]
-    skip = {"time", "lap", *banded, *(f"{c}_std" for c in banded), *nodes}
+    in_arrays = {c for cols in families.values() for c in cols}
+    skip = {"time", "lap", *banded, *(f"{c}_std" for c in banded), *nodes, *in_arrays}
     extra = [
         c
         for c in frame.columns
@@ -146,19 +161,22 @@ def write_estimate_mcap(
                     ],
                 )
             )
-        if nodes:
+        for family, cols in (("node", nodes), *families.items()):
+            if not cols:
+                continue
             radii = (
                 [round(float(r), 9) for r in node_radii]
-                if node_radii is not None
-                else [float("nan")] * len(nodes)
+                if node_radii is not None and len(node_radii) == len(cols)
+                else [float("nan")] * len(cols)
             )
             meta = {
-                "unit": "degC",
+                "unit": ARRAY_UNITS.get(family, ""),
                 "radius_m": json.dumps(radii),
-                "description": "node temperatures, inner to outer radius",
+                "description": f"{family} temperatures, inner to outer radius",
             }
-            cid = channel("disc_nodes", _NODES_SCHEMA, "brakethermo.DiscNodes", meta)
-            cells = np.array([_fmt(frame[c].to_numpy(dtype=float), 2) for c in nodes]).T
+            topic = ARRAY_TOPICS.get(family, f"{family}_array")
+            cid = channel(topic, _NODES_SCHEMA, "brakethermo.DiscNodes", meta)
+            cells = np.array([_fmt(frame[c].to_numpy(dtype=float), 2) for c in cols]).T
             streams.append((cid, ['{"temperature":[' + ",".join(row) + "]}" for row in cells]))
         if "lap" in frame:
             cid = channel("lap", _VALUE_SCHEMA, "brakethermo.Value", {"unit": ""})
@@ -168,10 +186,12 @@ def write_estimate_mcap(
             std_col = f"{col}_std"
             if std_col in frame:
                 std = _fmt(frame[std_col].to_numpy(dtype=float), 6)
-                cid = channel(col, _VALUE_STD_SCHEMA, "brakethermo.ValueStd", {"unit": ""})
+                meta = {"unit": SCALAR_UNITS.get(col, "")}
+                cid = channel(col, _VALUE_STD_SCHEMA, "brakethermo.ValueStd", meta)
                 msgs = [f'{{"value":{a},"std":{b}}}' for a, b in zip(value, std, strict=True)]
             else:
-                cid = channel(col, _VALUE_SCHEMA, "brakethermo.Value", {"unit": ""})
+                meta = {"unit": SCALAR_UNITS.get(col, "")}
+                cid = channel(col, _VALUE_SCHEMA, "brakethermo.Value", meta)
                 msgs = [f'{{"value":{a}}}' for a in value]
             streams.append((cid, msgs))
 

@@ -119,6 +119,14 @@ class HLaw:
             Huber loss (scale from the median absolute residual of a plain fit), so the
             noisy low-speed samples (paper §5.1) do not drag the law.
 
+        Notes
+        -----
+        The power branch is started from a weighted log-log line through the samples
+        between 0.05 and 1 times the knee, then all five coefficients (a, b, c1..c3) are
+        fitted jointly, so the knee value is shared by both branches. With fewer than
+        six samples above the knee the cubic degenerates to the power law's tangent
+        (slope-continuous extrapolation) instead of an unsupported cubic.
+
         Raises
         ------
         DataError
@@ -282,7 +290,7 @@ def read_h_law(path: str | Path) -> HLawRecord:
 
 def _fmt(value: Any) -> str:
     """TOML literal of a scalar, string or list (floats round-trip exactly)."""
-    if isinstance(value, bool):
+    if isinstance(value, bool | np.bool_):
         return "true" if value else "false"
     if isinstance(value, int | np.integer):
         return str(int(value))

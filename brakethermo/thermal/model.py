@@ -9,8 +9,11 @@ coupling offset 1, so the system is banded with half-bandwidth ``L`` (tridiagona
 the paper's one-layer model, ``L = 1``).
 
 Layers are finite volumes across the half thickness; the mid-plane is a symmetry plane
-(adiabatic), so layer ``j`` stands for the two mirrored slices of thickness
-``s / (2 L)`` and all energies and powers are those of the whole disc.
+(adiabatic), so layer ``j`` stands for two mirrored slices and all energies and powers
+are those of the whole disc. Slice thicknesses grow geometrically from the face towards
+the mid-plane by ``layer_growth`` (1 = equal slices of ``s / (2 L)``): braking with a
+poorly conducting weave makes a thin hot skin under the rubbed face, which a thin face
+layer resolves with few states (:func:`layer_thicknesses`).
 
 Discretisation choices
 ----------------------
@@ -43,7 +46,9 @@ Extension points
 The power distribution (``weights``, ``power_shape`` or a per-step ``load``), ``h``
 (any law, evaluated by the caller), a braking-power ``scale`` and ``kz_ratio`` are
 explicit inputs; sensor lag or bias act on the output (:meth:`spot_matrix`) and are
-composed outside the model.
+composed outside the model. The measured face is the face *layer*; for a sensor that
+should see the rubbed surface itself, :meth:`DiscFEModel.surface_temperature` adds the
+half-layer temperature jump of the surface flux balance.
 """
 
 from __future__ import annotations
@@ -121,6 +126,9 @@ if HAVE_NUMBA:
         """Eq. 15 for B members into ``out``; matrices from ``Tm`` (B rows or 1 shared).
 
         ``load`` holds the nodal shares of ``Q``, one row per member or one shared row.
+        Geometric factors are per layer, flattened node-major: ``cap_geo`` (N L),
+        ``cond_geo`` ((N - 1) L, one per radial element and layer), ``z_geo`` (N (L - 1),
+        one per interface).
 
         ``h`` and ``kz`` have one value per matrix; ``Qs`` (= scale Q) and ``ta`` per member.
         Batch innermost: the LDL^T recurrences of different members are independent, so
@@ -144,12 +152,11 @@ if HAVE_NUMBA:
         Md = np.empty((n, Bm))
         E = np.zeros((L, n, Bm))
         for s in range(n):
-            i = s // L
             for b in range(Bm):
-                Md[s, b] = cap_geo[i] * _ramp_nb(Tmt[s, b], c_tab) * inv_dt
+                Md[s, b] = cap_geo[s] * _ramp_nb(Tmt[s, b], c_tab) * inv_dt
                 D[s, b] = Md[s, b] + h[b] * area[s]
         for s in range(n - L):
-            g = cond_geo[s // L]
+            g = cond_geo[s]
             for b in range(Bm):
                 G = g * _ramp_nb(0.5 * (Tmt[s, b] + Tmt[s + L, b]), k_tab)
                 D[s, b] += G
@@ -158,8 +165,9 @@ if HAVE_NUMBA:
         for i in range(N):
             for j in range(L - 1):
                 s = i * L + j
+                zg = z_geo[i * (L - 1) + j]
                 for b in range(Bm):
-                    G = kz[b] * z_geo[i] * _ramp_nb(0.5 * (Tmt[s, b] + Tmt[s + 1, b]), z_tab)
+                    G = kz[b] * zg * _ramp_nb(0.5 * (Tmt[s, b] + Tmt[s + 1, b]), z_tab)
                     D[s, b] += G
                     D[s + 1, b] += G
                     E[0, s, b] = -G
@@ -273,6 +281,43 @@ class PowerTerms:
         return self.friction - self.convection - self.radiation
 
 
+def layer_thicknesses(
+    thickness: float, layers: int, growth: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Geometrically graded layers over the half thickness, face first.
+
+    Layer ``j`` stands for two mirrored slices; their joint thickness is
+    ``t_j = s g^j / S`` with ``S = sum_j g^j``, so ``sum t_j = s``. Between layers ``j``
+    and ``j + 1`` each half conducts across the centre-to-centre distance
+    ``(t_j + t_{j+1}) / 4``, so both together give ``8 a k_z / (t_j + t_{j+1})``; this
+    is returned as ``n_j = 2 s / (t_j + t_{j+1})``, the count of equal layers with that
+    spacing, in the closed form ``2 S / (g^j (1 + g))`` that is exactly ``L`` for equal
+    layers (so ``growth = 1`` reproduces the equal-layer model bit for bit).
+
+    Parameters
+    ----------
+    thickness : float — m
+        Disc thickness s.
+    layers : int
+        Number of layers L over the half thickness.
+    growth : float
+        Ratio of successive slice thicknesses from the face to the mid-plane (> 0).
+
+    Returns
+    -------
+    t : ndarray, shape (L,) — m
+        Joint thickness of both mirrored slices of each layer.
+    n_eq : ndarray, shape (L - 1,)
+        Equivalent layer count of each interface; its conductance is
+        ``4 n_eq a k_z / s`` (W/K for face area ``a``).
+    """
+    g = float(growth) ** np.arange(layers)
+    S = g.sum()
+    t = thickness * g / S
+    n_eq = 2.0 * S / (g[:-1] * (1.0 + float(growth)))
+    return t, n_eq
+
+
 def _enthalpy_table(temp_c: np.ndarray, c: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """``e(T) = int_0^T c dT`` (J/kg) for a c table linear between points, constant outside.
 
@@ -299,6 +344,10 @@ class DiscFEModel:
         Radial nodes N (>= 2; the paper uses 10 and 51).
     layers : int
         Through-thickness layers L over the half thickness (1 = the paper's model).
+    layer_growth : float
+        Ratio of successive layer thicknesses from the face towards the mid-plane
+        (1 = equal layers; e.g. 2.5 with L = 4 gives a face layer ~4 % of the half
+        thickness to resolve the hot skin under braking). See :func:`layer_thicknesses`.
     weights : sequence of 3 float
         Pad-crown weights w_1..w_3 (eq. 6–8), normalised to conserve power.
     power_shape : ndarray (N,) or callable, optional
@@ -328,46 +377,56 @@ class DiscFEModel:
         k_z: float | None = None,
         dt: float = 0.1,
         use_numba: bool | None = None,
+        layer_growth: float = 1.0,
     ) -> None:
         if n_nodes < 2 or layers < 1:
             raise ValueError("need n_nodes >= 2 and layers >= 1")
         if dt <= 0 or kz_ratio <= 0 or (k_z is not None and k_z <= 0):
             raise ValueError("dt, kz_ratio and k_z must be > 0")
+        if not (np.isfinite(layer_growth) and layer_growth > 0):
+            raise ValueError(f"layer_growth must be finite and > 0, got {layer_growth}")
         self.disc = disc
         self.n_nodes = int(n_nodes)
         self.layers = int(layers)
         self.n_state = self.n_nodes * self.layers
         self.dt = float(dt)
         self.kz_ratio = float(kz_ratio)
+        self.layer_growth = float(layer_growth)
+        if use_numba and not HAVE_NUMBA:
+            raise RuntimeError("numba is not installed; pip install 'brakethermo[fast]'")
         self.use_numba = HAVE_NUMBA if use_numba is None else bool(use_numba)
         self.radii = radial_nodes(disc.r_int, disc.r_est, self.n_nodes)
         self.face_index = np.arange(self.n_nodes) * self.layers
 
-        self.weights: np.ndarray | None  # normalised crown weights (eq. 8), if crowns
+        # normalised crown weights (eq. 8); NaN when a power_shape replaces the crowns
+        self.weights: np.ndarray
         if power_shape is None:
             self.weights = normalise_weights(weights, disc.crown_edges)
             self.load = crown_load(self.radii, disc.crown_edges, self.weights)
         elif callable(power_shape):
-            self.weights = None
+            self.weights = np.full(3, np.nan)
             self.load = shape_load(self.radii, power_shape)
         else:
             b = np.asarray(power_shape, dtype=float)
             if b.shape != (self.n_nodes,) or np.any(b < 0) or b.sum() <= 0:
                 raise ValueError(f"power_shape must be {self.n_nodes} shares >= 0")
-            self.weights = None
+            self.weights = np.full(3, np.nan)
             self.load = b / b.sum()
 
         N, L, s = self.n_nodes, self.layers, disc.thickness
         a = nodal_areas(self.radii)
-        t_layer = s / L  # both mirrored slices of one layer
+        self._face_area = a  # lumped area of one face per node, m^2
+        t_layer, n_eq = layer_thicknesses(s, L, self.layer_growth)
+        self.layer_thickness = t_layer  # (L,) m, both mirrored slices of each layer
         self._c_tab = (np.asarray(disc.c_temp_c, float), np.asarray(disc.c_value, float))
         self._k_tab = (np.asarray(disc.k_temp_c, float), np.asarray(disc.k_value, float))
         self._z_tab = self._k_tab if k_z is None else (np.zeros(1), np.full(1, float(k_z)))
         # Geometric factors that the step multiplies by material properties or h.
-        self._cap_geo = (disc.density * a * t_layer)[:, None]  # (N, 1): times c -> J/K
-        self._cond_geo = (t_layer * conduction_factors(self.radii))[:, None]  # times k -> W/K
-        # two interfaces (mirrored halves), cell-centre distance s / (2 L)
-        self._z_geo = (4.0 * L * a / s)[:, None]  # times k_z -> W/K
+        self._cap_geo = disc.density * a[:, None] * t_layer  # (N, L): times c -> J/K
+        # (N - 1, L): times k -> W/K
+        self._cond_geo = t_layer * conduction_factors(self.radii)[:, None]
+        # (N, L - 1): two interfaces (mirrored halves); times k_z -> W/K
+        self._z_geo = 4.0 * n_eq * a[:, None] / s
         area = np.zeros((N, L))
         area[:, 0] = 2.0 * a  # both faces (eq. 3)
         area[0, :] += 2.0 * np.pi * self.radii[0] * t_layer  # inner rim (eq. 11)
@@ -376,8 +435,8 @@ class DiscFEModel:
         self._rad_geo = 2.0 * a * SIGMA * disc.emissivity  # (N,), both faces (eq. 4)
         self._enthalpy = _enthalpy_table(*self._c_tab)
         self._kernel_args = (
-            N, L, self.dt, self._cap_geo[:, 0].copy(), self._cond_geo[:, 0].copy(),
-            self._z_geo[:, 0].copy(), area.ravel().copy(), self._rad_geo,
+            N, L, self.dt, self._cap_geo.ravel().copy(), self._cond_geo.ravel().copy(),
+            self._z_geo.ravel().copy(), area.ravel().copy(), self._rad_geo,
             _ramp_table(*self._c_tab), _ramp_table(*self._k_tab), _ramp_table(*self._z_tab),
         )  # fmt: skip
 
@@ -418,6 +477,45 @@ class DiscFEModel:
         H = np.zeros((np.size(radii), self.n_state))
         H[:, self.face_index] = interpolation_matrix(self.radii, radii)
         return H
+
+    def surface_temperature(
+        self,
+        T: np.ndarray,
+        q: float | np.ndarray,
+        h: float | np.ndarray,
+        t_amb: float | np.ndarray,
+        scale: float | np.ndarray = 1.0,
+        *,
+        kz_ratio: float | np.ndarray | None = None,
+        load: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Temperature of the rubbed surface at each radial node, degC, shape (B, N).
+
+        The face layer's state is the mean over its slice (depth ``d_0 = t_0 / 2``, which
+        is ``s / (2 L)`` for equal layers); the surface itself sits half a slice further
+        out, where friction heat enters. The flux balance at the surface, linear in
+        ``T_s`` except for radiation (taken at the face-layer temperature, as in eq. 15),
+        ``k_z (T_s - T_face) / (d_0 / 2) = phi_fric - h (T_s - T_amb) - phi_rad``
+        gives ``T_s``; ``phi_fric = Q w_i / (2 a_i)`` per face. Under braking this is
+        hotter than the face layer by ~``phi d_0 / (2 k_z)`` — several K for the default
+        conductivity, tens of K for a poorly conducting weave — and equal to it at rest
+        in still air. Arguments as :meth:`step`; an optional measurement model for
+        sensors that see the surface (``spot_matrix`` interpolates face-layer states).
+        """
+        T2, single = self._batch(T)
+        B, N, L = T2.shape[0], self.n_nodes, self.layers
+        T_face = T2.reshape(B, N, L)[:, :, 0]
+        half_depth = 0.25 * self.layer_thickness[0]  # d_0 / 2: both slices are 2 d_0
+        ta = self._per_member(t_amb, B)[:, None]
+        h_b = self._per_member(h, B)[:, None]
+        kz = self._per_member(self.kz_ratio if kz_ratio is None else kz_ratio, B)[:, None]
+        a_face = self._face_area
+        Qs = self._per_member(q, B) * self._per_member(scale, B)
+        phi_fric = Qs[:, None] * self._load_rows(load, B) / (2.0 * a_face)
+        phi_rad = self._radiation(T_face, ta[:, 0]) / (2.0 * a_face)
+        R = half_depth / (kz * np.interp(T_face, *self._z_tab))
+        T_s = T_face + R * (phi_fric - h_b * (T_face - ta) - phi_rad) / (1.0 + h_b * R)
+        return T_s[0] if single else T_s
 
     def capacity(self, T: np.ndarray) -> np.ndarray:
         """Lumped heat capacity of each state at temperature ``T`` (degC), J/K."""

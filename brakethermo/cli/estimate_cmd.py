@@ -1,0 +1,132 @@
+"""``brakethermo estimate SESSION``: disc temperature at every radius from one IR spot."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.table import Table
+
+from brakethermo.cli._app import app, console
+from brakethermo.pipelines.estimate import (
+    EstimateOptions,
+    EstimateResult,
+    estimate_session,
+    write_estimate,
+)
+from brakethermo.pipelines.outputs import to_json
+
+
+def _lap_label(lap: int) -> str:
+    return "out" if lap == 0 else str(lap)
+
+
+def _fmt(x: Any, spec: str = ".1f") -> str:
+    return "-" if x is None else format(x, spec)
+
+
+def render_laps(result: EstimateResult) -> None:
+    """Per-lap rich table: lap time, peaks per spot, time vs the operating window."""
+    run = result.summary["run"]
+    table = Table(
+        title=f"{result.stem}: disc temperature per lap ({run['nodes']} nodes x "
+        f"{run['layers']} layers, spot {run['measured_spot']} measured, "
+        f"{'smoother' if run['smoother'] else 'filter only'})",
+        title_justify="left",
+    )
+    table.add_column("lap", justify="right")
+    table.add_column("lap time", justify="right")
+    for i in range(1, 5):
+        table.add_column(f"peak spot{i} °C", justify="right")
+    table.add_column("mean contact °C", justify="right")
+    table.add_column("below / in / above window s", justify="right")
+    for lap in result.summary["laps"]:
+        peaks = [lap["peak"].get(f"spot{i}", {}).get("temp_c") for i in range(1, 5)]
+        m, s = divmod(lap["lap_time_s"], 60.0)
+        table.add_row(
+            _lap_label(lap["lap"]), f"{int(m)}:{s:06.3f}", *[_fmt(p, ".0f") for p in peaks],
+            _fmt(lap["mean_contact_c"], ".0f"),
+            f"{lap['time_below_window_s']:.0f} / {lap['time_in_window_s']:.0f} / "
+            f"{lap['time_above_window_s']:.0f}",
+        )  # fmt: skip
+    console.print(table)
+
+
+def render_scores(scores: dict[str, Any]) -> None:
+    """The paper's Tables 3 and 4 for this session, plus peaks and band coverage."""
+    table = Table(
+        title=f"accuracy against the measured spots (spot {scores['measured_spot']} is the "
+        "filter's input; RMSE °C)",
+        title_justify="left",
+    )
+    table.add_column("method")
+    for col in ("spot1", "spot2", "spot3", "spot4", "contact avg", "vs single-spot"):
+        table.add_column(col, justify="right")
+    ratios = scores["contact_ratio_vs_single_spot"]
+    for row in scores["table"]:
+        ratio = ratios.get(row["method"])
+        table.add_row(
+            row["method"], *[_fmt(row[f"spot{i}"]) for i in range(1, 5)],
+            _fmt(row["contact_avg"]), "1.00x" if ratio is None else f"{ratio:.2f}x",
+        )  # fmt: skip
+    console.print(table)
+    peak = scores["peak"][f"spot{scores['measured_spot']}"]
+    cov = ", ".join(f"{k} {v * 100:.0f} %" for k, v in scores["coverage95"].items())
+    console.print(
+        f"peak error at spot {scores['measured_spot']}: mean |{_fmt(peak['mean_abs_pct'])}| %"
+        f" over {peak['zones']} braking zones, session peak {_fmt(peak['max_peak_pct'], '+.1f')} %"
+    )
+    console.print(f"95 % band coverage of the unmeasured spots: {cov}")
+
+
+@app.command("estimate")
+def estimate_command(
+    session: Annotated[Path, typer.Argument(help="Session file (.mcap, .parquet, .csv).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")] = Path("out"),
+    spot: Annotated[int, typer.Option(min=1, max=4, help="Spot used as measurement.")] = 3,
+    h_law: Annotated[
+        Path | None, typer.Option("--h-law", help="h_law.toml from identify-h.")
+    ] = None,
+    nodes: Annotated[int | None, typer.Option(min=10, help="Radial nodes.")] = None,
+    layers: Annotated[
+        int | None, typer.Option(min=1, max=8, help="Layers over the half thickness.")
+    ] = None,
+    smoother: Annotated[
+        bool | None, typer.Option("--smoother/--no-smoother", help="RTS smoother (offline).")
+    ] = None,
+    adapt_power: Annotated[
+        bool | None,
+        typer.Option("--adapt-power/--no-adapt-power", help="Braking-power scale as a state."),
+    ] = None,
+    disc: Annotated[str | None, typer.Option(help="Disc datasheet id or TOML file.")] = None,
+    tuning: Annotated[Path | None, typer.Option(help="Filter tuning TOML.")] = None,
+    aliases: Annotated[Path | None, typer.Option(help="Channel alias TOML.")] = None,
+    ambient: Annotated[
+        float | None, typer.Option(help="Ambient temperature, degC (else from the session).")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+) -> None:
+    """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
+    options = EstimateOptions(
+        spot=spot, h_law=h_law, disc=disc, tuning=tuning, nodes=nodes, layers=layers,
+        smoother=smoother, adapt_power=adapt_power, aliases=aliases, ambient_c=ambient,
+    )  # fmt: skip
+    if as_json:
+        result = estimate_session(session, options)
+    else:
+        with console.status(f"estimating {session.name} ..."):
+            result = estimate_session(session, options)
+    folder = write_estimate(result, out)
+    if as_json:
+        print(to_json({**result.summary, "output": str(folder)}))
+        return
+    render_laps(result)
+    if result.scores:
+        render_scores(result.scores)
+    for warning in result.summary["run"]["warnings"]:
+        console.print(f"[yellow]warning:[/] {warning}")
+    console.print(
+        f"wrote {folder / 'estimate.parquet'} and summary.json "
+        f"({result.timings['total_s']:.2f} s)"
+    )

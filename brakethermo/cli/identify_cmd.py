@@ -1,0 +1,78 @@
+"""``brakethermo identify-h SESSION``: the disc convection law from a four-spot session."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from brakethermo.cli._app import app, console
+from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
+from brakethermo.pipelines.outputs import to_json
+
+
+@app.command("identify-h")
+def identify_command(
+    session: Annotated[Path, typer.Argument(help="Four-spot test session file.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")] = Path("out"),
+    nodes: Annotated[
+        int | None, typer.Option(min=10, help="Radial nodes of the h-identification model.")
+    ] = None,
+    structure: Annotated[
+        bool,
+        typer.Option(
+            "--structure/--no-structure",
+            help="Also fit crown weights, k_z ratio and power scale (and refine h).",
+        ),
+    ] = True,
+    disc: Annotated[str | None, typer.Option(help="Disc datasheet id or TOML file.")] = None,
+    tuning: Annotated[Path | None, typer.Option(help="Filter tuning TOML.")] = None,
+    aliases: Annotated[Path | None, typer.Option(help="Channel alias TOML.")] = None,
+    ambient: Annotated[
+        float | None, typer.Option(help="Ambient temperature, degC (else from the session).")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+) -> None:
+    """Identify h(V) (joint UKF, h as a random walk) and the disc model's structure."""
+    options = IdentifyOptions(disc=disc, tuning=tuning, nodes=nodes, aliases=aliases,
+                              ambient_c=ambient, fit_structure=structure)
+    if as_json:
+        result = identify_h(session, options)
+    else:
+        with console.status(f"identifying h(V) on {session.name} ..."):
+            result = identify_h(session, options)
+    folder = write_identify(result, out)
+    if as_json:
+        print(to_json({**result.summary, "output": str(folder)}))
+        return
+    law = result.law
+    table = Table(title=f"{result.stem}: h(V) law", title_justify="left")
+    table.add_column("speed km/h", justify="right")
+    table.add_column("h W/(m² K)", justify="right")
+    table.add_column("UKF-only law", justify="right")
+    for v in (50, 100, 150, 200, 250, 280, 300, 330, 350):
+        table.add_row(str(v), f"{float(law(v / 3.6)):.1f}", f"{float(result.law_ukf(v / 3.6)):.1f}")
+    console.print(table)
+    fit = result.summary["fit"]
+    console.print(
+        f"power law a={law.a:.1f} b={law.b:.3f} below {law.knee:.2f}·V_ref, cubic above; "
+        f"{fit['samples_off_brake']} off-brake samples of {fit['samples_total']}"
+    )
+    s = result.structure
+    if s is not None:
+        console.print(
+            f"crown weights w = [{s.weights[0]:.3f}, {s.weights[1]:.3f}, {s.weights[2]:.3f}], "
+            f"k_z ratio {s.kz_ratio:.3f}, power scale {s.power_scale:.3f} "
+            f"({s.nodes} nodes x {s.layers} layers)"
+        )
+        console.print(
+            "open-loop RMSE per spot °C: "
+            + ", ".join(f"{k} {v:.1f} (uniform {s.rmse_uniform_c[k]:.1f})"
+                        for k, v in s.rmse_c.items())
+        )
+    for warning in result.summary["run"]["warnings"]:
+        console.print(f"[yellow]warning:[/] {warning}")
+    console.print(f"wrote {folder / 'h_law.toml'}, h_samples.parquet, h_law.png "
+                  f"({result.timings['total_s']:.1f} s)")

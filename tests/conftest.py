@@ -1,0 +1,37 @@
+"""Shared fixtures: small simulated sessions, written once per test run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from brakethermo.sim.session import SimConfig, simulate, write_simulation
+
+# Seeds used by the tests; the tuning in configs/tuning.toml was set on seeds 500-599.
+TEST_SEED = 4242
+RACE_SEED = 4243
+
+
+@pytest.fixture(scope="session")
+def sim_test_session(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A 2-lap four-spot test session (MCAP) and its truth file."""
+    out = tmp_path_factory.mktemp("sim") / "test_multi.mcap"
+    return write_simulation(simulate(SimConfig(laps=2, sensor="multi", seed=TEST_SEED)), out)
+
+
+@pytest.fixture(scope="session")
+def sim_race_session(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A 2-lap four-spot race-like session (Parquet, other seed) and its truth file."""
+    out = tmp_path_factory.mktemp("sim") / "race_multi.parquet"
+    return write_simulation(simulate(SimConfig(laps=2, sensor="multi", seed=RACE_SEED)), out)
+
+
+@pytest.fixture(scope="session")
+def identified(sim_test_session: tuple[Path, Path], tmp_path_factory: pytest.TempPathFactory):
+    """identify-h run once on the simulated test session: (result, h_law.toml path)."""
+    from brakethermo.pipelines.identify_h import identify_h, write_identify
+
+    result = identify_h(sim_test_session[0])
+    folder = write_identify(result, tmp_path_factory.mktemp("identify"))
+    return result, folder / "h_law.toml"

@@ -1,0 +1,110 @@
+"""estimate on simulated sessions: contract, accuracy against truth, robustness."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from brakethermo.errors import DataError
+from brakethermo.io.load import load_session
+from brakethermo.pipelines.estimate import (
+    EstimateOptions,
+    estimate_from_session,
+    estimate_session,
+    write_estimate,
+)
+from brakethermo.sim.score import read_truth, score_against_truth
+
+
+@pytest.fixture(scope="module")
+def estimated(sim_race_session, identified):
+    return estimate_session(sim_race_session[0], EstimateOptions(h_law=identified[1]))
+
+
+def test_outputs_follow_the_contract(estimated, tmp_path):
+    folder = write_estimate(estimated, tmp_path)
+    table = pq.read_table(folder / "estimate.parquet")
+    names = table.column_names
+    for col in ("time", "lap", "contact_avg", "contact_avg_std",
+                *[f"spot{i}{s}" for i in range(1, 5) for s in ("", "_std")]):
+        assert col in names
+    nodes = [n for n in names if n.startswith("node_")]
+    assert len(nodes) == estimated.summary["run"]["nodes"]
+    radii = [float(table.schema.field(n).metadata[b"radius_m"]) for n in nodes]
+    assert np.all(np.diff(radii) > 0) and radii[0] == pytest.approx(0.100)
+    time = table.column("time").to_numpy()
+    assert time[0] == 0.0 and np.allclose(np.diff(time), 0.1)
+    summary = json.loads((folder / "summary.json").read_text())
+    lap = summary["laps"][-1]
+    assert {"lap_time_s", "peak", "time_in_window_s", "mean_contact_c"} <= set(lap)
+    assert summary["run"]["smoother"] is True and summary["run"]["wall_time_s"] > 0
+
+
+def test_beats_single_spot_baseline_against_truth(estimated, sim_race_session):
+    truth = read_truth(sim_race_session[1])
+    measured = estimated.session.values("disc_temp_spot3")
+    sc = score_against_truth(estimated.frame, truth, measured, estimated.open_loop)
+    rows = {r["method"]: r for r in sc["table"]}
+    assert sc["contact_ratio"]["smoother"] < 0.6
+    assert rows["smoother"]["spot4"] < rows["single-spot"]["spot4"]
+    assert abs(sc["peak_spot3"]["mean_abs_pct"]) < 5.0
+    assert sc["coverage95"]["spot4"] > 0.6
+
+
+def test_scores_itself_on_a_multi_spot_session(estimated):
+    sc = estimated.scores
+    methods = [r["method"] for r in sc["table"]]
+    assert methods == ["smoother", "filter", "open-loop 1D-FE", "single-spot"]
+    assert set(sc["coverage95"]) == {"spot1", "spot2", "spot4"}
+
+
+def test_layered_model_beats_one_layer(estimated, sim_race_session, identified):
+    one = estimate_session(sim_race_session[0], EstimateOptions(h_law=identified[1], layers=1))
+    truth = read_truth(sim_race_session[1])
+    measured = estimated.session.values("disc_temp_spot3")
+    r3 = score_against_truth(estimated.frame, truth, measured)["contact_ratio"]["smoother"]
+    r1 = score_against_truth(one.frame, truth, measured)["contact_ratio"]["smoother"]
+    assert r3 < r1
+
+
+def test_filter_only_has_no_smoother_row(sim_race_session, identified):
+    res = estimate_session(sim_race_session[0],
+                           EstimateOptions(h_law=identified[1], smoother=False))
+    assert res.summary["run"]["smoother"] is False
+    assert res.scores["table"][0]["method"] == "filter"
+
+
+def test_dropout_spike_and_bad_start_do_not_derail(sim_race_session, identified):
+    session = load_session(sim_race_session[0])
+    frame = session.frame.copy()
+    y = frame["disc_temp_spot3"].to_numpy().copy()
+    k0 = int(np.flatnonzero(np.isfinite(y))[0])
+    y[k0] = 20.0  # a deliberately bad first reading: the filter starts 300+ degC off
+    mid = len(y) // 2
+    y[mid : mid + 200] = np.nan  # a 20 s sensor dropout
+    y[mid + 400] += 400.0  # a spike the reader's Hampel filter did not catch
+    frame["disc_temp_spot3"] = y
+    broken = type(session)(**{**session.__dict__, "frame": frame})
+    res = estimate_from_session(broken, EstimateOptions(h_law=identified[1]))
+    truth = read_truth(sim_race_session[1])
+    est = res.frame["spot3"].to_numpy()
+    assert np.isfinite(est).all()
+    n = min(len(est), len(truth))
+    late = slice(mid + 600, n)
+    err = est[late] - truth["spot3"].to_numpy()[late]
+    assert np.sqrt(np.mean(err**2)) < 25.0
+    assert res.summary["run"]["covariance_repairs"] >= 0
+
+
+def test_spot_not_logged_is_a_clear_error(sim_race_session, identified, tmp_path):
+    from brakethermo.sim.session import SimConfig, simulate, write_simulation
+
+    path, _ = write_simulation(simulate(SimConfig(laps=1, sensor="single", seed=8)),
+                               tmp_path / "single.parquet")
+    with pytest.raises(DataError, match="spot 2"):
+        estimate_session(path, EstimateOptions(h_law=identified[1], spot=2))
+    res = estimate_session(path, EstimateOptions(h_law=identified[1]))
+    assert res.scores is None and np.isfinite(res.frame["contact_avg"]).all()

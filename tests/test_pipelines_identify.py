@@ -1,0 +1,73 @@
+"""identify-h on simulated sessions: the law, the structure, the files (truth only scores)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from brakethermo.errors import DataError
+from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, off_brake_mask
+from brakethermo.pipelines.models import read_calibration
+from brakethermo.sim.score import read_truth
+
+
+def test_recovers_true_h_within_15_percent(sim_test_session, identified):
+    result, _ = identified
+    truth = read_truth(sim_test_session[1])
+    v = truth["speed"].to_numpy() / 3.6
+    off = truth["q_brake"].to_numpy() == 0
+    h_true = truth["h"].to_numpy()[off]
+    rel_rms = np.sqrt(np.mean((result.law(v[off]) - h_true) ** 2)) / np.mean(h_true)
+    assert rel_rms < 0.15
+
+
+def test_structure_fit_improves_on_uniform_weights(identified):
+    s = identified[0].structure
+    assert s is not None
+    assert sum(s.rmse_c.values()) < sum(s.rmse_uniform_c.values())
+    assert 0.02 <= s.kz_ratio <= 5.0 and 0.5 <= s.power_scale <= 2.0
+
+
+def test_law_is_continuous_and_monotone_above_knee(identified):
+    law = identified[0].law
+    knee = law.knee * law.v_ref
+    assert law(knee - 1e-6) == pytest.approx(law(knee + 1e-6), rel=1e-5)
+    v = np.linspace(knee, 360 / 3.6, 50)
+    assert np.all(np.diff(law(v)) >= -1e-9)
+
+
+def test_outputs_follow_the_contract(identified):
+    result, law_path = identified
+    folder = law_path.parent
+    cal = read_calibration(law_path)
+    assert cal.law == result.law and cal.band_scale >= 1.0
+    samples = pq.read_table(folder / "h_samples.parquet")
+    assert {"time", "lap", "speed", "h", "h_std", "braking"} <= set(samples.column_names)
+    assert samples.schema.field("h").metadata[b"unit"] == b"W/(m2 K)"
+    import tomllib
+
+    raw = tomllib.loads(law_path.read_text())
+    assert raw["tabulated"]["speed_kmh"][0] == 0 and raw["tabulated"]["speed_kmh"][-1] == 360
+    assert len(raw["weights"]["w"]) == 3
+    assert (folder / "h_law.png").stat().st_size > 10_000
+    summary = json.loads((folder / "identify.json").read_text())
+    assert summary["fit"]["samples_off_brake"] > 100
+
+
+def test_off_brake_mask_excludes_braking_and_settling():
+    braking = np.zeros(100, bool)
+    braking[10:20] = True
+    mask = off_brake_mask(braking, after_s=1.0)
+    assert not mask[10:30].any() and mask[:10].all() and mask[30:].all()  # release at 20
+
+
+def test_single_spot_session_is_refused(tmp_path):
+    from brakethermo.sim.session import SimConfig, simulate, write_simulation
+
+    path, _ = write_simulation(simulate(SimConfig(laps=1, sensor="single", seed=7)),
+                               tmp_path / "single.csv")
+    with pytest.raises(DataError, match="four-spot"):
+        identify_h(path, IdentifyOptions(fit_structure=False))
