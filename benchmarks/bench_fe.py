@@ -8,7 +8,13 @@ plus one for an ``h`` state where h varies per member). Columns:
 * ``scipy``   — numpy assembly + ``scipy.linalg.solveh_banded`` per member (reference)
 * ``shared``  — one matrix from the mean state, factorised once, B right-hand sides
 
-Run: ``python benchmarks/bench_fe.py [--steps 300]`` (times are scaled to 1000 steps).
+``--layers`` instead compares graded through-thickness layers (``layer_growth``) on the
+estimator's mesh (N = 10, kz_ratio = 0.06): face-temperature error during a braking pulse
+(60 kW for 3 s, then 10 s cooling, from 400 degC) against a 60-equal-layer reference and
+against a converged surface temperature (80 layers, growth 1.05, thin face layer), with
+the sigma-point step time per lap and its ratio to the same number of equal layers.
+
+Run: ``python benchmarks/bench_fe.py [--steps 300] [--layers]`` (times scaled to 1000 steps).
 """
 
 from __future__ import annotations
@@ -37,6 +43,11 @@ CASES = (  # (nodes, layers, h per member, target s/lap for the numba path)
     (51, 3, True, None),
     (150, 3, False, None),
 )
+# (layers, growth); equal layers first so each L has its equal-layer time to compare with
+LAYER_CASES = (
+    (3, 1.0), (3, 2.5), (4, 1.0), (4, 2.0), (4, 2.25), (4, 3.0), (6, 1.0), (6, 2.0), (8, 1.0),
+    (12, 1.0),
+)  # fmt: skip
 
 
 def _drive(k: int) -> float:
@@ -104,12 +115,57 @@ def bench(steps: int) -> None:
         )
 
 
+def _pulse(L: int, growth: float) -> tuple[DiscFEModel, np.ndarray, np.ndarray]:
+    """Face-layer and surface temperatures (K + 1, N) through the braking pulse, degC."""
+    model = DiscFEModel(load_disc(), 10, L, kz_ratio=0.06, layer_growth=growth)
+    q = np.concatenate((np.full(30, 6.0e4), np.zeros(100)))
+    T = model.open_loop(model.initial_state(400.0), q, 80.0, 25.0)
+    q_k = np.append(q, 0.0)
+    surface = np.stack(
+        [model.surface_temperature(T[k], q_k[k], 80.0, 25.0) for k in range(T.shape[0])]
+    )
+    return model, T[:, model.face_index], surface
+
+
+def bench_layers(steps: int) -> None:
+    contact = slice(3, None)  # nodes under the pads
+    ref_face = _pulse(60, 1.0)[1][:, contact]
+    ref_surface = _pulse(80, 1.05)[2][:, contact]
+    print("face-layer error (max / rms over contact nodes and 13 s), K; s/lap with B = 2 n + 1")
+    print(
+        f"{'L':>3} {'growth':>6} {'d0 mm':>6} {'vs L60 face':>12} {'vs surface':>12}"
+        f" {'s/lap':>7} {'/equal':>6}"
+    )
+    rng = np.random.default_rng(0)
+    equal: dict[int, float] = {}
+    for L, growth in LAYER_CASES:
+        model, face, _ = _pulse(L, growth)
+        e_ref = np.abs(face[:, contact] - ref_face)
+        e_srf = np.abs(face[:, contact] - ref_surface)
+        B = 2 * model.n_state + 1
+        T0 = 300.0 + 30.0 * rng.standard_normal((B, model.n_state))
+        t = _time(_model_step(model, 80.0), T0, steps)
+        if growth == 1.0:
+            equal[L] = t
+        ratio = f"{t / equal[L]:6.2f}" if L in equal else "-"
+        d0 = 0.5e3 * model.layer_thickness[0]  # one slice, mm
+
+        def stats(e: np.ndarray) -> str:
+            return f"{e.max():5.1f} /{np.sqrt(np.mean(e**2)):5.1f}"
+
+        print(
+            f"{L:>3} {growth:6.2f} {d0:6.3f} {stats(e_ref):>12} {stats(e_srf):>12}"
+            f" {t:7.3f} {ratio:>6}"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=300, help="steps timed per case")
+    parser.add_argument("--layers", action="store_true", help="graded-layer accuracy and cost")
     args = parser.parse_args()
     with threadpool_limits(limits=1):
-        bench(args.steps)
+        (bench_layers if args.layers else bench)(args.steps)
 
 
 if __name__ == "__main__":

@@ -135,6 +135,9 @@ def test_failures_isolated_and_rerun_skips(folder: Path, tmp_path: Path) -> None
     assert (out / "race" / "law_used.txt").read_text() == str(out / "test_pm" / "h_law.toml")
     assert by_name["race"].laps == 2 and by_name["race"].peaks["spot3"] > 200
     assert not (out / "truncated").exists()
+    index = (out / "index.html").read_text()
+    assert 'href="race/index.html"' in index and 'href="truncated' not in index
+    assert by_name["truncated"].reason.split(":")[-1].strip()[:20] in index
 
     again = run_batch(folder, options, job=JOB)
     assert {o.name: o.status for o in again.outcomes} == {

@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_estimation_ukf import N_NODES, conduction_step
 
+from brakethermo.errors import DataError
 from brakethermo.estimation import (
     CovarianceGuard,
     UnscentedKalmanFilter,
@@ -129,6 +130,16 @@ def test_non_pd_covariances_are_repaired_and_counted(base, backend):
     assert r2.n_repairs > 10
     assert np.all(np.isfinite(r2.x_filt))
     assert len(r2.repair_steps) == r2.n_repairs
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_model_returning_nan_stops_with_a_clear_error(backend):
+    def f(X, k):
+        return X * (np.nan if k == 5 else 0.9)
+
+    ukf = UnscentedKalmanFilter(f, np.eye(2), np.eye(1), H=np.ones((1, 2)), backend=backend)
+    with pytest.raises(DataError, match="non-finite at step 6"):
+        ukf.run(np.zeros(2), np.eye(2), np.ones((10, 1)))
 
 
 def test_consistency_nis_and_coverage():

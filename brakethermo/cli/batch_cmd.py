@@ -7,44 +7,61 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich import box
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
-from brakethermo.pipelines.batch import BatchOptions, BatchResult, SessionOutcome, run_batch
+from brakethermo.pipelines.batch import (
+    DEFAULT_LAW,
+    BatchOptions,
+    BatchResult,
+    SessionOutcome,
+    run_batch,
+)
 
 STATUS_STYLE = {"ok": "green", "skipped": "cyan", "failed": "bold red"}
+SPOTS = ("spot1", "spot2", "spot3", "spot4")
+
+
+def _law_tag(source: str) -> str:
+    """Short h-law tag for the table; the full source is printed under it."""
+    if source.startswith("identified:"):
+        return "batch"
+    return {"identified": "own", "given": "given", DEFAULT_LAW: "default"}.get(source, "-")
 
 
 def _table(result: BatchResult, out: Path) -> Table:
-    table = Table(title=f"batch: {len(result.outcomes)} sessions -> {out}", title_justify="left")
-    for col, justify in (
-        ("file", "left"),
-        ("kind", "left"),
-        ("laps", "right"),
-        ("status", "left"),
-        ("wall s", "right"),
-        ("peak S1..S4 °C", "right"),
-        ("h law", "left"),
-    ):
-        table.add_column(col, justify=justify)  # type: ignore[arg-type]
+    table = Table(
+        title=f"batch: {len(result.outcomes)} sessions -> {out}",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        show_edge=False,
+        pad_edge=False,
+    )
+    table.add_column("file", overflow="fold", min_width=12)
+    table.add_column("kind", min_width=6)
+    table.add_column("laps", justify="right", min_width=4)
+    table.add_column("status", min_width=7)
+    table.add_column("wall s", justify="right")
+    for i in range(1, 5):
+        table.add_column(f"S{i}", justify="right")
+    table.add_column("h law")
     for o in result.outcomes:
-        peaks = " ".join(
-            f"{o.peaks[s]:.0f}" if s in o.peaks else "-"
-            for s in ("spot1", "spot2", "spot3", "spot4")
-        )
-        status = f"[{STATUS_STYLE.get(o.status, 'white')}]{o.status}[/]"
-        if o.status == "failed":
-            status += f": {o.reason}"
+        peaks = [f"{o.peaks[s]:.0f}" if s in o.peaks else "-" for s in SPOTS]
         table.add_row(
             o.name,
             o.kind or "-",
             str(o.laps) if o.laps else "-",
-            status,
+            f"[{STATUS_STYLE.get(o.status, 'white')}]{o.status}[/]",
             f"{o.wall_s:.1f}" if o.status != "skipped" else "-",
-            peaks if o.peaks else "-",
-            o.h_law_source or "-",
+            *peaks,
+            _law_tag(o.h_law_source),
         )
+    table.caption = (
+        "S1..S4: peak estimated spot temperature, °C. h law: own = identified from the "
+        "session; batch = the most recent identified in this batch; default = shipped law"
+    )
     return table
 
 
@@ -120,13 +137,18 @@ def batch(
 
             result = run_batch(folder, options, on_event=on_event)
         console.print(_table(result, out))
+        sources = {o.h_law_source for o in result.outcomes if o.kind == "single"}
+        for source in sorted(sources - {""}):
+            console.print(f"race sessions estimated with h law: {source}")
         share = ", ".join(
             f"{k.removesuffix('_s')} {v:.1f} s ({f:.0%})"
             for k, (v, f) in result.step_shares().items()
         )
         console.print(f"wall time {result.wall_s:.1f} s" + (f"  ({share})" if share else ""))
-        console.print(f"open [bold]{out / '<session>' / 'index.html'}[/] for the lap reports")
+        if options.reports:
+            console.print(f"open [bold]{out / 'index.html'}[/] for the reports")
         for o in result.failed:
-            console.print(f"[bold red]failed:[/] {o.path}: {o.reason}", soft_wrap=True)
+            where = "" if str(o.path) in o.reason else f"{o.path}: "
+            console.print(f"[bold red]failed:[/] {where}{o.reason}", soft_wrap=True)
     if result.exit_code:
         raise typer.Exit(result.exit_code)

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from scipy.linalg import cho_factor, cho_solve
 from scipy.stats import chi2
 
-from brakethermo.errors import ConfigError
+from brakethermo.errors import ConfigError, DataError
 from brakethermo.estimation.covariance import CovarianceGuard, symmetrise
 from brakethermo.estimation.results import FilterResult
 
@@ -123,7 +123,18 @@ class Buffers:
     store: str
 
     def result(self, P_last: Array, repair_steps: list[int]) -> FilterResult:
-        """Freeze into a FilterResult; arrays not kept by ``store`` become None."""
+        """Freeze into a FilterResult; arrays not kept by ``store`` become None.
+
+        Raises DataError if the state went non-finite: that only happens when the model
+        returned NaN or inf, and a silent NaN track would be worse than a clear stop.
+        """
+        bad = ~np.isfinite(self.x_filt).all(axis=1)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise DataError(
+                f"the filter state became non-finite at step {k}: the model returned NaN "
+                "or inf; check its inputs around that step"
+            )
         has_ro = self.M.shape[0] > 0
         return FilterResult(
             x_pred=self.x_pred,

@@ -400,6 +400,7 @@ def process_session(task: SessionTask, runner: SessionRunner | None = None) -> S
 def _write_outputs(
     task: SessionTask, session: Session, runner: SessionRunner, outcome: SessionOutcome
 ) -> None:
+    # Imported here: matplotlib loads only where sessions are processed (fast CLI start).
     from brakethermo.report.lap_report import write_session_report
     from brakethermo.report.mcap_export import write_estimate_mcap
 
@@ -716,4 +717,9 @@ def run_batch(
                 o.wall_s += first_pass.wall_s
                 o.timings["read_s"] = o.timings.get("read_s", 0.0) + first_pass.timings["read_s"]
             done[o.path] = o
-    return BatchResult([done[p] for p in files], time.perf_counter() - t0)
+    result = BatchResult([done[p] for p in files], time.perf_counter() - t0)
+    if options.reports and files:
+        from brakethermo.report.index import write_batch_index
+
+        write_batch_index(out, folder, (o.to_json() for o in result.outcomes))
+    return result

@@ -142,6 +142,15 @@ def _initial_temperature(y: np.ndarray, t_amb: np.ndarray) -> float:
     return float(t_amb[0])
 
 
+def disc_model(
+    disc: DiscSpec, tuning: EstimateTuning, weights: tuple[float, float, float] = (1.0, 1.0, 1.0),
+    kz_ratio: float = 1.0,
+) -> DiscFEModel:
+    """The estimation model: radial nodes x graded through-thickness layers."""
+    return DiscFEModel(disc, tuning.nodes, tuning.layers, weights=weights, kz_ratio=kz_ratio,
+                       layer_growth=tuning.layer_growth)
+
+
 def build_state_space(
     model: DiscFEModel, inputs: DiscInputs, h: np.ndarray, tuning: EstimateTuning,
     power_scale: float = 1.0,
@@ -171,13 +180,13 @@ def estimate_from_session(
     t_start = time.perf_counter()
     tuning = options.resolve(load_tuning(options.tuning)[0])
     disc = disc_for(session, options.disc)
-    cal = calibration or calibration_for(disc, options.h_law)
     inputs = disc_inputs(session, disc, options.ambient_c)
     y = _measurement(inputs, options.spot, session.path)
+    cal = calibration or calibration_for(disc, options.h_law)
+    if cal.sigma_crown is not None and options.tuning is None:
+        tuning = replace(tuning, sigma_crown=cal.sigma_crown)
     h = cal.law(inputs.speed)
-    model = DiscFEModel(
-        disc, tuning.nodes, tuning.layers, weights=cal.weights, kz_ratio=cal.kz_ratio
-    )
+    model = disc_model(disc, tuning, cal.weights, cal.kz_ratio)
     ssm = build_state_space(model, inputs, h, tuning, cal.power_scale)
 
     spot_radii = np.asarray(disc.spot_radii)
@@ -232,6 +241,8 @@ def estimate_from_session(
             "h_law": cal.source,
             "nodes": tuning.nodes,
             "layers": tuning.layers,
+            "layer_growth": tuning.layer_growth,
+            "sigma_crown": tuning.sigma_crown,
             "kz_ratio": cal.kz_ratio,
             "power_scale_prior": cal.power_scale,
             "band_scale": cal.band_scale,

@@ -28,7 +28,12 @@ from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.load import load_session
 from brakethermo.io.session import GRID_DT, Session
 from brakethermo.pipelines.disc_ssm import H_PARAM, DiscStateSpace, RandomWalkParam
-from brakethermo.pipelines.estimate import SENSOR_FLOOR_C, EstimateOptions, estimate_from_session
+from brakethermo.pipelines.estimate import (
+    SENSOR_FLOOR_C,
+    EstimateOptions,
+    disc_model,
+    estimate_from_session,
+)
 from brakethermo.pipelines.inputs import MULTI_SPOT, DiscInputs, disc_inputs
 from brakethermo.pipelines.models import DiscCalibration, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
@@ -185,7 +190,7 @@ def fit_structure(
 
     def run(p: np.ndarray) -> np.ndarray:
         law, w, kz, scale = unpack(p)
-        model = DiscFEModel(disc, est.nodes, est.layers, weights=w, kz_ratio=kz)
+        model = disc_model(disc, est, (w[0], w[1], w[2]), kz)
         T = model.open_loop(np.repeat(T0, est.layers), q, law(v), t_amb, scale=scale)
         return T @ model.spot_matrix(spot_radii).T
 
@@ -213,55 +218,81 @@ def fit_structure(
     )
 
 
-def calibrate_band(
-    session: Session, calibration: DiscCalibration, options: IdentifyOptions,
-    sigma_meas: float, spot: int = 3, level: float = 0.95,
-) -> float:
-    """Factor on the estimator's 1-sigma for a true ``level`` band at unmeasured spots.
+SIGMA_CROWN_GRID = (0.1, 0.2, 0.35, 0.6)  # relative crown-share noise tried by validation
 
-    Runs the race estimator on this four-spot session with only ``spot`` measured and
-    finds, by bisection, the factor ``a`` for which a fraction ``level`` of the other
-    spots' readings lie within ``z · sqrt(a² sigma² + sigma_meas²)``. The filter's own
-    sigma only knows the noise it was told about; the structural error of a 1D model
-    (per-braking power split, the skin the layers do not resolve) shows up here.
+
+def _held_out(
+    session: Session, calibration: DiscCalibration, options: IdentifyOptions, spot: int,
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Run the race estimator with only ``spot`` measured; errors and sigmas elsewhere.
+
+    Returns the errors and 1-sigmas of the other spots' estimates against their
+    readings (pooled), and the contact-band RMSE against the measured average.
     """
-    from scipy.stats import norm
-
     est = estimate_from_session(
         session,
         EstimateOptions(spot=spot, disc=options.disc, tuning=options.tuning,
                         aliases=options.aliases, ambient_c=options.ambient_c, score=False),
         calibration=calibration,
     )  # fmt: skip
-    inputs_spots = np.column_stack(
-        [session.values(name) if session.has(name) else np.full(len(session.frame), np.nan)
-         for name in MULTI_SPOT]
-    )
+    readings = np.column_stack([session.values(name) for name in MULTI_SPOT])
+    readings[readings <= SENSOR_FLOOR_C] = np.nan
     err, std = [], []
     for i in range(1, 5):
         if i == spot:
             continue
-        ref = inputs_spots[:, i - 1]
-        ok = np.isfinite(ref) & (ref > SENSOR_FLOOR_C)
+        ref = readings[:, i - 1]
+        ok = np.isfinite(ref)
         err.append(est.frame[f"spot{i}"].to_numpy()[ok] - ref[ok])
         std.append(est.frame[f"spot{i}_std"].to_numpy()[ok])
-    e, s = np.abs(np.concatenate(err)), np.concatenate(std)
-    if e.size == 0:
-        return 1.0
+    contact = est.frame["contact_avg"].to_numpy() - readings[:, 1:4].mean(axis=1)
+    return np.concatenate(err), np.concatenate(std), float(np.sqrt(np.nanmean(contact**2)))
+
+
+def validate_filter(
+    session: Session, calibration: DiscCalibration, options: IdentifyOptions,
+    sigma_meas: float, spot: int = 3, level: float = 0.95,
+) -> tuple[float, float, dict[str, float]]:
+    """Crown-split noise and band scale chosen on this session's unmeasured spots.
+
+    For each crown-noise level of :data:`SIGMA_CROWN_GRID` the race estimator runs with
+    only ``spot`` measured; the level with the smallest error at the other spots (their
+    RMSE plus the contact-band RMSE) wins. Then, by bisection, the factor ``a`` on the
+    filter's 1-sigma for which a fraction ``level`` of those readings lie within
+    ``z · sqrt(a² sigma² + sigma_meas²)``: the filter's own sigma only knows the noise it
+    was told about, not the structural error of a 1D model (the per-braking power split,
+    the skin the layers do not resolve).
+
+    Returns
+    -------
+    sigma_crown, band_scale : float
+    scores : dict of str to float — the validation error (degC) of every level tried
+    """
+    from scipy.stats import norm
+
+    scores = {}
+    runs = {}
+    for sigma in SIGMA_CROWN_GRID:
+        e, s, contact = _held_out(session, replace(calibration, sigma_crown=sigma), options, spot)
+        scores[f"{sigma:g}"] = float(np.sqrt(np.mean(e**2)) + contact)
+        runs[sigma] = (e, s)
+    best = min(SIGMA_CROWN_GRID, key=lambda sg: scores[f"{sg:g}"])
+    e, s = runs[best]
+    e = np.abs(e)
     z = float(norm.ppf(0.5 + level / 2.0))
 
     def covered(a: float) -> float:
         return float(np.mean(e <= z * np.sqrt((a * s) ** 2 + sigma_meas**2)))
 
     lo, hi = 1.0, 50.0
-    if covered(lo) >= level:
-        return lo
+    if e.size == 0 or covered(lo) >= level:
+        return best, lo, scores
     if covered(hi) < level:
-        return hi
+        return best, hi, scores
     for _ in range(40):
-        mid = np.sqrt(lo * hi)
+        mid = float(np.sqrt(lo * hi))
         lo, hi = (mid, hi) if covered(mid) < level else (lo, mid)
-    return float(hi)
+    return best, hi, scores
 
 
 def _law_dict(law: HLaw) -> dict[str, Any]:
@@ -297,8 +328,10 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         power_scale=structure.power_scale if structure else 1.0,
         source=str(session.path),
     )
-    band_scale = calibrate_band(session, calibration, options, est_tuning.sigma_meas)
-    calibration = replace(calibration, band_scale=band_scale)
+    sigma_crown, band_scale, validation = validate_filter(
+        session, calibration, options, est_tuning.sigma_meas
+    )
+    calibration = replace(calibration, band_scale=band_scale, sigma_crown=sigma_crown)
     t_end = time.perf_counter()
 
     samples = pd.DataFrame({
@@ -333,11 +366,15 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             "open_loop_rmse_uniform_c": structure.rmse_uniform_c,
         },
         "band_scale": band_scale,
+        "sigma_crown": sigma_crown,
+        "validation_error_c": validation,
         "run": {
             "brakethermo": __version__,
             "disc": disc.id,
             "nodes": tuning.nodes,
             "layers": tuning.layers,
+            "estimate_layers": est_tuning.layers,
+            "estimate_layer_growth": est_tuning.layer_growth,
             "filter": "joint UKF + unscented RTS smoother, h as random walk",
             "covariance_repairs": forward.n_repairs,
             "mean_nis": float(np.nanmean(forward.nis)),
@@ -385,6 +422,8 @@ def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
         "kz_ratio": cal.kz_ratio,
         "power_scale": cal.power_scale,
         "band_scale": cal.band_scale,
+        "sigma_crown": cal.sigma_crown,
+        "layer_growth": result.summary["run"]["estimate_layer_growth"],
     }
     if result.structure is not None:
         extra.update(nodes=result.structure.nodes, layers=result.structure.layers)

@@ -42,6 +42,8 @@ class DiscCalibration:
     band_scale : float
         Factor on the filter's 1-sigma that makes the 95 % band cover the unmeasured
         spots of the identification session.
+    sigma_crown : float or None
+        Crown-split process noise chosen by held-out-spot validation on that session.
     source : str
         Where it came from (file path).
     """
@@ -51,6 +53,7 @@ class DiscCalibration:
     kz_ratio: float = 1.0
     power_scale: float = 1.0
     band_scale: float = 1.0
+    sigma_crown: float | None = None
     source: str = ""
 
 
@@ -64,9 +67,12 @@ def read_calibration(path: str | Path) -> DiscCalibration:
         raise ConfigError(
             "[extra] kz_ratio, power_scale and band_scale must be numbers", path=path
         ) from None
-    bad = [k for k, v in values.items() if not v > 0]
+    sigma_crown = extra.get("sigma_crown")
+    if sigma_crown is not None:
+        values["sigma_crown"] = sigma_crown
+    bad = [k for k, v in values.items() if not (isinstance(v, int | float) and v > 0)]
     if bad:
-        raise ConfigError(f"[extra] {', '.join(bad)} must be > 0", path=path)
+        raise ConfigError(f"[extra] {', '.join(bad)} must be numbers > 0", path=path)
     return DiscCalibration(law=record.law, weights=record.weights, source=str(path), **values)
 
 

@@ -28,6 +28,8 @@ class EstimateTuning(SigmaPointTuning):
     ----------
     nodes, layers : int
         Radial nodes and through-thickness layers of the model.
+    layer_growth : float
+        Thickness ratio of successive layers from the face (1 = equal layers).
     smoother, adapt_power : bool
     sigma_meas : float — degC
     sigma_temp : float — degC per step
@@ -38,7 +40,8 @@ class EstimateTuning(SigmaPointTuning):
     """
 
     nodes: int = 10
-    layers: int = 3
+    layers: int = 4
+    layer_growth: float = 2.25
     smoother: bool = True
     adapt_power: bool = True
     sigma_meas: float = 5.0

@@ -165,7 +165,7 @@ def write_estimate_mcap(
             if not cols:
                 continue
             radii = (
-                [round(float(r), 9) for r in node_radii]
+                [float(r) for r in node_radii]
                 if node_radii is not None and len(node_radii) == len(cols)
                 else [float("nan")] * len(cols)
             )

@@ -1,0 +1,55 @@
+"""The batch index page ``OUT/index.html``: one line per session, linking its report."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from jinja2 import Environment, PackageLoader, select_autoescape
+
+from brakethermo import __version__
+from brakethermo.io.atomic import write_text_atomic
+
+
+def write_batch_index(
+    out: str | Path, folder: str | Path, sessions: Iterable[dict[str, Any]]
+) -> Path:
+    """Write ``out/index.html`` listing the sessions of a batch.
+
+    Parameters
+    ----------
+    out : path
+        Batch output root.
+    folder : path
+        The folder the sessions came from (shown in the header).
+    sessions : iterable of dict
+        Records with ``name``, ``kind``, ``laps``, ``status``, ``peaks_c`` (degC per
+        spot), ``reason`` and ``h_law`` (:meth:`SessionOutcome.to_json`).
+    """
+    out = Path(out)
+    rows = []
+    for s in sessions:
+        page = out / str(s["name"]) / "index.html"
+        rows.append(
+            {
+                "name": s["name"],
+                "kind": s.get("kind") or "–",
+                "laps": s.get("laps") or "–",
+                "status": s["status"],
+                "peaks": s.get("peaks_c", {}),
+                "reason": s.get("reason", ""),
+                "h_law": s.get("h_law") or "–",
+                "href": f"{s['name']}/index.html" if page.is_file() else None,
+            }
+        )
+    env = Environment(
+        loader=PackageLoader("brakethermo.report", "templates"),
+        autoescape=select_autoescape(["html", "j2"]),
+    )
+    html = env.get_template("batch.html.j2").render(
+        sessions=rows, folder=str(folder), footer=f"brakethermo {__version__}"
+    )
+    index = out / "index.html"
+    write_text_atomic(index, html)
+    return index

@@ -1,0 +1,62 @@
+"""batch with the project's real pipelines: identify-h, estimate, scores, reports, MCAP."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from _synth_race import write_session_parquet
+from mcap.reader import make_reader
+
+from brakethermo.pipelines.batch import MANIFEST, BatchOptions, run_batch
+from brakethermo.report.lap_report import read_estimate
+
+
+@pytest.fixture(scope="module")
+def batch_out(tmp_path_factory) -> Path:
+    src = tmp_path_factory.mktemp("src")
+    write_session_parquet(src / "test.parquet", 1, seed=1, multi=True, date="2026-05-01")
+    write_session_parquet(src / "race.parquet", 2, seed=2, date="2026-05-02")
+    out = tmp_path_factory.mktemp("out")
+    result = run_batch(src, BatchOptions(out=out, mcap_out=True))
+    assert [(o.name, o.status, o.reason) for o in result.outcomes] == [
+        ("race", "ok", ""),
+        ("test", "ok", ""),
+    ]
+    assert result.outcomes[0].h_law_source == "identified: test"
+    return out
+
+
+def test_outputs_of_both_kinds(batch_out: Path) -> None:
+    test, race = batch_out / "test", batch_out / "race"
+    for name in ("h_law.toml", "h_samples.parquet", "estimate.parquet", "summary.json"):
+        assert (test / name).is_file(), name
+    assert not (race / "h_law.toml").exists()
+    assert json.loads((test / "summary.json").read_text())["scores"] is not None
+    manifest = json.loads((race / MANIFEST).read_text())
+    assert manifest["h_law_source"] == "identified: test" and manifest["laps"] == 2
+    assert (race / "lap_01" / "index.html").is_file() and (race / "index.html").is_file()
+
+
+def test_mcap_export_equals_estimate(batch_out: Path) -> None:
+    frame, radii = read_estimate(batch_out / "race" / "estimate.parquet")
+    assert radii is not None and len(radii) >= 3
+    values, nodes = [], []
+    with (batch_out / "race" / "estimate.mcap").open("rb") as fh:
+        reader = make_reader(fh)
+        channels = {c.topic: c for c in reader.get_summary().channels.values()}
+        for _, channel, msg in reader.iter_messages(
+            topics=["/brakethermo/spot3", "/brakethermo/disc_nodes"]
+        ):
+            data = json.loads(msg.data)
+            if channel.topic.endswith("spot3"):
+                values.append(data["value"])
+            else:
+                nodes.append(data["temperature"])
+    np.testing.assert_allclose(values, frame["spot3"].round(3), atol=1e-9)
+    node_cols = [f"node_{k}" for k in range(len(radii))]
+    np.testing.assert_allclose(nodes, frame[node_cols].round(2).to_numpy(), atol=1e-9)
+    meta_radii = json.loads(channels["/brakethermo/disc_nodes"].metadata["radius_m"])
+    np.testing.assert_allclose(meta_radii, radii, rtol=1e-9)

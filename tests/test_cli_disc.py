@@ -1,0 +1,58 @@
+"""The identify-h and estimate commands as a user runs them: files, JSON, exit codes."""
+
+from __future__ import annotations
+
+import json
+
+from typer.testing import CliRunner
+
+from brakethermo.cli import app
+
+runner = CliRunner()
+
+
+def test_estimate_json_and_files(sim_race_session, identified, tmp_path):
+    res = runner.invoke(app, ["estimate", str(sim_race_session[0]), "--h-law",
+                              str(identified[1]), "--out", str(tmp_path), "--json"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.stdout)
+    assert summary["run"]["measured_spot"] == 3
+    assert (tmp_path / "race_multi" / "estimate.parquet").is_file()
+    assert summary["scores"]["table"][0]["method"] == "smoother"
+
+
+def test_estimate_rich_output_prints_tables(sim_race_session, identified, tmp_path):
+    res = runner.invoke(app, ["estimate", str(sim_race_session[0]), "--h-law",
+                              str(identified[1]), "--out", str(tmp_path), "--no-smoother"])
+    assert res.exit_code == 0, res.output
+    assert "disc temperature per lap" in res.output and "single-spot" in res.output
+
+
+def test_bad_h_law_file_is_one_line_exit_1(sim_race_session, tmp_path):
+    bad = tmp_path / "h_law.toml"
+    bad.write_text("knee = 'x'\n")
+    res = runner.invoke(app, ["estimate", str(sim_race_session[0]), "--h-law", str(bad),
+                              "--out", str(tmp_path)])
+    assert res.exit_code == 1
+    assert "h_law.toml" in res.output and "Traceback" not in res.output
+
+
+def test_missing_channel_names_aliases_and_channels(tmp_path):
+    csv = tmp_path / "no_pressure.csv"
+    csv.write_text("time,speed [km/h],disc_temp [degC]\n0,100,300\n0.1,101,301\n0.2,102,302\n")
+    res = runner.invoke(app, ["estimate", str(csv), "--out", str(tmp_path)])
+    assert res.exit_code == 1
+    assert "brake_pressure_front" in res.output and "Traceback" not in res.output
+
+
+def test_identify_rejects_single_spot_session(tmp_path):
+    csv = tmp_path / "single.csv"
+    csv.write_text("time,speed [km/h],brake_pressure_front [bar],disc_temp [degC]\n"
+                   + "".join(f"{i / 10},{100 + i},0,{300 + i}\n" for i in range(50)))
+    res = runner.invoke(app, ["identify-h", str(csv), "--out", str(tmp_path), "--ambient", "20"])
+    assert res.exit_code == 1 and "four-spot" in res.output
+
+
+def test_usage_error_is_exit_2(tmp_path):
+    res = runner.invoke(app, ["estimate", str(tmp_path / "x.mcap"), "--spot", "7"])
+    assert res.exit_code == 2
