@@ -46,17 +46,18 @@ def run_case(effect: str, seed: int, work: Path, test_laps: int, race_laps: int)
     law_path = write_identify(ident, work) / "h_law.toml"
     truth = read_truth(truth_path)
     out = {"effect": effect, "seed": seed}
-    for layers in (3, 1):
+    # "L3": the calibrated layered model (the default); "L1": the paper's one layer
+    for key, layers in (("L3", None), ("L1", 1)):
         t0 = time.perf_counter()
         res = estimate_session(race, EstimateOptions(h_law=law_path, layers=layers))
         wall = time.perf_counter() - t0
-        write_estimate(res, work / f"L{layers}")
+        write_estimate(res, work / key)
         measured = res.session.values("disc_temp_spot3")
-        filtered = None
-        sc = score_against_truth(res.frame, truth, measured, res.open_loop, filtered)
+        sc = score_against_truth(res.frame, truth, measured, res.open_loop)
         sc["wall_s"] = wall
+        sc["layers"] = res.summary["run"]["layers"]
         sc["paper_scores"] = res.scores
-        out[f"L{layers}"] = sc
+        out[key] = sc
     return out
 
 
@@ -65,10 +66,13 @@ def verdicts(case: dict) -> list[str]:
     rows = {r["method"]: r for r in sc["table"]}
     sm, ol, base = rows["smoother"], rows["open-loop 1D-FE"], rows["single-spot"]
     ratio = sc["contact_ratio"]["smoother"]
-    limit = 1.0 if case["effect"] in SENSOR_FAULTS or case["effect"] == "none" else 0.6
+    # issue 4: <= 0.6x with a strong model effect, <= 1.0x without one; none for sensor faults
+    limit = {"none": 1.0, **dict.fromkeys(SENSOR_FAULTS)}.get(case["effect"], 0.6)
     cov = [sc["coverage95"][s] for s in ("spot1", "spot2", "spot4")]
+    verdict = "no target (sensor fault)" if limit is None else (
+        f"target <= {limit}x: " + ("ok" if ratio <= limit else "MISS"))
     out = [
-        f"contact ratio {ratio:.2f}x (target <= {limit}x): {'ok' if ratio <= limit else 'MISS'}",
+        f"contact ratio {ratio:.2f}x ({verdict})",
         "spot2 < baseline & open-loop: "
         + ("ok" if sm["spot2"] < min(base["spot2"], ol["spot2"]) else "MISS"),
         "spot4 < baseline & open-loop: "
@@ -99,7 +103,7 @@ def main() -> None:
             cases.append(case)
             sc = case["L3"]
             print(f"\n== {effect} (seeds {case['seed']}/{case['seed'] + 1}) "
-                  f"estimate {sc['wall_s']:.1f} s")
+                  f"estimate {sc['wall_s']:.1f} s, {sc['layers']} layers")
             print(f"{'method':18s} {'spot1':>7s} {'spot2':>7s} {'spot3':>7s} {'spot4':>7s} "
                   f"{'contact':>8s} {'ratio':>6s}")
             for layers in ("L3", "L1"):

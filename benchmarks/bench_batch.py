@@ -6,7 +6,9 @@ reading, identification, estimation, reports all counted). Prints:
 1. the sample folder with 1 worker: total wall time and the share spent reading,
    identifying, estimating, writing the pipeline outputs, report writing, MCAP;
 2. the same with ``--workers 2`` and the speed-up ratio;
-3. a 25-lap race (simulated here; the simulation is not timed), file to finished per-lap
+3. four independent sessions (copies of the sample race, ``--h-law`` given) with 1 and
+   2 workers: the pool's scaling without the identify-first dependency of (1)-(2);
+4. a 25-lap race (simulated here; the simulation is not timed), file to finished per-lap
    reports, against the targets of issue 5: under 60 s, report writing under half.
 
 Usage::
@@ -99,6 +101,21 @@ def main() -> None:
         )
 
         law = next((tmp / "w1").glob("*/h_law.toml"), None)
+        singles = sorted(args.folder.rglob("*.parquet"))
+        singles = [p for p in singles if not p.name.endswith(".truth.parquet")]
+        if law is not None and singles:
+            # Independent sessions (no identification to wait for): the scaling of the pool.
+            indep = tmp / "independent"
+            indep.mkdir()
+            for k in range(4):
+                (indep / f"copy{k}_{singles[0].name}").write_bytes(singles[0].read_bytes())
+            i1, si1 = run_batch(indep, tmp / "i1", "--h-law", str(law))
+            i2, _ = run_batch(indep, tmp / "i2", "--h-law", str(law), "--workers", "2")
+            describe("4 independent sessions (--h-law given), 1 worker", i1, si1)
+            print(
+                f"speed-up --workers 2 vs 1 on independent sessions: {i1 / i2:.2f}x "
+                f"({i1:.1f} s -> {i2:.1f} s)"
+            )
         race_dir = tmp / "race"
         race_dir.mkdir()
         race = race_dir / f"race_{args.race_laps}laps.parquet"

@@ -142,6 +142,24 @@ def _initial_temperature(y: np.ndarray, t_amb: np.ndarray) -> float:
     return float(t_amb[0])
 
 
+def calibrated_tuning(
+    tuning: EstimateTuning, cal: DiscCalibration, options: EstimateOptions
+) -> EstimateTuning:
+    """The tuning with what identify-h calibrated, unless the user set it explicitly.
+
+    A ``--tuning`` file wins over the calibration for the noise; ``--layers`` (or a
+    tuning file) wins for the layering.
+    """
+    if options.tuning is not None:
+        return tuning
+    if cal.sigma_crown is not None:
+        tuning = replace(tuning, sigma_crown=cal.sigma_crown)
+    if options.layers is None and cal.layers is not None:
+        tuning = replace(tuning, layers=cal.layers,
+                         layer_growth=cal.layer_growth or tuning.layer_growth)
+    return tuning
+
+
 def disc_model(
     disc: DiscSpec, tuning: EstimateTuning, weights: tuple[float, float, float] = (1.0, 1.0, 1.0),
     kz_ratio: float = 1.0,
@@ -183,8 +201,7 @@ def estimate_from_session(
     inputs = disc_inputs(session, disc, options.ambient_c)
     y = _measurement(inputs, options.spot, session.path)
     cal = calibration or calibration_for(disc, options.h_law)
-    if cal.sigma_crown is not None and options.tuning is None:
-        tuning = replace(tuning, sigma_crown=cal.sigma_crown)
+    tuning = calibrated_tuning(tuning, cal, options)
     h = cal.law(inputs.speed)
     model = disc_model(disc, tuning, cal.weights, cal.kz_ratio)
     ssm = build_state_space(model, inputs, h, tuning, cal.power_scale)

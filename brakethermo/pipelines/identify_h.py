@@ -221,13 +221,26 @@ def fit_structure(
 SIGMA_CROWN_GRID = (0.1, 0.2, 0.35, 0.6)  # relative crown-share noise tried by validation
 
 
+def reading_noise(y: np.ndarray) -> float:
+    """Noise of a 10 Hz reading, degC, from robust second differences.
+
+    ``y[k+1] - 2 y[k] + y[k-1]`` cancels the temperature's slope and has variance
+    ``6 sigma²`` for white noise; the median keeps braking transients out.
+    """
+    d2 = np.diff(y[np.isfinite(y)], 2)
+    if d2.size < 10:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
+
+
 def _held_out(
     session: Session, calibration: DiscCalibration, options: IdentifyOptions, spot: int,
-) -> tuple[np.ndarray, np.ndarray, float]:
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """Run the race estimator with only ``spot`` measured; errors and sigmas elsewhere.
 
     Returns the errors and 1-sigmas of the other spots' estimates against their
-    readings (pooled), and the contact-band RMSE against the measured average.
+    readings (pooled), the contact-band RMSE against the measured average and the
+    reading noise (degC) of each pooled point.
     """
     est = estimate_from_session(
         session,
@@ -237,7 +250,7 @@ def _held_out(
     )  # fmt: skip
     readings = np.column_stack([session.values(name) for name in MULTI_SPOT])
     readings[readings <= SENSOR_FLOOR_C] = np.nan
-    err, std = [], []
+    err, std, noise = [], [], []
     for i in range(1, 5):
         if i == spot:
             continue
@@ -245,13 +258,15 @@ def _held_out(
         ok = np.isfinite(ref)
         err.append(est.frame[f"spot{i}"].to_numpy()[ok] - ref[ok])
         std.append(est.frame[f"spot{i}_std"].to_numpy()[ok])
+        noise.append(np.full(int(ok.sum()), reading_noise(ref)))
     contact = est.frame["contact_avg"].to_numpy() - readings[:, 1:4].mean(axis=1)
-    return np.concatenate(err), np.concatenate(std), float(np.sqrt(np.nanmean(contact**2)))
+    return (np.concatenate(err), np.concatenate(std), float(np.sqrt(np.nanmean(contact**2))),
+            np.concatenate(noise))
 
 
 def validate_filter(
     session: Session, calibration: DiscCalibration, options: IdentifyOptions,
-    sigma_meas: float, spot: int = 3, level: float = 0.95,
+    spot: int = 3, level: float = 0.95,
 ) -> tuple[float, float, dict[str, float]]:
     """Crown-split noise and band scale chosen on this session's unmeasured spots.
 
@@ -259,7 +274,8 @@ def validate_filter(
     only ``spot`` measured; the level with the smallest error at the other spots (their
     RMSE plus the contact-band RMSE) wins. Then, by bisection, the factor ``a`` on the
     filter's 1-sigma for which a fraction ``level`` of those readings lie within
-    ``z · sqrt(a² sigma² + sigma_meas²)``: the filter's own sigma only knows the noise it
+    ``z · sqrt(a² sigma² + sigma_n²)``, with ``sigma_n`` each reading's own noise
+    (:func:`reading_noise`): the filter's own sigma only knows the noise it
     was told about, not the structural error of a 1D model (the per-braking power split,
     the skin the layers do not resolve).
 
@@ -273,16 +289,18 @@ def validate_filter(
     scores = {}
     runs = {}
     for sigma in SIGMA_CROWN_GRID:
-        e, s, contact = _held_out(session, replace(calibration, sigma_crown=sigma), options, spot)
+        e, s, contact, noise = _held_out(
+            session, replace(calibration, sigma_crown=sigma), options, spot
+        )
         scores[f"{sigma:g}"] = float(np.sqrt(np.mean(e**2)) + contact)
-        runs[sigma] = (e, s)
+        runs[sigma] = (e, s, noise)
     best = min(SIGMA_CROWN_GRID, key=lambda sg: scores[f"{sg:g}"])
-    e, s = runs[best]
+    e, s, noise = runs[best]
     e = np.abs(e)
     z = float(norm.ppf(0.5 + level / 2.0))
 
     def covered(a: float) -> float:
-        return float(np.mean(e <= z * np.sqrt((a * s) ** 2 + sigma_meas**2)))
+        return float(np.mean(e <= z * np.sqrt((a * s) ** 2 + noise**2)))
 
     lo, hi = 1.0, 50.0
     if e.size == 0 or covered(lo) >= level:
@@ -320,17 +338,21 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
     law, structure = law_ukf, None
     if options.fit_structure:
         law, structure = fit_structure(inputs, y, disc, law_ukf, est_tuning)
+        if structure.kz_ratio < est_tuning.thin_skin_kz_ratio:
+            est_tuning = replace(est_tuning, layers=est_tuning.thin_skin_layers,
+                                 layer_growth=est_tuning.thin_skin_layer_growth)
+            law, structure = fit_structure(inputs, y, disc, law, est_tuning)
     t_struct = time.perf_counter()
     calibration = DiscCalibration(
         law=law,
         weights=structure.weights if structure else (1.0, 1.0, 1.0),
         kz_ratio=structure.kz_ratio if structure else 1.0,
         power_scale=structure.power_scale if structure else 1.0,
+        layers=est_tuning.layers,
+        layer_growth=est_tuning.layer_growth,
         source=str(session.path),
     )
-    sigma_crown, band_scale, validation = validate_filter(
-        session, calibration, options, est_tuning.sigma_meas
-    )
+    sigma_crown, band_scale, validation = validate_filter(session, calibration, options)
     calibration = replace(calibration, band_scale=band_scale, sigma_crown=sigma_crown)
     t_end = time.perf_counter()
 
@@ -423,10 +445,11 @@ def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
         "power_scale": cal.power_scale,
         "band_scale": cal.band_scale,
         "sigma_crown": cal.sigma_crown,
-        "layer_growth": result.summary["run"]["estimate_layer_growth"],
+        "layers": cal.layers,
+        "layer_growth": cal.layer_growth,
     }
     if result.structure is not None:
-        extra.update(nodes=result.structure.nodes, layers=result.structure.layers)
+        extra.update(nodes=result.structure.nodes)
     result.law.to_toml(folder / "h_law.toml", weights=cal.weights, extra=extra)
     write_parquet(
         folder / "h_samples.parquet", result.samples,

@@ -44,6 +44,9 @@ class DiscCalibration:
         spots of the identification session.
     sigma_crown : float or None
         Crown-split process noise chosen by held-out-spot validation on that session.
+    layers, layer_growth : int or None, float or None
+        The through-thickness layering the calibration was fitted with (``kz_ratio``
+        belongs to it); ``None`` leaves the tuning's.
     source : str
         Where it came from (file path).
     """
@@ -54,6 +57,8 @@ class DiscCalibration:
     power_scale: float = 1.0
     band_scale: float = 1.0
     sigma_crown: float | None = None
+    layers: int | None = None
+    layer_growth: float | None = None
     source: str = ""
 
 
@@ -67,10 +72,13 @@ def read_calibration(path: str | Path) -> DiscCalibration:
         raise ConfigError(
             "[extra] kz_ratio, power_scale and band_scale must be numbers", path=path
         ) from None
-    sigma_crown = extra.get("sigma_crown")
-    if sigma_crown is not None:
-        values["sigma_crown"] = sigma_crown
-    bad = [k for k, v in values.items() if not (isinstance(v, int | float) and v > 0)]
+    for key in ("sigma_crown", "layers", "layer_growth"):
+        if extra.get(key) is not None:
+            values[key] = extra[key]
+    bad = [k for k, v in values.items()
+           if isinstance(v, bool) or not (isinstance(v, int | float) and v > 0)]
+    if "layers" in values and not isinstance(values["layers"], int):
+        bad.append("layers (a whole number)")
     if bad:
         raise ConfigError(f"[extra] {', '.join(bad)} must be numbers > 0", path=path)
     return DiscCalibration(law=record.law, weights=record.weights, source=str(path), **values)

@@ -30,6 +30,9 @@ class EstimateTuning(SigmaPointTuning):
         Radial nodes and through-thickness layers of the model.
     layer_growth : float
         Thickness ratio of successive layers from the face (1 = equal layers).
+    thin_skin_kz_ratio : float
+        Below this identified k_z ratio, identify-h switches to the thin-skin layering.
+    thin_skin_layers, thin_skin_layer_growth : int, float
     smoother, adapt_power : bool
     sigma_meas : float — degC
     sigma_temp : float — degC per step
@@ -42,6 +45,9 @@ class EstimateTuning(SigmaPointTuning):
     nodes: int = 10
     layers: int = 4
     layer_growth: float = 2.25
+    thin_skin_kz_ratio: float = 0.15
+    thin_skin_layers: int = 6
+    thin_skin_layer_growth: float = 1.9
     smoother: bool = True
     adapt_power: bool = True
     sigma_meas: float = 5.0

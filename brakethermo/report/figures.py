@@ -161,6 +161,8 @@ class LapFigures:
     temp_range_c : (float, float) — degC
         Colour scale of the heat map; one scale for the whole session so that colours
         compare lap to lap.
+    measured_spots : tuple of int
+        Spots (1..4) the session measures, for the legend.
     """
 
     names = ("spots", "heatmap", "contact", "context")
@@ -173,6 +175,7 @@ class LapFigures:
         r_int: float,
         r_est: float,
         temp_range_c: tuple[float, float] = (0.0, 1000.0),
+        measured_spots: tuple[int, ...] = (3,),
     ):
         self.window_c = window_c
         self.norm = Normalize(vmin=temp_range_c[0], vmax=temp_range_c[1])
@@ -186,12 +189,12 @@ class LapFigures:
         self._interp = np.stack(
             [np.interp(self._r_grid, radii[order], eye[i]) for i in range(radii.size)], axis=1
         )
-        self._build_spots()
+        self._build_spots(measured_spots)
         self._build_heatmap(spot_radii, r_int, r_est)
         self._build_contact()
         self._build_context()
 
-    def _build_spots(self) -> None:
+    def _build_spots(self, measured_spots: tuple[int, ...]) -> None:
         fig = self.fig_spots = _figure(3.9)
         ax = self.ax_spots = fig.add_subplot()
         self.zone_spots = _ZoneMarks(ax, labels=True)
@@ -219,6 +222,14 @@ class LapFigures:
         ax.set_ylabel("disc temperature [°C]")
         ax.set_title(
             "Spot temperatures: estimate ±1σ (bands) and IR measurement (dots)", loc="left", pad=14
+        )
+        measured = [self.meas_lines[i - 1] for i in measured_spots]
+        ax.legend(
+            handles=self.spot_lines + measured,
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+            frameon=False,
+            markerscale=4,
         )
 
     def _build_heatmap(self, spot_radii: tuple[float, ...], r_int: float, r_est: float) -> None:
@@ -305,7 +316,6 @@ class LapFigures:
         t = lap.t
         t_max = float(t[-1]) if t.size else 1.0
         t_max = max(t_max, 0.1)
-        has_meas = np.isfinite(lap.measured).any(axis=1)
 
         for i in range(4):
             lo = lap.spot[i] - lap.spot_std[i]
@@ -316,16 +326,6 @@ class LapFigures:
         self.ax_spots.set_xlim(0.0, t_max)
         self.ax_spots.set_ylim(
             *_limits(lap.spot - lap.spot_std, lap.spot + lap.spot_std, lap.measured)
-        )
-        handles = self.spot_lines + [
-            m for m, has in zip(self.meas_lines, has_meas, strict=True) if has
-        ]
-        self.ax_spots.legend(
-            handles=handles,
-            loc="upper left",
-            bbox_to_anchor=(1.01, 1.0),
-            frameon=False,
-            markerscale=4,
         )
         self.zone_spots.update(lap.zones_t)
 

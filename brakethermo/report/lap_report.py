@@ -253,7 +253,13 @@ def write_session_report(
     lap_slices = pd.Series(np.arange(len(laps_col))).groupby(laps_col).agg(["min", "max"])
 
     figs = LapFigures(
-        node_radii, disc.spot_radii, disc.window_c, disc.r_int, disc.r_est, _colour_range(nodes)
+        node_radii,
+        disc.spot_radii,
+        disc.window_c,
+        disc.r_int,
+        disc.r_est,
+        temp_range_c=_colour_range(nodes),
+        measured_spots=tuple(int(i) + 1 for i in np.flatnonzero(np.isfinite(measured).any(axis=1))),
     )
     render_s = 0.0
     pages: dict[int, Path] = {}
