@@ -29,25 +29,28 @@ def _fmt(x: Any, spec: str = ".1f") -> str:
 def render_laps(result: EstimateResult) -> None:
     """Per-lap rich table: lap time, peaks per spot, time vs the operating window."""
     run = result.summary["run"]
+    lo, hi = result.summary["run"]["window_c"]
     table = Table(
-        title=f"{result.stem}: disc temperature per lap ({run['nodes']} nodes x "
+        title=f"{result.stem}: disc temperature per lap, °C ({run['nodes']} nodes x "
         f"{run['layers']} layers, spot {run['measured_spot']} measured, "
         f"{'smoother' if run['smoother'] else 'filter only'})",
         title_justify="left",
+        caption=f"time below / in / above the {lo:.0f}-{hi:.0f} °C window, contact-band average",
+        caption_justify="left",
     )
     table.add_column("lap", justify="right")
-    table.add_column("lap time", justify="right")
+    table.add_column("time", justify="right", no_wrap=True)
     for i in range(1, 5):
-        table.add_column(f"peak spot{i} °C", justify="right")
-    table.add_column("mean contact °C", justify="right")
-    table.add_column("below / in / above window s", justify="right")
+        table.add_column(f"pk S{i}", justify="right")
+    table.add_column("mean", justify="right")
+    table.add_column("window s", justify="right", no_wrap=True)
     for lap in result.summary["laps"]:
         peaks = [lap["peak"].get(f"spot{i}", {}).get("temp_c") for i in range(1, 5)]
         m, s = divmod(lap["lap_time_s"], 60.0)
         table.add_row(
-            _lap_label(lap["lap"]), f"{int(m)}:{s:06.3f}", *[_fmt(p, ".0f") for p in peaks],
+            _lap_label(lap["lap"]), f"{int(m)}:{s:04.1f}", *[_fmt(p, ".0f") for p in peaks],
             _fmt(lap["mean_contact_c"], ".0f"),
-            f"{lap['time_below_window_s']:.0f} / {lap['time_in_window_s']:.0f} / "
+            f"{lap['time_below_window_s']:.0f}/{lap['time_in_window_s']:.0f}/"
             f"{lap['time_above_window_s']:.0f}",
         )  # fmt: skip
     console.print(table)
@@ -60,8 +63,8 @@ def render_scores(scores: dict[str, Any]) -> None:
         "filter's input; RMSE °C)",
         title_justify="left",
     )
-    table.add_column("method")
-    for col in ("spot1", "spot2", "spot3", "spot4", "contact avg", "vs single-spot"):
+    table.add_column("method", no_wrap=True)
+    for col in ("spot1", "spot2", "spot3", "spot4", "contact", "ratio"):
         table.add_column(col, justify="right")
     ratios = scores["contact_ratio_vs_single_spot"]
     for row in scores["table"]:

@@ -326,10 +326,11 @@ def output_names(files: list[Path], folder: Path) -> list[str]:
             continue
         rel = f.relative_to(folder)
         names.append("__".join((*rel.parent.parts, stem)))
-    for i, name in enumerate(names):
-        if names.count(name) > 1:
-            names[i] = f"{name}_{files[i].suffix.lstrip('.').lower()}"
-    return names
+    clashes = {n for n in names if names.count(n) > 1}
+    return [
+        f"{n}_{f.suffix.lstrip('.').lower()}" if n in clashes else n
+        for n, f in zip(names, files, strict=True)
+    ]
 
 
 def is_multi_spot(session: Session) -> bool:
@@ -658,9 +659,11 @@ def run_batch(
     done: dict[Path, SessionOutcome] = {}
     known_single: list[tuple[Path, str, str, dict[str, Any]]] = []
     first: list[SessionTask] = []
+    sizes: dict[Path, int] = {}
     for path, name in zip(files, names, strict=True):
         try:
             sha = file_sha256(path)
+            sizes[path] = path.stat().st_size
         except OSError as exc:
             done[path] = SessionOutcome(path, name, "failed", reason=f"{path}: cannot read ({exc})")
             continue
@@ -690,6 +693,8 @@ def run_batch(
         for o in done.values():
             on_event("done", o)
 
+    # Longest first keeps a pool busy to the end; file size stands in for session length.
+    first.sort(key=lambda task: -sizes[task.path])
     with _executor(options) as executor:
         for o in _run_tasks(first, executor, job, on_event):
             done[o.path] = o

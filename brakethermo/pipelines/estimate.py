@@ -255,6 +255,7 @@ def estimate_from_session(
         "run": {
             "brakethermo": __version__,
             "disc": disc.id,
+            "window_c": list(disc.window_c),
             "h_law": cal.source,
             "nodes": tuning.nodes,
             "layers": tuning.layers,
