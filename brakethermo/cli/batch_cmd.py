@@ -68,7 +68,10 @@ def _table(result: BatchResult, out: Path) -> Table:
 @app.command("batch")
 def batch(
     folder: Annotated[
-        Path, typer.Argument(help="Folder searched recursively for .mcap, .parquet, .csv sessions.")
+        Path,
+        typer.Argument(
+            metavar="FOLDER", help="Folder searched recursively for .mcap, .parquet, .csv sessions."
+        ),
     ],
     out: Annotated[Path, typer.Option("--out", "-o", help="Output root; one folder per session.")],
     h_law: Annotated[
@@ -136,6 +139,9 @@ def batch(
                 progress.update(laps, total=(task.total or 0) + payload.laps, advance=payload.laps)
 
             result = run_batch(folder, options, on_event=on_event)
+        if not result.outcomes:
+            console.print(f"[yellow]no session files (.mcap, .parquet, .csv) under {folder}[/]")
+            return
         console.print(_table(result, out))
         sources = {o.h_law_source for o in result.outcomes if o.kind == "single"}
         for source in sorted(sources - {""}):

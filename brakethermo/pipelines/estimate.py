@@ -154,6 +154,8 @@ def calibrated_tuning(
         return tuning
     if cal.sigma_crown is not None:
         tuning = replace(tuning, sigma_crown=cal.sigma_crown)
+    if options.adapt_power is None and cal.adapt_power is not None:
+        tuning = replace(tuning, adapt_power=cal.adapt_power)
     if options.layers is None and cal.layers is not None:
         tuning = replace(tuning, layers=cal.layers,
                          layer_growth=cal.layer_growth or tuning.layer_growth)

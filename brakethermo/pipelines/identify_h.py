@@ -177,9 +177,11 @@ def fit_structure(
     spot_radii = np.asarray(disc.spot_radii)
     v = inputs.speed[:-1]
     q, t_amb = inputs.q_brk[:-1], inputs.t_amb[:-1]
-    T0 = _initial_profile(
-        DiscFEModel(disc, est.nodes, 1).radii, spot_radii, y, float(inputs.t_amb[0])
-    )
+    model = disc_model(disc, est)
+    basis = model.crown_basis()  # load = w @ basis for weights meeting eq. 8
+    H = model.spot_matrix(spot_radii)
+    T0 = np.repeat(_initial_profile(model.radii, spot_radii, y, float(inputs.t_amb[0])),
+                   est.layers)
     ok = np.isfinite(y)
 
     def unpack(p: np.ndarray) -> tuple[HLaw, np.ndarray, float, float]:
@@ -188,14 +190,22 @@ def fit_structure(
         w = normalise_weights(np.exp([p[4], p[5], 0.0]), disc.crown_edges)
         return law, w, float(np.exp(p[6])), float(np.exp(p[7]))
 
-    def run(p: np.ndarray) -> np.ndarray:
-        law, w, kz, scale = unpack(p)
-        model = disc_model(disc, est, (w[0], w[1], w[2]), kz)
-        T = model.open_loop(np.repeat(T0, est.layers), q, law(v), t_amb, scale=scale)
-        return T @ model.spot_matrix(spot_radii).T
+    def run_many(P: np.ndarray) -> np.ndarray:
+        """Open-loop spot temperatures (B, K, 4) for B parameter vectors in one pass."""
+        laws, ws, kzs, scales = zip(*(unpack(p) for p in P), strict=True)
+        h = np.stack([law(v) for law in laws])
+        load = np.stack(ws) @ basis
+        kz, scale = np.asarray(kzs), np.asarray(scales)
+        T = np.tile(T0, (len(P), 1))
+        out = np.empty((q.size + 1, len(P), 4))
+        out[0] = T @ H.T
+        for k in range(q.size):
+            T = model.step(T, q[k], h[:, k], t_amb[k], scale, kz_ratio=kz, load=load)
+            out[k + 1] = T @ H.T
+        return out.transpose(1, 0, 2)
 
-    def residual(p: np.ndarray) -> np.ndarray:
-        return (run(p) - y)[ok]
+    def run(p: np.ndarray) -> np.ndarray:
+        return run_many(p[None, :])[0]
 
     slope = law0.a * law0.b * law0.knee ** (law0.b - 1.0)  # power-law slope at the knee
     p0 = np.array([np.log(max(law0.a, 1.0)), law0.b, max(slope, 0.0), 0.0, 0.0, 0.0, 0.0, 0.0])
@@ -203,8 +213,25 @@ def fit_structure(
     lo = np.array([np.log(1.0), 0.0, 0.0, 0.0, *np.log([0.05, 0.05, 0.02, 0.5])])
     hi = np.array([np.log(2000.0), 3.0, np.inf, np.inf, *np.log([20.0, 20.0, 5.0, 2.0])])
     p0 = np.clip(p0, lo + 1e-6, hi - 1e-6)
-    sol = least_squares(residual, p0, bounds=(lo, hi), x_scale="jac", diff_step=1e-3,
-                        loss="soft_l1", f_scale=20.0, ftol=1e-4, xtol=1e-4, max_nfev=30)
+
+    # The residual and its forward-difference Jacobian come from ONE batched model pass
+    # (the point and its eight perturbations as batch members), cached for the pair of
+    # calls least_squares makes at each accepted point.
+    cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def evaluate(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        key = p.tobytes()
+        if key not in cache:
+            step = 1e-3 * np.maximum(1.0, np.abs(p))
+            step = np.where(p + step > hi, -step, step)  # stay inside the bounds
+            res = (run_many(np.vstack([p, p + np.diag(step)])) - y[None])[:, ok]
+            cache.clear()
+            cache[key] = (res[0], ((res[1:] - res[0]) / step[:, None]).T)
+        return cache[key]
+
+    sol = least_squares(lambda p: evaluate(p)[0], p0, jac=lambda p: evaluate(p)[1],
+                        bounds=(lo, hi), x_scale="jac", loss="soft_l1", f_scale=20.0,
+                        ftol=1e-4, xtol=1e-4, max_nfev=30)
     law, w, kz, scale = unpack(sol.x)
     uniform = np.array([*p0[:4], 0.0, 0.0, 0.0, 0.0])
     return law, StructureFit(
@@ -218,7 +245,7 @@ def fit_structure(
     )
 
 
-SIGMA_CROWN_GRID = (0.1, 0.2, 0.35, 0.6)  # relative crown-share noise tried by validation
+SIGMA_CROWN_GRID = (0.05, 0.1, 0.2, 0.4)  # relative crown-share noise tried by validation
 
 
 def reading_noise(y: np.ndarray) -> float:
@@ -267,12 +294,13 @@ def _held_out(
 def validate_filter(
     session: Session, calibration: DiscCalibration, options: IdentifyOptions,
     spot: int = 3, level: float = 0.95,
-) -> tuple[float, float, dict[str, float]]:
-    """Crown-split noise and band scale chosen on this session's unmeasured spots.
+) -> tuple[float, bool, float, dict[str, float]]:
+    """Crown-split noise, power adaptation and band scale chosen on unmeasured spots.
 
-    For each crown-noise level of :data:`SIGMA_CROWN_GRID` the race estimator runs with
-    only ``spot`` measured; the level with the smallest error at the other spots (their
-    RMSE plus the contact-band RMSE) wins. Then, by bisection, the factor ``a`` on the
+    For each crown-noise level of :data:`SIGMA_CROWN_GRID`, with and without the
+    braking-power scale as a state, the race estimator runs with only ``spot``
+    measured; the variant with the smallest error at the other spots (their RMSE plus
+    the contact-band RMSE) wins. Then, by bisection, the factor ``a`` on the
     filter's 1-sigma for which a fraction ``level`` of those readings lie within
     ``z · sqrt(a² sigma² + sigma_n²)``, with ``sigma_n`` each reading's own noise
     (:func:`reading_noise`): the filter's own sigma only knows the noise it
@@ -281,21 +309,24 @@ def validate_filter(
 
     Returns
     -------
-    sigma_crown, band_scale : float
-    scores : dict of str to float — the validation error (degC) of every level tried
+    sigma_crown : float
+    adapt_power : bool
+    band_scale : float
+    scores : dict of str to float — the validation error (degC) of every variant tried
     """
     from scipy.stats import norm
 
     scores = {}
     runs = {}
     for sigma in SIGMA_CROWN_GRID:
-        e, s, contact, noise = _held_out(
-            session, replace(calibration, sigma_crown=sigma), options, spot
-        )
-        scores[f"{sigma:g}"] = float(np.sqrt(np.mean(e**2)) + contact)
-        runs[sigma] = (e, s, noise)
-    best = min(SIGMA_CROWN_GRID, key=lambda sg: scores[f"{sg:g}"])
-    e, s, noise = runs[best]
+        for adapt in (True, False):
+            variant = replace(calibration, sigma_crown=sigma, adapt_power=adapt)
+            e, s, contact, noise = _held_out(session, variant, options, spot)
+            key = f"sigma_crown={sigma:g}, adapt_power={str(adapt).lower()}"
+            scores[key] = float(np.sqrt(np.mean(e**2)) + contact)
+            runs[key] = (sigma, adapt, e, s, noise)
+    best = min(scores, key=scores.__getitem__)
+    sigma_best, adapt_best, e, s, noise = runs[best]
     e = np.abs(e)
     z = float(norm.ppf(0.5 + level / 2.0))
 
@@ -304,13 +335,13 @@ def validate_filter(
 
     lo, hi = 1.0, 50.0
     if e.size == 0 or covered(lo) >= level:
-        return best, lo, scores
+        return sigma_best, adapt_best, lo, scores
     if covered(hi) < level:
-        return best, hi, scores
+        return sigma_best, adapt_best, hi, scores
     for _ in range(40):
         mid = float(np.sqrt(lo * hi))
         lo, hi = (mid, hi) if covered(mid) < level else (lo, mid)
-    return best, hi, scores
+    return sigma_best, adapt_best, hi, scores
 
 
 def _law_dict(law: HLaw) -> dict[str, Any]:
@@ -352,8 +383,11 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         layer_growth=est_tuning.layer_growth,
         source=str(session.path),
     )
-    sigma_crown, band_scale, validation = validate_filter(session, calibration, options)
-    calibration = replace(calibration, band_scale=band_scale, sigma_crown=sigma_crown)
+    sigma_crown, adapt_power, band_scale, validation = validate_filter(
+        session, calibration, options
+    )
+    calibration = replace(calibration, band_scale=band_scale, sigma_crown=sigma_crown,
+                          adapt_power=adapt_power)
     t_end = time.perf_counter()
 
     samples = pd.DataFrame({
@@ -389,6 +423,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         },
         "band_scale": band_scale,
         "sigma_crown": sigma_crown,
+        "adapt_power": adapt_power,
         "validation_error_c": validation,
         "run": {
             "brakethermo": __version__,
@@ -445,6 +480,7 @@ def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
         "power_scale": cal.power_scale,
         "band_scale": cal.band_scale,
         "sigma_crown": cal.sigma_crown,
+        "adapt_power": cal.adapt_power,
         "layers": cal.layers,
         "layer_growth": cal.layer_growth,
     }

@@ -44,6 +44,8 @@ class DiscCalibration:
         spots of the identification session.
     sigma_crown : float or None
         Crown-split process noise chosen by held-out-spot validation on that session.
+    adapt_power : bool or None
+        Whether the braking-power scale is a filter state, chosen by that validation.
     layers, layer_growth : int or None, float or None
         The through-thickness layering the calibration was fitted with (``kz_ratio``
         belongs to it); ``None`` leaves the tuning's.
@@ -57,6 +59,7 @@ class DiscCalibration:
     power_scale: float = 1.0
     band_scale: float = 1.0
     sigma_crown: float | None = None
+    adapt_power: bool | None = None
     layers: int | None = None
     layer_growth: float | None = None
     source: str = ""
@@ -79,9 +82,13 @@ def read_calibration(path: str | Path) -> DiscCalibration:
            if isinstance(v, bool) or not (isinstance(v, int | float) and v > 0)]
     if "layers" in values and not isinstance(values["layers"], int):
         bad.append("layers (a whole number)")
+    adapt = extra.get("adapt_power")
+    if adapt is not None and not isinstance(adapt, bool):
+        bad.append("adapt_power (true or false)")
     if bad:
         raise ConfigError(f"[extra] {', '.join(bad)} must be numbers > 0", path=path)
-    return DiscCalibration(law=record.law, weights=record.weights, source=str(path), **values)
+    return DiscCalibration(law=record.law, weights=record.weights, adapt_power=adapt,
+                           source=str(path), **values)
 
 
 def calibration_for(disc: DiscSpec, h_law: str | Path | None) -> DiscCalibration:

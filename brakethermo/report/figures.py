@@ -165,8 +165,6 @@ class LapFigures:
         Spots (1..4) the session measures, for the legend.
     """
 
-    names = ("spots", "heatmap", "contact", "context")
-
     def __init__(
         self,
         node_radii: np.ndarray,
