@@ -200,13 +200,36 @@ def test_interrupted_write_leaves_old_report(folder: Path, tmp_path: Path, monke
     assert not [p for p in options.out.iterdir() if p.name.startswith(".")]
 
 
-def test_dask_local_cluster_matches_serial(folder: Path, tmp_path: Path) -> None:
+def _on_worker_job(task):
+    """JOB, marking outcomes computed on a Dask worker."""
+    from distributed import get_worker
+
+    outcome = JOB(task)
+    try:
+        get_worker()
+    except ValueError:
+        return outcome
+    outcome.timings["on_dask_worker"] = 1.0
+    return outcome
+
+
+def test_dask_local_cluster_matches_serial(folder: Path, tmp_path: Path, monkeypatch) -> None:
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(
-        n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
+        n_workers=1,
+        threads_per_worker=2,
+        processes=False,
+        protocol="tcp://",
+        dashboard_address=None,
     ) as cluster:
         options = _options(tmp_path, scheduler=cluster.scheduler_address)
-        result = run_batch(folder, options, job=JOB)
+        result = run_batch(folder, options, job=_on_worker_job)
+        # The scheduler can also come from the environment, as on a cluster login node.
+        monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", cluster.scheduler_address)
+        env_run = run_batch(folder, _options(tmp_path / "env", reports=False), job=_on_worker_job)
+    assert [o.status for o in env_run.outcomes] == [o.status for o in result.outcomes]
+    for o in (*result.outcomes, *env_run.outcomes):
+        assert o.status == "failed" or o.timings["on_dask_worker"] == 1.0
     statuses = {o.name: o.status for o in result.outcomes}
     assert statuses == {
         "test_am": "ok",

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from brakethermo.cli import app
 
-REFERENCE_MCAP = Path("/work/shared/reference/mcap")
+REFERENCE_MCAP = Path(__file__).resolve().parents[2] / "shared" / "reference" / "mcap"
 needs_reference = pytest.mark.skipif(
     not REFERENCE_MCAP.is_dir(),
     reason=f"third-party reference MCAP files not present at {REFERENCE_MCAP}",

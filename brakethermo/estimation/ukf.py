@@ -26,7 +26,7 @@ try:
     import numba  # noqa: F401
 
     HAVE_NUMBA = True
-except ImportError:  # numba is an optional extra (pyproject "fast")
+except ImportError:  # numba may be missing on exotic platforms: numpy fallback
     HAVE_NUMBA = False
 
 Array = NDArray[np.float64]

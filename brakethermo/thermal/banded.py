@@ -19,7 +19,7 @@ try:
     import numba
 
     HAVE_NUMBA = True
-except ImportError:  # numba is an optional extra ("fast")
+except ImportError:  # numba may be missing on exotic platforms: numpy fallback
     HAVE_NUMBA = False
 
 
@@ -89,7 +89,7 @@ if HAVE_NUMBA:
 
 def _resolve(use_numba: bool | None) -> bool:
     if use_numba and not HAVE_NUMBA:
-        raise RuntimeError("numba is not installed; pip install 'brakethermo[fast]'")
+        raise RuntimeError("numba is not installed; pip install numba")
     return HAVE_NUMBA if use_numba is None else use_numba
 
 

@@ -393,7 +393,7 @@ class DiscFEModel:
         self.kz_ratio = float(kz_ratio)
         self.layer_growth = float(layer_growth)
         if use_numba and not HAVE_NUMBA:
-            raise RuntimeError("numba is not installed; pip install 'brakethermo[fast]'")
+            raise RuntimeError("numba is not installed; pip install numba")
         self.use_numba = HAVE_NUMBA if use_numba is None else bool(use_numba)
         self.radii = radial_nodes(disc.r_int, disc.r_est, self.n_nodes)
         self.face_index = np.arange(self.n_nodes) * self.layers
