@@ -215,17 +215,18 @@ def _on_worker_job(task):
 
 def test_dask_local_cluster_matches_serial(folder: Path, tmp_path: Path, monkeypatch) -> None:
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(
-        n_workers=1,
-        threads_per_worker=2,
-        processes=False,
-        protocol="tcp://",
-        dashboard_address=None,
-    ) as cluster:
-        options = _options(tmp_path, scheduler=cluster.scheduler_address)
+
+    def cluster():
+        return distributed.LocalCluster(
+            n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
+        )
+
+    with cluster() as c:
+        options = _options(tmp_path, scheduler=c.scheduler_address)
         result = run_batch(folder, options, job=_on_worker_job)
-        # The scheduler can also come from the environment, as on a cluster login node.
-        monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", cluster.scheduler_address)
+    # The scheduler can also come from the environment, as on a cluster login node.
+    with cluster() as c:
+        monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", c.scheduler_address)
         env_run = run_batch(folder, _options(tmp_path / "env", reports=False), job=_on_worker_job)
     assert [o.status for o in env_run.outcomes] == [o.status for o in result.outcomes]
     for o in (*result.outcomes, *env_run.outcomes):

@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
+from brakethermo.cli._options import AliasesOpt, AmbientOpt, DiscOpt, JsonOpt, OutDir, TuningOpt
 from brakethermo.pipelines.estimate import (
     EstimateOptions,
     EstimateResult,
@@ -86,7 +87,7 @@ def render_scores(scores: dict[str, Any]) -> None:
 @app.command("estimate")
 def estimate_command(
     session: Annotated[Path, typer.Argument(help="Session file (.mcap, .parquet, .csv).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")] = Path("out"),
+    out: OutDir = Path("out"),
     spot: Annotated[int, typer.Option(min=1, max=4, help="Spot used as measurement.")] = 3,
     h_law: Annotated[
         Path | None, typer.Option("--h-law", help="h_law.toml from identify-h.")
@@ -102,13 +103,11 @@ def estimate_command(
         bool | None,
         typer.Option("--adapt-power/--no-adapt-power", help="Braking-power scale as a state."),
     ] = None,
-    disc: Annotated[str | None, typer.Option(help="Disc datasheet id or TOML file.")] = None,
-    tuning: Annotated[Path | None, typer.Option(help="Filter tuning TOML.")] = None,
-    aliases: Annotated[Path | None, typer.Option(help="Channel alias TOML.")] = None,
-    ambient: Annotated[
-        float | None, typer.Option(help="Ambient temperature, degC (else from the session).")
-    ] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+    disc: DiscOpt = None,
+    tuning: TuningOpt = None,
+    aliases: AliasesOpt = None,
+    ambient: AmbientOpt = None,
+    as_json: JsonOpt = False,
 ) -> None:
     """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
     options = EstimateOptions(

@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
+from brakethermo.cli._options import AliasesOpt, AmbientOpt, DiscOpt, JsonOpt, OutDir, TuningOpt
 from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
 from brakethermo.pipelines.outputs import to_json
 
@@ -16,7 +17,7 @@ from brakethermo.pipelines.outputs import to_json
 @app.command("identify-h")
 def identify_command(
     session: Annotated[Path, typer.Argument(help="Four-spot test session file.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")] = Path("out"),
+    out: OutDir = Path("out"),
     nodes: Annotated[
         int | None, typer.Option(min=10, help="Radial nodes of the h-identification model.")
     ] = None,
@@ -27,13 +28,11 @@ def identify_command(
             help="Also fit crown weights, k_z ratio and power scale (and refine h).",
         ),
     ] = True,
-    disc: Annotated[str | None, typer.Option(help="Disc datasheet id or TOML file.")] = None,
-    tuning: Annotated[Path | None, typer.Option(help="Filter tuning TOML.")] = None,
-    aliases: Annotated[Path | None, typer.Option(help="Channel alias TOML.")] = None,
-    ambient: Annotated[
-        float | None, typer.Option(help="Ambient temperature, degC (else from the session).")
-    ] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+    disc: DiscOpt = None,
+    tuning: TuningOpt = None,
+    aliases: AliasesOpt = None,
+    ambient: AmbientOpt = None,
+    as_json: JsonOpt = False,
 ) -> None:
     """Identify h(V) (joint UKF, h as a random walk) and the disc model's structure."""
     options = IdentifyOptions(disc=disc, tuning=tuning, nodes=nodes, aliases=aliases,

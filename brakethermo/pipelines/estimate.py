@@ -19,11 +19,10 @@ import pandas as pd
 from brakethermo import __version__
 from brakethermo.errors import DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
-from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.pipelines import scoring
 from brakethermo.pipelines.disc_ssm import SCALE_PARAM, DiscStateSpace, RandomWalkParam
-from brakethermo.pipelines.inputs import DiscInputs, disc_inputs
+from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.summary import lap_summaries
@@ -373,9 +372,7 @@ def estimate_session(path: str | Path, options: EstimateOptions | None = None) -
     EstimateResult
     """
     options = options or EstimateOptions()
-    t0 = time.perf_counter()
-    session = load_session(path, aliases=options.aliases)
-    read_s = time.perf_counter() - t0
+    session, read_s = load_timed(path, options.aliases)
     result = estimate_from_session(session, options)
     result.timings["read_s"] = read_s
     result.summary["run"]["timings_s"]["read_s"] = read_s

@@ -25,7 +25,6 @@ from scipy.optimize import least_squares
 from brakethermo import __version__
 from brakethermo.errors import DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
-from brakethermo.io.load import load_session
 from brakethermo.io.session import GRID_DT, Session
 from brakethermo.pipelines.disc_ssm import H_PARAM, DiscStateSpace, RandomWalkParam
 from brakethermo.pipelines.estimate import (
@@ -34,7 +33,7 @@ from brakethermo.pipelines.estimate import (
     disc_model,
     estimate_from_session,
 )
-from brakethermo.pipelines.inputs import MULTI_SPOT, DiscInputs, disc_inputs
+from brakethermo.pipelines.inputs import MULTI_SPOT, DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.tuning import EstimateTuning, IdentifyTuning, load_tuning
@@ -458,9 +457,7 @@ def identify_h(path: str | Path, options: IdentifyOptions | None = None) -> Iden
     IdentifyResult
     """
     options = options or IdentifyOptions()
-    t0 = time.perf_counter()
-    session = load_session(path, aliases=options.aliases)
-    read_s = time.perf_counter() - t0
+    session, read_s = load_timed(path, options.aliases)
     result = identify_from_session(session, options)
     result.timings["read_s"] = read_s
     return result

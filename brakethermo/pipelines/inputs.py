@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.thermal.disc import DiscSpec
 
@@ -112,3 +115,10 @@ def disc_inputs(session: Session, disc: DiscSpec, ambient_c: float | None = None
         measured=tuple(measured),
         warnings=tuple(warnings),
     )
+
+
+def load_timed(path: str | Path, aliases: str | Path | None) -> tuple[Session, float]:
+    """Load a session file; also return the seconds it took (pipelines report it)."""
+    t0 = time.perf_counter()
+    session = load_session(path, aliases=aliases)
+    return session, time.perf_counter() - t0
