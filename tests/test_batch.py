@@ -228,6 +228,7 @@ def test_dask_local_cluster_matches_serial(folder: Path, tmp_path: Path, monkeyp
     with cluster() as c:
         monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", c.scheduler_address)
         env_run = run_batch(folder, _options(tmp_path / "env", reports=False), job=_on_worker_job)
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS")
     assert [o.status for o in env_run.outcomes] == [o.status for o in result.outcomes]
     for o in (*result.outcomes, *env_run.outcomes):
         assert o.status == "failed" or o.timings["on_dask_worker"] == 1.0

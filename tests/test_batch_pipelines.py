@@ -10,7 +10,7 @@ import pytest
 from _synth_race import write_session_parquet
 from mcap.reader import make_reader
 
-from brakethermo.pipelines.batch import MANIFEST, BatchOptions, run_batch
+from brakethermo.pipelines.batch import DEFAULT_LAW, MANIFEST, BatchOptions, run_batch
 from brakethermo.report.lap_report import read_estimate
 
 
@@ -60,3 +60,14 @@ def test_mcap_export_equals_estimate(batch_out: Path) -> None:
     np.testing.assert_allclose(nodes, frame[node_cols].round(2).to_numpy(), atol=1e-9)
     meta_radii = json.loads(channels["/brakethermo/disc_nodes"].metadata["radius_m"])
     np.testing.assert_allclose(meta_radii, radii, rtol=1e-9)
+
+
+def test_race_only_folder_uses_the_shipped_law(tmp_path: Path) -> None:
+    src = tmp_path / "race_only"
+    src.mkdir()
+    write_session_parquet(src / "race.parquet", 1, seed=4)
+    (o,) = run_batch(src, BatchOptions(out=tmp_path / "out", reports=False)).outcomes
+    assert o.status == "ok", o.reason
+    assert o.h_law_source == DEFAULT_LAW
+    summary = json.loads((tmp_path / "out" / "race" / "summary.json").read_text())
+    assert summary["run"]["h_law"].endswith("hlaw/cc-340-8.toml")

@@ -12,6 +12,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
+from brakethermo.cli._options import AliasesOpt, JsonOpt
 from brakethermo.pipelines.batch import (
     DEFAULT_LAW,
     BatchOptions,
@@ -90,8 +91,8 @@ def batch(
     force: Annotated[
         bool, typer.Option("--force", help="Re-process sessions whose outputs are up to date.")
     ] = False,
-    nodes: Annotated[int | None, typer.Option(min=3, help="Finite-element nodes.")] = None,
-    aliases: Annotated[Path | None, typer.Option(help="Channel alias TOML.")] = None,
+    nodes: Annotated[int | None, typer.Option(min=10, help="Radial nodes.")] = None,
+    aliases: AliasesOpt = None,
     mcap_out: Annotated[
         bool,
         typer.Option("--mcap-out", help="Also write OUT/<session>/estimate.mcap for Foxglove."),
@@ -99,7 +100,7 @@ def batch(
     no_reports: Annotated[
         bool, typer.Option("--no-reports", help="Skip the per-lap HTML reports.")
     ] = False,
-    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+    as_json: JsonOpt = False,
 ) -> None:
     """Estimate every session in FOLDER and write per-lap reports; failures are isolated."""
     options = BatchOptions(

@@ -10,6 +10,7 @@ import typer
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
+from brakethermo.cli._options import AliasesOpt, JsonOpt
 from brakethermo.errors import BrakethermoError
 from brakethermo.pipelines.timing import TimingReport, time_laps
 
@@ -34,9 +35,9 @@ def timing_check(
     budget_s: Annotated[float, typer.Option(min=0.0, help="Budget for a whole race, s.")] = 300.0,
     race_laps: Annotated[int, typer.Option(min=1, help="Laps in that race.")] = 25,
     h_law: Annotated[Path | None, typer.Option("--h-law", help="h law TOML.")] = None,
-    nodes: Annotated[int | None, typer.Option(min=3, help="Finite-element nodes.")] = None,
-    aliases: Annotated[Path | None, typer.Option(help="Channel alias TOML.")] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+    nodes: Annotated[int | None, typer.Option(min=10, help="Radial nodes.")] = None,
+    aliases: AliasesOpt = None,
+    as_json: JsonOpt = False,
 ) -> None:
     """Estimate each lap on its own; fail (exit 1) if the slowest lap exceeds its budget."""
     from brakethermo.io.load import load_session

@@ -43,7 +43,8 @@ MULTI_SPOT = tuple(f"disc_temp_spot{i}" for i in range(1, 5))
 DEFAULT_LAW = "default (shipped)"
 # Top-level steps of a session's wall time (sub-steps such as estimate_filter_s nest in them).
 STEPS = ("read_s", "identify_s", "estimate_s", "write_s", "report_s", "mcap_s")
-SCHEDULER_TIMEOUT_S = 10.0  # connecting to a Dask scheduler
+SCHEDULER_TIMEOUT_S = 30.0  # connecting to a Dask scheduler
+WORKER_PRELOAD = ("brakethermo.pipelines.batch", "brakethermo.report.lap_report")
 
 Status = Literal["ok", "skipped", "failed", "deferred"]
 Kind = Literal["multi", "single"]
@@ -544,7 +545,10 @@ def _executor(options: BatchOptions) -> Iterator[Executor | None]:
         finally:
             client.close()
     elif options.workers > 1:
-        ctx = multiprocessing.get_context("spawn")  # no fork of a threaded parent
+        # A fork server (single-threaded, never forks this possibly threaded parent) with the
+        # heavy imports done once, instead of every worker importing them on its own.
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(list(WORKER_PRELOAD))
         with ProcessPoolExecutor(max_workers=options.workers, mp_context=ctx) as pool:
             yield pool
     else:

@@ -43,6 +43,7 @@ from brakethermo.thermal.model import DiscFEModel
 from brakethermo.thermal.power import normalise_weights
 
 AFTER_BRAKE_S = 2.0  # s after release still excluded from the fit: the face is settling
+MIN_ABOVE_KNEE_S = 20.0  # s of running above the knee needed to fit the upper branch
 H_MIN = 1.0  # W/(m² K), floor the model sees for a sigma point's h
 
 
@@ -171,7 +172,9 @@ def fit_structure(
     whole session (robust soft-L1 loss). Starting from the UKF law ``law0``, this removes
     what the one-layer identification model folds into h after every braking. The cubic
     term is held at zero here: a session has too few samples above the knee to pin four
-    coefficients there, and a free cubic swings between them.
+    coefficients there, and a free cubic swings between them. With less than
+    :data:`MIN_ABOVE_KNEE_S` above the knee the upper branch is not fitted at all: it
+    continues the power law along its tangent (as :meth:`HLaw.fit` does).
     """
     spot_radii = np.asarray(disc.spot_radii)
     v = inputs.speed[:-1]
@@ -183,9 +186,13 @@ def fit_structure(
                    est.layers)
     ok = np.isfinite(y)
 
+    upper_branch = np.count_nonzero(v >= law0.knee * law0.v_ref) * GRID_DT >= MIN_ABOVE_KNEE_S
+
     def unpack(p: np.ndarray) -> tuple[HLaw, np.ndarray, float, float]:
-        law = HLaw(v_ref=law0.v_ref, a=float(np.exp(p[0])), b=p[1], c=(p[2], p[3], 0.0),
-                   knee=law0.knee)
+        a = float(np.exp(p[0]))
+        tangent = a * p[1] * law0.knee ** (p[1] - 1.0)
+        c = (p[2], p[3], 0.0) if upper_branch else (tangent, 0.0, 0.0)
+        law = HLaw(v_ref=law0.v_ref, a=a, b=p[1], c=c, knee=law0.knee)
         w = normalise_weights(np.exp([p[4], p[5], 0.0]), disc.crown_edges)
         return law, w, float(np.exp(p[6])), float(np.exp(p[7]))
 
@@ -492,5 +499,5 @@ def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
     )  # fmt: skip
     write_json(folder / "identify.json", result.summary)
     plot_h_law(result.samples, result.fit_mask, result.law, folder / "h_law.png",
-               title=result.stem)
+               title=result.stem, law_ukf=result.law_ukf if result.structure else None)
     return folder

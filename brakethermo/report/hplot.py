@@ -19,7 +19,8 @@ KMH = 3.6
 
 
 def plot_h_law(
-    samples: pd.DataFrame, fit_mask: np.ndarray, law: HLaw, path: Path, title: str = ""
+    samples: pd.DataFrame, fit_mask: np.ndarray, law: HLaw, path: Path, title: str = "",
+    law_ukf: HLaw | None = None,
 ) -> Path:
     """Scatter of UKF h samples (off-brake ones used by the fit) and the fitted law.
 
@@ -30,8 +31,12 @@ def plot_h_law(
     fit_mask : ndarray of bool
         Samples the law was fitted on.
     law : HLaw
+        The law written to ``h_law.toml``.
     path : Path
         PNG to write (atomically).
+    law_ukf : HLaw, optional
+        The law fitted to the samples alone (paper §5.1), when ``law`` was refined
+        afterwards with the layered model.
     """
     fig = Figure(figsize=(9.0, 5.5), dpi=110)
     ax = fig.add_subplot()
@@ -46,11 +51,17 @@ def plot_h_law(
     sc = ax.scatter(v[fit_mask], h[fit_mask], s=4, c=samples["h_std"].to_numpy()[fit_mask],
                     cmap="viridis_r", lw=0, alpha=0.8, label="off-brake (fitted)")
     grid_v = np.linspace(0.0, max(360.0, float(np.nanmax(v)) if v.size else 360.0), 400)
-    ax.plot(grid_v, law(grid_v / KMH), c="k", lw=2.2, label="fitted h(V)")
+    if law_ukf is not None:
+        ax.plot(grid_v, law_ukf(grid_v / KMH), c="k", lw=1.4, ls=":",
+                label="fit to these samples (1-layer UKF, paper §5.1)")
+        ax.plot(grid_v, law(grid_v / KMH), c="k", lw=2.2,
+                label="h(V) refined with the layered model (written)")
+    else:
+        ax.plot(grid_v, law(grid_v / KMH), c="k", lw=2.2, label="fitted h(V)")
     knee_kmh = law.knee * law.v_ref * KMH
     ax.axvline(knee_kmh, c="k", ls="--", lw=1)
-    ax.text(knee_kmh, 0.98, f" knee {law.knee:.2f}·V_ref = {knee_kmh:.0f} km/h",
-            transform=ax.get_xaxis_transform(), va="top", fontsize=9)
+    ax.text(knee_kmh, 0.02, f"knee {law.knee:.2f}·V_ref = {knee_kmh:.0f} km/h ",
+            transform=ax.get_xaxis_transform(), va="bottom", ha="right", fontsize=9)
     fitted = h[fit_mask]
     if fitted.size:
         lo, hi = np.nanpercentile(fitted, [0.5, 99.5])

@@ -31,7 +31,7 @@ from brakethermo.io.atomic import write_text_atomic
 KMH = 1.0 / 3.6  # m/s per km/h
 TABLE_SPEEDS_KMH = np.arange(0.0, 361.0, 10.0)
 MIN_SAMPLES_POWER = 5  # below the knee, to fit a and b
-MIN_SAMPLES_CUBIC = 6  # above the knee, to fit c1..c3; else a straight continuation
+MIN_SAMPLES_CUBIC = 100  # above the knee (10 s at 10 Hz) to fit c1..c3; else the tangent
 
 
 @dataclass(frozen=True)
