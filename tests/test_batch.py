@@ -289,3 +289,17 @@ def test_cli_exit_code_table_and_json(folder: Path, tmp_path: Path, monkeypatch)
     statuses = {s["name"]: s["status"] for s in summary["sessions"]}
     assert statuses["race"] == "skipped" and statuses["garbage"] == "failed"
     assert np.isclose(sum(1 for s in summary["sessions"] if s["status"] == "failed"), 2)
+
+
+def test_output_key_covers_options_and_shipped_configs(tmp_path: Path, monkeypatch) -> None:
+    shipped = tmp_path / "configs"
+    (shipped / "hlaw").mkdir(parents=True)
+    (shipped / "hlaw" / "cc-340-8.toml").write_text("a = 1\n")
+    monkeypatch.setattr(batch_mod, "config_dir", lambda: shipped)
+    base = BatchOptions(out=tmp_path)
+    key = base.output_key()
+    assert key == BatchOptions(out=tmp_path / "elsewhere", workers=4, force=True).output_key()
+    assert key != BatchOptions(out=tmp_path, nodes=21).output_key()
+    assert key != BatchOptions(out=tmp_path, mcap_out=True).output_key()
+    (shipped / "hlaw" / "cc-340-8.toml").write_text("a = 2\n")
+    assert base.output_key() != key

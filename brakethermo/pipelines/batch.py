@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from brakethermo import __version__
+from brakethermo.config import config_dir
 from brakethermo.errors import EXIT_BATCH_PARTIAL, EXIT_OK, BrakethermoError, ConfigError
 from brakethermo.io.atomic import atomic_dir, write_text_atomic
 from brakethermo.io.session import Session
@@ -88,13 +89,18 @@ class BatchOptions:
     force: bool = False
 
     def output_key(self) -> str:
-        """Hash of everything in the options that changes a session's outputs."""
+        """Hash of everything in the options that changes a session's outputs.
+
+        The shipped configuration (datasheets, tuning, default h laws, aliases) is part
+        of it: editing a shipped file re-processes the sessions it affects.
+        """
         aliases = file_sha256(self.aliases) if self.aliases is not None else None
         key = {
             "nodes": self.nodes,
             "aliases": aliases,
             "reports": self.reports,
             "mcap_out": self.mcap_out,
+            "configs": _configs_digest(),
         }
         return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
 
@@ -277,6 +283,16 @@ class BatchResult:
             "timings_s": {k: round(v, 3) for k, v in self.timing_totals().items()},
             "sessions": [o.to_json() for o in self.outcomes],
         }
+
+
+def _configs_digest() -> str:
+    """SHA-256 over the shipped TOML configuration files (names and bytes)."""
+    digest = hashlib.sha256()
+    root = config_dir()
+    for path in sorted(root.rglob("*.toml")):
+        digest.update(str(path.relative_to(root)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
 
 
 def file_sha256(path: str | Path) -> str:
