@@ -1,8 +1,12 @@
 """Figures of the per-lap report, built once per session and refilled for every lap.
 
-Creating a matplotlib figure costs far more than drawing it, so :class:`LapFigures`
-creates its four figures and all their artists once; :meth:`LapFigures.render` only
-swaps the data of the existing artists and draws. All four figures share the same
+Creating a matplotlib figure costs far more than drawing it, and drawing the static
+parts (axes, ticks, labels, legends, titles) costs more than drawing the data. So
+:class:`LapFigures` creates its four figures and all their artists once; axis ranges
+are rounded (time to 10 s, spot temperatures to 50 degC) or fixed for the session
+(contact band, speed, pressure), so similar laps share one rendered background per figure:
+:meth:`LapFigures.render` swaps the data of the animated artists, restores the cached
+background and draws only those artists (blitting). All four figures share the same
 width and horizontal margins, so stacked in the HTML page their time axes line up.
 """
 
@@ -20,6 +24,7 @@ import numpy as np
 from matplotlib.collections import PolyCollection
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
+from PIL import Image
 
 SPOT_COLOURS = ("#1f77b4", "#2ca02c", "#ff7f0e", "#d62728")  # spot1 (inner) .. spot4 (outer)
 CONTACT_COLOUR = "#6a3d9a"
@@ -78,13 +83,54 @@ class LapData:
     zones_t: np.ndarray
 
 
+@dataclass(frozen=True)
+class AxisScales:
+    """Session-wide y ranges of the lap figures, so that laps compare at a glance.
+
+    Attributes
+    ----------
+    spots : (float, float) — degC
+        Used for a lap without any finite spot value (each lap otherwise gets its own
+        range, rounded to 50 degC).
+    contact : (float, float) — degC
+    speed_kmh : float — km/h
+        Top of the speed axis.
+    pressure_bar : float — bar
+        Top of the pressure axis.
+    """
+
+    spots: tuple[float, float]
+    contact: tuple[float, float]
+    speed_kmh: float
+    pressure_bar: float
+
+
+def time_axis_end(t_max: float) -> float:
+    """End of a lap's time axis, s: the lap length rounded up to 10 s."""
+    return 10.0 * max(1.0, float(np.ceil(t_max / 10.0 - 1e-9)))
+
+
+def _rounded_range(
+    arrays: tuple[np.ndarray, ...], fallback: tuple[float, float], step: float = 50.0
+) -> tuple[float, float]:
+    """Range of ``arrays`` out to multiples of ``step``: laps alike share one background."""
+    finite = [a[np.isfinite(a)] for a in arrays]
+    finite = [a for a in finite if a.size]
+    if not finite:
+        return fallback
+    lo = step * np.floor(min(a.min() for a in finite) / step)
+    hi = step * np.ceil(max(a.max() for a in finite) / step)
+    return float(lo), float(max(hi, lo + step))
+
+
 def _figure(height: float) -> Figure:
     fig = plt.figure(figsize=(FIG_WIDTH, height), dpi=DPI)
     fig.subplots_adjust(left=LEFT, right=RIGHT, top=0.86, bottom=0.17)
     return fig
 
 
-def _limits(*arrays: np.ndarray, pad: float = 0.06) -> tuple[float, float]:
+def padded_range(*arrays: np.ndarray, pad: float = 0.06) -> tuple[float, float]:
+    """Range of the finite values of ``arrays``, widened by ``pad`` of the span on each side."""
     lo = min((np.nanmin(a) for a in arrays if np.isfinite(a).any()), default=0.0)
     hi = max((np.nanmax(a) for a in arrays if np.isfinite(a).any()), default=1.0)
     span = max(hi - lo, 1.0)
@@ -96,6 +142,33 @@ def _png(fig: Figure) -> bytes:
     # Fast deflate: the PNGs are written once and embedded once; size matters less.
     fig.savefig(buf, format="png", dpi=DPI, pil_kwargs={"compress_level": 1})
     return buf.getvalue()
+
+
+class _Blitter:
+    """One figure drawn as a cached static background plus its animated artists."""
+
+    def __init__(self, fig: Figure):
+        self.fig = fig
+        self._backgrounds: dict[tuple[float, ...], object] = {}
+
+    def png(self, key: tuple[float, ...], artists: list) -> bytes:
+        """Background for ``key`` (drawn once), the ``artists`` over it, as PNG bytes."""
+        canvas = self.fig.canvas
+        for artist in artists:
+            artist.set_animated(True)
+        if key not in self._backgrounds:
+            canvas.draw()  # animated artists are left out of a full draw
+            self._backgrounds[key] = canvas.copy_from_bbox(self.fig.bbox)
+        else:
+            canvas.restore_region(self._backgrounds[key])
+        for artist in artists:
+            if artist.get_visible():
+                artist.axes.draw_artist(artist)
+        width, height = canvas.get_width_height()
+        image = Image.frombuffer("RGBA", (width, height), canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
+        buf = io.BytesIO()
+        image.save(buf, format="png", compress_level=1)
+        return buf.getvalue()
 
 
 class _ZoneMarks:
@@ -158,6 +231,8 @@ class LapFigures:
         Operating window.
     r_int, r_est : float — m
         Inner and outer radius of the carbon ring (heat-map extent).
+    scales : AxisScales
+        Session-wide y ranges.
     temp_range_c : (float, float) — degC
         Colour scale of the heat map; one scale for the whole session so that colours
         compare lap to lap.
@@ -172,10 +247,12 @@ class LapFigures:
         window_c: tuple[float, float],
         r_int: float,
         r_est: float,
+        scales: AxisScales,
         temp_range_c: tuple[float, float] = (0.0, 1000.0),
         measured_spots: tuple[int, ...] = (3,),
     ):
         self.window_c = window_c
+        self.scales = scales
         self.norm = Normalize(vmin=temp_range_c[0], vmax=temp_range_c[1])
         radii = np.asarray(node_radii, dtype=float)
         order = np.argsort(radii)
@@ -191,6 +268,19 @@ class LapFigures:
         self._build_heatmap(spot_radii, r_int, r_est)
         self._build_contact()
         self._build_context()
+        self.ax_spots.set_ylim(*scales.spots)
+        self.ax_contact.set_ylim(*scales.contact)
+        self.ax_speed.set_ylim(0.0, scales.speed_kmh)
+        self.ax_pressure.set_ylim(0.0, scales.pressure_bar)
+        self._blit = {
+            name: _Blitter(fig)
+            for name, fig in (
+                ("spots", self.fig_spots),
+                ("heatmap", self.fig_heatmap),
+                ("contact", self.fig_contact),
+                ("context", self.fig_context),
+            )
+        }
 
     def _build_spots(self, measured_spots: tuple[int, ...]) -> None:
         fig = self.fig_spots = _figure(3.9)
@@ -243,8 +333,11 @@ class LapFigures:
             extent=(0.0, 1.0, r_int * 1e3, r_est * 1e3),
             interpolation="nearest",
         )
+        self.spot_marks = []
         for i, r in enumerate(spot_radii):
-            ax.axhline(r * 1e3, color=SPOT_COLOURS[i], linestyle="--", linewidth=1.0)
+            self.spot_marks.append(
+                ax.axhline(r * 1e3, color=SPOT_COLOURS[i], linestyle="--", linewidth=1.0)
+            )
             ax.annotate(
                 f"S{i + 1}",
                 xy=(1.0, r * 1e3),
@@ -312,8 +405,7 @@ class LapFigures:
     def render(self, lap: LapData) -> dict[str, bytes]:
         """Fill the figures with one lap and return each as PNG bytes, keyed by name."""
         t = lap.t
-        t_max = float(t[-1]) if t.size else 1.0
-        t_max = max(t_max, 0.1)
+        x_end = time_axis_end(float(t[-1]) if t.size else 0.0)
 
         for i in range(4):
             lo = lap.spot[i] - lap.spot_std[i]
@@ -321,16 +413,17 @@ class LapFigures:
             self.spot_bands[i].set_data(t, lo, hi)
             self.spot_lines[i].set_data(t, lap.spot[i])
             self.meas_lines[i].set_data(t, lap.measured[i])
-        self.ax_spots.set_xlim(0.0, t_max)
-        self.ax_spots.set_ylim(
-            *_limits(lap.spot - lap.spot_std, lap.spot + lap.spot_std, lap.measured)
-        )
         self.zone_spots.update(lap.zones_t)
+        spots_ylim = _rounded_range(
+            (lap.spot - lap.spot_std, lap.spot + lap.spot_std, lap.measured), self.scales.spots
+        )
+        self.ax_spots.set_ylim(*spots_ylim)
 
         field = self._interp @ lap.nodes[self._node_order]
         self.image.set_data(field)
-        self.image.set_extent((0.0, t_max, *self.image.get_extent()[2:]))
-        self.ax_heatmap.set_xlim(0.0, t_max)
+        self.image.set_extent(
+            (0.0, float(t[-1]) if t.size > 1 else 0.1, *self.image.get_extent()[2:])
+        )
         if self._contours is not None:
             self._contours.remove()
         levels = [v for v in self.window_c if np.nanmin(field) < v < np.nanmax(field)]
@@ -343,23 +436,41 @@ class LapFigures:
 
         self.contact_band.set_data(t, lap.contact - lap.contact_std, lap.contact + lap.contact_std)
         self.contact_line.set_data(t, lap.contact)
-        self.ax_contact.set_xlim(0.0, t_max)
-        lo, hi = _limits(lap.contact - lap.contact_std, lap.contact + lap.contact_std)
-        self.ax_contact.set_ylim(min(lo, self.window_c[0] - 50), max(hi, self.window_c[1] + 50))
         self.zone_contact.update(lap.zones_t)
 
         self.speed_line.set_data(t, lap.speed_kmh)
         self.pressure_line.set_data(t, lap.pressure_bar)
-        self.ax_speed.set_xlim(0.0, t_max)
-        self.ax_speed.set_ylim(0.0, _limits(lap.speed_kmh)[1])
-        self.ax_pressure.set_ylim(0.0, max(_limits(lap.pressure_bar)[1], 1.0))
         self.zone_context.update(lap.zones_t)
 
+        for ax in (self.ax_spots, self.ax_heatmap, self.ax_contact, self.ax_speed):
+            ax.set_xlim(0.0, x_end)
+        contours = [self._contours] if self._contours is not None else []
         return {
-            "spots": _png(self.fig_spots),
-            "heatmap": _png(self.fig_heatmap),
-            "contact": _png(self.fig_contact),
-            "context": _png(self.fig_context),
+            "spots": self._blit["spots"].png(
+                (x_end, *spots_ylim),
+                [
+                    self.zone_spots.spans,
+                    *self.spot_bands,
+                    *self.spot_lines,
+                    *self.meas_lines,
+                    *self.zone_spots.labels,
+                ],
+            ),
+            "heatmap": self._blit["heatmap"].png(
+                (x_end,), [self.image, *contours, *self.spot_marks]
+            ),
+            "contact": self._blit["contact"].png(
+                (x_end,), [self.zone_contact.spans, self.contact_band, self.contact_line]
+            ),
+            "context": self._blit["context"].png(
+                (x_end,),
+                [
+                    self.zone_context.spans,
+                    self.speed_line,
+                    self.pressure_line,
+                    *self.zone_context.labels,
+                ],
+            ),
         }
 
     def close(self) -> None:

@@ -28,7 +28,13 @@ from brakethermo.report.braking_zones import (
     detect_zones,
     zone_table,
 )
-from brakethermo.report.figures import LapData, LapFigures, trend_figure
+from brakethermo.report.figures import (
+    AxisScales,
+    LapData,
+    LapFigures,
+    padded_range,
+    trend_figure,
+)
 from brakethermo.thermal.disc import DiscSpec, load_disc
 
 FIGURE_ALT = {
@@ -252,12 +258,23 @@ def write_session_report(
     lap_numbers = [int(v) for v in stats.index]
     lap_slices = pd.Series(np.arange(len(laps_col))).groupby(laps_col).agg(["min", "max"])
 
+    contact_lo, contact_hi = padded_range(contact - contact_std, contact + contact_std)
+    scales = AxisScales(
+        spots=padded_range(spot - spot_std, spot + spot_std, measured),
+        contact=(
+            min(contact_lo, disc.window_c[0] - 50.0),
+            max(contact_hi, disc.window_c[1] + 50.0),
+        ),
+        speed_kmh=max(padded_range(speed * KMH)[1], 10.0),
+        pressure_bar=max(padded_range(pressure / BAR)[1], 1.0),
+    )
     figs = LapFigures(
         node_radii,
         disc.spot_radii,
         disc.window_c,
         disc.r_int,
         disc.r_est,
+        scales,
         temp_range_c=_colour_range(nodes),
         measured_spots=tuple(int(i) + 1 for i in np.flatnonzero(np.isfinite(measured).any(axis=1))),
     )
