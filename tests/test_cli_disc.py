@@ -18,13 +18,17 @@ def test_estimate_json_and_files(sim_race_session, identified, tmp_path):
     summary = json.loads(res.stdout)
     assert summary["run"]["measured_spot"] == 3
     assert (tmp_path / "race_multi" / "estimate.parquet").is_file()
+    assert (tmp_path / "race_multi" / "lap_01" / "index.html").is_file()
+    assert (tmp_path / "race_multi" / "index.html").is_file()
     assert summary["scores"]["table"][0]["method"] == "smoother"
 
 
 def test_estimate_rich_output_prints_tables(sim_race_session, identified, tmp_path):
     res = runner.invoke(app, ["estimate", str(sim_race_session[0]), "--h-law",
-                              str(identified[1]), "--out", str(tmp_path), "--no-smoother"])
+                              str(identified[1]), "--out", str(tmp_path), "--no-smoother",
+                              "--no-report"])
     assert res.exit_code == 0, res.output
+    assert not (tmp_path / "race_multi" / "lap_01").exists()
     assert "disc temperature per lap" in res.output and "single-spot" in res.output
 
 

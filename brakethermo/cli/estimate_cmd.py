@@ -13,6 +13,7 @@ from brakethermo.cli._options import AliasesOpt, AmbientOpt, DiscOpt, JsonOpt, O
 from brakethermo.pipelines.estimate import (
     EstimateOptions,
     EstimateResult,
+    disc_of,
     estimate_session,
     write_estimate,
 )
@@ -107,6 +108,9 @@ def estimate_command(
     tuning: TuningOpt = None,
     aliases: AliasesOpt = None,
     ambient: AmbientOpt = None,
+    report: Annotated[
+        bool, typer.Option("--report/--no-report", help="Write the per-lap HTML/PNG reports.")
+    ] = True,
     as_json: JsonOpt = False,
 ) -> None:
     """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
@@ -120,6 +124,11 @@ def estimate_command(
         with console.status(f"estimating {session.name} ..."):
             result = estimate_session(session, options)
     folder = write_estimate(result, out)
+    if report:
+        from brakethermo.report.lap_report import write_session_report
+
+        write_session_report(result.frame, result.session, folder,
+                             node_radii=result.node_radii, disc=disc_of(result))
     if as_json:
         print(to_json({**result.summary, "output": str(folder)}))
         return
@@ -131,4 +140,5 @@ def estimate_command(
     console.print(
         f"wrote {folder / 'estimate.parquet'} and summary.json "
         f"({result.timings['total_s']:.2f} s)"
+        + (f"; open {folder / 'index.html'} for the per-lap reports" if report else "")
     )
