@@ -22,12 +22,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from brakethermo.errors import DataError
 from brakethermo.thermal.model import DiscFEModel
 from brakethermo.thermal.power import crown_areas, crown_load
 
 H_PARAM = "h"
 SCALE_PARAM = "power_scale"
 C_TYPICAL_C = 500.0  # degC at which the crown-noise gain is evaluated
+H_TYPICAL = 100.0  # W/(m² K), the same; the gain hardly depends on either
+T_AMB_TYPICAL_C = 25.0
 
 
 @dataclass(frozen=True)
@@ -114,18 +117,17 @@ class DiscStateSpace:
         The split over the crowns changes at constant total power (paper §2), so the
         shares ``s`` get the multinomial covariance ``sigma² (diag(s) - s s')`` whose rows
         sum to zero; an error in the total is the power-scale state's job. Column ``i``
-        of ``G`` is the response of one step to a watt on crown ``i`` (``dt · load_i / C``,
-        K/W) at a typical temperature.
+        of ``G`` is the change one backward-Euler step makes for a watt on crown ``i``
+        (K/W), at a typical temperature: it carries the heat through the layers as the
+        model itself does.
         """
-        disc = model.disc
-        edges = disc.crown_edges
+        edges = model.disc.crown_edges
         w = model.weights if np.isfinite(model.weights).all() else np.ones(3)
         share = crown_areas(edges) * w / np.dot(crown_areas(edges), w)
-        cap = model.capacity(model.initial_state(C_TYPICAL_C))
-        G = np.zeros((model.n_state, 3))
-        for i in range(3):
-            G[model.face_index, i] = crown_load(model.radii, edges, np.eye(3)[i])
-        G *= model.dt / cap[:, None]
+        T = np.tile(model.initial_state(C_TYPICAL_C), (3, 1))
+        load = np.stack([crown_load(model.radii, edges, e) for e in np.eye(3)])
+        args = dict(h=H_TYPICAL, t_amb=T_AMB_TYPICAL_C, load=load)
+        G = (model.step(T, 1.0, **args) - model.step(T, 0.0, **args)).T
         C_share = sigma_crown**2 * (np.diag(share) - np.outer(share, share))
         return G @ C_share @ G.T
 
@@ -141,13 +143,19 @@ class DiscStateSpace:
         h = self._param(X, H_PARAM)
         scale = self._param(X, SCALE_PARAM)
         out = np.empty_like(X)
-        out[:, : self.n_temp] = self.model.step(
-            X[:, : self.n_temp],
-            self.q_brk[k],
-            self.h[k] if h is None else h,
-            self.t_amb[k],
-            1.0 if scale is None else scale,
-        )
+        try:
+            out[:, : self.n_temp] = self.model.step(
+                X[:, : self.n_temp],
+                self.q_brk[k],
+                self.h[k] if h is None else h,
+                self.t_amb[k],
+                1.0 if scale is None else scale,
+            )
+        except (ZeroDivisionError, FloatingPointError):
+            raise DataError(
+                f"the disc model broke down at step {k} (t = {k * self.model.dt:.1f} s): the"
+                " temperatures left any physical range; check the h law and tuning values"
+            ) from None
         out[:, self.n_temp :] = X[:, self.n_temp :]
         return out
 

@@ -26,7 +26,7 @@ from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.summary import lap_summaries
-from brakethermo.pipelines.tuning import EstimateTuning, load_tuning
+from brakethermo.pipelines.tuning import EstimateTuning, load_tuning, user_tuning_keys
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
 
@@ -49,6 +49,8 @@ class EstimateOptions:
         Filter tuning TOML overlaid on ``configs/tuning.toml``.
     nodes, layers : int, optional
     smoother, adapt_power : bool, optional
+    sigma_crown : float, optional
+        Crown-split process noise (identify-h's validation sets it per variant).
     aliases : path, optional
     ambient_c : float, optional — degC
     score : bool
@@ -63,23 +65,24 @@ class EstimateOptions:
     layers: int | None = None
     smoother: bool | None = None
     adapt_power: bool | None = None
+    sigma_crown: float | None = None
     aliases: str | Path | None = None
     ambient_c: float | None = None
     score: bool = True
 
-    def resolve(self, tuning: EstimateTuning) -> EstimateTuning:
-        """The tuning with this run's overrides applied."""
-        overrides = {
+    def overrides(self) -> dict[str, Any]:
+        """The tuning values this run sets explicitly."""
+        return {
             k: v
             for k, v in (
                 ("nodes", self.nodes),
                 ("layers", self.layers),
                 ("smoother", self.smoother),
                 ("adapt_power", self.adapt_power),
+                ("sigma_crown", self.sigma_crown),
             )
             if v is not None
         }
-        return replace(tuning, **overrides)
 
 
 @dataclass
@@ -98,6 +101,8 @@ class EstimateResult:
         Tables 3/4, peak errors and coverage on a multi-spot session.
     open_loop : ndarray (K, 4) or None — degC
         The open-loop 1D-FE spot temperatures (for scoring and reports).
+    disc : DiscSpec
+        The datasheet the estimate was computed with.
     timings : dict of str to float — s
     """
 
@@ -107,6 +112,7 @@ class EstimateResult:
     summary: dict[str, Any]
     scores: dict[str, Any] | None
     open_loop: np.ndarray | None
+    disc: DiscSpec
     timings: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -141,24 +147,22 @@ def _initial_temperature(y: np.ndarray, t_amb: np.ndarray) -> float:
     return float(t_amb[0])
 
 
-def calibrated_tuning(
-    tuning: EstimateTuning, cal: DiscCalibration, options: EstimateOptions
-) -> EstimateTuning:
-    """The tuning with what identify-h calibrated, unless the user set it explicitly.
+def calibrated_tuning(cal: DiscCalibration, options: EstimateOptions) -> EstimateTuning:
+    """The tuning of a run: shipped values < calibration < the user's file < options.
 
-    A ``--tuning`` file wins over the calibration for the noise; ``--layers`` (or a
-    tuning file) wins for the layering.
+    What identify-h calibrated (crown-split noise, power adaptation, layering) replaces
+    the shipped values key by key, unless the user's ``--tuning`` file sets that key;
+    command-line options win over everything.
     """
-    if options.tuning is not None:
-        return tuning
-    if cal.sigma_crown is not None:
-        tuning = replace(tuning, sigma_crown=cal.sigma_crown)
-    if options.adapt_power is None and cal.adapt_power is not None:
-        tuning = replace(tuning, adapt_power=cal.adapt_power)
-    if options.layers is None and cal.layers is not None:
-        tuning = replace(tuning, layers=cal.layers,
-                         layer_growth=cal.layer_growth or tuning.layer_growth)
-    return tuning
+    tuning, _ = load_tuning(options.tuning)
+    user = user_tuning_keys(options.tuning, "estimate")
+    calibrated: dict[str, Any] = {"sigma_crown": cal.sigma_crown, "adapt_power": cal.adapt_power}
+    if cal.layers is not None and "layers" not in user:
+        calibrated["layers"] = cal.layers
+        calibrated["layer_growth"] = cal.layer_growth
+    tuning = replace(tuning, **{k: v for k, v in calibrated.items()
+                                if v is not None and k not in user})
+    return replace(tuning, **options.overrides())
 
 
 def disc_model(
@@ -197,12 +201,17 @@ def estimate_from_session(
     calibrate the bands on its own session).
     """
     t_start = time.perf_counter()
-    tuning = options.resolve(load_tuning(options.tuning)[0])
     disc = disc_for(session, options.disc)
     inputs = disc_inputs(session, disc, options.ambient_c)
     y = _measurement(inputs, options.spot, session.path)
     cal = calibration or calibration_for(disc, options.h_law)
-    tuning = calibrated_tuning(tuning, cal, options)
+    tuning = calibrated_tuning(cal, options)
+    warnings = list(session.warnings) + list(inputs.warnings)
+    if cal.layers is not None and tuning.layers != cal.layers:
+        warnings.append(
+            f"the model runs {tuning.layers} layers but the h law's k_z ratio was fitted for"
+            f" {cal.layers}; re-run identify-h with the same layering for best accuracy"
+        )
     h = cal.law(inputs.speed)
     model = disc_model(disc, tuning, cal.weights, cal.kz_ratio)
     ssm = build_state_space(model, inputs, h, tuning, cal.power_scale)
@@ -240,7 +249,7 @@ def estimate_from_session(
                                scale=cal.power_scale)
         open_loop = T_ol @ model.spot_matrix(spot_radii).T
         scores = score_estimate(frame, forward.readout[:, :4], open_loop, inputs, options.spot,
-                                tuning.sigma_meas, tuning.smoother)
+                                tuning.smoother)
     t_end = time.perf_counter()
     timings = {
         "setup_s": t_filter - t_start,
@@ -276,11 +285,12 @@ def estimate_from_session(
             "mean_nis": float(np.nanmean(forward.nis)),
             "wall_time_s": timings["total_s"],
             "timings_s": timings,
-            "warnings": list(session.warnings) + list(inputs.warnings),
+            "warnings": warnings,
         },
         "scores": scores,
     }
-    return EstimateResult(session, frame, model.radii.copy(), summary, scores, open_loop, timings)
+    return EstimateResult(session, frame, model.radii.copy(), summary, scores, open_loop, disc,
+                          timings)
 
 
 def _estimate_frame(
@@ -318,12 +328,12 @@ def score_estimate(
     open_loop: np.ndarray,
     inputs: DiscInputs,
     spot: int,
-    sigma_meas: float,
     smoothed: bool,
 ) -> dict[str, Any]:
     """The paper's Tables 3 and 4 on a multi-spot session, plus peaks and coverage.
 
-    The reference is the measured spots (each with its sensor noise), as in the paper.
+    The reference is the measured spots, as in the paper; the band coverage adds each
+    reading's own noise, measured from the reading itself.
     """
     ref = inputs.spots.copy()
     ref[ref <= SENSOR_FLOOR_C] = np.nan
@@ -344,7 +354,7 @@ def score_estimate(
         "measured_spot": spot,
         "table": [r.as_dict() for r in rows],
         "contact_ratio_vs_single_spot": {
-            r.method: r.contact_rmse / base.contact_rmse for r in rows[:-1]
+            r.method: scoring.ratio(r.contact_rmse, base.contact_rmse) for r in rows[:-1]
         },
         "peak": {
             f"spot{i}": scoring.peak_errors(smooth[:, i - 1], ref[:, i - 1], braking)
@@ -352,7 +362,7 @@ def score_estimate(
         },
         "coverage95": {
             f"spot{i}": scoring.coverage(smooth[:, i - 1], std[:, i - 1], ref[:, i - 1],
-                                         extra_var=sigma_meas**2)
+                                         extra_var=scoring.reading_noise(ref[:, i - 1]) ** 2)
             for i in validation
         },
     }
@@ -376,6 +386,7 @@ def estimate_session(path: str | Path, options: EstimateOptions | None = None) -
     result = estimate_from_session(session, options)
     result.timings["read_s"] = read_s
     result.summary["run"]["timings_s"]["read_s"] = read_s
+    result.summary["run"]["wall_time_s"] += read_s
     return result
 
 
@@ -400,4 +411,4 @@ def write_estimate(result: EstimateResult, out_dir: str | Path) -> Path:
 
 def disc_of(result: EstimateResult) -> DiscSpec:
     """The datasheet the result was computed with."""
-    return disc_for(result.session, result.summary["run"]["disc"])
+    return result.disc

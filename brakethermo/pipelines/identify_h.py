@@ -26,6 +26,7 @@ from brakethermo import __version__
 from brakethermo.errors import DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.session import GRID_DT, Session
+from brakethermo.pipelines import scoring
 from brakethermo.pipelines.disc_ssm import H_PARAM, DiscStateSpace, RandomWalkParam
 from brakethermo.pipelines.estimate import (
     SENSOR_FLOOR_C,
@@ -254,18 +255,6 @@ def fit_structure(
 SIGMA_CROWN_GRID = (0.05, 0.1, 0.2, 0.4)  # relative crown-share noise tried by validation
 
 
-def reading_noise(y: np.ndarray) -> float:
-    """Noise of a 10 Hz reading, degC, from robust second differences.
-
-    ``y[k+1] - 2 y[k] + y[k-1]`` cancels the temperature's slope and has variance
-    ``6 sigma²`` for white noise; the median keeps braking transients out.
-    """
-    d2 = np.diff(y[np.isfinite(y)], 2)
-    if d2.size < 10:
-        return 0.0
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
-
-
 def _held_out(
     session: Session, calibration: DiscCalibration, options: IdentifyOptions, spot: int,
 ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
@@ -278,7 +267,9 @@ def _held_out(
     est = estimate_from_session(
         session,
         EstimateOptions(spot=spot, disc=options.disc, tuning=options.tuning,
-                        aliases=options.aliases, ambient_c=options.ambient_c, score=False),
+                        aliases=options.aliases, ambient_c=options.ambient_c, score=False,
+                        sigma_crown=calibration.sigma_crown,
+                        adapt_power=calibration.adapt_power),
         calibration=calibration,
     )  # fmt: skip
     readings = np.column_stack([session.values(name) for name in MULTI_SPOT])
@@ -291,7 +282,7 @@ def _held_out(
         ok = np.isfinite(ref)
         err.append(est.frame[f"spot{i}"].to_numpy()[ok] - ref[ok])
         std.append(est.frame[f"spot{i}_std"].to_numpy()[ok])
-        noise.append(np.full(int(ok.sum()), reading_noise(ref)))
+        noise.append(np.full(int(ok.sum()), scoring.reading_noise(ref)))
     contact = est.frame["contact_avg"].to_numpy() - readings[:, 1:4].mean(axis=1)
     return (np.concatenate(err), np.concatenate(std), float(np.sqrt(np.nanmean(contact**2))),
             np.concatenate(noise))
@@ -309,7 +300,7 @@ def validate_filter(
     the contact-band RMSE) wins. Then, by bisection, the factor ``a`` on the
     filter's 1-sigma for which a fraction ``level`` of those readings lie within
     ``z · sqrt(a² sigma² + sigma_n²)``, with ``sigma_n`` each reading's own noise
-    (:func:`reading_noise`): the filter's own sigma only knows the noise it
+    (:func:`scoring.reading_noise`): the filter's own sigma only knows the noise it
     was told about, not the structural error of a 1D model (the per-braking power split,
     the skin the layers do not resolve).
 

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from brakethermo.config import config_dir
 from brakethermo.errors import ConfigError
@@ -65,28 +67,38 @@ class DiscCalibration:
     source: str = ""
 
 
+# Ranges of the identified values an h_law.toml may carry (those identify-h can produce).
+CALIBRATION_BOUNDS: dict[str, tuple[float, float]] = {
+    "kz_ratio": (0.01, 10.0),
+    "power_scale": (0.2, 5.0),
+    "band_scale": (1.0, 100.0),
+    "sigma_crown": (0.0, 5.0),
+    "layers": (1, 8),
+    "layer_growth": (0.2, 10.0),
+}
+
+
 def read_calibration(path: str | Path) -> DiscCalibration:
-    """Read an ``h_law.toml`` written by identify-h."""
+    """Read an ``h_law.toml`` written by identify-h, checking its ``[extra]`` values."""
     record = read_h_law(path)
     extra = record.extra
-    try:
-        values = {k: float(extra.get(k, 1.0)) for k in ("kz_ratio", "power_scale", "band_scale")}
-    except (TypeError, ValueError):
-        raise ConfigError(
-            "[extra] kz_ratio, power_scale and band_scale must be numbers", path=path
-        ) from None
-    for key in ("sigma_crown", "layers", "layer_growth"):
-        if extra.get(key) is not None:
-            values[key] = extra[key]
-    bad = [k for k, v in values.items()
-           if isinstance(v, bool) or not (isinstance(v, int | float) and v > 0)]
-    if "layers" in values and not isinstance(values["layers"], int):
-        bad.append("layers (a whole number)")
+    values: dict[str, Any] = {}
+    for key, (lo, hi) in CALIBRATION_BOUNDS.items():
+        raw = extra.get(key)
+        if raw is None:
+            continue
+        whole = key == "layers"
+        if isinstance(raw, bool) or not isinstance(raw, int | float) or (
+            whole and raw != int(raw)
+        ) or not math.isfinite(raw) or not lo <= raw <= hi:
+            kind = "a whole number" if whole else "a number"
+            raise ConfigError(
+                f"[extra] {key} = {raw!r} must be {kind} between {lo:g} and {hi:g}", path=path
+            )
+        values[key] = int(raw) if whole else float(raw)
     adapt = extra.get("adapt_power")
     if adapt is not None and not isinstance(adapt, bool):
-        bad.append("adapt_power (true or false)")
-    if bad:
-        raise ConfigError(f"[extra] {', '.join(bad)} must be numbers > 0", path=path)
+        raise ConfigError(f"[extra] adapt_power = {adapt!r} must be true or false", path=path)
     return DiscCalibration(law=record.law, weights=record.weights, adapt_power=adapt,
                            source=str(path), **values)
 

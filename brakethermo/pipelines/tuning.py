@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
@@ -83,6 +84,30 @@ class IdentifyTuning(SigmaPointTuning):
 
 T = TypeVar("T", bound=SigmaPointTuning)
 
+# Ranges a value must lie in (inclusive); beyond them the model or filter is meaningless
+# or numerically broken. Keys not listed only need to be finite and > 0.
+BOUNDS: dict[str, tuple[float, float]] = {
+    "nodes": (10, 400),
+    "layers": (1, 8),
+    "thin_skin_layers": (1, 8),
+    "layer_growth": (0.2, 10.0),
+    "thin_skin_layer_growth": (0.2, 10.0),
+    "thin_skin_kz_ratio": (0.0, 10.0),
+    "alpha": (1e-4, 1.0),
+    "beta": (0.0, 10.0),
+    "kappa": (-1e3, 1e3),
+    "sigma_meas": (1e-3, 200.0),
+    "sigma_temp": (0.0, 50.0),
+    "sigma_crown": (0.0, 5.0),
+    "sigma_scale_step": (0.0, 1.0),
+    "init_sigma_temp": (1e-3, 1000.0),
+    "init_sigma_scale": (0.0, 5.0),
+    "h_init": (0.0, 5000.0),
+    "h_init_sigma": (1e-3, 5000.0),
+    "h_step": (0.0, 1000.0),
+    "knee": (0.1, 2.0),
+}
+
 
 def _build(cls: type[T], table: dict[str, Any], path: Path, section: str) -> T:
     fields = {f.name: f for f in dataclasses.fields(cls)}
@@ -94,20 +119,24 @@ def _build(cls: type[T], table: dict[str, Any], path: Path, section: str) -> T:
     values: dict[str, Any] = {}
     for key, raw in table.items():
         kind = type(getattr(cls(), key))
-        if kind is bool and not isinstance(raw, bool):
-            raise ConfigError(f"[{section}] {key} must be true or false", path=path)
-        try:
-            values[key] = kind(raw)
-        except (TypeError, ValueError):
-            raise ConfigError(f"[{section}] {key} must be a {kind.__name__}", path=path) from None
+        if kind is bool:
+            if not isinstance(raw, bool):
+                raise ConfigError(f"[{section}] {key} must be true or false", path=path)
+            values[key] = raw
+            continue
+        if isinstance(raw, bool) or not isinstance(raw, int | float):
+            raise ConfigError(f"[{section}] {key} must be a number, got {raw!r}", path=path)
+        if kind is int and raw != int(raw):
+            raise ConfigError(f"[{section}] {key} must be a whole number, got {raw}", path=path)
+        values[key] = kind(raw)
     tuning = cls(**values)
-    positive = [k for k, v in dataclasses.asdict(tuning).items()
-                if isinstance(v, int | float) and not isinstance(v, bool)
-                and k not in ("kappa", "beta") and v <= 0]
-    if positive:
-        raise ConfigError(f"[{section}] must be > 0: {', '.join(positive)}", path=path)
-    if getattr(tuning, "nodes", 10) < 10:
-        raise ConfigError(f"[{section}] nodes must be >= 10 (one node per spot)", path=path)
+    for key, value in dataclasses.asdict(tuning).items():
+        if isinstance(value, bool):
+            continue
+        lo, hi = BOUNDS.get(key, (0.0, math.inf))
+        if not math.isfinite(value) or not lo <= value <= hi or (key not in BOUNDS and value <= 0):
+            limits = f"between {lo:g} and {hi:g}" if key in BOUNDS else "finite and > 0"
+            raise ConfigError(f"[{section}] {key} = {value} must be {limits}", path=path)
     return tuning
 
 
@@ -129,3 +158,11 @@ def load_tuning(path: str | Path | None = None) -> tuple[EstimateTuning, Identif
         _build(EstimateTuning, base.get("estimate", {}), user_path, "estimate"),
         _build(IdentifyTuning, base.get("identify", {}), user_path, "identify"),
     )
+
+
+def user_tuning_keys(path: str | Path | None, section: str) -> frozenset[str]:
+    """The keys a user's tuning file sets in ``[section]`` (empty without a file)."""
+    if path is None:
+        return frozenset()
+    table = load_toml(path).get(section, {})
+    return frozenset(table) if isinstance(table, dict) else frozenset()

@@ -45,6 +45,8 @@ def score_against_truth(
     measured_spot : int
     """
     n = min(len(estimate), len(truth))
+    if not np.allclose(estimate["time"].to_numpy()[:n], truth["time"].to_numpy()[:n]):
+        raise ValueError("estimate and truth are not on the same time grid")
     ref = truth[list(SPOTS)].to_numpy()[:n]
     est = estimate[list(SPOTS)].to_numpy()[:n]
     std = estimate[[f"{s}_std" for s in SPOTS]].to_numpy()[:n]
@@ -60,7 +62,9 @@ def score_against_truth(
     return {
         "reference": "truth",
         "table": [r.as_dict() for r in rows.values()],
-        "contact_ratio": {k: r.contact_rmse / base.contact_rmse for k, r in rows.items()},
+        "contact_ratio": {
+            k: scoring.ratio(r.contact_rmse, base.contact_rmse) for k, r in rows.items()
+        },
         "peak_spot3": scoring.peak_errors(est[:, 2], ref[:, 2], braking),
         "coverage95": {
             s: scoring.coverage(est[:, i], std[:, i], ref[:, i]) for i, s in enumerate(SPOTS)
