@@ -151,10 +151,9 @@ def test_lumped_cooling_matches_exponential(linear_disc: DiscSpec) -> None:
     np.testing.assert_allclose(np.array(errors[:-1]) / np.array(errors[1:]), 2.0, rtol=0.1)
 
 
-@pytest.mark.parametrize("layers", [1, 3])
-def test_energy_conserved_per_step(disc: DiscSpec, layers: int) -> None:
-    model = DiscFEModel(disc, 17, layers, weights=(0.7, 1.2, 1.0), kz_ratio=0.4)
-    rng = np.random.default_rng(3)
+def assert_energy_conserved(model: DiscFEModel, seed: int) -> None:
+    """Stored heat of each step equals dt x (friction - convection - radiation)."""
+    rng = np.random.default_rng(seed)
     B = 6
     T = 200.0 + 150.0 * rng.random((B, model.n_state))
     h = rng.uniform(30.0, 150.0, B)
@@ -166,6 +165,12 @@ def test_energy_conserved_per_step(disc: DiscSpec, layers: int) -> None:
         np.testing.assert_allclose(terms.friction, q * scale, rtol=1e-13)
         np.testing.assert_allclose(stored, model.dt * terms.net, rtol=1e-10, atol=1e-7)
         T = T_new
+
+
+@pytest.mark.parametrize("layers", [1, 3])
+def test_energy_conserved_per_step(disc: DiscSpec, layers: int) -> None:
+    model = DiscFEModel(disc, 17, layers, weights=(0.7, 1.2, 1.0), kz_ratio=0.4)
+    assert_energy_conserved(model, seed=3)
 
 
 def test_energy_function_is_exact_enthalpy(disc: DiscSpec, linear_disc: DiscSpec) -> None:

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_thermal_fe import assert_energy_conserved
 
 from brakethermo.thermal.banded import HAVE_NUMBA
 from brakethermo.thermal.disc import DiscSpec, load_disc
@@ -117,18 +118,7 @@ def test_energy_conserved_per_step_graded(use_numba: bool) -> None:
     model = DiscFEModel(
         DISC, 17, 4, weights=(0.7, 1.2, 1.0), kz_ratio=0.06, layer_growth=2.5, use_numba=use_numba
     )
-    rng = np.random.default_rng(11)
-    B = 6
-    T = 200.0 + 150.0 * rng.random((B, model.n_state))
-    h = rng.uniform(30.0, 150.0, B)
-    scale = rng.uniform(0.7, 1.3, B)
-    for q in (0.0, 45.0e3, 80.0e3):
-        T_new = model.step(T, q, h, 28.0, scale)
-        stored = (model.capacity(T) * (T_new - T)).sum(axis=1)
-        terms = model.power_terms(T, T_new, q, h, 28.0, scale)
-        np.testing.assert_allclose(terms.friction, q * scale, rtol=1e-13)
-        np.testing.assert_allclose(stored, model.dt * terms.net, rtol=1e-10, atol=1e-7)
-        T = T_new
+    assert_energy_conserved(model, seed=11)
     # capacity follows each layer's own thickness and the whole disc's volume
     C = model.capacity(model.initial_state(300.0)).reshape(17, 4)
     mass = DISC.density * np.pi * (DISC.r_est**2 - DISC.r_int**2) * DISC.thickness

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import click
 import typer
@@ -50,3 +51,14 @@ def _root(
     ),
 ) -> None:
     """Carbon brake-disc temperature across the radius, from one IR spot sensor."""
+
+
+R = TypeVar("R")
+
+
+def run_with_status(quiet: bool, message: str, work: Callable[[], R]) -> R:
+    """Run ``work()`` behind a rich spinner, or silently when output must stay JSON."""
+    if quiet:
+        return work()
+    with console.status(message):
+        return work()

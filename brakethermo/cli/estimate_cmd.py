@@ -8,7 +8,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from brakethermo.cli._app import app, console
+from brakethermo.cli._app import app, console, run_with_status
 from brakethermo.cli._options import AliasesOpt, AmbientOpt, DiscOpt, JsonOpt, OutDir, TuningOpt
 from brakethermo.pipelines.estimate import (
     EstimateOptions,
@@ -118,11 +118,8 @@ def estimate_command(
         spot=spot, h_law=h_law, disc=disc, tuning=tuning, nodes=nodes, layers=layers,
         smoother=smoother, adapt_power=adapt_power, aliases=aliases, ambient_c=ambient,
     )  # fmt: skip
-    if as_json:
-        result = estimate_session(session, options)
-    else:
-        with console.status(f"estimating {session.name} ..."):
-            result = estimate_session(session, options)
+    result = run_with_status(as_json, f"estimating {session.name} ...",
+                             lambda: estimate_session(session, options))
     folder = write_estimate(result, out)
     if report:
         from brakethermo.report.lap_report import write_session_report

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from brakethermo.cli._app import app, console
+from brakethermo.cli._app import app, console, run_with_status
 from brakethermo.cli._options import AliasesOpt, AmbientOpt, DiscOpt, JsonOpt, OutDir, TuningOpt
 from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
 from brakethermo.pipelines.outputs import to_json
@@ -37,11 +37,8 @@ def identify_command(
     """Identify h(V) (joint UKF, h as a random walk) and the disc model's structure."""
     options = IdentifyOptions(disc=disc, tuning=tuning, nodes=nodes, aliases=aliases,
                               ambient_c=ambient, fit_structure=structure)
-    if as_json:
-        result = identify_h(session, options)
-    else:
-        with console.status(f"identifying h(V) on {session.name} ..."):
-            result = identify_h(session, options)
+    result = run_with_status(as_json, f"identifying h(V) on {session.name} ...",
+                             lambda: identify_h(session, options))
     folder = write_identify(result, out)
     if as_json:
         print(to_json({**result.summary, "output": str(folder)}))
