@@ -95,3 +95,30 @@ def test_gap_limit_must_be_positive(tmp_path: Path) -> None:
     path = write_csv(tmp_path / "p.csv", np.arange(0, 2.0, 0.1), {"vFront": np.ones(20)})
     with pytest.raises(DataError, match="positive"):
         load_session(path, gap_limit_s=0.0)
+
+
+def test_rig_rate_grid_and_single_sample_constant(tmp_path: Path) -> None:
+    # A 200 Hz rig log: the grid follows the requested rate, a ramp survives exactly,
+    # and a reference logged once (in mm) is a value, not a gap.
+    t = np.arange(0, 5.0, 0.005)
+    ref = np.full(t.size, np.nan)
+    ref[0] = 348.2
+    path = write_csv(tmp_path / "rig.csv", t, {
+        "wheel_omega [rad/s]": 10.0 + 2.0 * t,
+        "rolling_radius_ref [mm]": ref,
+    })
+    session = load_session(path, rate_hz=200.0, channels=("wheel_omega", "rolling_radius_ref"))
+    assert session.dt == pytest.approx(0.005)
+    assert session.rate_hz == pytest.approx(200.0)
+    np.testing.assert_allclose(session.values("wheel_omega"), 10.0 + 2.0 * session.time,
+                               atol=1e-9)
+    assert session.constants["rolling_radius_ref"] == pytest.approx(0.3482)
+    assert session.constant("rolling_radius_ref") == pytest.approx(0.3482)
+    assert "rolling_radius_ref" not in session.channels
+    with pytest.raises(DataError, match="single sample"):
+        session.require("rolling_radius_ref")
+    native = load_session(path, rate_hz=None, channels=("wheel_omega",))
+    assert native.rate_hz == pytest.approx(200.0, rel=1e-6)
+    assert list(native.channels) == ["wheel_omega"]
+    with pytest.raises(DataError, match="grid rate"):
+        load_session(path, rate_hz=0.0)

@@ -1,4 +1,9 @@
-"""``load_session``: any session file of CHANNELS.md -> one :class:`Session` on the 10 Hz grid."""
+"""``load_session``: any session file of CHANNELS.md -> one :class:`Session` on a uniform grid.
+
+The disc pipelines take the 10 Hz grid of OUTPUTS.md (the default); the rig pipelines
+pass their own ``rate_hz`` (or ``None``: the fastest native rate of the channels they
+use). One reader stack serves both.
+"""
 
 from __future__ import annotations
 
@@ -16,7 +21,7 @@ from brakethermo.io.mcap_reader import read_mcap
 from brakethermo.io.parquet_reader import read_parquet
 from brakethermo.io.raw import RawChannel, RawSession
 from brakethermo.io.resample import grid, hampel, resample, sort_checked
-from brakethermo.io.session import ChannelInfo, Session
+from brakethermo.io.session import GRID_DT, ChannelInfo, Session
 from brakethermo.io.units import CANONICAL_CHANNELS, si_unit, to_si
 
 READERS: dict[str, Callable[[Path], RawSession]] = {
@@ -67,8 +72,10 @@ def load_session(
     *,
     aliases: str | Path | Mapping[str, tuple[str, ...]] | None = None,
     gap_limit_s: float = 1.0,
+    rate_hz: float | None = 1.0 / GRID_DT,
+    channels: tuple[str, ...] | None = None,
 ) -> Session:
-    """Load a session file onto the 10 Hz grid with canonical names and SI units.
+    """Load a session file onto a uniform grid with canonical names and SI units.
 
     Parameters
     ----------
@@ -79,12 +86,19 @@ def load_session(
     gap_limit_s : float
         Longest gap between native samples bridged by interpolation, s; longer gaps
         stay NaN and are reported in :attr:`ChannelInfo.gaps`.
+    rate_hz : float or None
+        Grid rate, Hz: 10 (the OUTPUTS.md disc grid) by default; ``None`` takes the
+        fastest native rate among the loaded channels (rig logs).
+    channels : tuple of str, optional
+        Canonical channels to load (default: every canonical channel the file maps);
+        a rig pipeline names its own so that unrelated channels cost nothing.
 
     Returns
     -------
     Session
         Only channels that map to canonical names are in :attr:`Session.frame`; every
-        source name is in :attr:`Session.available`.
+        source name is in :attr:`Session.available`. A channel with a single finite
+        sample goes to :attr:`Session.constants` instead of the frame.
 
     Raises
     ------
@@ -106,17 +120,32 @@ def load_session(
     found = resolve(table, raw.names)
     if not any(c.t.size for c in raw.channels):
         raise DataError("the file holds no samples", path=path)
-    t_grid = grid(raw.end_s)
-
-    columns: dict[str, np.ndarray] = {"time": t_grid}
-    infos: dict[str, ChannelInfo] = {}
-    warnings = list(raw.warnings)
-    for canonical in CANONICAL_CHANNELS:
+    wanted = CANONICAL_CHANNELS if channels is None else channels
+    series: dict[str, tuple[RawChannel, np.ndarray, np.ndarray, str]] = {}
+    constants: dict[str, float] = {}
+    for canonical in wanted:
         if canonical not in found or canonical == "lap_beacon":
             continue
         src = by_name[found[canonical]]
         t, v = sort_checked(*_finite(src), path=path, channel=src.name)
         v, unit = to_si(v, src.unit, canonical, path=path, source=src.name)
+        if t.size == 1:
+            constants[canonical] = float(v[0])
+        else:
+            series[canonical] = (src, t, v, unit)
+    if rate_hz is None:
+        rates = [1.0 / float(np.median(np.diff(t))) for _, t, _, _ in series.values()
+                 if t.size > 1]
+        rate_hz = max(rates, default=1.0 / GRID_DT)
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise DataError(f"grid rate must be a positive number of Hz, got {rate_hz}", path=path)
+    dt = 1.0 / rate_hz
+    t_grid = grid(raw.end_s, dt)
+
+    columns: dict[str, np.ndarray] = {"time": t_grid}
+    infos: dict[str, ChannelInfo] = {}
+    warnings = list(raw.warnings)
+    for canonical, (src, t, v, unit) in series.items():
         spikes = 0
         if canonical.startswith(IR_PREFIX):
             v, spikes = hampel(v)
@@ -150,4 +179,6 @@ def load_session(
         available=raw.names,
         start_epoch_s=raw.start_epoch_s,
         warnings=tuple(warnings),
+        dt=dt,
+        constants=constants,
     )

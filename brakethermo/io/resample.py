@@ -1,15 +1,17 @@
-"""Native-rate channels onto the 10 Hz grid of OUTPUTS.md, anti-aliased, gaps reported.
+"""Native-rate channels onto a uniform grid, anti-aliased, gaps reported.
 
-Each grid point ``t_k = k * 0.1 s`` owns the bin ``[t_k - 0.05, t_k + 0.05)``. The
-samples of a bin are averaged (a 0.1 s box filter: zeros at 10, 20, 30 ... Hz, so
-content above the 5 Hz Nyquist frequency of the grid is strongly attenuated instead of
-folding back) together with their mean time; the grid value is the linear interpolation
-of these (mean time, mean value) points. A ramp is therefore reproduced exactly at any
-sample rate, a constant stays constant, and bins without a sample are bridged linearly
-from their neighbours. The first and last grid points see only half a bin of data
-(there is none beyond the session), so their filtering is weaker. A bin inside a
-spacing between native samples longer than the gap limit stays NaN and the gap is
-reported.
+The disc pipelines use the 10 Hz grid of OUTPUTS.md; the rig pipelines choose their own
+rate (:func:`brakethermo.io.load.load_session`, ``rate_hz``). Below, ``dt`` is the grid
+spacing (0.1 s on the disc grid). Each grid point ``t_k = k dt`` owns the bin ``[t_k -
+dt/2, t_k + dt/2)``. The samples of a bin are averaged (a box filter of width dt: zeros
+at 1/dt, 2/dt ... Hz, so content above the grid's Nyquist frequency is strongly
+attenuated instead of folding back) together with their mean time; the grid value is the
+linear interpolation of these (mean time, mean value) points. A ramp is therefore
+reproduced exactly at any sample rate, a constant stays constant, and bins without a
+sample are bridged linearly from their neighbours. The first and last grid points see
+only half a bin of data (there is none beyond the session), so their filtering is
+weaker. A bin inside a spacing between native samples longer than the gap limit stays
+NaN and the gap is reported.
 
 IR temperature channels first go through a Hampel filter at their native rate: a sample
 further than ``n_sigma`` robust standard deviations (and at least ``floor``) from the
@@ -52,10 +54,10 @@ class Resampled:
     spikes: int = 0
 
 
-def grid(end_s: float) -> np.ndarray:
-    """The 10 Hz grid ``0, 0.1, ...`` covering ``[0, end_s]``, s."""
-    n = int(np.floor(end_s / GRID_DT + 0.5)) + 1
-    return np.arange(n) * GRID_DT
+def grid(end_s: float, dt: float = GRID_DT) -> np.ndarray:
+    """The grid ``0, dt, 2 dt, ...`` covering ``[0, end_s]``, s (10 Hz by default)."""
+    n = int(np.floor(end_s / dt + 0.5)) + 1
+    return np.arange(n) * dt
 
 
 def sort_checked(t: np.ndarray, v: np.ndarray, *, path: object, channel: str
@@ -127,7 +129,7 @@ def hampel(v: np.ndarray, half_window: int = 4, n_sigma: float = 5.0, floor: flo
 
 def resample(t: np.ndarray, v: np.ndarray, t_grid: np.ndarray, gap_limit_s: float = 1.0
              ) -> Resampled:
-    """Average a sorted, duplicate-free channel into the 10 Hz bins and interpolate.
+    """Average a sorted, duplicate-free channel into the grid's bins and interpolate.
 
     Parameters
     ----------
@@ -136,7 +138,8 @@ def resample(t: np.ndarray, v: np.ndarray, t_grid: np.ndarray, gap_limit_s: floa
     v : ndarray
         Samples (any unit; returned in the same unit).
     t_grid : ndarray
-        The grid of :func:`grid`, s.
+        The grid of :func:`grid`, s; its spacing sets the bin width (0.1 s for the
+        disc pipelines, the rig's own rate for the rig pipelines).
     gap_limit_s : float
         Longest spacing between native samples that is bridged, s. A channel's own
         sample period never counts as a gap: the limit used is at least 1.5 times the
@@ -147,6 +150,7 @@ def resample(t: np.ndarray, v: np.ndarray, t_grid: np.ndarray, gap_limit_s: floa
     Resampled
     """
     n = t_grid.size
+    dt = float(t_grid[1] - t_grid[0]) if n > 1 else GRID_DT
     if t.size == 0:
         return Resampled(np.full(n, np.nan), (), 0.0)
     spacing = np.diff(t)
@@ -154,9 +158,9 @@ def resample(t: np.ndarray, v: np.ndarray, t_grid: np.ndarray, gap_limit_s: floa
     rate = 1.0 / median_dt if median_dt > 0 else 0.0
     limit = max(gap_limit_s, 1.5 * median_dt)
 
-    # A sample on a bin edge (t_k + 0.05 s) goes to the later bin whatever its float
+    # A sample on a bin edge (t_k + dt/2) goes to the later bin whatever its float
     # round-off, so float-seconds and integer-nanosecond files bin alike.
-    k = np.clip(np.floor(t / GRID_DT + (0.5 + _EDGE_TOL)).astype(np.int64), 0, n - 1)
+    k = np.clip(np.floor(t / dt + (0.5 + _EDGE_TOL)).astype(np.int64), 0, n - 1)
     count = np.bincount(k, minlength=n)
     filled = count > 0
     c = count[filled]
@@ -168,10 +172,10 @@ def resample(t: np.ndarray, v: np.ndarray, t_grid: np.ndarray, gap_limit_s: floa
         # to the edge grid points (exact for a ramp), clamped at half a bin outside the data.
         lo = t_grid < t_mean[0]
         slope = (v_mean[1] - v_mean[0]) / (t_mean[1] - t_mean[0])
-        out[lo] = v_mean[0] + (np.maximum(t_grid[lo], t[0] - 0.5 * GRID_DT) - t_mean[0]) * slope
+        out[lo] = v_mean[0] + (np.maximum(t_grid[lo], t[0] - 0.5 * dt) - t_mean[0]) * slope
         hi = t_grid > t_mean[-1]
         slope = (v_mean[-1] - v_mean[-2]) / (t_mean[-1] - t_mean[-2])
-        out[hi] = v_mean[-1] + (np.minimum(t_grid[hi], t[-1] + 0.5 * GRID_DT) - t_mean[-1]) * slope
+        out[hi] = v_mean[-1] + (np.minimum(t_grid[hi], t[-1] + 0.5 * dt) - t_mean[-1]) * slope
 
     # Empty bins are bridged only where the data allow it.
     lead = t[0] > limit

@@ -1,9 +1,12 @@
 """The channel-table abstraction every reader produces and every pipeline consumes.
 
-A :class:`Session` is one logged session on the OUTPUTS.md time base: a 10 Hz grid
-``t = 0.0, 0.1, ...`` seconds from the earliest sample of any channel, canonical
-channel names, SI units inside (temperatures in degC, pressures in Pa, speeds in m/s,
-angular speeds in rad/s), the lap number of each grid point and the session facts.
+A :class:`Session` is one logged session on a uniform time grid ``t = 0, dt, 2 dt, ...``
+seconds from the earliest sample of any channel — the 10 Hz grid of OUTPUTS.md for the
+disc pipelines, the rig's own rate for the rig pipelines — with canonical channel
+names, SI units inside (temperatures in degC, pressures in Pa, speeds in m/s, angular
+speeds in rad/s), the lap number of each grid point and the session facts. A channel
+logged once (a reference measurement) is a value in :attr:`Session.constants`, not a
+time series.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from brakethermo.errors import DataError
+from brakethermo.io.units import si_unit
 
 GRID_DT = 0.1  # s, the OUTPUTS.md time base
 
@@ -65,7 +69,7 @@ class Lap:
 
 @dataclass(frozen=True)
 class Session:
-    """A session resampled to the 10 Hz grid, canonical names, SI units.
+    """A session resampled to a uniform grid, canonical names, SI units.
 
     Attributes
     ----------
@@ -88,6 +92,10 @@ class Session:
     warnings : tuple of str
         Things the reader recovered from (a truncated file, bridged gaps...), to show
         the user.
+    dt : float
+        Grid spacing, s (0.1 on the disc grid).
+    constants : dict of str to float
+        Canonical channels logged as a single sample (e.g. ``rolling_radius_ref``), SI.
     """
 
     path: Path
@@ -99,6 +107,13 @@ class Session:
     available: tuple[str, ...] = ()
     start_epoch_s: float | None = None
     warnings: tuple[str, ...] = ()
+    dt: float = GRID_DT
+    constants: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def rate_hz(self) -> float:
+        """Grid rate, Hz."""
+        return 1.0 / self.dt
 
     @property
     def time(self) -> np.ndarray:
@@ -121,6 +136,13 @@ class Session:
         so the user can fix the alias table (``--aliases FILE``).
         """
         for name in names:
+            if name in self.constants:
+                raise DataError(
+                    f"holds a single sample ({self.constants[name]:g} {si_unit(name)}) where a"
+                    " time series is needed; check the logger's channel setup",
+                    path=self.path,
+                    channel=name,
+                )
             if name not in self.channels:
                 tried = ", ".join(self.aliases.get(name, (name,)))
                 have = ", ".join(self.available) or "none"
@@ -130,6 +152,15 @@ class Session:
                     path=self.path,
                     channel=name,
                 )
+
+    def constant(self, name: str) -> float | None:
+        """Value of a channel logged once, SI; else the mean of its series; else None."""
+        if name in self.constants:
+            return self.constants[name]
+        if name in self.channels:
+            v = self.frame[name].to_numpy(dtype=float)
+            return float(np.nanmean(v)) if np.isfinite(v).any() else None
+        return None
 
     def values(self, name: str) -> np.ndarray:
         """Values of canonical channel ``name`` on the grid, SI units."""

@@ -137,7 +137,8 @@ def padded_range(*arrays: np.ndarray, pad: float = 0.06) -> tuple[float, float]:
     return lo - pad * span, hi + pad * span
 
 
-def _png(fig: Figure) -> bytes:
+def png_bytes(fig: Figure) -> bytes:
+    """The figure as PNG bytes at the report resolution."""
     buf = io.BytesIO()
     # Fast deflate: the PNGs are written once and embedded once; size matters less.
     fig.savefig(buf, format="png", dpi=DPI, pil_kwargs={"compress_level": 1})
@@ -530,6 +531,6 @@ def trend_figure(
     ax_w.set_ylabel("in window [%]")
     ax_w.set_xlabel("lap")
     ax_w.set_xticks(laps)
-    png = _png(fig)
+    png = png_bytes(fig)
     plt.close(fig)
     return png

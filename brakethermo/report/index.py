@@ -6,10 +6,9 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from jinja2 import Environment, PackageLoader, select_autoescape
-
 from brakethermo import __version__
 from brakethermo.io.atomic import write_text_atomic
+from brakethermo.report.page import template_environment
 
 
 def write_batch_index(
@@ -43,10 +42,7 @@ def write_batch_index(
                 "href": f"{s['name']}/index.html" if page.is_file() else None,
             }
         )
-    env = Environment(
-        loader=PackageLoader("brakethermo.report", "templates"),
-        autoescape=select_autoescape(["html", "j2"]),
-    )
+    env = template_environment()
     html = env.get_template("batch.html.j2").render(
         sessions=rows, folder=str(folder), footer=f"brakethermo {__version__}"
     )

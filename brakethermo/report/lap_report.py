@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
-from jinja2 import Environment, PackageLoader, select_autoescape
+from jinja2 import Environment
 
 from brakethermo import __version__
 from brakethermo.io.atomic import write_bytes_atomic, write_text_atomic
@@ -35,6 +35,7 @@ from brakethermo.report.figures import (
     padded_range,
     trend_figure,
 )
+from brakethermo.report.page import template_environment
 from brakethermo.thermal.disc import DiscSpec, load_disc
 
 FIGURE_ALT = {
@@ -180,11 +181,7 @@ def _colour_range(nodes: np.ndarray, step: float = 50.0) -> tuple[float, float]:
 
 
 def _environment() -> Environment:
-    return Environment(
-        loader=PackageLoader("brakethermo.report", "templates"),
-        autoescape=select_autoescape(["html", "j2"]),
-        keep_trailing_newline=True,
-    )
+    return template_environment(keep_trailing_newline=True)
 
 
 def _lap_label(lap: int) -> str:

@@ -1,0 +1,62 @@
+"""Writing a rig pipeline's outputs (OUTPUTS.md, "Rig pipelines") as one folder.
+
+Every rig command writes ``DIR/<stem>/<pipeline>.parquet`` (``time`` in s from the
+session start, then its named columns, each with its unit in the field metadata),
+``DIR/<stem>/summary.json`` and a report page ``DIR/<stem>/index.html`` with its PNGs.
+The folder is staged and swapped in whole, so a re-run never leaves files of an
+earlier run beside new ones and a failure leaves the previous results untouched.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from brakethermo.io.atomic import atomic_dir
+from brakethermo.pipelines.outputs import write_json, write_parquet
+from brakethermo.report.page import Page, write_page
+
+
+def write_rig_outputs(
+    out: Path,
+    stem: str,
+    pipeline: str,
+    frame: pd.DataFrame,
+    summary: Mapping[str, Any],
+    page: Page,
+    units: Mapping[str, str] | None = None,
+) -> Path:
+    """Write the parquet, the summary and the report page of one rig run.
+
+    Parameters
+    ----------
+    out : Path
+        Output root (``--out``).
+    stem : str
+        Session file stem: the folder name.
+    pipeline : str
+        Parquet file stem (``roller_rig``, ``ebooster``, ``clamp_force``, ``mu_slip``).
+    frame : DataFrame
+        Columns to write; ``time`` first where the table is a time series.
+    summary : mapping
+        JSON-serialisable summary (numpy scalars and non-finite floats are handled).
+    page : Page
+        The report page.
+    units : mapping of str to str, optional
+        Unit string per column, stored in the field metadata under ``unit``.
+
+    Returns
+    -------
+    Path
+        The session's output folder.
+    """
+    folder = Path(out) / stem
+    meta = {name: {"unit": unit} for name, unit in (units or {}).items() if name in frame}
+    with atomic_dir(folder) as tmp:
+        write_parquet(tmp / f"{pipeline}.parquet", frame, field_meta=meta)
+        write_json(tmp / "summary.json", dict(summary))
+        write_page(page, tmp)
+    return folder

@@ -1,0 +1,131 @@
+"""A generic report page: cards, sections of text, tables and figures, one HTML file.
+
+The per-lap disc reports have their own layout (:mod:`brakethermo.report.lap_report`);
+every other command (diagnose, the rig pipelines) describes its page with
+:class:`Page` and writes it with :func:`write_page`: the PNGs beside ``index.html``,
+the HTML referencing them by relative path, so the folder can be copied or served as
+a whole. Every string is escaped by Jinja's autoescaping: text from a file never
+becomes markup.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+from jinja2 import Environment, PackageLoader, select_autoescape
+from matplotlib.figure import Figure
+
+from brakethermo.io.atomic import write_bytes_atomic, write_text_atomic
+from brakethermo.report.figures import png_bytes
+
+
+@dataclass(frozen=True)
+class Card:
+    """A headline figure: ``label``, ``value`` (already formatted) and its ``unit``."""
+
+    label: str
+    value: str
+    unit: str = ""
+
+
+@dataclass(frozen=True)
+class TableBlock:
+    """A table: ``header`` cells and ``rows`` of already formatted cells."""
+
+    header: Sequence[str]
+    rows: Sequence[Sequence[object]]
+    caption: str = ""
+
+
+@dataclass
+class Section:
+    """A titled part of the page.
+
+    Attributes
+    ----------
+    heading : str
+    paragraphs : list of str
+        Running text, shown before the tables.
+    tables : list of TableBlock
+    figures : dict of str to Figure
+        PNG file stem -> matplotlib figure; each becomes ``<stem>.png`` beside the page.
+    notes : list of str
+        Small print under the figures (assumptions, what was not measured).
+    """
+
+    heading: str
+    paragraphs: list[str] = field(default_factory=list)
+    tables: list[TableBlock] = field(default_factory=list)
+    figures: dict[str, Figure] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Page:
+    """A whole report page."""
+
+    title: str
+    subtitle: str = ""
+    cards: list[Card] = field(default_factory=list)
+    sections: list[Section] = field(default_factory=list)
+    footer: str = ""
+    back_href: str | None = None
+
+
+def template_environment(**options: bool) -> Environment:
+    """The Jinja environment of the report templates, HTML autoescaping on."""
+    return Environment(
+        loader=PackageLoader("brakethermo.report", "templates"),
+        autoescape=select_autoescape(["html", "j2"]),
+        **options,
+    )
+
+
+def write_page(page: Page, folder: Path, name: str = "index.html") -> Path:
+    """Write the page's PNGs and ``folder/name``; each file atomically.
+
+    Parameters
+    ----------
+    page : Page
+    folder : Path
+        Destination folder (created if needed).
+    name : str
+        HTML file name.
+
+    Returns
+    -------
+    Path
+        The HTML file.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    sections = []
+    for section in page.sections:
+        figures = []
+        for stem, fig in section.figures.items():
+            write_bytes_atomic(folder / f"{stem}.png", png_bytes(fig))
+            plt.close(fig)
+            figures.append({"src": f"{stem}.png", "alt": f"{section.heading}: {stem}"})
+        sections.append({
+            "heading": section.heading,
+            "paragraphs": section.paragraphs,
+            "tables": section.tables,
+            "figures": figures,
+            "notes": section.notes,
+        })
+    env = template_environment(trim_blocks=True, lstrip_blocks=True)
+    html = env.get_template("page.html.j2").render(
+        page={
+            "title": page.title,
+            "subtitle": page.subtitle,
+            "cards": page.cards,
+            "sections": sections,
+            "footer": page.footer,
+            "back_href": page.back_href,
+        }
+    )
+    target = folder / name
+    write_text_atomic(target, html)
+    return target
