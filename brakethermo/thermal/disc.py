@@ -45,6 +45,9 @@ class DiscSpec:
         Operating window.
     v_ref : float — m/s
         Reference speed of the h(V) normalisation.
+    k_z : float or None — W/(m K)
+        Nominal through-thickness conductivity (normal to the faces; varies between disc
+        batches); ``None`` when the datasheet does not give it.
     """
 
     id: str
@@ -65,6 +68,7 @@ class DiscSpec:
     tyre_rolling_radius: float
     window_c: tuple[float, float]
     v_ref: float
+    k_z: float | None = None
     description: str = field(default="", compare=False)
 
     @property
@@ -111,6 +115,7 @@ def load_disc(name_or_path: str | Path = "cc-340-8") -> DiscSpec:
             tyre_rolling_radius=float(brk["tyre_rolling_radius"]),
             window_c=(float(op["window_c"][0]), float(op["window_c"][1])),
             v_ref=float(op["v_ref_kmh"]) * KMH,
+            k_z=float(mat["k_z"]) if "k_z" in mat else None,
         )
     except KeyError as exc:
         raise ConfigError(f"missing key {exc}", path=path) from None
@@ -136,6 +141,8 @@ def _validate(spec: DiscSpec, path: Path) -> None:
     ):
         if len(xs) != len(ys) or len(xs) < 1 or any(np.diff(xs) <= 0) or min(ys) <= 0:
             problems.append(f"{name} table needs increasing temperatures and positive values")
+    if spec.k_z is not None and not (np.isfinite(spec.k_z) and spec.k_z > 0):
+        problems.append("k_z must be a finite conductivity > 0")
     if spec.thickness <= 0 or spec.density <= 0 or not 0 < spec.emissivity <= 1:
         problems.append("thickness, density must be > 0 and 0 < emissivity <= 1")
     if problems:
