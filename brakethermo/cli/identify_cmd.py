@@ -28,6 +28,11 @@ def identify_command(
             help="Also fit crown weights, k_z ratio and power scale (and refine h).",
         ),
     ] = True,
+    with_effect: Annotated[
+        str | None,
+        typer.Option(help="Fit these effects jointly with h(V): a comma-separated list of"
+                          " effect names, or 'auto' (the diagnosis's forward selection)."),
+    ] = None,
     disc: DiscOpt = None,
     tuning: TuningOpt = None,
     aliases: AliasesOpt = None,
@@ -36,7 +41,8 @@ def identify_command(
 ) -> None:
     """Identify h(V) (joint UKF, h as a random walk) and the disc model's structure."""
     options = IdentifyOptions(disc=disc, tuning=tuning, nodes=nodes, aliases=aliases,
-                              ambient_c=ambient, fit_structure=structure)
+                              ambient_c=ambient, fit_structure=structure,
+                              with_effects=with_effect)
     result = run_with_status(as_json, f"identifying h(V) on {session.name} ...",
                              lambda: identify_h(session, options))
     folder = write_identify(result, out)
@@ -63,6 +69,9 @@ def identify_command(
             f"k_z ratio {s.kz_ratio:.3f}, power scale {s.power_scale:.3f} "
             f"({s.nodes} nodes x {s.layers} layers)"
         )
+        for name, values in s.effects.items():
+            console.print(f"effect {name}: " + ", ".join(
+                f"{k} = {v:.3g}" for k, v in values.items() if isinstance(v, float)))
         console.print(
             "open-loop RMSE per spot °C: "
             + ", ".join(f"{k} {v:.1f} (uniform {s.rmse_uniform_c[k]:.1f})"

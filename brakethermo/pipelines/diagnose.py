@@ -44,10 +44,10 @@ from brakethermo import __version__
 from brakethermo.errors import DataError
 from brakethermo.estimation import UnscentedKalmanFilter
 from brakethermo.io.session import Session
+from brakethermo.models.disc import DiscStateSpace
 from brakethermo.models.disc_effects import N_REFERENCE, ExtendedDisc, Segments
 from brakethermo.models.effects import EFFECTS, parse_effects
 from brakethermo.pipelines import scoring
-from brakethermo.pipelines.disc_ssm import DiscStateSpace
 from brakethermo.pipelines.inputs import MULTI_SPOT, DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import disc_for, shipped_h_law
 from brakethermo.pipelines.tuning import load_tuning

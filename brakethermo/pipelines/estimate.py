@@ -20,8 +20,16 @@ from brakethermo import __version__
 from brakethermo.errors import DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.session import Session
+from brakethermo.models.disc import (
+    H_FACTOR_PARAM,
+    KZ_PARAM,
+    SCALE_PARAM,
+    DiscEffects,
+    DiscStateSpace,
+    RandomWalkParam,
+)
+from brakethermo.models.effects import EFFECTS, true_from_reading
 from brakethermo.pipelines import scoring
-from brakethermo.pipelines.disc_ssm import SCALE_PARAM, DiscStateSpace, RandomWalkParam
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
@@ -174,11 +182,67 @@ def disc_model(
                        layer_growth=tuning.layer_growth)
 
 
+@dataclass(frozen=True)
+class EffectPlan:
+    """How the fitted effects of an h law enter the race filter.
+
+    Attributes
+    ----------
+    fixed : DiscEffects
+        μ(T) and sensor lag at their test-session values.
+    online : tuple of RandomWalkParam
+        Effects one spot can follow: the slipstream h factor (off the brakes) and the
+        through-thickness conductivity factor.
+    emissivity_ratio : float or None
+        ε_disc/ε_set of the pyrometer: readings are converted back to face
+        temperatures before filtering.
+    facts : dict
+        What was done with each effect, for the run facts.
+    """
+
+    fixed: DiscEffects
+    online: tuple[RandomWalkParam, ...]
+    emissivity_ratio: float | None
+    facts: dict[str, dict[str, Any]]
+
+
+def effect_plan(effects: dict[str, dict[str, Any]]) -> EffectPlan:
+    """Turn ``[effects.<name>]`` tables into the filter's fixed and online effects."""
+    facts: dict[str, dict[str, Any]] = {}
+    fixed = DiscEffects()
+    online: list[RandomWalkParam] = []
+    ratio = None
+    for name, values in effects.items():
+        use = "fixed at the test-session value"
+        if name == "friction_temperature":
+            fixed = replace(fixed, mu_beta=values.get("beta", 0.0),
+                            mu_t_mid_c=values.get("t_mid", 400.0))
+        elif name == "sensor_lag":
+            fixed = replace(fixed, sensor_tau_s=values.get("tau_s", 0.0))
+        elif name == "emissivity_error":
+            ratio = values.get("ratio", 1.0)
+            use = ("readings corrected with the test-session value; a single pyrometer cannot"
+                   " tell its own bias from the disc, so this correction is all there is")
+        elif name == "slipstream":
+            step = EFFECTS[name].latent_param.online_step  # type: ignore[union-attr]
+            online.append(RandomWalkParam(H_FACTOR_PARAM, 1.0, 0.05, step or 0.01, lower=0.3,
+                                          off_brake_only=True))
+            use = "adapted online: an h factor that moves off the brakes"
+        elif name == "thickness_gradient":
+            online.append(RandomWalkParam(KZ_PARAM, 1.0, 0.3, 0.002, lower=0.05))
+            use = ("test-session value, adapted online (a race disc's k_z differs from batch"
+                   " to batch)")
+        elif name in ("h_speed_knee", "power_distribution"):
+            use = "in the h law and crown weights of the file"
+        facts[name] = {"values": values, "use": use}
+    return EffectPlan(fixed, tuple(online), ratio, facts)
+
+
 def build_state_space(
     model: DiscFEModel, inputs: DiscInputs, h: np.ndarray, tuning: EstimateTuning,
-    power_scale: float = 1.0,
+    power_scale: float = 1.0, plan: EffectPlan | None = None, spot_radius: float | None = None,
 ) -> DiscStateSpace:
-    """The estimate filter's state space: nodes (+ braking-power scale)."""
+    """The estimate filter's state space: nodes (+ braking-power scale, + effects)."""
     params = []
     if tuning.adapt_power:
         scale = RandomWalkParam(
@@ -186,9 +250,12 @@ def build_state_space(
             lower=0.05,
         )
         params.append(scale)
+    plan = plan or effect_plan({})
+    params.extend(plan.online)
     return DiscStateSpace(
         model, inputs.q_brk, inputs.t_amb, h, params,
         sigma_temp=tuning.sigma_temp, sigma_crown=tuning.sigma_crown,
+        effects=plan.fixed, spot_radius=spot_radius,
     )  # fmt: skip
 
 
@@ -214,9 +281,13 @@ def estimate_from_session(
         )
     h = cal.law(inputs.speed)
     model = disc_model(disc, tuning, cal.weights, cal.kz_ratio)
-    ssm = build_state_space(model, inputs, h, tuning, cal.power_scale)
-
     spot_radii = np.asarray(disc.spot_radii)
+    plan = effect_plan(cal.effects)
+    if plan.emissivity_ratio is not None:
+        y = true_from_reading(y, plan.emissivity_ratio)
+    ssm = build_state_space(model, inputs, h, tuning, cal.power_scale, plan,
+                            float(spot_radii[options.spot - 1]))
+
     H_spots = ssm.H(spot_radii)
     readout = np.vstack([H_spots, H_spots[1:4].mean(axis=0, keepdims=True)])
     if tuning.adapt_power:
@@ -224,7 +295,8 @@ def estimate_from_session(
     x0, P0 = ssm.prior(model.initial_state(_initial_temperature(y, inputs.t_amb)),
                        tuning.init_sigma_temp)
     ukf = UnscentedKalmanFilter(
-        ssm.f, ssm.Q, np.array([[tuning.sigma_meas**2]]), H=ssm.H([spot_radii[options.spot - 1]]),
+        ssm.f, ssm.Q, np.array([[tuning.sigma_meas**2]]),
+        H=ssm.H_measured(float(spot_radii[options.spot - 1])),
         alpha=tuning.alpha, beta=tuning.beta, kappa=tuning.kappa,
     )  # fmt: skip
     t_filter = time.perf_counter()
@@ -279,6 +351,7 @@ def estimate_from_session(
             "smoother": tuning.smoother,
             "adapt_power": tuning.adapt_power,
             "measured_spot": options.spot,
+            "effects": plan.facts,
             "steps": len(frame),
             "covariance_repairs": forward.n_repairs,
             "log_likelihood": forward.log_likelihood,

@@ -26,8 +26,9 @@ from brakethermo import __version__
 from brakethermo.errors import DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.session import GRID_DT, Session
+from brakethermo.models.disc import H_PARAM, DiscStateSpace, RandomWalkParam
+from brakethermo.models.effects import parse_effects
 from brakethermo.pipelines import scoring
-from brakethermo.pipelines.disc_ssm import H_PARAM, DiscStateSpace, RandomWalkParam
 from brakethermo.pipelines.estimate import (
     SENSOR_FLOOR_C,
     EstimateOptions,
@@ -58,6 +59,7 @@ class IdentifyOptions:
     aliases: str | Path | None = None
     ambient_c: float | None = None
     fit_structure: bool = True
+    with_effects: str | None = None
 
 
 @dataclass(frozen=True)
@@ -81,6 +83,7 @@ class StructureFit:
     layers: int
     rmse_c: dict[str, float]
     rmse_uniform_c: dict[str, float]
+    effects: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
 @dataclass
@@ -252,6 +255,78 @@ def fit_structure(
     )
 
 
+def _law_with_knee(a: float, b: float, gain: float, v_ref: float, knee: float) -> HLaw:
+    """The power-cubic law closest to ``a x^b (1 + g u²)`` above the knee (u as in
+    :func:`effects.knee_factor`), continuous at the knee, fitted on ``x`` up to 1.15."""
+    x = np.linspace(knee, 1.15, 60)
+    u_k = (x - knee) / (1.0 - knee)
+    target = a * x**b * (1.0 + gain * u_k**2)
+    u = x - knee
+    c0 = a * knee**b
+    c, *_ = np.linalg.lstsq(np.column_stack([u, u**2, u**3]), target - c0, rcond=None)
+    return HLaw(v_ref=v_ref, a=a, b=b, c=(float(c[0]), float(c[1]), float(c[2])), knee=knee)
+
+
+def fit_with_effects(
+    session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec, law0: HLaw,
+    est: EstimateTuning, effects: tuple[str, ...], max_nfev: int = 30,
+) -> tuple[HLaw, StructureFit]:
+    """The structure fit of :func:`fit_structure` with registered effects fitted jointly.
+
+    One parameter vector of :class:`~brakethermo.models.disc_effects.ExtendedDisc` on
+    the estimation model (its through-thickness factor is the k_z ratio): h(V) with the
+    knee gain when the session runs long enough above the knee, the mean crown weights,
+    the power scale, the k_z ratio and the named effects, by output error over all four
+    spots — so that an unmodelled μ(T), lag or slipstream is not folded into h(V).
+    """
+    from brakethermo.models.disc_effects import ExtendedDisc
+    from brakethermo.pipelines.diagnose import _fit, build_segments, lap_distance
+    from brakethermo.report.braking_zones import detect_zones
+
+    spot_radii = np.asarray(disc.spot_radii)
+    model = disc_model(disc, est)
+    T0 = np.repeat(_initial_profile(model.radii, spot_radii, y, float(inputs.t_amb[0])),
+                   est.layers)
+    pressure = np.nan_to_num(session.values("brake_pressure_front"), nan=0.0)
+    segments = build_segments(inputs, detect_zones(inputs.time, pressure),
+                              lap_distance(inputs, session))
+    v = inputs.speed[:-1]
+    upper = np.count_nonzero(v >= law0.knee * law0.v_ref) * GRID_DT >= MIN_ABOVE_KNEE_S
+    names = tuple(dict.fromkeys(("thickness_gradient", *(("h_speed_knee",) if upper else ()),
+                                 *effects)))
+    ext = ExtendedDisc(model, inputs.speed, inputs.q_brk, inputs.t_amb, T0, spot_radii,
+                       disc.v_ref, names, segments)
+    p0 = ext.neutral()
+    p0[0], p0[1] = np.log(max(law0.a, 1.0)), law0.b
+    p = _fit(ext, p0, y, np.isfinite(y), np.ones(ext.size, bool), max_nfev)
+    gain = ext.values(p, "h_speed_knee").get("gain", 0.0) if upper else 0.0
+    assert isinstance(gain, float)
+    law = _law_with_knee(float(np.exp(p[0])), float(p[1]), gain, disc.v_ref, law0.knee)
+    kz = ext.values(p, "thickness_gradient")["kz_factor"]
+    assert isinstance(kz, float)
+    fitted = {name: ext.values(p, name) for name in effects}
+    return law, StructureFit(
+        weights=ext.weights(p),
+        kz_ratio=kz,
+        power_scale=float(np.exp(p[2])),
+        nodes=est.nodes,
+        layers=est.layers,
+        rmse_c=_spot_rmse(ext.predict(p)[0], y),
+        rmse_uniform_c=_spot_rmse(ext.predict(p0)[0], y),
+        effects=fitted,
+    )
+
+
+def auto_effects(session: Session, options: IdentifyOptions) -> tuple[str, ...]:
+    """The effects the diagnosis's forward selection keeps on this session."""
+    from brakethermo.pipelines.diagnose import DiagnoseOptions, diagnose_session
+
+    result = diagnose_session(session, DiagnoseOptions(
+        disc=options.disc, tuning=options.tuning, aliases=options.aliases,
+        ambient_c=options.ambient_c))
+    return tuple(result.summary["combined"]["effects"])
+
+
 SIGMA_CROWN_GRID = (0.05, 0.1, 0.2, 0.4)  # relative crown-share noise tried by validation
 
 
@@ -364,12 +439,22 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
                        v_ref=disc.v_ref, knee=tuning.knee)
     t_law = time.perf_counter()
     law, structure = law_ukf, None
-    if options.fit_structure:
-        law, structure = fit_structure(inputs, y, disc, law_ukf, est_tuning)
+    effects: tuple[str, ...] = ()
+    if options.with_effects:
+        effects = (auto_effects(session, options) if options.with_effects.strip() == "auto"
+                   else parse_effects(options.with_effects))
+
+    def structure_fit(start: HLaw, tuning_: EstimateTuning) -> tuple[HLaw, StructureFit]:
+        if effects:
+            return fit_with_effects(session, inputs, y, disc, start, tuning_, effects)
+        return fit_structure(inputs, y, disc, start, tuning_)
+
+    if options.fit_structure or effects:
+        law, structure = structure_fit(law_ukf, est_tuning)
         if structure.kz_ratio < est_tuning.thin_skin_kz_ratio:
             est_tuning = replace(est_tuning, layers=est_tuning.thin_skin_layers,
                                  layer_growth=est_tuning.thin_skin_layer_growth)
-            law, structure = fit_structure(inputs, y, disc, law, est_tuning)
+            law, structure = structure_fit(law, est_tuning)
     t_struct = time.perf_counter()
     calibration = DiscCalibration(
         law=law,
@@ -378,6 +463,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         power_scale=structure.power_scale if structure else 1.0,
         layers=est_tuning.layers,
         layer_growth=est_tuning.layer_growth,
+        effects=structure.effects if structure else {},
         source=str(session.path),
     )
     sigma_crown, adapt_power, band_scale, validation = validate_filter(
@@ -417,7 +503,9 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             "layers": structure.layers,
             "open_loop_rmse_c": structure.rmse_c,
             "open_loop_rmse_uniform_c": structure.rmse_uniform_c,
+            "effects": structure.effects,
         },
+        "with_effects": list(effects),
         "band_scale": band_scale,
         "sigma_crown": sigma_crown,
         "adapt_power": adapt_power,
@@ -481,7 +569,8 @@ def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
     }
     if result.structure is not None:
         extra.update(nodes=result.structure.nodes)
-    result.law.to_toml(folder / "h_law.toml", weights=cal.weights, extra=extra)
+    result.law.to_toml(folder / "h_law.toml", weights=cal.weights, extra=extra,
+                       effects=cal.effects)
     write_parquet(
         folder / "h_samples.parquet", result.samples,
         {"time": {"unit": "s"}, "speed": {"unit": "m/s"}, "h": {"unit": "W/(m2 K)"},

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from brakethermo.config import config_dir
 from brakethermo.errors import ConfigError
 from brakethermo.io.session import Session
+from brakethermo.models.effects import EFFECTS
 from brakethermo.thermal.disc import DiscSpec, load_disc
 from brakethermo.thermal.hlaw import HLaw, read_h_law
 
@@ -51,6 +52,9 @@ class DiscCalibration:
     layers, layer_growth : int or None, float or None
         The through-thickness layering the calibration was fitted with (``kz_ratio``
         belongs to it); ``None`` leaves the tuning's.
+    effects : dict of str to dict
+        Fitted effect parameters by effect name (``[effects.<name>]`` of the file),
+        validated against :data:`brakethermo.models.effects.EFFECTS`.
     source : str
         Where it came from (file path).
     """
@@ -64,6 +68,7 @@ class DiscCalibration:
     adapt_power: bool | None = None
     layers: int | None = None
     layer_growth: float | None = None
+    effects: dict[str, dict[str, Any]] = field(default_factory=dict)
     source: str = ""
 
 
@@ -100,7 +105,38 @@ def read_calibration(path: str | Path) -> DiscCalibration:
     if adapt is not None and not isinstance(adapt, bool):
         raise ConfigError(f"[extra] adapt_power = {adapt!r} must be true or false", path=path)
     return DiscCalibration(law=record.law, weights=record.weights, adapt_power=adapt,
-                           source=str(path), **values)
+                           effects=_checked_effects(record.effects, path), source=str(path),
+                           **values)
+
+
+def _checked_effects(tables: dict[str, dict[str, Any]], path: str | Path
+                     ) -> dict[str, dict[str, Any]]:
+    """``[effects.<name>]`` tables checked against the registry: names, keys, bounds."""
+    out: dict[str, dict[str, Any]] = {}
+    for name, table in tables.items():
+        effect = EFFECTS.get(name)
+        if effect is None:
+            raise ConfigError(f"[effects.{name}]: unknown effect; valid effects are "
+                              f"{', '.join(EFFECTS)}", path=path)
+        known = {p.name: p for p in effect.params}
+        if effect.latent_param is not None:
+            known[effect.latent_param.name] = effect.latent_param
+        checked: dict[str, Any] = {}
+        for key, raw in table.items():
+            param = known.get(key)
+            if param is None:
+                raise ConfigError(f"[effects.{name}] {key}: not a parameter of {name} (it has:"
+                                  f" {', '.join(known) or 'none'})", path=path)
+            values = raw if isinstance(raw, list) else [raw]
+            for v in values:
+                if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
+                        or not param.lower <= v <= param.upper:
+                    raise ConfigError(
+                        f"[effects.{name}] {key} = {raw!r} must be a number between"
+                        f" {param.lower:g} and {param.upper:g} {param.unit}", path=path)
+            checked[key] = [float(v) for v in values] if isinstance(raw, list) else float(raw)
+        out[name] = checked
+    return out
 
 
 def calibration_for(disc: DiscSpec, h_law: str | Path | None) -> DiscCalibration:

@@ -186,6 +186,7 @@ class HLaw:
         path: str | Path,
         weights: Sequence[float] = (1.0, 1.0, 1.0),
         extra: Mapping[str, Any] | None = None,
+        effects: Mapping[str, Mapping[str, Any]] | None = None,
     ) -> None:
         """Write ``h_law.toml`` (OUTPUTS.md layout) atomically.
 
@@ -197,6 +198,9 @@ class HLaw:
         extra : mapping, optional
             Further identified values (str, bool, int, float, lists of them, or one level
             of nested mappings), stored under ``[extra]``.
+        effects : mapping of str to mapping, optional
+            Fitted effect parameters, one table ``[effects.<name>]`` per effect
+            (OUTPUTS.md); ``estimate --h-law`` uses them.
         """
         w = [float(v) for v in weights]
         if len(w) != 3 or not all(math.isfinite(v) and v >= 0 for v in w):
@@ -232,6 +236,8 @@ class HLaw:
             lines += [f"{k} = {_fmt(v)}" for k, v in extra.items() if k not in tables]
             for name, table in tables.items():
                 lines += ["", f"[extra.{name}]"] + [f"{k} = {_fmt(v)}" for k, v in table.items()]
+        for name, table in (effects or {}).items():
+            lines += ["", f"[effects.{name}]"] + [f"{k} = {_fmt(v)}" for k, v in table.items()]
         write_text_atomic(path, "\n".join(lines) + "\n")
 
     @classmethod
@@ -247,6 +253,7 @@ class HLawRecord:
     law: HLaw
     weights: tuple[float, float, float]
     extra: dict[str, Any] = field(default_factory=dict)
+    effects: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
 def read_h_law(path: str | Path) -> HLawRecord:
@@ -285,7 +292,11 @@ def read_h_law(path: str | Path) -> HLawRecord:
     extra = raw.get("extra", {})
     if not isinstance(extra, dict):
         raise ConfigError("[extra] must be a table", path=path)
-    return HLawRecord(law=law, weights=(w[0], w[1], w[2]), extra=extra)
+    effects = raw.get("effects", {})
+    if not isinstance(effects, dict) or not all(isinstance(v, dict) for v in effects.values()):
+        raise ConfigError("[effects] must hold one table per effect, [effects.<name>]",
+                          path=path)
+    return HLawRecord(law=law, weights=(w[0], w[1], w[2]), extra=extra, effects=effects)
 
 
 def _fmt(value: Any) -> str:
