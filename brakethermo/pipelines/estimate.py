@@ -28,7 +28,7 @@ from brakethermo.models.disc import (
     DiscStateSpace,
     RandomWalkParam,
 )
-from brakethermo.models.effects import EFFECTS, true_from_reading
+from brakethermo.models.effects import true_from_reading
 from brakethermo.pipelines import scoring
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
@@ -206,13 +206,23 @@ class EffectPlan:
     facts: dict[str, dict[str, Any]]
 
 
-def effect_plan(effects: dict[str, dict[str, Any]]) -> EffectPlan:
-    """Turn ``[effects.<name>]`` tables into the filter's fixed and online effects."""
+def effect_plan(effects: dict[str, dict[str, Any]], tuning: EstimateTuning) -> EffectPlan:
+    """Turn ``[effects.<name>]`` tables and the tuning into fixed and online effects.
+
+    The k_z factor and the slipstream h factor are online whenever the tuning says so
+    (the default): they are what one spot can follow on a disc the test session never
+    saw; an h law that carries the effect switches them on regardless.
+    """
     facts: dict[str, dict[str, Any]] = {}
     fixed = DiscEffects()
     online: list[RandomWalkParam] = []
     ratio = None
-    for name, values in effects.items():
+    tables = dict(effects)
+    if tuning.adapt_kz:
+        tables.setdefault("thickness_gradient", {})
+    if tuning.adapt_slipstream:
+        tables.setdefault("slipstream", {})
+    for name, values in tables.items():
         use = "fixed at the test-session value"
         if name == "friction_temperature":
             fixed = replace(fixed, mu_beta=values.get("beta", 0.0),
@@ -224,12 +234,13 @@ def effect_plan(effects: dict[str, dict[str, Any]]) -> EffectPlan:
             use = ("readings corrected with the test-session value; a single pyrometer cannot"
                    " tell its own bias from the disc, so this correction is all there is")
         elif name == "slipstream":
-            step = EFFECTS[name].latent_param.online_step  # type: ignore[union-attr]
-            online.append(RandomWalkParam(H_FACTOR_PARAM, 1.0, 0.05, step or 0.01, lower=0.3,
+            online.append(RandomWalkParam(H_FACTOR_PARAM, 1.0, tuning.init_sigma_h_factor,
+                                          tuning.sigma_h_factor_step, lower=0.3,
                                           off_brake_only=True))
             use = "adapted online: an h factor that moves off the brakes"
         elif name == "thickness_gradient":
-            online.append(RandomWalkParam(KZ_PARAM, 1.0, 0.3, 0.002, lower=0.05))
+            online.append(RandomWalkParam(KZ_PARAM, 1.0, tuning.init_sigma_kz,
+                                          tuning.sigma_kz_step, lower=0.05))
             use = ("test-session value, adapted online (a race disc's k_z differs from batch"
                    " to batch)")
         elif name in ("h_speed_knee", "power_distribution"):
@@ -250,7 +261,7 @@ def build_state_space(
             lower=0.05,
         )
         params.append(scale)
-    plan = plan or effect_plan({})
+    plan = plan or effect_plan({}, tuning)
     params.extend(plan.online)
     return DiscStateSpace(
         model, inputs.q_brk, inputs.t_amb, h, params,
@@ -282,7 +293,7 @@ def estimate_from_session(
     h = cal.law(inputs.speed)
     model = disc_model(disc, tuning, cal.weights, cal.kz_ratio)
     spot_radii = np.asarray(disc.spot_radii)
-    plan = effect_plan(cal.effects)
+    plan = effect_plan(cal.effects, tuning)
     if plan.emissivity_ratio is not None:
         y = true_from_reading(y, plan.emissivity_ratio)
     ssm = build_state_space(model, inputs, h, tuning, cal.power_scale, plan,

@@ -41,6 +41,14 @@ class EstimateTuning(SigmaPointTuning):
     sigma_scale_step : float — per step
     init_sigma_temp : float — degC
     init_sigma_scale : float — dimensionless
+    adapt_kz : bool
+        Through-thickness conductivity factor as a random-walk state (race discs differ
+        from the test session's disc batch to batch).
+    adapt_slipstream : bool
+        An h factor as a random-walk state that moves off the brakes only (following
+        another bike changes the cooling air straight by straight).
+    sigma_kz_step, init_sigma_kz : float — per step, dimensionless
+    sigma_h_factor_step, init_sigma_h_factor : float — per step, dimensionless
     """
 
     nodes: int = 10
@@ -57,6 +65,12 @@ class EstimateTuning(SigmaPointTuning):
     sigma_scale_step: float = 0.003
     init_sigma_temp: float = 40.0
     init_sigma_scale: float = 0.15
+    adapt_kz: bool = True
+    adapt_slipstream: bool = True
+    sigma_kz_step: float = 0.002
+    init_sigma_kz: float = 0.3
+    sigma_h_factor_step: float = 0.01
+    init_sigma_h_factor: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -102,6 +116,10 @@ BOUNDS: dict[str, tuple[float, float]] = {
     "sigma_scale_step": (0.0, 1.0),
     "init_sigma_temp": (1e-3, 1000.0),
     "init_sigma_scale": (0.0, 5.0),
+    "sigma_kz_step": (0.0, 1.0),
+    "init_sigma_kz": (0.0, 5.0),
+    "sigma_h_factor_step": (0.0, 1.0),
+    "init_sigma_h_factor": (0.0, 5.0),
     "h_init": (0.0, 5000.0),
     "h_init_sigma": (1e-3, 5000.0),
     "h_step": (0.0, 1000.0),
