@@ -39,6 +39,7 @@ from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
 
 SENSOR_FLOOR_C = 100.0  # IR pyrometers read nothing useful below this (datasheet floor)
+SIGMA_MEAS_FLOOR_C = 0.5  # degC: never trust a reading beyond its quantisation
 
 
 @dataclass(frozen=True)
@@ -296,6 +297,12 @@ def estimate_from_session(
     plan = effect_plan(cal.effects, tuning)
     if plan.emissivity_ratio is not None:
         y = true_from_reading(y, plan.emissivity_ratio)
+    sigma_meas_source = "tuning file"
+    if "sigma_meas" not in user_tuning_keys(options.tuning, "estimate"):
+        # The reading noise of this very sensor, from the signal itself: a fixed guess
+        # either starves the filter of the measurement or trusts it too much.
+        tuning = replace(tuning, sigma_meas=max(scoring.reading_noise(y), SIGMA_MEAS_FLOOR_C))
+        sigma_meas_source = "measured from the signal (second differences)"
     ssm = build_state_space(model, inputs, h, tuning, cal.power_scale, plan,
                             float(spot_radii[options.spot - 1]))
 
@@ -323,7 +330,6 @@ def estimate_from_session(
     t_done = time.perf_counter()
 
     std = np.sqrt(np.maximum(out_var, 0.0))
-    std[:, :5] *= cal.band_scale  # temperatures only, not the power scale
     frame = _estimate_frame(inputs, model, states, out, std, tuning, h)
     open_loop = None
     scores = None
@@ -356,7 +362,9 @@ def estimate_from_session(
             "sigma_crown": tuning.sigma_crown,
             "kz_ratio": cal.kz_ratio,
             "power_scale_prior": cal.power_scale,
-            "band_scale": cal.band_scale,
+            "band_scale_check": cal.band_scale,
+            "sigma_meas_c": tuning.sigma_meas,
+            "sigma_meas_source": sigma_meas_source,
             "crown_weights": [float(w) for w in model.weights],
             "filter": "UKF (Merwe scaled sigma points)",
             "smoother": tuning.smoother,
