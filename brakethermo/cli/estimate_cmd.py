@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
@@ -33,7 +34,7 @@ def render_laps(result: EstimateResult) -> None:
     run = result.summary["run"]
     lo, hi = result.summary["run"]["window_c"]
     table = Table(
-        title=f"{result.stem}: disc temperature per lap, °C ({run['nodes']} nodes x "
+        title=f"{escape(result.stem)}: disc temperature per lap, °C ({run['nodes']} nodes x "
         f"{run['layers']} layers, spot {run['measured_spot']} measured, "
         f"{'smoother' if run['smoother'] else 'filter only'})",
         title_justify="left",
@@ -133,9 +134,9 @@ def estimate_command(
     if result.scores:
         render_scores(result.scores)
     for warning in result.summary["run"]["warnings"]:
-        console.print(f"[yellow]warning:[/] {warning}")
-    console.print(
+        console.print(f"[yellow]warning:[/] {escape(warning)}")
+    console.print(escape(
         f"wrote {folder / 'estimate.parquet'} and summary.json "
         f"({result.timings['total_s']:.2f} s)"
         + (f"; open {folder / 'index.html'} for the per-lap reports" if report else "")
-    )
+    ))

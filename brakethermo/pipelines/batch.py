@@ -34,10 +34,11 @@ from brakethermo import __version__
 from brakethermo.config import config_dir
 from brakethermo.errors import EXIT_BATCH_PARTIAL, EXIT_OK, BrakethermoError, ConfigError
 from brakethermo.io.atomic import atomic_dir, write_text_atomic
+from brakethermo.io.formats import SUFFIXES as FORMAT_SUFFIXES
 from brakethermo.io.session import Session
 from brakethermo.thermal.disc import DiscSpec
 
-SESSION_SUFFIXES = (".mcap", ".parquet", ".csv")
+SESSION_SUFFIXES = FORMAT_SUFFIXES  # every registered reader (brakethermo.io.formats)
 TRUTH_SUFFIX = ".truth.parquet"  # simulator truth: for scoring only, never an input
 MANIFEST = "batch_manifest.json"
 MULTI_SPOT = tuple(f"disc_temp_spot{i}" for i in range(1, 5))
