@@ -99,6 +99,10 @@ def batch(
         bool,
         typer.Option("--mcap-out", help="Also write OUT/<session>/estimate.mcap for Foxglove."),
     ] = False,
+    mdf_out: Annotated[
+        bool,
+        typer.Option("--mdf-out", help="Also write OUT/<session>/estimate.mf4 (ASAM MDF4)."),
+    ] = False,
     no_reports: Annotated[
         bool, typer.Option("--no-reports", help="Skip the per-lap HTML reports.")
     ] = False,
@@ -112,6 +116,7 @@ def batch(
         aliases=aliases,
         reports=not no_reports,
         mcap_out=mcap_out,
+        mdf_out=mdf_out,
         workers=workers,
         scheduler=scheduler,
         force=force,

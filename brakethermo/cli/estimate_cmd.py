@@ -112,6 +112,11 @@ def estimate_command(
     report: Annotated[
         bool, typer.Option("--report/--no-report", help="Write the per-lap HTML/PNG reports.")
     ] = True,
+    mdf_out: Annotated[
+        bool,
+        typer.Option("--mdf-out", help="Also write OUT/<session>/estimate.mf4 (ASAM MDF4, "
+                     "for WinTAX / ATLAS / asammdf beside the source log)."),
+    ] = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
@@ -122,6 +127,13 @@ def estimate_command(
     result = run_with_status(as_json, f"estimating {session.name} ...",
                              lambda: estimate_session(session, options))
     folder = write_estimate(result, out)
+    if mdf_out:
+        from brakethermo.report.mdf_export import write_estimate_mdf
+
+        write_estimate_mdf(result.frame, folder / "estimate.mf4", node_radii=result.node_radii,
+                           spot_radii=result.disc.spot_radii,
+                           start_epoch_s=result.session.start_epoch_s,
+                           source=result.session.path.name)
     if report:
         from brakethermo.report.lap_report import write_session_report
 
