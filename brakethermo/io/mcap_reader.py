@@ -110,6 +110,15 @@ class _Collector:
         self.order: list[str] = []
         # (byte offset, first and last log_time in ns or None, reason) per skipped chunk
         self.lost: list[tuple[int, int | None, int | None, str]] = []
+        self.known: dict[int, Channel] = {}  # every Channel record seen
+
+    def add_silent(self) -> None:
+        """Channels registered in the file but without a single message, as empty channels
+        (so that a required one is reported as empty, not as absent)."""
+        for channel in self.known.values():
+            topic = _topic(channel)
+            if topic not in self.units and not any(n.startswith(topic + ".") for n in self.order):
+                self.add(topic, _unit(channel, "value"), np.empty(0, np.int64), np.empty(0))
 
     def add(self, name: str, unit: str | None, t_ns: np.ndarray, v: np.ndarray) -> None:
         if name not in self.units:
@@ -388,7 +397,7 @@ def _read_sequential(path: Path, out: _Collector) -> tuple[dict[str, str], list[
     """Record-by-record path; recovers the intact part of a truncated file."""
     data = path.read_bytes()
     size = len(data)
-    channels: dict[int, Channel] = {}
+    channels = out.known
     metadata: dict[str, str] = {}
     messages, chunks, last_good, complete = _walk(data, _MAGIC_SIZE, size, channels, metadata)
     _check_encodings(path, list(channels.values()))
@@ -468,6 +477,7 @@ def read_mcap(path: Path) -> RawSession:
         if _indexed_usable(summary):
             assert summary is not None
             _check_encodings(path, list(summary.channels.values()))
+            out.known.update(summary.channels)
             try:
                 _read_indexed(f, summary, out)
                 for record in reader.iter_metadata():
@@ -491,6 +501,7 @@ def read_mcap(path: Path) -> RawSession:
         raise DataError(
             "the MCAP file holds no channels with messages; nothing to read", path=path
         )
+    out.add_silent()
     return out.build(metadata, warnings)
 
 

@@ -14,6 +14,8 @@ CAN/LIN/FlexRay frames and their components), which need a DBC to decode first.
 from __future__ import annotations
 
 import datetime as dt
+import gc
+import sys
 import warnings as py_warnings
 from pathlib import Path
 from typing import Any
@@ -36,16 +38,25 @@ def _open(path: Path) -> Any:
         raise DataError(
             "reading MDF files needs the package asammdf; pip install asammdf", path=path
         ) from None
+    # asammdf's destructor fails on the half-built object of a file it rejected and
+    # Python would print that on stderr: silence it while the object is collected.
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda _info: None
     try:
-        with py_warnings.catch_warnings():
-            py_warnings.simplefilter("ignore")
-            return MDF(path)
-    except Exception as exc:  # asammdf raises bare Exception/struct/Value errors on junk
-        raise DataError(
-            f"not a readable MDF file ({type(exc).__name__}: {str(exc)[:160]}); check that it"
-            " is an ASAM MDF 3/4 log and not truncated or damaged",
-            path=path,
-        ) from None
+        try:
+            with py_warnings.catch_warnings():
+                py_warnings.simplefilter("ignore")
+                return MDF(path)
+        except Exception as exc:  # asammdf raises bare Exception/struct/Value errors on junk
+            problem = f"{type(exc).__name__}: {str(exc)[:160]}"
+        gc.collect()
+    finally:
+        sys.unraisablehook = hook
+    raise DataError(
+        f"not a readable MDF file ({problem}); check that it is an ASAM MDF 3/4 log and not"
+        " truncated or damaged",
+        path=path,
+    )
 
 
 def _facts(mdf: Any) -> tuple[dict[str, str], float | None]:

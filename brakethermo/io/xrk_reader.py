@@ -94,7 +94,11 @@ def read_xrk(path: Path) -> RawSession:
         values.append(np.asarray(laps["num"], dtype=np.float64))
         units.append(None)
     if not names:
-        raise DataError("the XRK file holds no numeric channel to read", path=path)
+        raise DataError(
+            "libxrk found no channel in the file: it is empty, damaged or not an AiM"
+            " XRK/XRZ log",
+            path=path,
+        )
     times_s, origin_ns_s = rebase_ns(ticks)
     epoch = _epoch(log.metadata or {})
     origin = None if epoch is None else epoch + (origin_ns_s or 0.0)
