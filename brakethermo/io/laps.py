@@ -40,7 +40,8 @@ def laps_from_beacons(
     -------
     laps : tuple of Lap
         Lap 0 (out-lap) from 0 s to the first beacon if that is later than 0, then one lap
-        per beacon; with no beacon, the whole session as lap 0.
+        per beacon; with no beacon, the whole session as lap 0. A first beacon numbered 0
+        starts lap 0 at 0 s (no lap is listed twice).
     lap : ndarray of int64
         Lap number of every grid point.
 
@@ -59,7 +60,10 @@ def laps_from_beacons(
         )
     numbers = lap_number.astype(np.int64)
     starts = t_beacon.astype(np.float64)
-    if starts.size == 0 or starts[0] > _ON_GRID:
+    if starts.size and numbers[0] == 0:
+        starts = starts.copy()
+        starts[0] = 0.0  # a beacon "lap 0" marks the out-lap, which began with the session
+    elif starts.size == 0 or starts[0] > _ON_GRID:
         starts = np.concatenate(([0.0], starts))
         numbers = np.concatenate(([0], numbers))
     ends = np.append(starts[1:], max(end_s, starts[-1]))
