@@ -31,12 +31,11 @@ import pandas as pd
 
 from brakethermo import __version__
 from brakethermo.io.atomic import atomic_path
-from brakethermo.report.mcap_export import SCALAR_UNITS, SPOT_RADII_DEFAULT
+from brakethermo.report.mcap_export import ARRAY_UNITS, SCALAR_UNITS, SPOT_RADII_DEFAULT
 
 PREFIX = "BT_"
 BANDED = ("spot1", "spot2", "spot3", "spot4", "contact_avg")
 _ARRAY_COLUMN = re.compile(r"^([A-Za-z]+)_(\d+)$")
-ARRAY_UNITS = {"node": "degC", "mid": "degC"}
 
 
 def _header_comment(source: str, start_epoch_s: float | None) -> str:
