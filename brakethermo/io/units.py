@@ -160,12 +160,12 @@ def _angular(units: Any) -> bool:
 
 
 @cache
-def _dimension_keys() -> dict[tuple[str, bool], str]:
+def _dimension_keys() -> dict[tuple[Any, bool], str]:
     ureg = registry()
     keys = {}
     for dim, (_, spelling, _) in _DIMENSIONS.items():
         units = ureg.parse_units(spelling)
-        keys[(str(units.dimensionality), _angular(units))] = dim
+        keys[(units.dimensionality, _angular(units))] = dim
     return keys
 
 
@@ -183,7 +183,7 @@ def _lookup(key: str) -> Unit | None:
     if not isinstance(quantity, ureg.Quantity) or quantity.magnitude != 1:
         return None  # "10 m", "2": a number is not a unit
     units = quantity.units
-    dim = _dimension_keys().get((str(units.dimensionality), _angular(units)))
+    dim = _dimension_keys().get((units.dimensionality, _angular(units)))
     if dim is None:
         return None
     target = _DIMENSIONS[dim][1]
