@@ -148,7 +148,8 @@ def estimate_command(
     for warning in result.summary["run"]["warnings"]:
         console.print(f"[yellow]warning:[/] {escape(warning)}")
     console.print(escape(
-        f"wrote {folder / 'estimate.parquet'} and summary.json "
+        f"wrote {folder / 'estimate.parquet'}{', estimate.mf4' if mdf_out else ''} and"
+        " summary.json "
         f"({result.timings['total_s']:.2f} s)"
         + (f"; open {folder / 'index.html'} for the per-lap reports" if report else "")
     ))
