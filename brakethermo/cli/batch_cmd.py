@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 from rich import box
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
@@ -15,6 +16,7 @@ from brakethermo.cli._app import app, console
 from brakethermo.cli._options import AliasesOpt, JsonOpt
 from brakethermo.pipelines.batch import (
     DEFAULT_LAW,
+    SESSION_SUFFIXES,
     BatchOptions,
     BatchResult,
     SessionOutcome,
@@ -34,7 +36,7 @@ def _law_tag(source: str) -> str:
 
 def _table(result: BatchResult, out: Path) -> Table:
     table = Table(
-        title=f"batch: {len(result.outcomes)} sessions -> {out}",
+        title=escape(f"batch: {len(result.outcomes)} sessions -> {out}"),
         title_justify="left",
         box=box.SIMPLE_HEAD,
         show_edge=False,
@@ -51,13 +53,13 @@ def _table(result: BatchResult, out: Path) -> Table:
     for o in result.outcomes:
         peaks = [f"{o.peaks[s]:.0f}" if s in o.peaks else "-" for s in SPOTS]
         table.add_row(
-            o.name,
+            escape(o.name),
             o.kind or "-",
             str(o.laps) if o.laps else "-",
             f"[{STATUS_STYLE.get(o.status, 'white')}]{o.status}[/]",
             f"{o.wall_s:.1f}" if o.status != "skipped" else "-",
             *peaks,
-            _law_tag(o.h_law_source),
+            escape(_law_tag(o.h_law_source)),
         )
     table.caption = (
         "S1..S4: peak estimated spot temperature, °C. h law: own = identified from the "
@@ -97,6 +99,10 @@ def batch(
         bool,
         typer.Option("--mcap-out", help="Also write OUT/<session>/estimate.mcap for Foxglove."),
     ] = False,
+    mdf_out: Annotated[
+        bool,
+        typer.Option("--mdf-out", help="Also write OUT/<session>/estimate.mf4 (ASAM MDF4)."),
+    ] = False,
     no_reports: Annotated[
         bool, typer.Option("--no-reports", help="Skip the per-lap HTML reports.")
     ] = False,
@@ -110,6 +116,7 @@ def batch(
         aliases=aliases,
         reports=not no_reports,
         mcap_out=mcap_out,
+        mdf_out=mdf_out,
         workers=workers,
         scheduler=scheduler,
         force=force,
@@ -135,27 +142,28 @@ def batch(
                     progress.update(files, total=int(payload))  # type: ignore[arg-type]
                     return
                 assert isinstance(payload, SessionOutcome)
-                progress.update(files, advance=1, last=f"{payload.name}: {payload.status}")
+                progress.update(files, advance=1, last=escape(f"{payload.name}: {payload.status}"))
                 task = progress.tasks[laps]
                 progress.update(laps, total=(task.total or 0) + payload.laps, advance=payload.laps)
 
             result = run_batch(folder, options, on_event=on_event)
         if not result.outcomes:
-            console.print(f"[yellow]no session files (.mcap, .parquet, .csv) under {folder}[/]")
+            console.print(f"[yellow]no session files ({', '.join(SESSION_SUFFIXES)}) under"
+                          f" {escape(str(folder))}[/]")
             return
         console.print(_table(result, out))
         sources = {o.h_law_source for o in result.outcomes if o.kind == "single"}
         for source in sorted(sources - {""}):
-            console.print(f"race sessions estimated with h law: {source}")
+            console.print(f"race sessions estimated with h law: {escape(str(source))}")
         share = ", ".join(
             f"{k.removesuffix('_s')} {v:.1f} s ({f:.0%})"
             for k, (v, f) in result.step_shares().items()
         )
         console.print(f"wall time {result.wall_s:.1f} s" + (f"  ({share})" if share else ""))
         if options.reports:
-            console.print(f"open [bold]{out / 'index.html'}[/] for the reports")
+            console.print(f"open [bold]{escape(str(out / 'index.html'))}[/] for the reports")
         for o in result.failed:
             where = "" if str(o.path) in o.reason else f"{o.path}: "
-            console.print(f"[bold red]failed:[/] {where}{o.reason}", soft_wrap=True)
+            console.print(f"[bold red]failed:[/] {escape(f'{where}{o.reason}')}", soft_wrap=True)
     if result.exit_code:
         raise typer.Exit(result.exit_code)

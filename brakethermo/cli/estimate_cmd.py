@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
@@ -33,7 +34,7 @@ def render_laps(result: EstimateResult) -> None:
     run = result.summary["run"]
     lo, hi = result.summary["run"]["window_c"]
     table = Table(
-        title=f"{result.stem}: disc temperature per lap, °C ({run['nodes']} nodes x "
+        title=f"{escape(result.stem)}: disc temperature per lap, °C ({run['nodes']} nodes x "
         f"{run['layers']} layers, spot {run['measured_spot']} measured, "
         f"{'smoother' if run['smoother'] else 'filter only'})",
         title_justify="left",
@@ -111,6 +112,11 @@ def estimate_command(
     report: Annotated[
         bool, typer.Option("--report/--no-report", help="Write the per-lap HTML/PNG reports.")
     ] = True,
+    mdf_out: Annotated[
+        bool,
+        typer.Option("--mdf-out", help="Also write OUT/<session>/estimate.mf4 (ASAM MDF4, "
+                     "for WinTAX / ATLAS / asammdf beside the source log)."),
+    ] = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
@@ -121,6 +127,13 @@ def estimate_command(
     result = run_with_status(as_json, f"estimating {session.name} ...",
                              lambda: estimate_session(session, options))
     folder = write_estimate(result, out)
+    if mdf_out:
+        from brakethermo.report.mdf_export import write_estimate_mdf
+
+        write_estimate_mdf(result.frame, folder / "estimate.mf4", node_radii=result.node_radii,
+                           spot_radii=result.disc.spot_radii,
+                           start_epoch_s=result.session.start_epoch_s,
+                           source=result.session.path.name)
     if report:
         from brakethermo.report.lap_report import write_session_report
 
@@ -133,9 +146,10 @@ def estimate_command(
     if result.scores:
         render_scores(result.scores)
     for warning in result.summary["run"]["warnings"]:
-        console.print(f"[yellow]warning:[/] {warning}")
-    console.print(
-        f"wrote {folder / 'estimate.parquet'} and summary.json "
+        console.print(f"[yellow]warning:[/] {escape(warning)}")
+    console.print(escape(
+        f"wrote {folder / 'estimate.parquet'}{', estimate.mf4' if mdf_out else ''} and"
+        " summary.json "
         f"({result.timings['total_s']:.2f} s)"
         + (f"; open {folder / 'index.html'} for the per-lap reports" if report else "")
-    )
+    ))

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
@@ -17,7 +18,8 @@ from brakethermo.pipelines.timing import TimingReport, time_laps
 
 def _table(report: TimingReport, name: str) -> Table:
     table = Table(
-        title=f"{name}: estimate wall time per lap (budget {report.budget_per_lap_s:.1f} s/lap)",
+        title=escape(name)
+        + f": estimate wall time per lap (budget {report.budget_per_lap_s:.1f} s/lap)",
         title_justify="left",
     )
     for col in ("lap", "data s", "wall s", "share of budget"):

@@ -34,16 +34,17 @@ from brakethermo import __version__
 from brakethermo.config import config_dir
 from brakethermo.errors import EXIT_BATCH_PARTIAL, EXIT_OK, BrakethermoError, ConfigError
 from brakethermo.io.atomic import atomic_dir, write_text_atomic
+from brakethermo.io.formats import SUFFIXES as FORMAT_SUFFIXES
 from brakethermo.io.session import Session
 from brakethermo.thermal.disc import DiscSpec
 
-SESSION_SUFFIXES = (".mcap", ".parquet", ".csv")
+SESSION_SUFFIXES = FORMAT_SUFFIXES  # every registered reader (brakethermo.io.formats)
 TRUTH_SUFFIX = ".truth.parquet"  # simulator truth: for scoring only, never an input
 MANIFEST = "batch_manifest.json"
 MULTI_SPOT = tuple(f"disc_temp_spot{i}" for i in range(1, 5))
 DEFAULT_LAW = "default (shipped)"
 # Top-level steps of a session's wall time (sub-steps such as estimate_filter_s nest in them).
-STEPS = ("read_s", "identify_s", "estimate_s", "write_s", "report_s", "mcap_s")
+STEPS = ("read_s", "identify_s", "estimate_s", "write_s", "report_s", "mcap_s", "mdf_s")
 SCHEDULER_TIMEOUT_S = 30.0  # connecting to a Dask scheduler
 WORKER_PRELOAD = ("brakethermo.pipelines.batch", "brakethermo.report.lap_report")
 
@@ -70,6 +71,8 @@ class BatchOptions:
         Write the per-lap reports.
     mcap_out : bool
         Write ``estimate.mcap`` beside the estimate.
+    mdf_out : bool
+        Write ``estimate.mf4`` (ASAM MDF4) beside the estimate.
     workers : int
         Local worker processes (1 runs in this process).
     scheduler : str or None
@@ -84,6 +87,7 @@ class BatchOptions:
     aliases: Path | None = None
     reports: bool = True
     mcap_out: bool = False
+    mdf_out: bool = False
     workers: int = 1
     scheduler: str | None = None
     force: bool = False
@@ -100,6 +104,7 @@ class BatchOptions:
             "aliases": aliases,
             "reports": self.reports,
             "mcap_out": self.mcap_out,
+            **({"mdf_out": True} if self.mdf_out else {}),  # old keys unchanged without it
             "configs": _configs_digest(),
         }
         return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
@@ -444,6 +449,19 @@ def _write_outputs(
                 source=task.path.name,
             )
             outcome.timings["mcap_s"] = time.perf_counter() - t
+        if task.options.mdf_out:
+            from brakethermo.report.mdf_export import write_estimate_mdf
+
+            t = time.perf_counter()
+            write_estimate_mdf(
+                run.frame,
+                stage / "estimate.mf4",
+                node_radii=run.node_radii,
+                **({"spot_radii": run.disc.spot_radii} if run.disc is not None else {}),
+                start_epoch_s=session.start_epoch_s,
+                source=task.path.name,
+            )
+            outcome.timings["mdf_s"] = time.perf_counter() - t
         outcome.laps = int(pd.unique(run.frame["lap"]).size)
         outcome.peaks = _peaks(run.frame)
         if single:
