@@ -74,8 +74,7 @@ def test_outputs_contract(diagnosed: tuple[dict, Path]) -> None:
         "nis.png", "residual_map.png", "effects.png", "heldout_lap.png"}
 
 
-def test_bad_input_is_one_clear_message(lag_session: Path, tmp_path: Path,
-                                        sim_race_session: tuple[Path, Path]) -> None:
+def test_bad_input_is_one_clear_message(lag_session: Path, tmp_path: Path) -> None:
     runner = CliRunner()
     cases = [
         (["--effects", "warp_drive"], "unknown effect"),
@@ -87,9 +86,26 @@ def test_bad_input_is_one_clear_message(lag_session: Path, tmp_path: Path,
                                      *extra])
         assert result.exit_code == 1, result.output
         assert message in result.output and "Traceback" not in result.output
-    single = tmp_path / "single.csv"
-    single.write_text("time [s],speed [km/h],brake_pressure_front [bar],disc_temp [degC]\n"
-                      + "".join(f"{t / 10},100,0,300\n" for t in range(50)))
-    result = runner.invoke(app, ["diagnose", str(single), "--out", str(tmp_path),
+    spot1_only = tmp_path / "spot1.csv"
+    spot1_only.write_text("time [s],speed [km/h],brake_pressure_front [bar],"
+                          "disc_temp_spot1 [degC]\n"
+                          + "".join(f"{t / 10},100,0,300\n" for t in range(50)))
+    result = runner.invoke(app, ["diagnose", str(spot1_only), "--out", str(tmp_path),
                                  "--ambient", "20"])
-    assert result.exit_code == 1 and "four-spot" in result.output
+    assert result.exit_code == 1 and "race sensor" in result.output
+
+
+def test_single_spot_race_gives_what_one_spot_can(tmp_path: Path) -> None:
+    cfg = SimConfig(track="tight-like", laps=2, sensor="single", seed=DIAGNOSE_SEED + 1)
+    race = write_simulation(simulate(cfg), tmp_path / "race.parquet")[0]
+    result = CliRunner().invoke(app, ["diagnose", str(race), "--out", str(tmp_path / "o"),
+                                      "--json"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output)
+    assert summary["mode"].startswith("single-spot")
+    assert {e["name"] for e in summary["effects"]} == {"thickness_gradient", "slipstream"}
+    blind = {e["name"] for e in summary["not_identifiable_from_one_spot"]}
+    assert blind == set(EFFECT_NAMES) - {"thickness_gradient", "slipstream"}
+    assert list(summary["consistency"]["per_spot"]) == ["spot3"]
+    assert summary["verdict"] in ("none", "thickness_gradient", "slipstream")
+    assert (tmp_path / "o" / "race" / "diagnosis" / "index.html").is_file()

@@ -72,14 +72,18 @@ def diagnose_command(
                   f"{s['heldout_laps']})")
     console.print(escape(s["consistency"]["summary"]))
     table = Table(title="Effects ranked by held-out shrink", title_justify="left")
-    for col in ("effect", "before °C", "after °C", "shrink %", "95 % interval", "evidence"):
-        table.add_column(col, justify="left" if col in ("effect", "evidence") else "right",
-                         overflow="fold")
+    for col in ("effect", "before °C", "after °C", "shrink %", "95 % interval"):
+        table.add_column(col, justify="left" if col == "effect" else "right", no_wrap=True)
     for e in s["effects"]:
         lo, hi = e["shrink_ci95_pct"]
         table.add_row(e["name"], f"{e['rmse_before']:.1f}", f"{e['rmse_after']:.1f}",
-                      f"{e['shrink_pct']:+.1f}", f"{lo:+.0f} … {hi:+.0f}", escape(e["evidence"]))
+                      f"{e['shrink_pct']:+.1f}", f"{lo:+.0f} … {hi:+.0f}")
     console.print(table)
+    for e in s["effects"][:3]:
+        console.print(f"  {e['name']}: {escape(e['evidence'])}", highlight=False)
+    for e in s.get("not_identifiable_from_one_spot", []):
+        console.print(f"  {e['name']}: not diagnosed here — {escape(e['reason'])}",
+                      highlight=False)
     console.print(f"verdict: [bold]{s['verdict']}[/]; combined model: "
                   f"{' + '.join(s['combined']['effects']) or 'none'}")
     for w in s["warnings"]:

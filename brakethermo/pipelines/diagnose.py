@@ -32,7 +32,7 @@ import itertools
 import time
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +48,7 @@ from brakethermo.models.disc import DiscStateSpace
 from brakethermo.models.disc_effects import N_REFERENCE, ExtendedDisc, Segments
 from brakethermo.models.effects import EFFECTS, parse_effects
 from brakethermo.pipelines import scoring
-from brakethermo.pipelines.inputs import MULTI_SPOT, DiscInputs, disc_inputs, load_timed
+from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import disc_for, shipped_h_law
 from brakethermo.pipelines.tuning import load_tuning
 from brakethermo.report.braking_zones import detect_zones
@@ -569,10 +569,12 @@ def diagnose_session(
     disc = disc_for(session, options.disc)
     inputs = disc_inputs(session, disc, options.ambient_c)
     if not inputs.is_multi_spot:
-        raise DataError(
-            "diagnose needs a test session with the four-spot sensor"
-            f" ({', '.join(MULTI_SPOT)}) to tell the effects apart; this one logs spot(s)"
-            f" {', '.join(map(str, inputs.measured))} only", path=session.path)
+        if RACE_SPOT not in inputs.measured:
+            raise DataError(
+                "diagnose needs the four-spot sensor or the race sensor at the spot-3 radius;"
+                f" this session logs spot(s) {', '.join(map(str, inputs.measured))}",
+                path=session.path)
+        return diagnose_single_spot(session, options, inputs, disc, progress)
     y = inputs.spots.copy()
     y[y <= SENSOR_FLOOR_C] = np.nan
     spot_radii = np.asarray(disc.spot_radii)
@@ -795,6 +797,175 @@ def diagnose_session(
     }
     return DiagnoseResult(session, summary, inputs.time, inputs.lap, y, ref_pred,
                           best.pred if best else None, dist, nis, timings)
+
+
+SINGLE_SPOT_ONLINE = {"thickness_gradient": "adapt_kz", "slipstream": "adapt_slipstream"}
+
+
+def diagnose_single_spot(
+    session: Session,
+    options: DiagnoseOptions,
+    inputs: DiscInputs,
+    disc: DiscSpec,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> DiagnoseResult:
+    """What one race pyrometer can tell: innovation-based "where" and the online effects.
+
+    The race filter (identified law, spot 3 measured) runs without online effects (the
+    reference) and with each effect one spot can follow online; its one-step-ahead
+    innovations are predictions from past readings only, so every flying lap is scored.
+    The other effects need the four-spot test session and are listed as such.
+    """
+    from brakethermo.pipelines.estimate import EstimateOptions, estimate_from_session
+
+    t_start = time.perf_counter()
+    names = parse_effects(options.effects)
+    flying = tuple(int(v) for v in np.unique(inputs.lap) if v >= 1)
+    if not flying:
+        raise DataError("diagnose needs at least one flying lap (lap_beacon >= 1)",
+                        path=session.path, channel="lap_beacon")
+    online = [n for n in names if n in SINGLE_SPOT_ONLINE]
+    off = {flag: False for flag in SINGLE_SPOT_ONLINE.values()}
+    base = EstimateOptions(spot=RACE_SPOT, h_law=options.h_law, disc=options.disc,
+                           tuning=options.tuning, aliases=options.aliases,
+                           ambient_c=options.ambient_c, smoother=False, score=False)
+    runs = {}
+    for i, label in enumerate(["reference", *online], start=1):
+        flags = dict(off)
+        if label != "reference":
+            flags[SINGLE_SPOT_ONLINE[label]] = True
+        runs[label] = estimate_from_session(session, replace(base, **flags))
+        if progress:
+            progress(label, i, len(online) + 1)
+    y = np.full((inputs.time.size, 4), np.nan)
+    y[:, RACE_SPOT - 1] = inputs.spots[:, RACE_SPOT - 1]
+    y[y <= SENSOR_FLOOR_C] = np.nan
+
+    def prediction(label: str) -> np.ndarray:
+        pred = np.full_like(y, np.nan)
+        pred[:, RACE_SPOT - 1] = y[:, RACE_SPOT - 1] - runs[label].innovation
+        return pred
+
+    pressure = np.nan_to_num(session.values("brake_pressure_front"), nan=0.0)
+    zones = detect_zones(inputs.time, pressure)
+    dist = lap_distance(inputs, session)
+    segments = build_segments(inputs, zones, dist)
+    braking = np.zeros(inputs.time.size, bool)
+    release = np.zeros_like(braking)
+    cycles = np.full(inputs.time.size, -1)
+    for j, (a, b) in enumerate(zones):
+        braking[a:b] = True
+        release[b: b + round(SETTLE_S / session.dt)] = True
+        cycles[a:] = j
+    scored = np.isin(inputs.lap, flying)
+    layout = Layout(train=np.zeros_like(scored), held=scored, braking=braking,
+                    release=release & ~braking, cycles=cycles)
+    ref_pred = prediction("reference")
+    spots = (RACE_SPOT,)
+    effects_out = []
+    best_pred = None
+    for label in online:
+        pred = prediction(label)
+        before, after = score(ref_pred, y, layout, spots), score(pred, y, layout, spots)
+        shrink, lo, hi = bootstrap_shrink(ref_pred, pred, y, layout, spots)
+        frame = runs[label].frame
+        column = "kz_factor" if label == "thickness_gradient" else "h_factor"
+        track = frame[column].to_numpy()[scored]
+        effects_out.append({
+            "name": label, "rmse_before": before["overall"], "rmse_after": after["overall"],
+            "shrink_pct": shrink, "shrink_ci95_pct": [lo, hi],
+            "significant": bool(np.isfinite(lo) and lo > MIN_SHRINK_PCT),
+            "heldout_loglik_gain": float(np.nanmean(_gauss_ll(runs[label]))
+                                         - np.nanmean(_gauss_ll(runs["reference"]))),
+            "scored_spots": [f"spot{RACE_SPOT}"],
+            "per_spot": {f"spot{RACE_SPOT}": {"before": before["overall"],
+                                              "after": after["overall"]}},
+            "per_phase": {k: {"before": before["per_phase"][k], "after": after["per_phase"][k]}
+                          for k in after["per_phase"]},
+            "params": {f"{column}_median": float(np.median(track)),
+                       f"{column}_p05": float(np.percentile(track, 5)),
+                       f"{column}_p95": float(np.percentile(track, 95))},
+            "evidence": (f"online {column} over the flying laps: median"
+                         f" {np.median(track):.2f}, 5-95 % {np.percentile(track, 5):.2f}-"
+                         f"{np.percentile(track, 95):.2f} (1 = the test-session disc)"),
+            "signature": EFFECTS[label].signature,
+            "extension": EFFECTS[label].extension,
+            "identifiable_from_one_spot": True,
+        })
+    effects_out.sort(key=lambda e: -np.nan_to_num(e["shrink_pct"], nan=-1e9))
+    for rank, e in enumerate(effects_out, start=1):
+        e["rank"] = rank
+    not_observable = [
+        {"name": n, "identifiable_from_one_spot": False,
+         "reason": ("one pyrometer cannot tell its own bias from the disc: only the test"
+                    " session's four spots can") if n == "emissivity_error" else
+                   "needs the four-spot test session (diagnose it there, then estimate with"
+                   " its h_law.toml)"}
+        for n in names if n not in SINGLE_SPOT_ONLINE]
+    significant = [e for e in effects_out if e["significant"]]
+    verdict = significant[0]["name"] if significant else "none"
+    if verdict != "none":
+        best_pred = prediction(verdict)
+    ref_scores = score(ref_pred, y, layout, spots)
+    nis = runs["reference"].innovation**2 / runs["reference"].innovation_var
+    v = nis[scored & np.isfinite(nis)]
+    lo_b, hi_b = chi2.ppf([0.025, 0.975], max(v.size, 1)) / max(v.size, 1)
+    mean = float(np.mean(v)) if v.size else float("nan")
+    state = "over-confident" if mean > hi_b else "under-confident" if mean < lo_b else \
+        "consistent"
+    nu = runs["reference"].innovation[scored]
+    nu = nu[np.isfinite(nu)]
+    res = y - ref_pred
+    summary: dict[str, Any] = {
+        "session": str(session.path),
+        "metadata": session.metadata,
+        "mode": "single-spot race session: innovation-based, spot 3 only",
+        "reference": {
+            "contains": [
+                f"the race estimator of disc {disc.id} with the h law "
+                f"{runs['reference'].summary['run']['h_law'] or 'shipped for the disc'}",
+                "no online effects (k_z and slipstream factors fixed at 1)",
+                "scored by its one-step-ahead innovations at spot 3: predictions from past"
+                " readings only, so no lap needs to be held out",
+            ],
+            "fitted": {},
+        },
+        "train_laps": [],
+        "heldout_laps": list(flying),
+        "gap": {"rmse_c": ref_scores["overall"], "per_spot": ref_scores["per_spot"],
+                "per_phase": ref_scores["per_phase"],
+                "per_spot_phase": ref_scores["per_spot_phase"]},
+        "where": {"ranked_cells": where_table(res, layout, inputs, segments, y),
+                  **_marginals(res, layout, inputs, segments, y),
+                  "braking_zones": segments.n_zones},
+        "consistency": {
+            "per_spot": {f"spot{RACE_SPOT}": {
+                "mean_nis": mean, "chi2_band": [float(lo_b), float(hi_b)],
+                "lag1_autocorrelation": _corr(nu[:-1], nu[1:]) if nu.size > 3 else
+                float("nan"), "state": state}},
+            "summary": f"the race filter is {state} at spot {RACE_SPOT} (mean NIS {mean:.2f})",
+        },
+        "effects": effects_out,
+        "not_identifiable_from_one_spot": not_observable,
+        "verdict": verdict,
+        "verdict_rule": (
+            f"the online effect with the largest innovation shrink, when the lower end of its"
+            f" 95 % bootstrap interval over braking cycles exceeds {MIN_SHRINK_PCT:g} %;"
+            " else none"),
+        "combined": {"effects": [verdict] if verdict != "none" else [], "steps": []},
+        "warnings": [],
+        "run": {"brakethermo": __version__, "disc": disc.id, "effects_tried": list(names),
+                "timings_s": {}, "wall_time_s": time.perf_counter() - t_start,
+                "input_warnings": list(session.warnings) + list(inputs.warnings)},
+    }
+    return DiagnoseResult(session, summary, inputs.time, inputs.lap, y, ref_pred, best_pred,
+                          dist, nis, {})
+
+
+def _gauss_ll(result: Any) -> np.ndarray:
+    """Per-step Gaussian log-likelihood of a filter's innovations."""
+    nu, s2 = result.innovation, result.innovation_var
+    return -0.5 * (np.log(2.0 * np.pi * s2) + nu**2 / s2)
 
 
 def _forward_selection(

@@ -60,6 +60,8 @@ class EstimateOptions:
     smoother, adapt_power : bool, optional
     sigma_crown : float, optional
         Crown-split process noise (identify-h's validation sets it per variant).
+    adapt_kz, adapt_slipstream : bool, optional
+        Online k_z factor and slipstream h factor (diagnose compares with and without).
     aliases : path, optional
     ambient_c : float, optional — degC
     score : bool
@@ -75,6 +77,8 @@ class EstimateOptions:
     smoother: bool | None = None
     adapt_power: bool | None = None
     sigma_crown: float | None = None
+    adapt_kz: bool | None = None
+    adapt_slipstream: bool | None = None
     aliases: str | Path | None = None
     ambient_c: float | None = None
     score: bool = True
@@ -89,6 +93,8 @@ class EstimateOptions:
                 ("smoother", self.smoother),
                 ("adapt_power", self.adapt_power),
                 ("sigma_crown", self.sigma_crown),
+                ("adapt_kz", self.adapt_kz),
+                ("adapt_slipstream", self.adapt_slipstream),
             )
             if v is not None
         }
@@ -113,6 +119,9 @@ class EstimateResult:
     disc : DiscSpec
         The datasheet the estimate was computed with.
     timings : dict of str to float — s
+    innovation, innovation_var : ndarray (K,) or None — degC, degC²
+        The filter's one-step-ahead innovation of the measured spot and its variance
+        (NaN where nothing was measured): what diagnose reads on a single-spot session.
     """
 
     session: Session
@@ -123,6 +132,8 @@ class EstimateResult:
     open_loop: np.ndarray | None
     disc: DiscSpec
     timings: dict[str, float] = field(default_factory=dict)
+    innovation: np.ndarray | None = None
+    innovation_var: np.ndarray | None = None
 
     @property
     def stem(self) -> str:
@@ -330,7 +341,8 @@ def estimate_from_session(
     t_done = time.perf_counter()
 
     std = np.sqrt(np.maximum(out_var, 0.0))
-    frame = _estimate_frame(inputs, model, states, out, std, tuning, h)
+    online = {p.name: ssm.index[p.name] for p in plan.online}
+    frame = _estimate_frame(inputs, model, states, out, std, tuning, h, online)
     open_loop = None
     scores = None
     if options.score and len(inputs.measured) > 1:
@@ -382,7 +394,7 @@ def estimate_from_session(
         "scores": scores,
     }
     return EstimateResult(session, frame, model.radii.copy(), summary, scores, open_loop, disc,
-                          timings)
+                          timings, forward.innovation[:, 0], forward.innovation_var[:, 0])
 
 
 def _estimate_frame(
@@ -393,6 +405,7 @@ def _estimate_frame(
     std: np.ndarray,
     tuning: EstimateTuning,
     h: np.ndarray,
+    online: dict[str, int],
 ) -> pd.DataFrame:
     cols: dict[str, np.ndarray] = {"time": inputs.time, "lap": inputs.lap.astype(np.int64)}
     for i in range(4):
@@ -409,6 +422,8 @@ def _estimate_frame(
     if tuning.adapt_power:
         cols["power_scale"] = out[:, 5]
         cols["power_scale_std"] = std[:, 5]
+    for name, j in online.items():  # online effect factors, e.g. kz_factor, h_factor
+        cols[name] = states[:, j]
     cols["braking_power"] = inputs.q_brk
     cols["h"] = h
     return pd.DataFrame(cols)

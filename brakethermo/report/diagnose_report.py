@@ -181,9 +181,15 @@ def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
         [TableBlock(["rank", "effect", "before °C", "after °C", "shrink %", "95 % interval %",
                      "Δ log-lik", "significant", "evidence (reference residuals)"],
                     which_rows)],
-        {"effects": effects_figure(effects, verdict)},
+        {"effects": effects_figure(effects, verdict)} if effects else {},
         list(summary.get("warnings", [])),
     )
+    blind = summary.get("not_identifiable_from_one_spot")
+    if blind:
+        which_section.tables.append(TableBlock(
+            ["effect", "why it is not diagnosed here"], [[e["name"], e["reason"]] for e in blind],
+            caption="A single race pyrometer cannot tell these apart"))
+        which_section.paragraphs.insert(0, summary["mode"] + ".")
     held = summary["heldout_laps"][0]
     trace_section = Section(
         "A held-out lap",
