@@ -8,6 +8,7 @@ from typing import Any, TypeVar
 import click
 import typer
 from rich.console import Console
+from rich.markup import escape
 from typer.core import TyperGroup
 
 from brakethermo import __version__
@@ -24,7 +25,9 @@ class _UserErrorGroup(TyperGroup):
         try:
             return super().invoke(ctx)
         except BrakethermoError as exc:
-            err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+            # The message quotes file names, keys and values: text, never markup.
+            err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False,
+                              soft_wrap=True)
             ctx.exit(exc.exit_code)
 
 

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from brakethermo.config import config_dir
+from brakethermo.config import ConfigTable, config_dir
 from brakethermo.errors import ConfigError
 from brakethermo.io.session import Session
 from brakethermo.thermal.disc import DiscSpec, load_disc
@@ -81,24 +80,15 @@ CALIBRATION_BOUNDS: dict[str, tuple[float, float]] = {
 def read_calibration(path: str | Path) -> DiscCalibration:
     """Read an ``h_law.toml`` written by identify-h, checking its ``[extra]`` values."""
     record = read_h_law(path)
-    extra = record.extra
+    extra = ConfigTable(record.extra, path, "extra")
     values: dict[str, Any] = {}
     for key, (lo, hi) in CALIBRATION_BOUNDS.items():
-        raw = extra.get(key)
-        if raw is None:
-            continue
-        whole = key == "layers"
-        if isinstance(raw, bool) or not isinstance(raw, int | float) or (
-            whole and raw != int(raw)
-        ) or not math.isfinite(raw) or not lo <= raw <= hi:
-            kind = "a whole number" if whole else "a number"
-            raise ConfigError(
-                f"[extra] {key} = {raw!r} must be {kind} between {lo:g} and {hi:g}", path=path
-            )
-        values[key] = int(raw) if whole else float(raw)
-    adapt = extra.get("adapt_power")
-    if adapt is not None and not isinstance(adapt, bool):
-        raise ConfigError(f"[extra] adapt_power = {adapt!r} must be true or false", path=path)
+        if extra.has(key):
+            if key == "layers":
+                values[key] = extra.integer(key, lo=lo, hi=hi)
+            else:
+                values[key] = extra.number(key, lo=lo, hi=hi)
+    adapt = extra.boolean("adapt_power", None)
     return DiscCalibration(law=record.law, weights=record.weights, adapt_power=adapt,
                            source=str(path), **values)
 
