@@ -6,15 +6,27 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
-from brakethermo.cli._options import AliasesOpt, AmbientOpt, DiscOpt, JsonOpt, OutDir, TuningOpt
+from brakethermo.cli._options import (
+    AliasesOpt,
+    AmbientOpt,
+    DiscOpt,
+    JsonOpt,
+    LayersOpt,
+    LegacyReportOpt,
+    NodesOpt,
+    NoReportsOpt,
+    OutDir,
+    TuningOpt,
+)
 from brakethermo.pipelines.estimate import (
     EstimateOptions,
     EstimateResult,
     disc_of,
-    estimate_session,
+    estimate_from_session,
     write_estimate,
 )
 from brakethermo.pipelines.outputs import to_json
@@ -85,18 +97,39 @@ def render_scores(scores: dict[str, Any]) -> None:
     console.print(f"95 % band coverage of the unmeasured spots: {cov}")
 
 
+def preflight(
+    *, tuning: Path | None = None, h_law: Path | None = None, aliases: Path | None = None,
+    disc: str | None = None,
+) -> None:
+    """Validate the configuration files a run was given, before reading any session."""
+    from brakethermo.io.aliases import load_aliases
+    from brakethermo.pipelines.models import read_calibration
+    from brakethermo.pipelines.tuning import load_tuning
+    from brakethermo.thermal.disc import load_disc
+
+    load_tuning(tuning)
+    load_aliases(aliases)
+    if h_law is not None:
+        read_calibration(h_law)
+    if disc is not None:
+        load_disc(disc)
+
+
 @app.command("estimate")
 def estimate_command(
     session: Annotated[Path, typer.Argument(help="Session file (.mcap, .parquet, .csv).")],
     out: OutDir = Path("out"),
     spot: Annotated[int, typer.Option(min=1, max=4, help="Spot used as measurement.")] = 3,
     h_law: Annotated[
-        Path | None, typer.Option("--h-law", help="h_law.toml from identify-h.")
+        Path | None,
+        typer.Option(
+            "--h-law",
+            help="h_law.toml from identify-h; default: the one identify-h wrote for this "
+            "session in --out, else the law shipped for the disc.",
+        ),
     ] = None,
-    nodes: Annotated[int | None, typer.Option(min=10, help="Radial nodes.")] = None,
-    layers: Annotated[
-        int | None, typer.Option(min=1, max=8, help="Layers over the half thickness.")
-    ] = None,
+    nodes: NodesOpt = None,
+    layers: LayersOpt = None,
     smoother: Annotated[
         bool | None, typer.Option("--smoother/--no-smoother", help="RTS smoother (offline).")
     ] = None,
@@ -108,34 +141,54 @@ def estimate_command(
     tuning: TuningOpt = None,
     aliases: AliasesOpt = None,
     ambient: AmbientOpt = None,
-    report: Annotated[
-        bool, typer.Option("--report/--no-report", help="Write the per-lap HTML/PNG reports.")
-    ] = True,
+    no_reports: NoReportsOpt = False,
+    legacy_report: LegacyReportOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
+    from brakethermo.pipelines.inputs import load_timed
+    from brakethermo.pipelines.models import choose_h_law, disc_for
+    from brakethermo.pipelines.output_dir import check_output_dir, replace_session_dir
+
+    reports = not no_reports and legacy_report is not False
+    check_output_dir(out)
+    preflight(tuning=tuning, h_law=h_law, aliases=aliases, disc=disc)
+    loaded, read_s = run_with_status(as_json, f"reading {session.name} ...",
+                                     lambda: load_timed(session, aliases))
+    law, law_reason = choose_h_law(h_law, out / session.stem, loaded, disc_for(loaded, disc))
     options = EstimateOptions(
-        spot=spot, h_law=h_law, disc=disc, tuning=tuning, nodes=nodes, layers=layers,
+        spot=spot, h_law=law, disc=disc, tuning=tuning, nodes=nodes, layers=layers,
         smoother=smoother, adapt_power=adapt_power, aliases=aliases, ambient_c=ambient,
     )  # fmt: skip
     result = run_with_status(as_json, f"estimating {session.name} ...",
-                             lambda: estimate_session(session, options))
-    folder = write_estimate(result, out)
-    if report:
-        from brakethermo.report.lap_report import write_session_report
+                             lambda: estimate_from_session(loaded, options))
+    run = result.summary["run"]
+    result.timings["read_s"] = read_s
+    run["timings_s"]["read_s"] = read_s
+    run["wall_time_s"] += read_s
+    run["h_law_choice"] = law_reason
+    folder = out / result.stem
+    with replace_session_dir(folder) as stage:
+        write_estimate(result, out, folder=stage)
+        if reports:
+            from brakethermo.report.lap_report import write_session_report
 
-        write_session_report(result.frame, result.session, folder,
-                             node_radii=result.node_radii, disc=disc_of(result))
+            write_session_report(result.frame, result.session, stage,
+                                 node_radii=result.node_radii, disc=disc_of(result),
+                                 summary=result.summary)
     if as_json:
         print(to_json({**result.summary, "output": str(folder)}))
         return
     render_laps(result)
     if result.scores:
         render_scores(result.scores)
-    for warning in result.summary["run"]["warnings"]:
-        console.print(f"[yellow]warning:[/] {warning}")
+    console.print(f"h law: {escape(str(run['h_law']))} ({law_reason})", soft_wrap=True)
+    for warning in run["warnings"]:
+        console.print(f"[yellow]warning:[/] {escape(warning)}", soft_wrap=True)
     console.print(
-        f"wrote {folder / 'estimate.parquet'} and summary.json "
+        f"wrote {escape(str(folder / 'estimate.parquet'))} and summary.json "
         f"({result.timings['total_s']:.2f} s)"
-        + (f"; open {folder / 'index.html'} for the per-lap reports" if report else "")
+        + (f"; open {escape(str(folder / 'index.html'))} for the per-lap reports"
+           if reports else ""),
+        soft_wrap=True,
     )

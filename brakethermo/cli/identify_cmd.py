@@ -9,7 +9,15 @@ import typer
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
-from brakethermo.cli._options import AliasesOpt, AmbientOpt, DiscOpt, JsonOpt, OutDir, TuningOpt
+from brakethermo.cli._options import (
+    AliasesOpt,
+    AmbientOpt,
+    DiscOpt,
+    JsonOpt,
+    NodesOpt,
+    OutDir,
+    TuningOpt,
+)
 from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
 from brakethermo.pipelines.outputs import to_json
 
@@ -18,9 +26,7 @@ from brakethermo.pipelines.outputs import to_json
 def identify_command(
     session: Annotated[Path, typer.Argument(help="Four-spot test session file.")],
     out: OutDir = Path("out"),
-    nodes: Annotated[
-        int | None, typer.Option(min=10, help="Radial nodes of the h-identification model.")
-    ] = None,
+    nodes: NodesOpt = None,
     structure: Annotated[
         bool,
         typer.Option(
@@ -35,6 +41,11 @@ def identify_command(
     as_json: JsonOpt = False,
 ) -> None:
     """Identify h(V) (joint UKF, h as a random walk) and the disc model's structure."""
+    from brakethermo.cli.estimate_cmd import preflight
+    from brakethermo.pipelines.output_dir import check_output_dir
+
+    check_output_dir(out)
+    preflight(tuning=tuning, aliases=aliases, disc=disc)
     options = IdentifyOptions(disc=disc, tuning=tuning, nodes=nodes, aliases=aliases,
                               ambient_c=ambient, fit_structure=structure)
     result = run_with_status(as_json, f"identifying h(V) on {session.name} ...",

@@ -10,7 +10,7 @@ import typer
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
-from brakethermo.cli._options import AliasesOpt, JsonOpt
+from brakethermo.cli._options import AliasesOpt, JsonOpt, NodesOpt, positive_finite
 from brakethermo.errors import BrakethermoError
 from brakethermo.pipelines.timing import TimingReport, time_laps
 
@@ -32,17 +32,21 @@ def _table(report: TimingReport, name: str) -> Table:
 @app.command("timing-check")
 def timing_check(
     session_path: Annotated[Path, typer.Argument(metavar="SESSION", help="Session file.")],
-    budget_s: Annotated[float, typer.Option(min=0.0, help="Budget for a whole race, s.")] = 300.0,
-    race_laps: Annotated[int, typer.Option(min=1, help="Laps in that race.")] = 25,
+    budget_s: Annotated[
+        float, typer.Option(callback=positive_finite, help="Budget for a whole race, s (> 0).")
+    ] = 300.0,
+    race_laps: Annotated[int, typer.Option(min=1, max=1000, help="Laps in that race.")] = 25,
     h_law: Annotated[Path | None, typer.Option("--h-law", help="h law TOML.")] = None,
-    nodes: Annotated[int | None, typer.Option(min=10, help="Radial nodes.")] = None,
+    nodes: NodesOpt = None,
     aliases: AliasesOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Estimate each lap on its own; fail (exit 1) if the slowest lap exceeds its budget."""
+    from brakethermo.cli.estimate_cmd import preflight
     from brakethermo.io.load import load_session
     from brakethermo.pipelines.estimate import EstimateOptions, estimate_from_session
 
+    preflight(h_law=h_law, aliases=aliases)
     session = load_session(session_path, aliases=aliases)
     options = EstimateOptions(h_law=h_law, nodes=nodes, aliases=aliases, score=False)
     report = time_laps(session, lambda s: estimate_from_session(s, options), budget_s, race_laps)

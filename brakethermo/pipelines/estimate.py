@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from brakethermo import __version__
-from brakethermo.errors import DataError
+from brakethermo.errors import ConfigError, DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.session import Session
 from brakethermo.pipelines import scoring
@@ -26,7 +26,12 @@ from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.summary import lap_summaries
-from brakethermo.pipelines.tuning import EstimateTuning, load_tuning, user_tuning_keys
+from brakethermo.pipelines.tuning import (
+    EstimateTuning,
+    check_overrides,
+    load_tuning,
+    user_tuning_keys,
+)
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
 
@@ -69,6 +74,14 @@ class EstimateOptions:
     aliases: str | Path | None = None
     ambient_c: float | None = None
     score: bool = True
+
+    def __post_init__(self) -> None:
+        check_overrides(self.overrides())
+        if self.ambient_c is not None and not -60.0 <= self.ambient_c <= 80.0:
+            raise ConfigError(
+                f"ambient temperature {self.ambient_c} degC must be a finite value between"
+                " -60 and 80 degC"
+            )
 
     def overrides(self) -> dict[str, Any]:
         """The tuning values this run sets explicitly."""
@@ -390,9 +403,14 @@ def estimate_session(path: str | Path, options: EstimateOptions | None = None) -
     return result
 
 
-def write_estimate(result: EstimateResult, out_dir: str | Path) -> Path:
-    """Write ``<out_dir>/<stem>/estimate.parquet`` and ``summary.json``; return the folder."""
-    folder = Path(out_dir) / result.stem
+def write_estimate(
+    result: EstimateResult, out_dir: str | Path, *, folder: str | Path | None = None
+) -> Path:
+    """Write ``<out_dir>/<stem>/estimate.parquet`` and ``summary.json``; return the folder.
+
+    ``folder`` writes there instead (a staging folder that replaces ``<out_dir>/<stem>``).
+    """
+    folder = Path(folder) if folder is not None else Path(out_dir) / result.stem
     field_meta: dict[str, dict[str, str]] = {"time": {"unit": "s"}}
     for col in result.frame.columns:
         if col.startswith(("spot", "contact_avg", "node_", "mid_")):

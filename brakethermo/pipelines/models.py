@@ -102,3 +102,35 @@ def calibration_for(disc: DiscSpec, h_law: str | Path | None) -> DiscCalibration
             " test session and pass its h_law.toml with --h-law"
         )
     return read_calibration(path)
+
+
+def own_h_law(folder: str | Path, session: Session) -> Path | None:
+    """The ``h_law.toml`` identify-h wrote for this very session into ``folder``, if any.
+
+    identify-h writes ``OUT/<stem>/h_law.toml`` and records the session in ``[extra]``;
+    a law there of another session with the same file stem is not this session's.
+    """
+    path = Path(folder) / "h_law.toml"
+    if not path.is_file():
+        return None
+    source = read_h_law(path).extra.get("session")
+    if isinstance(source, str) and Path(source).name != session.path.name:
+        return None
+    return path
+
+
+def choose_h_law(
+    given: str | Path | None, folder: str | Path, session: Session, disc: DiscSpec
+) -> tuple[Path | None, str]:
+    """The law a single ``estimate`` uses, and why (printed and recorded in summary.json).
+
+    Order: the ``--h-law`` file; the law identify-h wrote for this session beside its
+    outputs (``OUT/<stem>/h_law.toml``); the law shipped for the disc.
+    """
+    if given is not None:
+        return Path(given), "given with --h-law"
+    own = own_h_law(folder, session)
+    if own is not None:
+        return own, "identified from this session by identify-h (beside it in --out)"
+    shipped = shipped_h_law(disc)
+    return shipped, f"shipped default for disc {disc.id}"
