@@ -36,7 +36,7 @@ def test_outputs_of_both_kinds(batch_out: Path) -> None:
     assert not (race / "h_law.toml").exists()
     assert json.loads((test / "summary.json").read_text())["scores"] is not None
     manifest = json.loads((race / MANIFEST).read_text())
-    assert manifest["h_law_source"] == "identified: test" and manifest["laps"] == 2
+    assert manifest["h_law_source"] == "identified: test" and manifest["laps"] == 1
     assert (race / "lap_01" / "index.html").is_file() and (race / "index.html").is_file()
 
 

@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+from rich import box
 from rich.markup import escape
 from rich.table import Table
 
@@ -30,10 +31,7 @@ from brakethermo.pipelines.estimate import (
     write_estimate,
 )
 from brakethermo.pipelines.outputs import to_json
-
-
-def _lap_label(lap: int) -> str:
-    return "out" if lap == 0 else str(lap)
+from brakethermo.pipelines.summary import lap_label, temp_text
 
 
 def _fmt(x: Any, spec: str = ".1f") -> str:
@@ -41,31 +39,43 @@ def _fmt(x: Any, spec: str = ".1f") -> str:
 
 
 def render_laps(result: EstimateResult) -> None:
-    """Per-lap rich table: lap time, peaks per spot, time vs the operating window."""
+    """Per-lap rich table: lap time, peaks per spot, hottest radius, time vs the window.
+
+    Sized for 80 columns (CI logs, pipes): short headers, no wrapping inside cells.
+    """
     run = result.summary["run"]
-    lo, hi = result.summary["run"]["window_c"]
+    lo, hi = run["window_c"]
     table = Table(
-        title=f"{result.stem}: disc temperature per lap, °C ({run['nodes']} nodes x "
-        f"{run['layers']} layers, spot {run['measured_spot']} measured, "
+        title=f"{result.stem}: disc °C per lap ({run['nodes']}x{run['layers']} nodes, "
+        f"spot {run['measured_spot']} measured, "
         f"{'smoother' if run['smoother'] else 'filter only'})",
         title_justify="left",
-        caption=f"time below / in / above the {lo:.0f}-{hi:.0f} °C window, contact-band average",
+        caption=f"peaks °C; hot = hottest radius °C @ mm; window {lo:.0f}-{hi:.0f} °C: "
+        "contact band s below/in/above, hottest radius s above",
         caption_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
     )
-    table.add_column("lap", justify="right")
+    table.add_column("lap", justify="right", no_wrap=True)
     table.add_column("time", justify="right", no_wrap=True)
     for i in range(1, 5):
-        table.add_column(f"pk S{i}", justify="right")
-    table.add_column("mean", justify="right")
-    table.add_column("window s", justify="right", no_wrap=True)
+        table.add_column(f"S{i}", justify="right", no_wrap=True)
+    table.add_column("hot @mm", justify="right", no_wrap=True)
+    table.add_column("contact", justify="right", no_wrap=True)
+    table.add_column("hot>", justify="right", no_wrap=True)
     for lap in result.summary["laps"]:
         peaks = [lap["peak"].get(f"spot{i}", {}).get("temp_c") for i in range(1, 5)]
+        hot = lap.get("hottest") or {}
+        radius = hot.get("radius_mm")
         m, s = divmod(lap["lap_time_s"], 60.0)
+        hot_text = temp_text(hot.get("temp_c")) + (f"@{radius:.0f}" if radius is not None else "")
+        above_hot = hot.get("time_above_window_s", 0.0)
         table.add_row(
-            _lap_label(lap["lap"]), f"{int(m)}:{s:04.1f}", *[_fmt(p, ".0f") for p in peaks],
-            _fmt(lap["mean_contact_c"], ".0f"),
+            lap_label(lap["lap"]), f"{int(m)}:{s:04.1f}", *[temp_text(p) for p in peaks],
+            f"[bold red]{hot_text}[/]" if above_hot > 0 else hot_text,
             f"{lap['time_below_window_s']:.0f}/{lap['time_in_window_s']:.0f}/"
             f"{lap['time_above_window_s']:.0f}",
+            f"[bold red]{above_hot:.0f}[/]" if above_hot > 0 else f"{above_hot:.0f}",
         )  # fmt: skip
     console.print(table)
 
@@ -92,7 +102,8 @@ def render_scores(scores: dict[str, Any]) -> None:
     cov = ", ".join(f"{k} {v * 100:.0f} %" for k, v in scores["coverage95"].items())
     console.print(
         f"peak error at spot {scores['measured_spot']}: mean |{_fmt(peak['mean_abs_pct'])}| %"
-        f" over {peak['zones']} braking zones, session peak {_fmt(peak['max_peak_pct'], '+.1f')} %"
+        f" over {peak['zones']} of {peak.get('zones_total', peak['zones'])} braking zones,"
+        f" session peak {_fmt(peak['max_peak_pct'], '+.1f')} %"
     )
     console.print(f"95 % band coverage of the unmeasured spots: {cov}")
 

@@ -37,6 +37,7 @@ from brakethermo.errors import EXIT_BATCH_PARTIAL, EXIT_OK, BrakethermoError, Co
 from brakethermo.io.atomic import atomic_dir, write_text_atomic
 from brakethermo.io.session import Session
 from brakethermo.pipelines.outputs import write_json
+from brakethermo.pipelines.summary import flying_laps, round_temp
 from brakethermo.thermal.disc import DiscSpec
 
 SESSION_SUFFIXES = (".mcap", ".parquet", ".csv")
@@ -250,7 +251,7 @@ class SessionOutcome:
             "kind": self.kind,
             "laps": self.laps,
             "wall_s": round(self.wall_s, 3),
-            "peaks_c": {k: round(v, 1) for k, v in self.peaks.items()},
+            "peaks_c": {k: round_temp(v) for k, v in self.peaks.items()},
             "reason": self.reason,
             "h_law": self.h_law_source,
             "h_law_file": self.h_law_used,
@@ -432,11 +433,6 @@ def session_facts(session: Session) -> dict[str, str]:
     return facts
 
 
-def flying_laps(laps: Iterable[int]) -> int:
-    """Laps of a session as every output counts them: the flying laps, not the out-lap."""
-    return int(sum(1 for lap in set(int(v) for v in laps) if lap >= 1))
-
-
 def process_session(
     task: SessionTask, runner: SessionRunner | None = None, progress: Progress | None = None
 ) -> SessionOutcome:
@@ -460,7 +456,10 @@ def process_session(
         if progress is not None:
             progress(Phase(task.name, phase, done, total))
 
-    runner = runner or PipelineRunner(lambda phase, done, total: report(phase, done, total))
+    if runner is None:
+        runner = PipelineRunner()
+        if hasattr(runner, "progress"):
+            runner.progress = report
     t0 = time.perf_counter()
     outcome = SessionOutcome(path=task.path, name=task.name, status="failed")
     try:
@@ -532,6 +531,7 @@ def _write_outputs(
             write_session_report(
                 run.frame, session, stage, node_radii=run.node_radii, disc=run.disc,
                 summary=summary, progress=lambda done, total: report("reports", done, total),
+                back_href="../index.html",
             )  # fmt: skip
             outcome.timings["report_s"] = time.perf_counter() - t
         if task.options.mcap_out:
