@@ -37,6 +37,7 @@ app = typer.Typer(
     help="Carbon brake-disc temperature across the radius, from one IR spot sensor.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,
     add_completion=False,
 )
 

@@ -138,15 +138,14 @@ def batch(
         for o in result.outcomes:
             if o.kind == "single" and o.h_law_reason:
                 console.print(f"{escape(o.name)}: h law {escape(_law_tag(o.h_law_source))} — "
-                              f"{escape(o.h_law_reason)}", soft_wrap=True)
+                              f"{escape(o.h_law_reason)}")
         share = ", ".join(
             f"{k.removesuffix('_s')} {v:.1f} s ({f:.0%})"
             for k, (v, f) in result.step_shares().items()
         )
         console.print(f"wall time {result.wall_s:.1f} s" + (f"  ({share})" if share else ""))
         if options.reports:
-            console.print(f"open [bold]{escape(str(out / 'index.html'))}[/] for the reports",
-                          soft_wrap=True)
+            console.print(f"open [bold]{escape(str(out / 'index.html'))}[/] for the reports")
         for o in result.failed:
             where = "" if str(o.path) in o.reason else f"{o.path}: "
             console.print(f"[bold red]failed:[/] {escape(where + o.reason)}", soft_wrap=True)
