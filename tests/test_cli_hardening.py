@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from _synth_race import write_session_parquet
 from typer.testing import CliRunner
@@ -18,9 +19,11 @@ from brakethermo.cli import app
 from brakethermo.config import config_dir
 from brakethermo.errors import ConfigError
 from brakethermo.io.atomic import atomic_dir, clean_stale_stages
+from brakethermo.io.load import load_session
 from brakethermo.pipelines import output_dir as output_dir_mod
 from brakethermo.pipelines.estimate import EstimateOptions
 from brakethermo.pipelines.output_dir import check_output_dir, check_output_file
+from brakethermo.report.braking_zones import detect_zones
 
 SHIPPED_LAW = config_dir() / "hlaw" / "cc-340-8.toml"
 COMMANDS = ("estimate", "identify-h", "batch", "timing-check", "simulate")
@@ -137,6 +140,15 @@ def test_estimate_replaces_its_folder_keeps_identify_outputs_and_uses_own_law(
     assert own.is_file() and summary["run"]["h_law"] == str(own)
     assert "identified from this session" in summary["run"]["h_law_choice"]
     assert oct(folder.stat().st_mode & 0o777) != oct(0o700)
+    # item 15: the disc is never estimated colder than the air (25 degC in this session)
+    frame = pd.read_parquet(folder / "estimate.parquet")
+    temps = frame[[c for c in frame.columns if c.startswith(("node_", "mid_", "spot"))
+                   and not c.endswith("_std")]]
+    assert temps.min().min() >= 25.0 - 1e-9
+    # item 16: the scores count the braking zones the report shows
+    session = load_session(multi_session)
+    zones = detect_zones(session.time, session.values("brake_pressure_front"))
+    assert summary["scores"]["peak"]["spot3"]["zones_total"] == len(zones)
     # A law identified from another session with the same stem is not this session's.
     own.write_text(re.sub(r'(?m)^session = .*$', 'session = "/elsewhere/t4.parquet.old"',
                           shipped))

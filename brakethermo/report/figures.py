@@ -352,7 +352,7 @@ class LapFigures:
             )
         self._contours = None
         cax = fig.add_axes((RIGHT + 0.045, 0.17, 0.015, 0.69))
-        cbar = fig.colorbar(self.image, cax=cax)
+        cbar = fig.colorbar(self.image, cax=cax, extend="both")  # clipped ends are marked
         cbar.set_label("temperature [°C]")
         for edge in self.window_c:
             cax.axhline(edge, color="white", linewidth=1.6)

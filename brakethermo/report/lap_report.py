@@ -227,7 +227,8 @@ def _spot_roles(summary: dict[str, Any] | None, measured: tuple[int, ...]) -> st
     spot = run.get("measured_spot")
     if spot is None:
         return ""
-    held = [i for i in measured if i != spot]
+    scored = ((summary or {}).get("scores") or {}).get("coverage95", {})
+    held = [i for i in measured if i != spot] or [int(k[4:]) for k in scored if k[4:].isdigit()]
     if not held:
         return f"spot {spot} measured (the filter's input)"
     listed = ", ".join(str(i) for i in held)
@@ -368,7 +369,8 @@ def write_session_report(
         disc.r_int,
         disc.r_est,
         scales,
-        temp_range_c=_colour_range(nodes),
+        # The flying laps set the scale; a cold out-lap shows at the bottom colour.
+        temp_range_c=_colour_range(nodes[:, laps_col >= 1] if (laps_col >= 1).any() else nodes),
         measured_spots=measured_spots,
     )
     render_s = 0.0
