@@ -36,7 +36,7 @@ def _law_tag(source: str) -> str:
 
 def _table(result: BatchResult, out: Path) -> Table:
     table = Table(
-        title=f"batch: {len(result.outcomes)} sessions -> {out}",
+        title=f"batch: {len(result.outcomes)} sessions -> {escape(str(out))}",
         title_justify="left",
         box=box.SIMPLE_HEAD,
         show_edge=False,
@@ -53,7 +53,7 @@ def _table(result: BatchResult, out: Path) -> Table:
     for o in result.outcomes:
         peaks = [f"{o.peaks[s]:.0f}" if s in o.peaks else "-" for s in SPOTS]
         table.add_row(
-            o.name,
+            escape(o.name),
             o.kind or "-",
             str(o.laps) if o.laps else "-",
             f"[{STATUS_STYLE.get(o.status, 'white')}]{o.status}[/]",

@@ -46,7 +46,7 @@ def render_laps(result: EstimateResult) -> None:
     run = result.summary["run"]
     lo, hi = run["window_c"]
     table = Table(
-        title=f"{result.stem}: disc °C per lap ({run['nodes']}x{run['layers']} nodes, "
+        title=f"{escape(result.stem)}: disc °C per lap ({run['nodes']}x{run['layers']} nodes, "
         f"spot {run['measured_spot']} measured, "
         f"{'smoother' if run['smoother'] else 'filter only'})",
         title_justify="left",
@@ -86,6 +86,8 @@ def render_scores(scores: dict[str, Any]) -> None:
         title=f"accuracy against the measured spots (spot {scores['measured_spot']} is the "
         "filter's input; RMSE °C)",
         title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
     )
     table.add_column("method", no_wrap=True)
     for col in ("spot1", "spot2", "spot3", "spot4", "contact", "ratio"):

@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
@@ -55,7 +56,7 @@ def identify_command(
         print(to_json({**result.summary, "output": str(folder)}))
         return
     law = result.law
-    table = Table(title=f"{result.stem}: h(V) law", title_justify="left")
+    table = Table(title=f"{escape(result.stem)}: h(V) law", title_justify="left")
     table.add_column("speed km/h", justify="right")
     table.add_column("h W/(m² K)", justify="right")
     table.add_column("UKF-only law", justify="right")
@@ -80,6 +81,6 @@ def identify_command(
                         for k, v in s.rmse_c.items())
         )
     for warning in result.summary["run"]["warnings"]:
-        console.print(f"[yellow]warning:[/] {warning}")
-    console.print(f"wrote {folder / 'h_law.toml'}, h_samples.parquet, h_law.png "
+        console.print(f"[yellow]warning:[/] {escape(warning)}", soft_wrap=True)
+    console.print(f"wrote {escape(str(folder / 'h_law.toml'))}, h_samples.parquet, h_law.png "
                   f"({result.timings['total_s']:.1f} s)")

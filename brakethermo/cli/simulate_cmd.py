@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
@@ -92,14 +93,14 @@ def simulate_cmd(
     if as_json:
         typer.echo(json.dumps(summary))
         return
-    tab = Table(title=f"simulated {summary['track']} — {laps} laps, seed {seed}")
+    tab = Table(title=f"simulated {escape(summary['track'])} — {laps} laps, seed {seed}")
     tab.add_column("item")
     tab.add_column("value")
-    tab.add_row("session", summary["session"])
-    tab.add_row("truth", summary["truth"])
+    tab.add_row("session", escape(summary["session"]))
+    tab.add_row("truth", escape(summary["truth"]))
     tab.add_row("effects (strong)", ", ".join(cfg.effects) or "none (all mild)")
     tab.add_row("duration", f"{summary['duration_s']:.1f} s")
-    tab.add_row("channels", ", ".join(summary["channels"]))
+    tab.add_row("channels", escape(", ".join(summary["channels"])))
     tab.add_row("hottest spot (truth)", f"{summary['peak_spot_c']:.0f} °C")
     tab.add_row("time", f"simulate {summary['simulate_s']:.1f} s, write {summary['write_s']:.1f} s")
     console.print(tab)

@@ -7,17 +7,20 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
 from brakethermo.cli._options import AliasesOpt, JsonOpt, NodesOpt, positive_finite
 from brakethermo.errors import BrakethermoError
+from brakethermo.pipelines.summary import lap_label, lap_name
 from brakethermo.pipelines.timing import TimingReport, time_laps
 
 
 def _table(report: TimingReport, name: str) -> Table:
     table = Table(
-        title=f"{name}: estimate wall time per lap (budget {report.budget_per_lap_s:.1f} s/lap)",
+        title=f"{escape(name)}: estimate wall time per lap "
+        f"(budget {report.budget_per_lap_s:.1f} s/lap)",
         title_justify="left",
     )
     for col in ("lap", "data s", "wall s", "share of budget"):
@@ -25,7 +28,9 @@ def _table(report: TimingReport, name: str) -> Table:
     for t in report.laps:
         share = t.wall_s / report.budget_per_lap_s
         style = "bold red" if share > 1 else ("yellow" if share > 0.5 else "green")
-        table.add_row(str(t.lap), f"{t.data_s:.1f}", f"{t.wall_s:.3f}", f"[{style}]{share:.1%}[/]")
+        table.add_row(
+            lap_label(t.lap), f"{t.data_s:.1f}", f"{t.wall_s:.3f}", f"[{style}]{share:.1%}[/]"
+        )
     return table
 
 
@@ -61,13 +66,13 @@ def timing_check(
     if not report.passed:
         worst = report.worst
         raise BrakethermoError(
-            f"lap {worst.lap} took {worst.wall_s:.2f} s to estimate, over the budget of "
+            f"{lap_name(worst.lap)} took {worst.wall_s:.2f} s to estimate, over the budget of "
             f"{report.budget_per_lap_s:.2f} s/lap ({budget_s:g} s for {race_laps} laps);"
             " use fewer --nodes or profile the filter",
             path=session_path,
         )
     if not as_json:
         console.print(
-            f"[green]ok:[/] worst lap {report.worst.lap} {report.worst.wall_s:.2f} s "
+            f"[green]ok:[/] worst: {lap_name(report.worst.lap)} {report.worst.wall_s:.2f} s "
             f"<= {report.budget_per_lap_s:.2f} s/lap"
         )

@@ -26,6 +26,11 @@ def lap_label(lap: int) -> str:
     return OUT_LAP if int(lap) == 0 else str(int(lap))
 
 
+def lap_name(lap: int) -> str:
+    """A lap in a sentence or a title: ``out-lap`` or ``lap 3``."""
+    return OUT_LAP if int(lap) == 0 else f"lap {int(lap)}"
+
+
 def lap_folder(lap: int) -> str:
     """The report folder of a lap (OUTPUTS.md ``lap_<NN>``)."""
     return f"lap_{int(lap):02d}"

@@ -23,11 +23,11 @@ from brakethermo import __version__
 from brakethermo.io.atomic import write_bytes_atomic, write_text_atomic
 from brakethermo.io.session import Session
 from brakethermo.pipelines.summary import (
-    OUT_LAP,
     flying_laps,
     hottest_radius,
     lap_folder,
     lap_label,
+    lap_name,
     node_columns,
     temp_text,
 )
@@ -215,12 +215,6 @@ def _environment() -> Environment:
     return env
 
 
-def _lap_title(lap: int) -> str:
-    """Page title of a lap: ``out-lap`` or ``lap 3`` (labels of :func:`lap_label`)."""
-    label = lap_label(lap)
-    return label if label == OUT_LAP else f"lap {label}"
-
-
 def _spot_roles(summary: dict[str, Any] | None, measured: tuple[int, ...]) -> str:
     """Which spot fed the filter and which were held out to check it (four-spot sessions)."""
     run = (summary or {}).get("run", {})
@@ -261,6 +255,8 @@ def _law_view(summary: dict[str, Any] | None, out_dir: Path) -> dict[str, Any] |
     run = (summary or {}).get("run", {})
     law = run.get("h_law")
     png = out_dir / "h_law.png"
+    if not png.is_file() and law:
+        png = Path(law).with_name("h_law.png")  # the plot identify-h wrote beside the law
     if not law and not png.is_file():
         return None
     return {
@@ -408,7 +404,7 @@ def write_session_report(
                 write_bytes_atomic(lap_dir / f"{fig_name}.png", png)
             html = lap_tpl.render(
                 session_name=name,
-                lap_title=_lap_title(lap),
+                lap_title=lap_name(lap),
                 facts=facts,
                 spot_roles=spot_roles,
                 window=window,
@@ -421,13 +417,13 @@ def write_session_report(
                     for n, p in pngs.items()
                 ],
                 prev_href=(f"../{lap_folder(lap_numbers[k - 1])}/index.html" if k else None),
-                prev_label=_lap_title(lap_numbers[k - 1]) if k else None,
+                prev_label=lap_name(lap_numbers[k - 1]) if k else None,
                 next_href=(
                     f"../{lap_folder(lap_numbers[k + 1])}/index.html"
                     if k + 1 < len(lap_numbers)
                     else None
                 ),
-                next_label=_lap_title(lap_numbers[k + 1]) if k + 1 < len(lap_numbers) else None,
+                next_label=lap_name(lap_numbers[k + 1]) if k + 1 < len(lap_numbers) else None,
             )
             pages[lap] = lap_dir / "index.html"
             write_text_atomic(pages[lap], html)
