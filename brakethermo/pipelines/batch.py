@@ -718,6 +718,8 @@ def _up_to_date(manifest: dict[str, Any] | None, sha: str, key: str) -> bool:
         and manifest.get("input_sha256") == sha
         and manifest.get("options_key") == key
         and manifest.get("version") == __version__
+        # Written before the law choice recorded session facts: redo it once.
+        and isinstance(manifest.get("facts"), dict)
     )
 
 
@@ -875,7 +877,7 @@ def run_batch(
             ):
                 done[path] = _skipped(path, name, manifest, out)
                 continue
-            if given_sha is None and manifest.get("kind") == "single" and manifest.get("facts"):
+            if given_sha is None and manifest.get("kind") == "single":
                 known_single.append((path, name, sha, manifest))
                 continue
         first.append(

@@ -158,13 +158,11 @@ def load_tuning(path: str | Path | None = None) -> tuple[EstimateTuning, Identif
     tunings = []
     for cls, section in ((EstimateTuning, "estimate"), (IdentifyTuning, "identify")):
         base = shipped.table(section, {})
-        _build(cls, base)  # the shipped file alone must be valid too
-        if user is None:
-            tunings.append(_build(cls, base))
-            continue
-        mine = user.table(section, {})
-        merged = ConfigTable({**base.raw, **mine.raw}, user.path, section)
-        tunings.append(_build(cls, merged))
+        built = _build(cls, base)  # the shipped file alone must be valid too
+        if user is not None:
+            mine = user.table(section, {})
+            built = _build(cls, ConfigTable({**base.raw, **mine.raw}, user.path, section))
+        tunings.append(built)
     return tunings[0], tunings[1]  # type: ignore[return-value]
 
 
