@@ -180,3 +180,30 @@ def test_a_peak_rounds_to_the_same_integer_everywhere(report, tmp_path):
 def test_displayed_integer_is_the_same_from_raw_or_stored(x):
     assert temp_text(x) == temp_text(round_temp(x))
     assert abs(int(temp_text(x)) - x) <= 0.55
+
+
+def test_a_measured_spot_above_the_window_shows_even_if_the_estimate_stays_inside(tmp_path):
+    import pyarrow.parquet as pq
+    from _synth_race import estimate_frame, write_session_parquet
+
+    from brakethermo.io.load import load_session
+
+    path = write_session_parquet(tmp_path / "hot.parquet", 1, seed=9, multi=True)
+    table = pq.read_table(path)
+    spot4 = table.column("disc_temp_spot4").to_numpy().copy()
+    hot = slice(len(spot4) // 2, len(spot4) // 2 + 40)  # 4 s at 900 degC
+    spot4[hot] = 900.0
+    i = table.schema.get_field_index("disc_temp_spot4")
+    pq.write_table(table.set_column(i, table.schema.field(i), [spot4]), path)
+    session = load_session(path)
+    est, radii = estimate_frame(session.frame, n_nodes=11)
+    for col in [c for c in est.columns if c.startswith(("spot", "node_", "contact"))
+                and not c.endswith("_std")]:
+        est[col] = est[col].clip(upper=800.0)  # the model keeps it inside
+    out = tmp_path / "rep"
+    result = write_session_report(est, session, out, node_radii=radii)
+    lap = int(session.frame["lap"].to_numpy()[hot.start])
+    assert result.laps.loc[lap, "above_hot_s"] == 0.0
+    assert result.laps.loc[lap, "meas_above_spot4_s"] == pytest.approx(4.0, abs=0.25)
+    page = (out / f"lap_{lap:02d}" / "index.html").read_text()
+    assert re.search(r'S4 <span class="hot">[34]\.[0-9] s above, peak 900 °C', page)

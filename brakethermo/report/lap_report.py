@@ -334,6 +334,19 @@ def write_session_report(
     zones_df = zone_table(estimate, speed, pressure, zones, disc.window_c)
     stats = lap_stats(estimate, disc.window_c, node_radii)
     stats["zones"] = zones_df.groupby("lap").size().reindex(stats.index, fill_value=0)
+    # What the sensors read beats any estimate: a measured spot above the window counts
+    # even when the model (e.g. with unmodelled pad asymmetry) keeps its estimate inside.
+    dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
+    measured_above = {}
+    for i, s in enumerate(SPOTS):
+        if np.isfinite(measured[i]).any():
+            reading = pd.Series(measured[i])
+            measured_above[s] = (
+                (reading > disc.window_c[1]).groupby(laps_col).sum().reindex(stats.index) * dt
+            )
+            stats[f"meas_peak_{s}"] = reading.groupby(laps_col).max().reindex(stats.index)
+    for s, above in measured_above.items():
+        stats[f"meas_above_{s}_s"] = above
 
     env = _environment()
     lap_tpl = env.get_template("lap.html.j2")
@@ -409,6 +422,7 @@ def write_session_report(
                 spot_roles=spot_roles,
                 window=window,
                 stats=stats.loc[lap],
+                measured_keys=[s for s in SPOTS if f"meas_above_{s}_s" in stats],
                 zones=zones_df[zones_df["lap"] == lap].to_dict("records"),
                 zone_threshold_bar=detection.on_pa / BAR,
                 footer=footer,
