@@ -42,7 +42,7 @@ def flying_laps(laps: Iterable[int]) -> int:
 
 
 def round_temp(x: float | None) -> float | None:
-    """A temperature as stored (summary.json, batch JSON): 0.1 degC, half away from zero."""
+    """A temperature to 0.1 degC, half away from zero (batch JSON; the step before display)."""
     if x is None or not math.isfinite(x):
         return None
     return math.copysign(math.floor(abs(float(x)) * 10.0 + 0.5) / 10.0, x)
@@ -51,8 +51,9 @@ def round_temp(x: float | None) -> float | None:
 def temp_text(x: float | None) -> str:
     """A temperature as shown (tables, pages): the integer of :func:`round_temp`.
 
-    Rounding the stored 0.1 degC value, half up, gives every output the same integer
-    whether it starts from the raw estimate or from the stored value.
+    Rounding to 0.1 degC first, then to the integer, gives every output the same integer
+    whether it starts from the raw estimate, from summary.json (0.001 degC) or from the
+    batch JSON (0.1 degC): 699.46 shows as 700 everywhere.
     """
     r = round_temp(x)
     return "–" if r is None else str(int(math.copysign(math.floor(abs(r) + 0.5), r)))
@@ -122,7 +123,7 @@ def lap_summaries(
             if np.isfinite(vals).any():
                 j = int(np.nanargmax(vals))
                 peaks[f"spot{i}"] = {
-                    "temp_c": round_temp(vals[j]),
+                    "temp_c": _finite_or_none(vals[j]),
                     "time_s": round(float(time[sel][j]), 1),
                 }
                 above_by_spot[s] = round(float(np.sum(vals > hi) * dt), 1)
@@ -144,7 +145,7 @@ def lap_summaries(
             j = int(np.nanargmax(h))
             k = int(hot_idx[sel][j])
             record["hottest"] = {
-                "temp_c": round_temp(h[j]),
+                "temp_c": _finite_or_none(h[j]),
                 "time_s": round(float(time[sel][j]), 1),
                 "radius_mm": (
                     round(float(node_radii[k]) * 1e3, 1) if node_radii is not None else None
