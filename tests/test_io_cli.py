@@ -185,7 +185,8 @@ def test_invalid_alias_file(tmp_path: Path) -> None:
     assert_user_error([str(session), "--aliases", str(bad)], "invalid TOML")
     wrong = tmp_path / "wrong.toml"
     wrong.write_text('[aliases]\nsped = ["vFront"]\n')
-    assert_user_error([str(session), "--aliases", str(wrong)], "unknown canonical channel 'sped'")
+    assert_user_error([str(session), "--aliases", str(wrong)],
+                      "key 'aliases.sped': expected a canonical")
     shape = tmp_path / "shape.toml"
     shape.write_text("[aliases]\nspeed = [1, 2]\n")
-    assert_user_error([str(session), "--aliases", str(shape)], "list of non-empty strings")
+    assert_user_error([str(session), "--aliases", str(shape)], "list of non-empty texts")

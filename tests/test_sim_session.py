@@ -312,7 +312,9 @@ def test_track_validation(tmp_path: Path):
         'segments = [{ kind = "straight", length_m = 500.0 },'
         ' { kind = "hairpin", length_m = 50.0, apex_kmh = 60.0 }]\n'
     )
-    with pytest.raises(ConfigError, match="kind must be"):
+    with pytest.raises(
+        ConfigError, match=r"key 'segments\[2\]\.kind': expected one of 'straight', 'corner'"
+    ):
         load_track(bad)
     with pytest.raises(ConfigError, match="unknown track"):
         load_track("no-such-track")

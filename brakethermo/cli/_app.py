@@ -35,9 +35,9 @@ class _UserErrorGroup(TyperGroup):
                 warnings.simplefilter("ignore", RuntimeWarning)
                 return super().invoke(ctx)
         except BrakethermoError as exc:
-            err_console.print(
-                f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True
-            )
+            # The message quotes file names, keys and values: text, never markup.
+            err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False,
+                              soft_wrap=True)
             ctx.exit(exc.exit_code)
 
 
@@ -47,6 +47,7 @@ app = typer.Typer(
     help="Carbon brake-disc temperature across the radius, from one IR spot sensor.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,
     add_completion=False,
 )
 

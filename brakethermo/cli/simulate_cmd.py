@@ -8,10 +8,13 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
+from brakethermo.cli._options import JsonOpt
 from brakethermo.io.writers import infer_format
+from brakethermo.pipelines.output_dir import check_output_file
 from brakethermo.sim.effects import EFFECT_NAMES
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
 
@@ -19,12 +22,14 @@ from brakethermo.sim.session import SimConfig, simulate, write_simulation
 @app.command("simulate")
 def simulate_cmd(
     out: Annotated[
-        Path, typer.Option("--out", help="Session file to write (.mcap, .parquet, .csv).")
+        Path, typer.Option("--out", "-o", help="Session file to write (.mcap, .parquet, .csv).")
     ],
     track: Annotated[str, typer.Option("--track", help="Track name or TOML path.")] = (
         "mugello-like"
     ),
-    laps: Annotated[int, typer.Option("--laps", help="Flying laps after the out-lap.")] = 5,
+    laps: Annotated[
+        int, typer.Option("--laps", min=1, max=200, help="Flying laps after the out-lap.")
+    ] = 5,
     effects: Annotated[
         str,
         typer.Option(
@@ -39,21 +44,23 @@ def simulate_cmd(
         str | None,
         typer.Option("--format", help="mcap, parquet or csv (default: from the extension)."),
     ] = None,
-    seed: Annotated[int, typer.Option("--seed", help="Random seed; same seed, same bytes.")] = 0,
+    seed: Annotated[
+        int, typer.Option("--seed", min=0, help="Random seed; same seed, same bytes.")
+    ] = 0,
     disc: Annotated[str, typer.Option("--disc", help="Disc datasheet id or TOML path.")] = (
         "cc-340-8"
     ),
     grouped: Annotated[
         bool,
         typer.Option(
-            "--grouped", help="MCAP: write the IR spots as one grouped topic 'disc_temp'."
+            "--grouped", metavar="",
+            help="MCAP: write the IR spots as one grouped topic 'disc_temp'.",
         ),
     ] = False,
-    as_json: Annotated[
-        bool, typer.Option("--json", help="Print a machine-readable summary.")
-    ] = False,
+    as_json: JsonOpt = False,
 ) -> None:
     """Simulate a session with named effects; write it and <stem>.truth.parquet beside it."""
+    check_output_file(out)
     fmt = infer_format(out, fmt)
     cfg = SimConfig(
         track=track,
@@ -86,14 +93,14 @@ def simulate_cmd(
     if as_json:
         typer.echo(json.dumps(summary))
         return
-    tab = Table(title=f"simulated {summary['track']} — {laps} laps, seed {seed}")
+    tab = Table(title=f"simulated {escape(summary['track'])} — {laps} laps, seed {seed}")
     tab.add_column("item")
     tab.add_column("value")
-    tab.add_row("session", summary["session"])
-    tab.add_row("truth", summary["truth"])
+    tab.add_row("session", escape(summary["session"]))
+    tab.add_row("truth", escape(summary["truth"]))
     tab.add_row("effects (strong)", ", ".join(cfg.effects) or "none (all mild)")
     tab.add_row("duration", f"{summary['duration_s']:.1f} s")
-    tab.add_row("channels", ", ".join(summary["channels"]))
+    tab.add_row("channels", escape(", ".join(summary["channels"])))
     tab.add_row("hottest spot (truth)", f"{summary['peak_spot_c']:.0f} °C")
     tab.add_row("time", f"simulate {summary['simulate_s']:.1f} s, write {summary['write_s']:.1f} s")
     console.print(tab)

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from brakethermo import __version__
-from brakethermo.errors import DataError
+from brakethermo.errors import ConfigError, DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.session import Session
 from brakethermo.models.disc import (
@@ -34,7 +34,13 @@ from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.summary import lap_summaries
-from brakethermo.pipelines.tuning import EstimateTuning, load_tuning, user_tuning_keys
+from brakethermo.pipelines.tuning import (
+    EstimateTuning,
+    check_overrides,
+    load_tuning,
+    user_tuning_keys,
+)
+from brakethermo.report.braking_zones import detect_zones
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
 
@@ -82,6 +88,14 @@ class EstimateOptions:
     aliases: str | Path | None = None
     ambient_c: float | None = None
     score: bool = True
+
+    def __post_init__(self) -> None:
+        check_overrides(self.overrides())
+        if self.ambient_c is not None and not -60.0 <= self.ambient_c <= 80.0:
+            raise ConfigError(
+                f"ambient temperature {self.ambient_c} degC must be a finite value between"
+                " -60 and 80 degC"
+            )
 
     def overrides(self) -> dict[str, Any]:
         """The tuning values this run sets explicitly."""
@@ -163,7 +177,7 @@ def _initial_temperature(y: np.ndarray, t_amb: np.ndarray) -> float:
     """First temperature: the first valid reading if it comes in the first 5 s, else ambient."""
     first = np.flatnonzero(np.isfinite(y))
     if first.size and first[0] < 50:
-        return float(y[first[0]])
+        return max(float(y[first[0]]), float(t_amb[0]))  # never colder than the air
     return float(t_amb[0])
 
 
@@ -350,7 +364,9 @@ def estimate_from_session(
                                scale=cal.power_scale)
         open_loop = T_ol @ model.spot_matrix(spot_radii).T
         scores = score_estimate(frame, forward.readout[:, :4], open_loop, inputs, options.spot,
-                                tuning.smoother)
+                                tuning.smoother,
+                                zones=detect_zones(inputs.time,
+                                                   session.values("brake_pressure_front")))
     t_end = time.perf_counter()
     timings = {
         "setup_s": t_filter - t_start,
@@ -362,7 +378,7 @@ def estimate_from_session(
     summary = {
         "session": str(session.path),
         "metadata": session.metadata,
-        "laps": lap_summaries(frame, session.laps, disc.window_c),
+        "laps": lap_summaries(frame, session.laps, disc.window_c, model.radii),
         "run": {
             "brakethermo": __version__,
             "disc": disc.id,
@@ -408,17 +424,23 @@ def _estimate_frame(
     online: dict[str, int],
 ) -> pd.DataFrame:
     cols: dict[str, np.ndarray] = {"time": inputs.time, "lap": inputs.lap.astype(np.int64)}
+    # A disc is never colder than the air around it: project the estimate onto T >= T_amb
+    # (estimate projection of a constrained Kalman filter, Simon & Chia 2002). Without it
+    # the smoother, with no reading below the pyrometer floor, can start the disc colder.
+    floor = inputs.t_amb
+    out = out.copy()
+    out[:, :5] = np.fmax(out[:, :5], floor[:, None])
     for i in range(4):
         cols[f"spot{i + 1}"] = out[:, i]
         cols[f"spot{i + 1}_std"] = std[:, i]
     cols["contact_avg"] = out[:, 4]
     cols["contact_avg_std"] = std[:, 4]
     for k, j in enumerate(model.face_index):
-        cols[f"node_{k}"] = states[:, j]
+        cols[f"node_{k}"] = np.fmax(states[:, j], floor)
     if model.layers > 1:
         mid = model.face_index + model.layers - 1
         for k, j in enumerate(mid):
-            cols[f"mid_{k}"] = states[:, j]
+            cols[f"mid_{k}"] = np.fmax(states[:, j], floor)
     if tuning.adapt_power:
         cols["power_scale"] = out[:, 5]
         cols["power_scale_std"] = std[:, 5]
@@ -436,6 +458,7 @@ def score_estimate(
     inputs: DiscInputs,
     spot: int,
     smoothed: bool,
+    zones: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The paper's Tables 3 and 4 on a multi-spot session, plus peaks and coverage.
 
@@ -464,7 +487,7 @@ def score_estimate(
             r.method: scoring.ratio(r.contact_rmse, base.contact_rmse) for r in rows[:-1]
         },
         "peak": {
-            f"spot{i}": scoring.peak_errors(smooth[:, i - 1], ref[:, i - 1], braking)
+            f"spot{i}": scoring.peak_errors(smooth[:, i - 1], ref[:, i - 1], braking, zones=zones)
             for i in range(1, 5)
         },
         "coverage95": {
@@ -497,9 +520,14 @@ def estimate_session(path: str | Path, options: EstimateOptions | None = None) -
     return result
 
 
-def write_estimate(result: EstimateResult, out_dir: str | Path) -> Path:
-    """Write ``<out_dir>/<stem>/estimate.parquet`` and ``summary.json``; return the folder."""
-    folder = Path(out_dir) / result.stem
+def write_estimate(
+    result: EstimateResult, out_dir: str | Path, *, folder: str | Path | None = None
+) -> Path:
+    """Write ``<out_dir>/<stem>/estimate.parquet`` and ``summary.json``; return the folder.
+
+    ``folder`` writes there instead (a staging folder that replaces ``<out_dir>/<stem>``).
+    """
+    folder = Path(folder) if folder is not None else Path(out_dir) / result.stem
     field_meta: dict[str, dict[str, str]] = {"time": {"unit": "s"}}
     for col in result.frame.columns:
         if col.startswith(("spot", "contact_avg", "node_", "mid_")):

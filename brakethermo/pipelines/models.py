@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from brakethermo.config import config_dir
+from brakethermo.config import ConfigTable, config_dir
 from brakethermo.errors import ConfigError
 from brakethermo.io.session import Session
 from brakethermo.models.effects import EFFECTS
@@ -86,55 +85,38 @@ CALIBRATION_BOUNDS: dict[str, tuple[float, float]] = {
 def read_calibration(path: str | Path) -> DiscCalibration:
     """Read an ``h_law.toml`` written by identify-h, checking its ``[extra]`` values."""
     record = read_h_law(path)
-    extra = record.extra
+    extra = ConfigTable(record.extra, path, "extra")
     values: dict[str, Any] = {}
     for key, (lo, hi) in CALIBRATION_BOUNDS.items():
-        raw = extra.get(key)
-        if raw is None:
-            continue
-        whole = key == "layers"
-        if isinstance(raw, bool) or not isinstance(raw, int | float) or (
-            whole and raw != int(raw)
-        ) or not math.isfinite(raw) or not lo <= raw <= hi:
-            kind = "a whole number" if whole else "a number"
-            raise ConfigError(
-                f"[extra] {key} = {raw!r} must be {kind} between {lo:g} and {hi:g}", path=path
-            )
-        values[key] = int(raw) if whole else float(raw)
-    adapt = extra.get("adapt_power")
-    if adapt is not None and not isinstance(adapt, bool):
-        raise ConfigError(f"[extra] adapt_power = {adapt!r} must be true or false", path=path)
+        if extra.has(key):
+            if key == "layers":
+                values[key] = extra.integer(key, lo=lo, hi=hi)
+            else:
+                values[key] = extra.number(key, lo=lo, hi=hi)
+    adapt = extra.boolean("adapt_power", None)
     return DiscCalibration(law=record.law, weights=record.weights, adapt_power=adapt,
                            effects=_checked_effects(record.effects, path), source=str(path),
                            **values)
 
 
-def _checked_effects(tables: dict[str, dict[str, Any]], path: str | Path
-                     ) -> dict[str, dict[str, Any]]:
+def _checked_effects(tables: dict[str, Any], path: str | Path) -> dict[str, dict[str, Any]]:
     """``[effects.<name>]`` tables checked against the registry: names, keys, bounds."""
+    ConfigTable(tables, path, "effects").only(EFFECTS, "a registered effect")
     out: dict[str, dict[str, Any]] = {}
-    for name, table in tables.items():
-        effect = EFFECTS.get(name)
-        if effect is None:
-            raise ConfigError(f"[effects.{name}]: unknown effect; valid effects are "
-                              f"{', '.join(EFFECTS)}", path=path)
-        known = {p.name: p for p in effect.params}
-        if effect.latent_param is not None:
-            known[effect.latent_param.name] = effect.latent_param
+    for name, raw in tables.items():
+        effect = EFFECTS[name]
+        table = ConfigTable(raw, path, f"effects.{name}")
+        latent = effect.latent_param
+        known = {p.name: p for p in (*effect.params, *((latent,) if latent else ()))}
+        table.only(known, f"a parameter of {name}")
         checked: dict[str, Any] = {}
-        for key, raw in table.items():
-            param = known.get(key)
-            if param is None:
-                raise ConfigError(f"[effects.{name}] {key}: not a parameter of {name} (it has:"
-                                  f" {', '.join(known) or 'none'})", path=path)
-            values = raw if isinstance(raw, list) else [raw]
-            for v in values:
-                if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
-                        or not param.lower <= v <= param.upper:
-                    raise ConfigError(
-                        f"[effects.{name}] {key} = {raw!r} must be a number between"
-                        f" {param.lower:g} and {param.upper:g} {param.unit}", path=path)
-            checked[key] = [float(v) for v in values] if isinstance(raw, list) else float(raw)
+        for key, param in known.items():
+            if not table.has(key):
+                continue
+            if param is latent:
+                checked[key] = list(table.numbers(key, lo=param.lower, hi=param.upper))
+            else:
+                checked[key] = table.number(key, lo=param.lower, hi=param.upper)
         out[name] = checked
     return out
 
@@ -148,3 +130,35 @@ def calibration_for(disc: DiscSpec, h_law: str | Path | None) -> DiscCalibration
             " test session and pass its h_law.toml with --h-law"
         )
     return read_calibration(path)
+
+
+def own_h_law(folder: str | Path, session: Session) -> Path | None:
+    """The ``h_law.toml`` identify-h wrote for this very session into ``folder``, if any.
+
+    identify-h writes ``OUT/<stem>/h_law.toml`` and records the session in ``[extra]``;
+    a law there of another session with the same file stem is not this session's.
+    """
+    path = Path(folder) / "h_law.toml"
+    if not path.is_file():
+        return None
+    source = read_h_law(path).extra.get("session")
+    if isinstance(source, str) and Path(source).name != session.path.name:
+        return None
+    return path
+
+
+def choose_h_law(
+    given: str | Path | None, folder: str | Path, session: Session, disc: DiscSpec
+) -> tuple[Path | None, str]:
+    """The law a single ``estimate`` uses, and why (printed and recorded in summary.json).
+
+    Order: the ``--h-law`` file; the law identify-h wrote for this session beside its
+    outputs (``OUT/<stem>/h_law.toml``); the law shipped for the disc.
+    """
+    if given is not None:
+        return Path(given), "given with --h-law"
+    own = own_h_law(folder, session)
+    if own is not None:
+        return own, "identified from this session by identify-h (beside it in --out)"
+    shipped = shipped_h_law(disc)
+    return shipped, f"shipped default for disc {disc.id}"
