@@ -258,10 +258,10 @@ def test_worker_processes(tmp_path: Path) -> None:
     src.mkdir()
     write_session_parquet(src / "a.parquet", 1, seed=1)
     write_session_parquet(src / "b.parquet", 1, seed=2, multi=True)
-    (src / "c.csv").write_text("time,speed [furlong/fortnight]\n0,1\n")
+    (src / "c.csv").write_text("time,speed [wibble/fortnight]\n0,1\n")
     result = run_batch(src, _options(tmp_path, workers=2), job=JOB)
     assert [o.status for o in result.outcomes] == ["ok", "ok", "failed"]
-    assert "furlong" in result.outcomes[2].reason
+    assert "wibble" in result.outcomes[2].reason
     assert result.outcomes[0].h_law_source == "identified: b"
 
 

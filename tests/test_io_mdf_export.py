@@ -74,10 +74,11 @@ def test_estimate_mdf_out_option_writes_beside_the_estimate(
     frame = estimate_frame()
     result = EstimateResult(
         session=load_session(src), frame=frame, node_radii=np.linspace(0.1, 0.17, 12),
-        summary={"run": {"warnings": []}, "laps": []}, scores=None, open_loop=None,
-        disc=load_disc(),
+        summary={"run": {"warnings": [], "timings_s": {}, "wall_time_s": 0.0, "h_law": "law"},
+                 "laps": []},
+        scores=None, open_loop=None, disc=load_disc(), timings={"total_s": 0.0},
     )
-    monkeypatch.setattr(estimate_cmd, "estimate_session", lambda *_a, **_k: result)
+    monkeypatch.setattr(estimate_cmd, "estimate_from_session", lambda *_a, **_k: result)
     out = tmp_path / "out"
     run = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out), "--no-report",
                                    "--mdf-out", "--json"])
