@@ -68,13 +68,15 @@ class _Param:
 
 
 # Per effect, the parameters its strength moves. The strong values are the former
-# fixed strong levels, except where a real bike differs from the old shape:
+# fixed strong levels (the crown spread and the IR lag are capped where the log scale
+# would leave what a disc and a sensor do), except where a real bike differs from the
+# old shape:
 # friction_temperature reaches mu/mu_nom 0.80 at 150 degC and 1.15 at 600 degC
 # (carbon-carbon: a cold deficit larger than the hot gain), and thickness_gradient
 # is a physical k_z around the datasheet's 12 W/(m K), the strong disc at 0.4 of it.
 _SPECS: dict[str, tuple[_Param, ...]] = {
     "power_distribution": (
-        _Param("crown_sigma_base", (0.035, 0.07), 0.5, "log"),
+        _Param("crown_sigma_base", (0.035, 0.07), 0.5, "log", bounds=(0.0, 1.0)),
         _Param("crown_sigma_event", (0.045, 0.08), 0.22, "log"),
     ),
     "h_speed_knee": (_Param("knee_gain", (0.02, 0.06), 0.40, "lin", bounds=(0.0, 1.0)),),
@@ -89,7 +91,7 @@ _SPECS: dict[str, tuple[_Param, ...]] = {
         _Param("mu_t_width", (130.0, 180.0), 75.0, "log"),
     ),
     "thickness_gradient": (_Param("k_z", (10.5, 13.5), 0.4, "log", relative=True),),
-    "sensor_lag": (_Param("ir_lag_s", (0.03, 0.06), 0.35, "log"),),
+    "sensor_lag": (_Param("ir_lag_s", (0.03, 0.06), 0.35, "log", bounds=(0.0, 0.8)),),
     "emissivity_error": (_Param("emissivity_divisor", (0.835, 0.875), 1.0, "log"),),
 }
 
