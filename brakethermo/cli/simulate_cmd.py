@@ -15,7 +15,7 @@ from brakethermo.cli._app import app, console
 from brakethermo.cli._options import JsonOpt
 from brakethermo.io.writers import infer_format
 from brakethermo.pipelines.output_dir import check_output_file
-from brakethermo.sim.effects import EFFECT_NAMES
+from brakethermo.sim.effects import EFFECT_NAMES, STRENGTH_MAX, parse_effects
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
 
 
@@ -34,7 +34,9 @@ def simulate_cmd(
         str,
         typer.Option(
             "--effects",
-            help=f"Effects at their strong level, comma separated: {', '.join(EFFECT_NAMES)}.",
+            help="Effect strengths, name=strength comma separated (0 = mild baseline,"
+            f" 1 = strong, up to {STRENGTH_MAX}; a bare name = 1; unnamed effects 0),"
+            f" e.g. friction_temperature=0.8,sensor_lag. Names: {', '.join(EFFECT_NAMES)}.",
         ),
     ] = "",
     sensor: Annotated[
@@ -65,7 +67,7 @@ def simulate_cmd(
     cfg = SimConfig(
         track=track,
         laps=laps,
-        effects=tuple(e for e in effects.split(",") if e.strip()),
+        effects=parse_effects(effects),
         sensor=sensor,
         seed=seed,
         disc=disc,
@@ -83,7 +85,7 @@ def simulate_cmd(
         "track": result.session.facts["track"],
         "laps": laps,
         "seed": seed,
-        "effects": list(cfg.effects),
+        "effects": {n: v for n, v in cfg.strengths.items() if v > 0},
         "duration_s": float(truth.column("time")[-1].as_py()),
         "channels": [c.name for c in result.session.channels],
         "peak_spot_c": float(max(max(truth.column(f"spot{i}").to_pylist()) for i in range(1, 5))),
@@ -98,7 +100,10 @@ def simulate_cmd(
     tab.add_column("value")
     tab.add_row("session", escape(summary["session"]))
     tab.add_row("truth", escape(summary["truth"]))
-    tab.add_row("effects (strong)", ", ".join(cfg.effects) or "none (all mild)")
+    tab.add_row(
+        "effect strengths",
+        ", ".join(f"{n}={v:g}" for n, v in summary["effects"].items()) or "none (all mild)",
+    )
     tab.add_row("duration", f"{summary['duration_s']:.1f} s")
     tab.add_row("channels", escape(", ".join(summary["channels"])))
     tab.add_row("hottest spot (truth)", f"{summary['peak_spot_c']:.0f} °C")
