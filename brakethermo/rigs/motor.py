@@ -79,7 +79,9 @@ def motor_torque(motor: InductionMotor, omega: ArrayLike, f_hz: ArrayLike) -> Ar
 
 
 @njit(cache=True, nogil=True)
-def motor_torque_scalar(omega, f_hz, v_th, r_th, x_sum, r2, f_rated, pole_pairs):  # pragma: no cover
+def motor_torque_scalar(
+    omega, f_hz, v_th, r_th, x_sum, r2, f_rated, pole_pairs
+):  # pragma: no cover - compiled
     """:func:`motor_torque` for one rotor speed (``params()`` order), compiled."""
     ratio = f_hz / f_rated
     w_syn = 2.0 * math.pi * f_hz / pole_pairs

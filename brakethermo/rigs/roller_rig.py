@@ -37,7 +37,8 @@ class Friction:
 
 @dataclass(frozen=True)
 class FilterDefaults:
-    """The paper's joint-UKF settings (eq. 15a-15c), SI units, and the RK4 substep, s."""
+    """The paper's joint-UKF settings (eq. 15a-15c), SI units, the RK4 substep (s) and
+    the process noise of the measured-noise tuning."""
 
     alpha: float
     beta: float
@@ -46,6 +47,7 @@ class FilterDefaults:
     q: tuple[float, float, float]
     r: tuple[float, float]
     substep: float
+    q_measured: tuple[float, float, float]
 
 
 @dataclass(frozen=True)
@@ -208,6 +210,7 @@ def load_roller_rig(name_or_path: str | Path = "roller-rig") -> RollerRigSpec:
             q=_vec(fl, "filter", "q", 3, path),  # type: ignore[arg-type]
             r=_vec(fl, "filter", "r", 2, path),  # type: ignore[arg-type]
             substep=_num(fl, "filter", "substep", path, hi=0.01),
+            q_measured=_vec(fl, "filter", "q_measured", 3, path),  # type: ignore[arg-type]
         ),
         path=path,
     )
