@@ -101,7 +101,11 @@ class RollerRigModel:
         return d
 
     def propagate_numpy(
-        self, X: Array, dt: float, torque: tuple[float, float], normal: tuple[float, float],
+        self,
+        X: Array,
+        dt: float,
+        torque: tuple[float, float],
+        normal: tuple[float, float],
         supply_hz: float,
     ) -> Array:
         """RK4 over one sample interval, vectorised numpy (slow; the kernel's reference)."""
@@ -109,8 +113,13 @@ class RollerRigModel:
         h = dt / n_sub
         X = np.array(X, dtype=float)
         for j in range(n_sub):
-            u = [(torque[0] + (torque[1] - torque[0]) * (j + c) / n_sub,
-                  normal[0] + (normal[1] - normal[0]) * (j + c) / n_sub) for c in (0, 0.5, 1)]
+            u = [
+                (
+                    torque[0] + (torque[1] - torque[0]) * (j + c) / n_sub,
+                    normal[0] + (normal[1] - normal[0]) * (j + c) / n_sub,
+                )
+                for c in (0, 0.5, 1)
+            ]
             k1 = self.derivatives(X, *u[0], supply_hz)
             k2 = self.derivatives(X + 0.5 * h * k1, *u[1], supply_hz)
             k3 = self.derivatives(X + 0.5 * h * k2, *u[1], supply_hz)
@@ -199,12 +208,13 @@ def propagate(X, out, tq0, tq1, n0, n1, fsyn, p, n_sub, h):  # pragma: no cover 
         for j in range(n_sub):
             q0, q1, q2 = 2 * j, 2 * j + 1, 2 * j + 2
             a1, b1 = _rhs(w_w, w_r, r_w, tq[q0], nf[q0], ca[q0], cb[q0], fsyn, p)
-            a2, b2 = _rhs(w_w + 0.5 * h * a1, w_r + 0.5 * h * b1, r_w, tq[q1], nf[q1], ca[q1],
-                          cb[q1], fsyn, p)
-            a3, b3 = _rhs(w_w + 0.5 * h * a2, w_r + 0.5 * h * b2, r_w, tq[q1], nf[q1], ca[q1],
-                          cb[q1], fsyn, p)
-            a4, b4 = _rhs(w_w + h * a3, w_r + h * b3, r_w, tq[q2], nf[q2], ca[q2], cb[q2], fsyn,
-                          p)
+            a2, b2 = _rhs(
+                w_w + 0.5 * h * a1, w_r + 0.5 * h * b1, r_w, tq[q1], nf[q1], ca[q1], cb[q1], fsyn, p
+            )
+            a3, b3 = _rhs(
+                w_w + 0.5 * h * a2, w_r + 0.5 * h * b2, r_w, tq[q1], nf[q1], ca[q1], cb[q1], fsyn, p
+            )
+            a4, b4 = _rhs(w_w + h * a3, w_r + h * b3, r_w, tq[q2], nf[q2], ca[q2], cb[q2], fsyn, p)
             w_w += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
             w_r += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
         out[i, 0] = w_w

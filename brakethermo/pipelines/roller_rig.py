@@ -78,8 +78,9 @@ class RollerRigOptions:
         labels = [guess_label(r) for r in self.r0_mm]
         if len(set(labels)) != len(labels):
             raise ConfigError(f"starting guesses repeat: {', '.join(labels)} mm")
-        if self.supply_hz is not None and not (math.isfinite(self.supply_hz)
-                                               and 0.5 <= self.supply_hz <= 200.0):
+        if self.supply_hz is not None and not (
+            math.isfinite(self.supply_hz) and 0.5 <= self.supply_hz <= 200.0
+        ):
             raise ConfigError(f"--supply-hz {self.supply_hz:g} is out of range (0.5-200 Hz)")
         return self
 
@@ -184,11 +185,20 @@ def infer_supply_hz(
     w_r = float(np.nanmedian(omega_r[free]))
     w_w = float(np.nanmedian(omega_w[free]))
     b = spec.bearings
-    need = (b.roller_coulomb + b.roller_viscous * w_r
-            + (b.wheel_coulomb + b.wheel_viscous * w_w) * spec.roller_radius / spec.nominal_radius)
+    need = (
+        b.roller_coulomb
+        + b.roller_viscous * w_r
+        + (b.wheel_coulomb + b.wheel_viscous * w_w) * spec.roller_radius / spec.nominal_radius
+    )
     f_rot = w_r * spec.motor.pole_pairs / (2.0 * math.pi)  # zero slip
-    return float(brentq(lambda f: float(motor_torque(spec.motor, w_r, f)) - need,
-                        f_rot, f_rot * 1.5 + 1e-3, xtol=1e-10))
+    return float(
+        brentq(
+            lambda f: float(motor_torque(spec.motor, w_r, f)) - need,
+            f_rot,
+            f_rot * 1.5 + 1e-3,
+            xtol=1e-10,
+        )
+    )
 
 
 def _convergence_time(
@@ -253,18 +263,25 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     if session.has("normal_force"):
         normal = _fill(_finite_series(session, "normal_force"))
         if np.nanmin(normal) <= 0:
-            raise DataError("holds non-positive loads; check its unit and zero",
-                            path=session.path, channel="normal_force")
+            raise DataError(
+                "holds non-positive loads; check its unit and zero",
+                path=session.path,
+                channel="normal_force",
+            )
     else:
         normal = np.full(w_w.size, spec.nominal_load)
-        warnings.append(f"no normal_force channel: the datasheet load {spec.nominal_load:g} N"
-                        " is used")
+        warnings.append(
+            f"no normal_force channel: the datasheet load {spec.nominal_load:g} N is used"
+        )
     free = np.abs(torque) <= FREE_FRACTION * peak
     traction = np.abs(torque) >= TRACTION_FRACTION * peak
     both = np.isfinite(w_w) & np.isfinite(w_r)
     if not (free & both).any():
-        raise DataError("no free-rolling sample (wheel_torque near zero) with both speeds",
-                        path=session.path, channel="wheel_torque")
+        raise DataError(
+            "no free-rolling sample (wheel_torque near zero) with both speeds",
+            path=session.path,
+            channel="wheel_torque",
+        )
 
     supply, source = _supply(session, opts, spec, w_w, w_r, free & both)
     dt = session.dt
@@ -279,8 +296,9 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         Q = np.array(fd.q_measured)
         R = np.array([speed_noise_var(w_w, free & both, dt), speed_noise_var(w_r, free & both, dt)])
     H = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-    ukf = UnscentedKalmanFilter(f, np.diag(Q), np.diag(R), H=H, alpha=fd.alpha,
-                                beta=fd.beta, kappa=fd.kappa)
+    ukf = UnscentedKalmanFilter(
+        f, np.diag(Q), np.diag(R), H=H, alpha=fd.alpha, beta=fd.beta, kappa=fd.kappa
+    )
     first = int(np.flatnonzero(both)[0])
     runs = []
     for r0 in opts.r0_mm:
@@ -298,8 +316,7 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
             r0, out_mm, np.sqrt(var[:, 2]) * 1e3, filt_mm, filt_std, states,
             _convergence_time(t, filt_mm, float(filt_mm[-1]), dt),
         ))  # fmt: skip
-    s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2],
-                         normal)
+    s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2], normal)
     naive = w_r * spec.roller_radius / np.where(np.abs(w_w) > 1e-9, w_w, np.nan) * 1e3
     ref = session.constant("rolling_radius_ref")
     ref_mm = None if ref is None else ref * 1e3
@@ -311,14 +328,19 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         supply_hz=supply, supply_source=source, reference_mm=ref_mm, summary={},
     )  # fmt: skip
     result.summary.update(_summary(result, warnings, elapsed))
-    result.summary["filter"].update({"tuning": opts.tuning, "q_used": Q.tolist(),
-                                     "r_used": R.tolist()})
+    result.summary["filter"].update(
+        {"tuning": opts.tuning, "q_used": Q.tolist(), "r_used": R.tolist()}
+    )
     return result
 
 
 def _supply(
-    session: Session, opts: RollerRigOptions, spec: RollerRigSpec, w_w: np.ndarray,
-    w_r: np.ndarray, free: np.ndarray,
+    session: Session,
+    opts: RollerRigOptions,
+    spec: RollerRigSpec,
+    w_w: np.ndarray,
+    w_r: np.ndarray,
+    free: np.ndarray,
 ) -> tuple[float, str]:
     if opts.supply_hz is not None:
         return float(opts.supply_hz), "option --supply-hz"
@@ -329,8 +351,11 @@ def _supply(
         except ValueError:
             value = math.nan
         if not (math.isfinite(value) and value > 0):
-            raise DataError(f"session fact {SUPPLY_FACT}={fact!r} is not a frequency in Hz;"
-                            " fix it or pass --supply-hz", path=session.path)
+            raise DataError(
+                f"session fact {SUPPLY_FACT}={fact!r} is not a frequency in Hz;"
+                " fix it or pass --supply-hz",
+                path=session.path,
+            )
         return value, f"session fact {SUPPLY_FACT}"
     return infer_supply_hz(spec, w_w, w_r, free), "inferred from free rolling"
 
@@ -350,8 +375,9 @@ def naive_radius_mm(result: RollerRigResult, mask: np.ndarray) -> float | None:
     ok = mask & np.isfinite(result.omega_w) & np.isfinite(result.omega_r)
     if not ok.any():
         return None
-    return float(np.sum(result.omega_r[ok]) * result.spec.roller_radius
-                 / np.sum(result.omega_w[ok]) * 1e3)
+    return float(
+        np.sum(result.omega_r[ok]) * result.spec.roller_radius / np.sum(result.omega_w[ok]) * 1e3
+    )
 
 
 def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> dict[str, Any]:
@@ -360,21 +386,25 @@ def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> di
     for run in result.runs:
         rmse = None if ref is None else _rmse(run.radius_mm, ref)
         rmse_f = None if ref is None else _rmse(run.filter_mm, ref)
-        after = (None if ref is None or run.convergence_time_s is None
-                 else float(np.max(np.abs(run.filter_mm[result.time >= run.convergence_time_s]
-                                          - ref))))
-        runs.append({
-            "r0_mm": run.r0_mm,
-            "radius_mm": float(run.radius_mm[-1]),
-            "radius_std_mm": float(run.radius_std_mm[-1]),
-            "convergence_time_s": run.convergence_time_s,
-            "rmse_vs_ref_mm": rmse,
-            "rmse_vs_ref_pct": None if ref is None else 100.0 * rmse / ref,
-            "filter_rmse_vs_ref_mm": rmse_f,
-            "filter_rmse_vs_ref_pct": None if ref is None else 100.0 * rmse_f / ref,
-            "filter_max_error_after_convergence_mm": after,
-            "traction_radius_mm": _phase_mean(run.radius_mm, result.traction),
-        })
+        after = (
+            None
+            if ref is None or run.convergence_time_s is None
+            else float(np.max(np.abs(run.filter_mm[result.time >= run.convergence_time_s] - ref)))
+        )
+        runs.append(
+            {
+                "r0_mm": run.r0_mm,
+                "radius_mm": float(run.radius_mm[-1]),
+                "radius_std_mm": float(run.radius_std_mm[-1]),
+                "convergence_time_s": run.convergence_time_s,
+                "rmse_vs_ref_mm": rmse,
+                "rmse_vs_ref_pct": None if ref is None else 100.0 * rmse / ref,
+                "filter_rmse_vs_ref_mm": rmse_f,
+                "filter_rmse_vs_ref_pct": None if ref is None else 100.0 * rmse_f / ref,
+                "filter_max_error_after_convergence_mm": after,
+                "traction_radius_mm": _phase_mean(run.radius_mm, result.traction),
+            }
+        )
     naive_free = naive_radius_mm(result, result.free)
     naive_trac = naive_radius_mm(result, result.traction)
     ukf_trac = runs[0]["traction_radius_mm"]
@@ -402,9 +432,12 @@ def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> di
         "naive_vs_ukf": comparison,
         "traction_share": float(np.mean(result.traction)),
         "filter": {
-            "alpha": result.spec.filter.alpha, "beta": result.spec.filter.beta,
-            "kappa": result.spec.filter.kappa, "p0": list(result.spec.filter.p0),
-            "q": list(result.spec.filter.q), "r": list(result.spec.filter.r),
+            "alpha": result.spec.filter.alpha,
+            "beta": result.spec.filter.beta,
+            "kappa": result.spec.filter.kappa,
+            "p0": list(result.spec.filter.p0),
+            "q": list(result.spec.filter.q),
+            "r": list(result.spec.filter.r),
             "rk4_substep_s": result.spec.filter.substep,
         },
         "warnings": warnings,

@@ -95,11 +95,21 @@ def fastsim(
 
 
 def fastsim_curve(
-    xi: np.ndarray, phi: float, mu: float, normal_force: float, a: float, b: float,
-    flex: tuple[float, float, float], nx: int = 20, ny: int = 20, bound: str = "parabolic",
+    xi: np.ndarray,
+    phi: float,
+    mu: float,
+    normal_force: float,
+    a: float,
+    b: float,
+    flex: tuple[float, float, float],
+    nx: int = 20,
+    ny: int = 20,
+    bound: str = "parabolic",
 ) -> np.ndarray:
     """Longitudinal FASTSIM force over an array of creepages, N (no lateral creepage)."""
-    return np.array([
-        fastsim(x, 0.0, phi, mu, normal_force, a, b, flex, nx, ny, bound)[0]
-        for x in np.asarray(xi, dtype=float).ravel()
-    ]).reshape(np.shape(xi))
+    return np.array(
+        [
+            fastsim(x, 0.0, phi, mu, normal_force, a, b, flex, nx, ny, bound)[0]
+            for x in np.asarray(xi, dtype=float).ravel()
+        ]
+    ).reshape(np.shape(xi))

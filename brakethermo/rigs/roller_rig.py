@@ -116,8 +116,16 @@ def _section(raw: dict[str, Any], name: str, path: Path) -> dict[str, Any]:
     return sec
 
 
-def _num(sec: dict[str, Any], table: str, key: str, path: Path, *, lo: float = 0.0,
-         lo_open: bool = True, hi: float = math.inf) -> float:
+def _num(
+    sec: dict[str, Any],
+    table: str,
+    key: str,
+    path: Path,
+    *,
+    lo: float = 0.0,
+    lo_open: bool = True,
+    hi: float = math.inf,
+) -> float:
     where = f"[{table}] {key}"
     if key not in sec:
         raise ConfigError(f"missing key {where}", path=path)
@@ -133,9 +141,14 @@ def _num(sec: dict[str, Any], table: str, key: str, path: Path, *, lo: float = 0
 
 def _vec(sec: dict[str, Any], table: str, key: str, n: int, path: Path) -> tuple[float, ...]:
     v = sec.get(key)
-    if (not isinstance(v, list) or len(v) != n
-            or not all(isinstance(x, int | float) and not isinstance(x, bool) and x > 0
-                       and math.isfinite(x) for x in v)):
+    if (
+        not isinstance(v, list)
+        or len(v) != n
+        or not all(
+            isinstance(x, int | float) and not isinstance(x, bool) and x > 0 and math.isfinite(x)
+            for x in v
+        )
+    ):
         raise ConfigError(
             f"[{table}] {key} must be a list of {n} positive numbers, found {v!r}", path=path
         )
@@ -159,8 +172,9 @@ def load_roller_rig(name_or_path: str | Path = "roller-rig") -> RollerRigSpec:
     fl = _section(raw, "filter", path)
     pole_pairs = _num(m, "roller_motor", "pole_pairs", path, lo=1, lo_open=False)
     if pole_pairs != int(pole_pairs):
-        raise ConfigError(f"[roller_motor] pole_pairs must be an integer, found {pole_pairs!r}",
-                          path=path)
+        raise ConfigError(
+            f"[roller_motor] pole_pairs must be an integer, found {pole_pairs!r}", path=path
+        )
     kappa = fl.get("kappa", 0.0)
     if isinstance(kappa, bool) or not isinstance(kappa, int | float) or not 3 + kappa > 0:
         raise ConfigError(f"[filter] kappa must be a number > -3, found {kappa!r}", path=path)
@@ -169,12 +183,12 @@ def load_roller_rig(name_or_path: str | Path = "roller-rig") -> RollerRigSpec:
         description=str(raw.get("description", "")),
         wheel_inertia=_num(w, "wheel", "inertia", path),
         nominal_radius=_num(w, "wheel", "nominal_radius", path, hi=2.0),
-        wheel_lateral_curvature=_num(w, "wheel", "lateral_curvature", path, lo=-1e3,
-                                     lo_open=False),
+        wheel_lateral_curvature=_num(w, "wheel", "lateral_curvature", path, lo=-1e3, lo_open=False),
         roller_inertia=_num(r, "roller", "inertia", path),
         roller_radius=_num(r, "roller", "radius", path, hi=5.0),
-        roller_lateral_curvature=_num(r, "roller", "lateral_curvature", path, lo=-1e3,
-                                      lo_open=False),
+        roller_lateral_curvature=_num(
+            r, "roller", "lateral_curvature", path, lo=-1e3, lo_open=False
+        ),
         contact_angle=_num(c, "contact", "contact_angle", path, lo=0.0, lo_open=False, hi=1.0),
         young=_num(c, "contact", "young", path),
         poisson=_num(c, "contact", "poisson", path, lo=0.0, lo_open=False, hi=0.49),

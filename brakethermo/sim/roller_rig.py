@@ -93,8 +93,9 @@ class RollerRigSimConfig:
                     f"roller-rig simulation: {key}={getattr(self, key)!r} out of range"
                 )
         if self.torque_max is not None and not 0.0 < self.torque_max <= 2000.0:
-            raise ConfigError(f"roller-rig simulation: torque_max={self.torque_max!r} out of"
-                              " range (0, 2000] N m")
+            raise ConfigError(
+                f"roller-rig simulation: torque_max={self.torque_max!r} out of range (0, 2000] N m"
+            )
         return self
 
     @property
@@ -169,8 +170,9 @@ def _fastsim_table(a, b, L1, L2, L3, u_max, v_lo, v_hi, nx):  # pragma: no cover
         v = v_lo + (v_hi - v_lo) * iv / (N_V - 1)
         for iu in range(N_U):
             u = u_max * iu / (N_U - 1)
-            tab[iv, iu] = fastsim_scalar(u, 0.0, v, 1.0, 1.0, a, b, L1, L2, L3, nx, nx,
-                                         ELLIPTIC)[0]  # N = 1: the force is F/(mu N)
+            tab[iv, iu] = fastsim_scalar(u, 0.0, v, 1.0, 1.0, a, b, L1, L2, L3, nx, nx, ELLIPTIC)[
+                0
+            ]  # N = 1: the force is F/(mu N)
     return tab
 
 
@@ -188,8 +190,9 @@ def _creep_force(xi, mu, N, p, tab):  # pragma: no cover - compiled
     else:
         ju = int(u)
         fu = u - ju
-        g = ((1.0 - fv) * ((1.0 - fu) * tab[jv, ju] + fu * tab[jv, ju + 1])
-             + fv * ((1.0 - fu) * tab[jv + 1, ju] + fu * tab[jv + 1, ju + 1]))
+        g = (1.0 - fv) * ((1.0 - fu) * tab[jv, ju] + fu * tab[jv, ju + 1]) + fv * (
+            (1.0 - fu) * tab[jv + 1, ju] + fu * tab[jv + 1, ju + 1]
+        )
     return math.copysign(g * mu * N, xi)
 
 
@@ -207,12 +210,26 @@ def _truth_rhs(th_r, w_w, w_r, t_del, t_a, tq, N, p, tab):  # pragma: no cover -
     slip = (w_syn - w_r) / w_syn
     v = p[P_MV] * ratio
     x = p[P_MX] * ratio
-    t_static = 3.0 * v * v * p[P_MR2] * slip / (w_syn * ((p[P_MRTH] * slip + p[P_MR2]) ** 2
-                                                         + (x * slip) ** 2))
+    t_static = (
+        3.0
+        * v
+        * v
+        * p[P_MR2]
+        * slip
+        / (w_syn * ((p[P_MRTH] * slip + p[P_MR2]) ** 2 + (x * slip) ** 2))
+    )
     t_bw = p[P_BW0] * math.tanh(w_w / 0.01) + p[P_BW1] * w_w
     t_br = p[P_BR0] * math.tanh(w_r / 0.01) + p[P_BR1] * w_r
-    return (w_w, w_r, (t_del - F * p[P_RW] - t_bw) / p[P_JW], (F * r_r + t_a - t_br) / p[P_JR],
-            (p[P_GAIN] * tq - t_del) / p[P_TAUP], (t_static - t_a) / p[P_TAUM], F, xi)
+    return (
+        w_w,
+        w_r,
+        (t_del - F * p[P_RW] - t_bw) / p[P_JW],
+        (F * r_r + t_a - t_br) / p[P_JR],
+        (p[P_GAIN] * tq - t_del) / p[P_TAUP],
+        (t_static - t_a) / p[P_TAUM],
+        F,
+        xi,
+    )
 
 
 @njit(cache=True, nogil=True)
@@ -235,33 +252,34 @@ def _integrate(y0, tq, nf, dt, n_sub, p, tab, out, force, creep):  # pragma: no 
         for j in range(n_sub):
             ca, cm, cb = j / n_sub, (j + 0.5) / n_sub, (j + 1.0) / n_sub
             dq, dn = tq[k + 1] - tq[k], nf[k + 1] - nf[k]
-            r = _truth_rhs(y[1], y[2], y[3], y[4], y[5], tq[k] + dq * ca, nf[k] + dn * ca, p,
-                           tab)
+            r = _truth_rhs(y[1], y[2], y[3], y[4], y[5], tq[k] + dq * ca, nf[k] + dn * ca, p, tab)
             for i in range(6):
                 k1[i] = r[i]
                 z[i] = y[i] + 0.5 * h * r[i]
-            r = _truth_rhs(z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cm, nf[k] + dn * cm, p,
-                           tab)
+            r = _truth_rhs(z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cm, nf[k] + dn * cm, p, tab)
             for i in range(6):
                 k2[i] = r[i]
                 z[i] = y[i] + 0.5 * h * r[i]
-            r = _truth_rhs(z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cm, nf[k] + dn * cm, p,
-                           tab)
+            r = _truth_rhs(z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cm, nf[k] + dn * cm, p, tab)
             for i in range(6):
                 k3[i] = r[i]
                 z[i] = y[i] + h * r[i]
-            r = _truth_rhs(z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cb, nf[k] + dn * cb, p,
-                           tab)
+            r = _truth_rhs(z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cb, nf[k] + dn * cb, p, tab)
             for i in range(6):
                 k4[i] = r[i]
                 y[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
-def _truth_params(spec: RollerRigSpec, cfg: RollerRigSimConfig, rng: np.random.Generator,
-                  nx: int = 20) -> tuple[np.ndarray, np.ndarray]:
+def _truth_params(
+    spec: RollerRigSpec, cfg: RollerRigSimConfig, rng: np.random.Generator, nx: int = 20
+) -> tuple[np.ndarray, np.ndarray]:
     """The machine as it really is (datasheet values perturbed) and its FASTSIM table."""
-    A, B = curvature_sums(cfg.radius_m, spec.roller_radius, spec.wheel_lateral_curvature,
-                          spec.roller_lateral_curvature)
+    A, B = curvature_sums(
+        cfg.radius_m,
+        spec.roller_radius,
+        spec.wheel_lateral_curvature,
+        spec.roller_lateral_curvature,
+    )
     hz = hertz_contact(spec.nominal_load, A, B, spec.young, spec.poisson)
     a = math.sqrt(VIRTUAL_PENETRATION * hz.delta / A)  # eq. 4, Kik-Piotrowski
     b = math.sqrt(VIRTUAL_PENETRATION * hz.delta / B)
@@ -282,8 +300,17 @@ def _truth_params(spec: RollerRigSpec, cfg: RollerRigSimConfig, rng: np.random.G
         br.wheel_coulomb * u(0.8, 1.3), br.wheel_viscous * u(0.8, 1.3),
         br.roller_coulomb * u(0.8, 1.3), br.roller_viscous * u(0.8, 1.3), u_max, v_lo, v_hi,
     ])  # fmt: skip
-    tab = _fastsim_table(a, b, L1 * spec.nominal_load, L2 * spec.nominal_load,
-                         L3 * spec.nominal_load, u_max, v_lo, v_hi, nx)
+    tab = _fastsim_table(
+        a,
+        b,
+        L1 * spec.nominal_load,
+        L2 * spec.nominal_load,
+        L3 * spec.nominal_load,
+        u_max,
+        v_lo,
+        v_hi,
+        nx,
+    )
     return p, tab
 
 
@@ -326,8 +353,9 @@ def simulate_roller_rig(cfg: RollerRigSimConfig) -> RollerRigSimResult:
     load = spec.nominal_load * (1.0 + _ou(rng, n, dt, 2.0, 0.015))
     w_syn = 2.0 * math.pi * cfg.supply_hz / spec.motor.pole_pairs
     w_r0 = w_syn * (1.0 - 0.005)
-    y0 = np.array([0.0, rng.uniform(0, 2 * np.pi), w_r0 * spec.roller_radius / cfg.radius_m,
-                   w_r0, 0.0, 0.0])
+    y0 = np.array(
+        [0.0, rng.uniform(0, 2 * np.pi), w_r0 * spec.roller_radius / cfg.radius_m, w_r0, 0.0, 0.0]
+    )
     states = np.empty((n, 6))
     force, creep = np.empty(n), np.empty(n)
     _integrate(y0, acting, load, dt, n_sub, p, tab, states, force, creep)
@@ -346,8 +374,15 @@ def simulate_roller_rig(cfg: RollerRigSimConfig) -> RollerRigSimResult:
         Channel("roller_torque", "N m", t_log, shaft, decimals=2),
     ]
     if cfg.reference:
-        channels.append(Channel("rolling_radius_ref", "mm", np.zeros(1),
-                                np.array([round(cfg.radius_m * 1e3, 2)]), decimals=2))
+        channels.append(
+            Channel(
+                "rolling_radius_ref",
+                "mm",
+                np.zeros(1),
+                np.array([round(cfg.radius_m * 1e3, 2)]),
+                decimals=2,
+            )
+        )
     facts = {
         "rig": "roller-rig",
         "rig_datasheet": spec.id,
