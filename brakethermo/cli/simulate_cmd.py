@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -13,6 +14,7 @@ from rich.table import Table
 from brakethermo.cli._app import app, console
 from brakethermo.io.writers import infer_format
 from brakethermo.sim.effects import EFFECT_NAMES
+from brakethermo.sim.rigs import RIG_SIMULATORS, simulate_rig
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
 
 
@@ -52,9 +54,20 @@ def simulate_cmd(
     as_json: Annotated[
         bool, typer.Option("--json", help="Print a machine-readable summary.")
     ] = False,
+    rig: Annotated[
+        str | None,
+        typer.Option("--rig", help=f"Simulate a rig session instead: {', '.join(RIG_SIMULATORS)}."),
+    ] = None,
+    rig_set: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="Rig simulation setting KEY=VALUE (with --rig); repeat."),
+    ] = None,
 ) -> None:
     """Simulate a session with named effects; write it and <stem>.truth.parquet beside it."""
     fmt = infer_format(out, fmt)
+    if rig is not None:
+        _simulate_rig(rig, rig_set or [], seed, out, fmt, as_json)
+        return
     cfg = SimConfig(
         track=track,
         laps=laps,
@@ -96,4 +109,33 @@ def simulate_cmd(
     tab.add_row("channels", ", ".join(summary["channels"]))
     tab.add_row("hottest spot (truth)", f"{summary['peak_spot_c']:.0f} °C")
     tab.add_row("time", f"simulate {summary['simulate_s']:.1f} s, write {summary['write_s']:.1f} s")
+    console.print(tab)
+
+
+def _simulate_rig(
+    rig: str, settings: list[str], seed: int, out: Path, fmt: str, as_json: bool
+) -> None:
+    """``simulate --rig``: one rig session and its truth file."""
+    t0 = time.perf_counter()
+    cfg, session_path, truth_path = simulate_rig(rig, settings, seed, out, fmt)
+    summary = {
+        "rig": rig,
+        "session": str(session_path),
+        "truth": str(truth_path),
+        "format": fmt,
+        "seed": seed,
+        "config": dataclasses.asdict(cfg),
+        "simulate_s": round(time.perf_counter() - t0, 3),
+    }
+    if as_json:
+        typer.echo(json.dumps(summary))
+        return
+    tab = Table(title=f"simulated {rig} session, seed {seed}")
+    tab.add_column("item")
+    tab.add_column("value")
+    tab.add_row("session", summary["session"])
+    tab.add_row("truth", summary["truth"])
+    for key, value in summary["config"].items():
+        tab.add_row(key, str(value))
+    tab.add_row("time", f"{summary['simulate_s']:.1f} s")
     console.print(tab)

@@ -443,3 +443,38 @@ def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> di
         "warnings": warnings,
         "wall_time_s": elapsed,
     }
+
+
+UNITS = {"wheel_omega": "rad/s", "roller_omega": "rad/s", "creep_force": "N", "creepage": "-",
+         "naive_radius_mm": "mm", "time": "s"}  # fmt: skip
+
+
+def roller_rig_frame(result: RollerRigResult) -> tuple[pd.DataFrame, dict[str, str]]:
+    """The ``roller_rig.parquet`` table (OUTPUTS.md) and its units."""
+    cols: dict[str, np.ndarray] = {"time": result.time - result.time[0]}
+    units = dict(UNITS)
+    for run in result.runs:
+        g = guess_label(run.r0_mm)
+        cols[f"radius_mm_{g}"] = run.radius_mm
+        cols[f"radius_std_mm_{g}"] = run.radius_std_mm
+        cols[f"radius_filter_mm_{g}"] = run.filter_mm
+        for name in (f"radius_mm_{g}", f"radius_std_mm_{g}", f"radius_filter_mm_{g}"):
+            units[name] = "mm"
+    st = result.runs[0].states
+    cols["wheel_omega"] = st[:, 0]
+    cols["roller_omega"] = st[:, 1]
+    cols["creep_force"] = result.creep_force
+    cols["creepage"] = result.creepage
+    cols["naive_radius_mm"] = result.naive_mm
+    return pd.DataFrame(cols), units
+
+
+def write_roller_rig(result: RollerRigResult, out: str | Path) -> Path:
+    """Write ``DIR/<stem>/roller_rig.parquet``, ``summary.json`` and the report page."""
+    from brakethermo.pipelines.rig_outputs import write_rig_outputs
+    from brakethermo.report.roller_rig_page import roller_rig_page
+
+    frame, units = roller_rig_frame(result)
+    return write_rig_outputs(
+        Path(out), result.stem, PIPELINE, frame, result.summary, roller_rig_page(result), units
+    )
