@@ -135,7 +135,7 @@ def roller_rig_page(result: RollerRigResult) -> Page:
             _fmt(paper_mm, ".4f")
             + ("" if paper_mm is None else f" ({100 * paper_mm / PAPER_RADIUS_MM:.2f} %)"),
             _fmt(r["convergence_time_s"]),
-            _fmt(r["filter_max_error_after_convergence_mm"], ".3f"),
+            _fmt(r["max_error_after_convergence_mm"], ".3f"),
         ])  # fmt: skip
     out_name = "smoothed" if result.options.smoother else "filter"
     table1 = TableBlock(
