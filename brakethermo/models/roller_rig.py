@@ -180,9 +180,19 @@ def _rhs(w_w, w_r, r_w, tq, N, a, b, fsyn, p):  # pragma: no cover - compiled
         p[KA], p[KS],
     )  # fmt: skip
     T_A = motor_torque_scalar(w_r, fsyn, p[MV], p[MRTH], p[MX], p[MR2], p[MF], p[MP])
-    T_bw = p[BW0] * math.tanh(w_w / OMEGA_EPS) + p[BW1] * w_w
-    T_br = p[BR0] * math.tanh(w_r / OMEGA_EPS) + p[BR1] * w_r
+    T_bw = p[BW0] * _smooth_sign(w_w) + p[BW1] * w_w
+    T_br = p[BR0] * _smooth_sign(w_r) + p[BR1] * w_r
     return (tq - F * r_w - T_bw) / p[J_W], (F * p[R_R] + T_A - T_br) / p[J_R]
+
+
+@njit(cache=True, nogil=True)
+def _smooth_sign(w):  # pragma: no cover - compiled
+    """tanh(w / OMEGA_EPS); its exact +-1 beyond 20 widths, where tanh rounds to it anyway."""
+    if w > 20.0 * OMEGA_EPS:
+        return 1.0
+    if w < -20.0 * OMEGA_EPS:
+        return -1.0
+    return math.tanh(w / OMEGA_EPS)
 
 
 @njit(cache=True, nogil=True)

@@ -11,7 +11,9 @@ the report page (OUTPUTS.md, "roller-rig").
 from __future__ import annotations
 
 import math
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -311,8 +313,8 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         f, np.diag(Q), np.diag(R), H=H, alpha=fd.alpha, beta=fd.beta, kappa=fd.kappa
     )
     first = int(np.flatnonzero(both)[0])
-    runs = []
-    for r0 in opts.r0_mm:
+
+    def one_guess(r0: float) -> GuessRun:
         x0 = np.array([w_w[first], w_r[first], r0 * 1e-3])
         res = ukf.run(x0, np.diag(fd.p0), y, store="smoother" if opts.smoother else "diag")
         filt_mm = res.x_filt[:, 2] * 1e3
@@ -322,11 +324,16 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
             states, var = sm.x_smooth, sm.var_smooth
         else:
             states, var = res.x_filt, res.var_filt
-        out_mm = states[:, 2] * 1e3
-        runs.append(GuessRun(
-            r0, out_mm, np.sqrt(var[:, 2]) * 1e3, filt_mm, filt_std, states,
+        return GuessRun(
+            r0, states[:, 2] * 1e3, np.sqrt(var[:, 2]) * 1e3, filt_mm, filt_std, states,
             convergence_time(t, filt_mm, float(filt_mm[-1]), dt),
-        ))  # fmt: skip
+        )  # fmt: skip
+
+    # The guesses are independent and the compiled model and filter steps release the
+    # GIL: one thread per guess, at most one per core.
+    workers = max(1, min(len(opts.r0_mm), os.cpu_count() or 1))
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        runs = list(pool.map(one_guess, opts.r0_mm))
     s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2], normal)
     naive = w_r * spec.roller_radius / np.where(np.abs(w_w) > 1e-9, w_w, np.nan) * 1e3
     ref = session.constant("rolling_radius_ref")
