@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 # The paper's Table 1: whole-run RMSE of the radius, mm, (under-, over-estimation).
 PAPER_TABLE1 = {15: (0.6060, 0.8233), 30: (1.0631, 1.0139)}
 PAPER_RADIUS_MM = 348.2  # the paper's measured radius, the base of its percentages
-MAX_POINTS = 6000  # plotted points per line (the PNG cannot show more)
+MAX_POINTS = 4000  # plotted points per line (the PNG cannot show more)
 
 
 def _thin(n: int) -> slice:
@@ -93,14 +93,23 @@ def creep_figure(result: RollerRigResult) -> Figure:
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
     t = result.time
     idx = np.arange(t.size)[_thin(t.size)]
+    w = max(1, round(0.5 / result.session.dt))
+
+    def mean(x: np.ndarray) -> np.ndarray:
+        return pd.Series(x).rolling(w, min_periods=1, center=True).mean().to_numpy()
+
+    ax1.plot(t[idx], result.creep_force[idx], color="tab:purple", lw=0.4, alpha=0.35)
+    ax1.plot(t[idx], mean(result.creep_force)[idx], color="tab:purple", lw=1.4,
+             label="model at the estimated states (0.5 s mean)")  # fmt: skip
     if result.session.has("roller_torque"):
         shaft = result.session.values("roller_torque") / result.spec.roller_radius
-        ax1.plot(t[idx], shaft[idx], color="0.7", lw=0.5, label="roller transducer / R_r")
-    ax1.plot(t[idx], result.creep_force[idx], color="tab:purple", lw=1.0, label="model, estimate")
+        ax1.plot(t[idx], mean(shaft)[idx], color="k", lw=1.0, ls="--",
+                 label="roller transducer / R_r (0.5 s mean)")  # fmt: skip
     ax1.set_ylabel("creep force, N")
     ax1.legend(fontsize=7)
     ax1.grid(alpha=0.3)
-    ax2.plot(t[idx], result.creepage[idx] * 100.0, color="tab:brown", lw=1.0)
+    ax2.plot(t[idx], result.creepage[idx] * 100.0, color="tab:brown", lw=0.4, alpha=0.35)
+    ax2.plot(t[idx], mean(result.creepage)[idx] * 100.0, color="tab:brown", lw=1.4)
     ax2.set_ylabel("creepage, %")
     ax2.set_xlabel("time, s")
     ax2.grid(alpha=0.3)
@@ -176,7 +185,7 @@ def roller_rig_page(result: RollerRigResult) -> Page:
             f" Under traction the naive ratio is {n_err:.3f} mm off the reference, the UKF "
             f"{u_err:.3f} mm ({better:.1f}x smaller error)."
         )
-    t_end = min(float(result.time[-1]), 1.0)
+    t_end = min(float(result.time[-1]), 0.3)
     sections = [
         Section("Rolling radius", text, [table1],
                 {"radius": radius_figure(result),
