@@ -187,3 +187,15 @@ def test_bad_options_exit_1(tmp_path: Path) -> None:
     assert got.exit_code == 1 and "repeat" in got.output
     with pytest.raises(ConfigError, match="tuning"):
         RollerRigOptions(tuning="magic").validated()
+
+
+def test_supply_frequency_inferred_without_the_fact(tmp_path: Path) -> None:
+    """Without ``roller_supply_hz`` the supply is found from free rolling (motor balance
+    of the bearing losses) within 0.5 %, and the radius is still right."""
+    sim = simulate_roller_rig(RollerRigSimConfig(speed_kmh=30.0, seed=206, duration_s=10.0,
+                                                 free_s=2.0))  # fmt: skip
+    path = write_session(tmp_path / "nofact.parquet", SessionData(sim.session.channels, {}))
+    res = run_roller_rig(path, RollerRigOptions(r0_mm=(360.0,)))
+    assert res.supply_source == "inferred from free rolling"
+    assert res.supply_hz == pytest.approx(15.0, rel=0.005)
+    assert abs(res.summary["runs"][0]["radius_mm"] - 348.2) < 0.5
