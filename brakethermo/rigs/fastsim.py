@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 PARABOLIC = 0  # Kalker's original traction bound, p_z = 2N/(pi a b) (1 - x^2/a^2 - y^2/b^2)
@@ -92,24 +91,3 @@ def fastsim(
         L1, L2, L3, int(nx), int(ny), BOUNDS[bound],
     )  # fmt: skip
     return float(fx), float(fy)
-
-
-def fastsim_curve(
-    xi: np.ndarray,
-    phi: float,
-    mu: float,
-    normal_force: float,
-    a: float,
-    b: float,
-    flex: tuple[float, float, float],
-    nx: int = 20,
-    ny: int = 20,
-    bound: str = "parabolic",
-) -> np.ndarray:
-    """Longitudinal FASTSIM force over an array of creepages, N (no lateral creepage)."""
-    return np.array(
-        [
-            fastsim(x, 0.0, phi, mu, normal_force, a, b, flex, nx, ny, bound)[0]
-            for x in np.asarray(xi, dtype=float).ravel()
-        ]
-    ).reshape(np.shape(xi))

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +40,6 @@ from brakethermo.rigs.hertz import curvature_sums, hertz_contact
 from brakethermo.rigs.kalker import flexibilities, kalker_coefficients
 from brakethermo.rigs.roller_rig import RollerRigSpec, load_roller_rig
 
-KMH = 3.6
 ENCODER_COUNTS = 16384  # per revolution, 4096 PPR in X4 evaluation (paper)
 SIM_STEP = 2.0e-4  # s, the truth's RK4 step
 WARMUP_S = 3.0  # s of free rolling integrated before the log starts
@@ -163,16 +162,17 @@ def _fastsim_table(a, b, L1, L2, L3, u_max, v_lo, v_hi, nx):  # pragma: no cover
     """F/(mu N) of FASTSIM at N_ref, mu = 1 over u = xi/(mu s) in [0, u_max], v = phi/mu.
 
     With a, b, L ~ s = (N/N_ref)^(1/3) FASTSIM's F/(mu N) depends on xi and phi only
-    through xi/(mu s) and phi/mu, so one table serves every load and friction.
+    through xi/(mu s) and phi/mu, so one table serves every load and friction. The
+    flexibilities come in multiplied by N_ref and FASTSIM runs at N = 1 N: the same
+    traction-to-bound ratios as at N_ref, and the force it returns is F/(mu N).
     """
     tab = np.empty((N_V, N_U))
     for iv in range(N_V):
         v = v_lo + (v_hi - v_lo) * iv / (N_V - 1)
         for iu in range(N_U):
             u = u_max * iu / (N_U - 1)
-            tab[iv, iu] = fastsim_scalar(u, 0.0, v, 1.0, 1.0, a, b, L1, L2, L3, nx, nx, ELLIPTIC)[
-                0
-            ]  # N = 1: the force is F/(mu N)
+            fx, _ = fastsim_scalar(u, 0.0, v, 1.0, 1.0, a, b, L1, L2, L3, nx, nx, ELLIPTIC)
+            tab[iv, iu] = fx
     return tab
 
 
@@ -300,17 +300,8 @@ def _truth_params(
         br.wheel_coulomb * u(0.8, 1.3), br.wheel_viscous * u(0.8, 1.3),
         br.roller_coulomb * u(0.8, 1.3), br.roller_viscous * u(0.8, 1.3), u_max, v_lo, v_hi,
     ])  # fmt: skip
-    tab = _fastsim_table(
-        a,
-        b,
-        L1 * spec.nominal_load,
-        L2 * spec.nominal_load,
-        L3 * spec.nominal_load,
-        u_max,
-        v_lo,
-        v_hi,
-        nx,
-    )
+    n_ref = spec.nominal_load
+    tab = _fastsim_table(a, b, L1 * n_ref, L2 * n_ref, L3 * n_ref, u_max, v_lo, v_hi, nx)
     return p, tab
 
 
@@ -408,13 +399,3 @@ def write_roller_rig_simulation(
     truth_path = out.with_name(f"{out.stem}.truth.parquet")
     write_table_parquet(truth_path, result.truth)
     return session_path, truth_path
-
-
-__all__ = [
-    "RollerRigSimConfig",
-    "RollerRigSimResult",
-    "replace",
-    "simulate_roller_rig",
-    "torque_request",
-    "write_roller_rig_simulation",
-]
