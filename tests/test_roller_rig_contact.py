@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from brakethermo.rigs.fastsim import fastsim
+from brakethermo.rigs.fastsim import PARABOLIC, fastsim, fastsim_table, fastsim_table_force
 from brakethermo.rigs.hertz import hertz_contact
 from brakethermo.rigs.kalker import flexibilities, kalker_coefficients
 from brakethermo.rigs.motor import InductionMotor, motor_torque, motor_torque_scalar
@@ -195,3 +195,16 @@ def test_motor_vf_keeps_torque_per_slip_speed_without_stator_resistance() -> Non
         )
     p = MOTOR.params()
     assert motor_torque_scalar(9.0, 7.5, *p) == pytest.approx(float(motor_torque(MOTOR, 9.0, 7.5)))
+
+
+def test_fastsim_table_reproduces_fastsim_at_other_loads_and_friction() -> None:
+    """One table at N_ref serves any load and mu (Hertz scaling): within 0.1 % of FASTSIM."""
+    a, b, n_ref, phi = 2.46e-3, 2.9e-3, 13e3, 0.2555
+    flex = flexibilities(a, b, 8e10, kalker_coefficients(b / a, NU))
+    u_max = 9.0 * n_ref / (8e10 * a * b * 4.08)
+    tab = fastsim_table(a, b, *flex, n_ref, u_max, phi / 0.4, phi / 0.16, 20, PARABOLIC)
+    for xi, mu, n in [(3e-4, 0.3, 14e3), (1e-3, 0.2, 12e3), (-5e-4, 0.35, 13e3), (0.05, 0.2, 13e3)]:
+        s = (n / n_ref) ** (1 / 3)
+        direct = fastsim(xi, 0.0, phi, mu, n, a * s, b * s, tuple(f * s for f in flex))[0]
+        looked = fastsim_table_force(xi, phi, mu, n, n_ref, u_max, phi / 0.4, phi / 0.16, tab)
+        assert looked == pytest.approx(direct, rel=1e-3)

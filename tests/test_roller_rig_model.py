@@ -26,9 +26,10 @@ def _inputs(K: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return torque, normal, np.full(K, 7.5)
 
 
-def test_compiled_kernel_equals_vectorised_numpy() -> None:
+@pytest.mark.parametrize("law", ["polach", "fastsim"])
+def test_compiled_kernel_equals_vectorised_numpy(law: str) -> None:
     """All sigma points in one compiled call == the numpy RK4 of the same equations."""
-    model = RollerRigModel.from_spec(SPEC)
+    model = RollerRigModel.from_spec(SPEC, creep_law=law)
     torque, normal, supply = _inputs(8)
     f = model.transition(0.005, torque, normal, supply)
     X = np.array([[12.16, 9.36, 0.3482], [12.3, 9.3, 0.32], [12.0, 9.45, 0.40],
@@ -68,9 +69,11 @@ def test_contact_force_cancels_in_the_angular_impulse() -> None:
     assert x[0, 2] == 0.3482  # the radius is a parameter: carried unchanged
 
 
-def test_substep_must_be_positive_and_small() -> None:
+def test_substep_and_creep_law_are_checked() -> None:
     with pytest.raises(ConfigError, match="substep"):
         RollerRigModel.from_spec(SPEC, substep=0.02)
+    with pytest.raises(ConfigError, match="creep law"):
+        RollerRigModel.from_spec(SPEC, creep_law="coulomb")
 
 
 def _session(K: int, seed: int) -> tuple:

@@ -57,12 +57,15 @@ def _truth(session: Path) -> float:
                  .column("radius_m")[0].as_py()) * 1e3  # fmt: skip
 
 
-@pytest.mark.parametrize("which", ["15", "30", "reprofiled"])
-def test_radius_accuracy_from_both_guesses(sessions: dict[str, Path], which: str) -> None:
+@pytest.mark.parametrize(
+    ("which", "law"),
+    [("15", "polach"), ("30", "polach"), ("reprofiled", "polach"), ("30", "fastsim")],
+)
+def test_radius_accuracy_from_both_guesses(sessions: dict[str, Path], which: str, law: str):
     """Whole-run RMSE <= 0.3 % of the true radius (the paper: 0.17-0.31 %) for the
     filter alone and smoothed, from 320 and 400 mm; within 1 mm of truth after
     convergence; under traction the UKF beats the naive speed ratio."""
-    res = run_roller_rig(sessions[which])
+    res = run_roller_rig(sessions[which], RollerRigOptions(creep_law=law))
     truth = _truth(sessions[which])
     assert res.reference_mm == pytest.approx(truth, abs=0.01)
     for run in res.runs:
@@ -187,6 +190,8 @@ def test_bad_options_exit_1(tmp_path: Path) -> None:
     assert got.exit_code == 1 and "repeat" in got.output
     with pytest.raises(ConfigError, match="tuning"):
         RollerRigOptions(tuning="magic").validated()
+    got = runner.invoke(app, ["roller-rig", str(path), "--creep", "coulomb"])
+    assert got.exit_code == 1 and "--creep" in got.output
 
 
 def test_supply_frequency_inferred_without_the_fact(tmp_path: Path) -> None:

@@ -69,6 +69,9 @@ def roller_rig_cmd(
     tuning: Annotated[
         str, typer.Option(help=f"Filter noise: {' or '.join(TUNINGS)} (the paper's P0/Q/R).")
     ] = "measured",
+    creep: Annotated[
+        str, typer.Option(help="Creep law: polach, or fastsim (Kalker, 20 x 20, slower).")
+    ] = "polach",
     rig: Annotated[str, typer.Option(help="Rig datasheet id or TOML file.")] = "roller-rig",
     supply_hz: Annotated[
         float | None, typer.Option(help="Roller-motor supply, Hz (else the session's fact).")
@@ -84,6 +87,7 @@ def roller_rig_cmd(
         supply_hz=supply_hz,
         aliases=aliases,
         tuning=tuning,
+        creep_law=creep,
     )
     result = run_with_status(as_json, "estimating the rolling radius…",
                              lambda: run_roller_rig(session, options))  # fmt: skip

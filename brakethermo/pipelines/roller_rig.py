@@ -26,7 +26,7 @@ from brakethermo.errors import ConfigError, DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
-from brakethermo.models.roller_rig import RollerRigModel
+from brakethermo.models.roller_rig import CREEP_LAWS, RollerRigModel
 from brakethermo.rigs.motor import motor_torque
 from brakethermo.rigs.roller_rig import RollerRigSpec, load_roller_rig
 
@@ -59,6 +59,8 @@ class RollerRigOptions:
     aliases : Path or None — channel alias TOML.
     tuning : {"measured", "paper"} — R from the session's speed noise and the
         datasheet's ``q_measured``; or the paper's P0/Q/R exactly (eq. 15a-15c).
+    creep_law : {"polach", "fastsim"} — the estimator's creep force: Polach's law, or
+        Kalker's FASTSIM (20 x 20) with Polach's friction.
     """
 
     r0_mm: tuple[float, ...] = (320.0, 400.0)
@@ -67,9 +69,14 @@ class RollerRigOptions:
     supply_hz: float | None = None
     aliases: Path | None = None
     tuning: str = "measured"
+    creep_law: str = "polach"
 
     def validated(self) -> RollerRigOptions:
         """Self after checks (ConfigError naming the option)."""
+        if self.creep_law not in CREEP_LAWS:
+            raise ConfigError(
+                f"--creep must be one of {', '.join(CREEP_LAWS)}, got {self.creep_law!r}"
+            )
         if self.tuning not in TUNINGS:
             raise ConfigError(f"--tuning must be one of {', '.join(TUNINGS)}, got {self.tuning!r}")
         if not self.r0_mm:
@@ -299,7 +306,7 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     supply, source = _supply(session, opts, spec, w_w, w_r, free & both)
     dt = session.dt
     t = session.time
-    model = RollerRigModel.from_spec(spec)
+    model = RollerRigModel.from_spec(spec, creep_law=opts.creep_law)
     f = model.transition(dt, torque, normal, np.full(t.size, supply))
     y = np.column_stack([w_w, w_r])
     fd = spec.filter
@@ -347,7 +354,12 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     )  # fmt: skip
     result.summary.update(_summary(result, warnings, elapsed))
     result.summary["filter"].update(
-        {"tuning": opts.tuning, "q_used": Q.tolist(), "r_used": R.tolist()}
+        {
+            "tuning": opts.tuning,
+            "creep_law": opts.creep_law,
+            "q_used": Q.tolist(),
+            "r_used": R.tolist(),
+        }
     )
     return result
 

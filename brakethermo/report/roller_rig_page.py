@@ -168,7 +168,7 @@ def roller_rig_page(result: RollerRigResult) -> Page:
         f"Joint UKF on [ω_w, ω_r, r_w] (paper eq. 10-14), α = {s['filter']['alpha']:g}, "
         f"β = {s['filter']['beta']:g}, κ = {s['filter']['kappa']:g}, RK4 at "
         f"{s['filter']['rk4_substep_s'] * 1e3:g} ms inside each {result.session.dt * 1e3:g} ms "
-        f"sample; tuning '{s['filter']['tuning']}'; "
+        f"sample; creep law {s['filter']['creep_law']}; tuning '{s['filter']['tuning']}'; "
         + ("unscented RTS smoother on." if result.options.smoother else "filter only (the paper)."),
         f"Roller motor supply {result.supply_hz:.3f} Hz ({result.supply_source}).",
     ]  # fmt: skip

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 PARABOLIC = 0  # Kalker's original traction bound, p_z = 2N/(pi a b) (1 - x^2/a^2 - y^2/b^2)
@@ -91,3 +92,46 @@ def fastsim(
         L1, L2, L3, int(nx), int(ny), BOUNDS[bound],
     )  # fmt: skip
     return float(fx), float(fy)
+
+
+TABLE_NU, TABLE_NV = 801, 7  # normalised creepage x normalised spin
+
+
+@njit(cache=True, nogil=True)
+def fastsim_table(a, b, L1, L2, L3, n_ref, u_max, v_lo, v_hi, nx, bound):  # pragma: no cover
+    """FASTSIM's F_x/(mu N) on a grid, for fast lookup inside an integrator.
+
+    With the semi-axes and flexibilities scaling as s = (N/N_ref)^(1/3) (Hertz),
+    F_x/(mu N) depends on the creepage xi and the spin phi only through u = xi/(mu s)
+    and v = phi/mu, so one table at N_ref serves every load and friction coefficient.
+    Rows: v from ``v_lo`` to ``v_hi``; columns: u from 0 to ``u_max`` (beyond it the
+    contact slides fully). Arguments as :func:`fastsim_scalar` at N_ref, m and m/Pa.
+    """
+    tab = np.empty((TABLE_NV, TABLE_NU))
+    for iv in range(TABLE_NV):
+        v = v_lo + (v_hi - v_lo) * iv / (TABLE_NV - 1)
+        for iu in range(TABLE_NU):
+            u = u_max * iu / (TABLE_NU - 1)
+            fx, _ = fastsim_scalar(u, 0.0, v, 1.0, n_ref, a, b, L1, L2, L3, nx, nx, bound)
+            tab[iv, iu] = fx / n_ref
+    return tab
+
+
+@njit(cache=True, nogil=True)
+def fastsim_table_force(xi, phi, mu, N, n_ref, u_max, v_lo, v_hi, tab):  # pragma: no cover
+    """F_x, N, from a :func:`fastsim_table` by bilinear interpolation (sign of xi)."""
+    s = (N / n_ref) ** (1.0 / 3.0)
+    u = abs(xi) / (mu * s) * (TABLE_NU - 1) / u_max
+    v = (phi / mu - v_lo) / (v_hi - v_lo) * (TABLE_NV - 1) if v_hi > v_lo else 0.0
+    v = min(max(v, 0.0), TABLE_NV - 1.000001)
+    jv = int(v)
+    fv = v - jv
+    if u >= TABLE_NU - 1:
+        g = (1.0 - fv) * tab[jv, TABLE_NU - 1] + fv * tab[jv + 1, TABLE_NU - 1]
+    else:
+        ju = int(u)
+        fu = u - ju
+        g = (1.0 - fv) * ((1.0 - fu) * tab[jv, ju] + fu * tab[jv, ju + 1]) + fv * (
+            (1.0 - fu) * tab[jv + 1, ju] + fu * tab[jv + 1, ju + 1]
+        )
+    return math.copysign(g * mu * N, xi)
