@@ -13,6 +13,7 @@ from brakethermo.cli import diagnose_cmd  # noqa: F401  isort: skip
 from brakethermo.cli import estimate_cmd  # noqa: F401  isort: skip
 from brakethermo.cli import identify_cmd  # noqa: F401  isort: skip
 from brakethermo.cli import inspect_cmd  # noqa: F401  isort: skip
+from brakethermo.cli import roller_rig_cmd  # noqa: F401  isort: skip
 from brakethermo.cli import simulate_cmd  # noqa: F401  isort: skip
 from brakethermo.cli import timing_cmd  # noqa: F401  isort: skip
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -16,6 +17,7 @@ from brakethermo.cli._options import JsonOpt
 from brakethermo.io.writers import infer_format
 from brakethermo.pipelines.output_dir import check_output_file
 from brakethermo.sim.effects import EFFECT_NAMES, STRENGTH_MAX, parse_effects
+from brakethermo.sim.rigs import RIG_SIMULATORS, simulate_rig
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
 
 
@@ -60,10 +62,21 @@ def simulate_cmd(
         ),
     ] = False,
     as_json: JsonOpt = False,
+    rig: Annotated[
+        str | None,
+        typer.Option("--rig", help=f"Simulate a rig session instead: {', '.join(RIG_SIMULATORS)}."),
+    ] = None,
+    rig_set: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="Rig simulation setting KEY=VALUE (with --rig); repeat."),
+    ] = None,
 ) -> None:
     """Simulate a session with named effects; write it and <stem>.truth.parquet beside it."""
     check_output_file(out)
     fmt = infer_format(out, fmt)
+    if rig is not None:
+        _simulate_rig(rig, rig_set or [], seed, out, fmt, as_json)
+        return
     cfg = SimConfig(
         track=track,
         laps=laps,
@@ -108,4 +121,33 @@ def simulate_cmd(
     tab.add_row("channels", escape(", ".join(summary["channels"])))
     tab.add_row("hottest spot (truth)", f"{summary['peak_spot_c']:.0f} °C")
     tab.add_row("time", f"simulate {summary['simulate_s']:.1f} s, write {summary['write_s']:.1f} s")
+    console.print(tab)
+
+
+def _simulate_rig(
+    rig: str, settings: list[str], seed: int, out: Path, fmt: str, as_json: bool
+) -> None:
+    """``simulate --rig``: one rig session and its truth file."""
+    t0 = time.perf_counter()
+    cfg, session_path, truth_path = simulate_rig(rig, settings, seed, out, fmt)
+    summary = {
+        "rig": rig,
+        "session": str(session_path),
+        "truth": str(truth_path),
+        "format": fmt,
+        "seed": seed,
+        "config": dataclasses.asdict(cfg),
+        "simulate_s": round(time.perf_counter() - t0, 3),
+    }
+    if as_json:
+        typer.echo(json.dumps(summary))
+        return
+    tab = Table(title=f"simulated {rig} session, seed {seed}")
+    tab.add_column("item")
+    tab.add_column("value")
+    tab.add_row("session", summary["session"])
+    tab.add_row("truth", summary["truth"])
+    for key, value in summary["config"].items():
+        tab.add_row(key, str(value))
+    tab.add_row("time", f"{summary['simulate_s']:.1f} s")
     console.print(tab)
