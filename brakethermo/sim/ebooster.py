@@ -33,6 +33,7 @@ import numba
 import numpy as np
 import pyarrow as pa
 from numpy.typing import NDArray
+from scipy.signal import lfilter
 
 from brakethermo.errors import ConfigError
 from brakethermo.io.writers import Channel, SessionData, write_session, write_table_parquet
@@ -306,11 +307,9 @@ def chi_square_process(
     ndarray (K,) — a process with chi-square(dof) marginal distribution, mean dof.
     """
     a = np.exp(-dt / tau)
-    g = np.empty((K, dof))
-    g[0] = rng.normal(size=dof)
     e = rng.normal(size=(K, dof)) * np.sqrt(1.0 - a * a)
-    for k in range(1, K):
-        g[k] = a * g[k - 1] + e[k]
+    e[0] = rng.normal(size=dof)  # start in the stationary distribution
+    g = lfilter([1.0], [1.0, -a], e, axis=0)  # g[k] = a g[k-1] + e[k]
     return np.sum(g * g, axis=1)
 
 
