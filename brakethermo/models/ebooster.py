@@ -206,10 +206,16 @@ class EboosterModel:
         return out
 
     def Q(self) -> Array:
-        """Process-noise covariance per step (n, n)."""
+        """Process-noise covariance per step (n, n).
+
+        The datasheet gives the physical states' noise per millisecond; a white-noise
+        intensity scales with the step, so the bands do not depend on the log rate.
+        """
         s = self.spec
+        per_ms = self.dt / 1e-3
         q_w = 1.0 - self.a_pedal**2  # keeps each w_i at unit variance
-        return np.diag(np.r_[s.q_pressure_mpa, s.q_zeta, np.full(self.N, q_w)])
+        return np.diag(np.r_[np.array([*s.q_pressure_mpa, *s.q_zeta]) * per_ms,
+                             np.full(self.N, q_w)])
 
     def R(self) -> Array:
         """Measurement-noise covariance (1, 1), mm^2."""

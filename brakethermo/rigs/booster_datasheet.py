@@ -30,8 +30,8 @@ class BoosterSpec:
     delta_noise_mm : float — mm, 1 sigma of the delta sensor.
     pedal_dof : int — N, degrees of freedom of the chi-square pedal force.
     pedal_tau_s : float — s, correlation time of the Gaussian processes behind it.
-    q_pressure_mpa : tuple of float — MPa^2 per step, process noise of p_m, p_f, p_r.
-    q_zeta : tuple of float — mm^2 and (mm/s)^2 per step, process noise of zeta1, zeta2.
+    q_pressure_mpa : tuple of float — MPa^2 per ms, process noise of p_m, p_f, p_r.
+    q_zeta : tuple of float — mm^2 and (mm/s)^2 per ms, process noise of zeta1, zeta2.
     pv_relax_s : float — s, relaxation of p_m towards the p-V curve.
     alpha, beta, kappa : float — sigma-point scaling.
     p0_pressure_mpa : float — MPa, prior 1 sigma of the pressures.
