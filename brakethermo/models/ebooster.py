@@ -22,6 +22,7 @@ of the mean force and, near w = 0, the whole spread. The UKF's sigma points keep
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -45,6 +46,7 @@ from brakethermo.rigs.booster_datasheet import BoosterSpec
 Array = NDArray[np.float64]
 STATE_NAMES = ("p_m", "p_f", "p_r", "zeta1", "zeta2")
 N_PHYS = 5
+V_REF_MM_S = 50.0  # screw speed at which q_pm_speed applies
 
 
 @dataclass(frozen=True)
@@ -206,7 +208,7 @@ class EboosterModel:
         return out
 
     def Q(self) -> Array:
-        """Process-noise covariance per step (n, n).
+        """Process-noise covariance of a step with the screw at rest (n, n).
 
         The datasheet gives the physical states' noise per millisecond; a white-noise
         intensity scales with the step, so the bands do not depend on the log rate.
@@ -216,6 +218,28 @@ class EboosterModel:
         q_w = 1.0 - self.a_pedal**2  # keeps each w_i at unit variance
         return np.diag(np.r_[np.array([*s.q_pressure_mpa, *s.q_zeta]) * per_ms,
                              np.full(self.N, q_w)])
+
+    def Q_of_step(self) -> Callable[[int], Array]:
+        """Q(k): the rest value plus a p_m term proportional to the screw speed.
+
+        The static p-V curve misses the flow-dependent pressure drops and the hysteresis
+        of a moving piston, which grow with the displacement rate; the speed is that of
+        the measured input s2 (a 20 ms moving average, which also removes the encoder's
+        quantisation steps).
+        """
+        base = self.Q()
+        width = max(1, round(0.02 / self.dt))
+        s2 = np.convolve(np.pad(self.s2, (width // 2, width - 1 - width // 2), mode="edge"),
+                         np.ones(width) / width, mode="valid")
+        speed = np.abs(np.gradient(s2, self.dt))
+        extra = self.spec.q_pm_speed * (speed / V_REF_MM_S) * (self.dt / 1e-3)
+        stack = base.copy()
+
+        def Q(k: int) -> Array:
+            stack[0, 0] = base[0, 0] + extra[k]
+            return stack
+
+        return Q
 
     def R(self) -> Array:
         """Measurement-noise covariance (1, 1), mm^2."""

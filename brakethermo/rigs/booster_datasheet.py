@@ -32,6 +32,8 @@ class BoosterSpec:
     pedal_tau_s : float — s, correlation time of the Gaussian processes behind it.
     q_pressure_mpa : tuple of float — MPa^2 per ms, process noise of p_m, p_f, p_r.
     q_zeta : tuple of float — mm^2 and (mm/s)^2 per ms, process noise of zeta1, zeta2.
+    q_pm_speed : float — MPa^2 per ms, extra p_m noise at a screw speed of 50 mm/s
+        (proportional to the speed).
     pv_relax_s : float — s, relaxation of p_m towards the p-V curve.
     alpha, beta, kappa : float — sigma-point scaling.
     p0_pressure_mpa : float — MPa, prior 1 sigma of the pressures.
@@ -56,6 +58,7 @@ class BoosterSpec:
     pedal_tau_s: float
     q_pressure_mpa: tuple[float, float, float]
     q_zeta: tuple[float, float]
+    q_pm_speed: float
     pv_relax_s: float
     alpha: float
     beta: float
@@ -76,7 +79,7 @@ class BoosterSpec:
 _POSITIVE = (
     "area_mm2", "stroke_mm", "discharge_coeff", "fluid_density", "input_area_mm2",
     "servo_area_mm2", "delta_noise_mm", "pedal_tau_s", "pv_relax_s", "alpha", "p0_pressure_mpa",
-    "rls_delta", "min_travel_mm",
+    "rls_delta", "min_travel_mm", "q_pm_speed",
 )
 
 
@@ -137,6 +140,7 @@ def load_booster(name_or_path: str | Path = DEFAULT_BENCH) -> BoosterSpec:
         pedal_tau_s=_get(raw, ob, "pedal_tau_s", path),
         q_pressure_mpa=_get(raw, ob, "q_pressure_mpa", path, 3),
         q_zeta=_get(raw, ob, "q_zeta", path, 2),
+        q_pm_speed=_get(raw, ob, "q_pm_speed", path),
         pv_relax_s=_get(raw, ob, "pv_relax_s", path),
         alpha=_get(raw, ob, "alpha", path),
         beta=_get(raw, ob, "beta", path),
