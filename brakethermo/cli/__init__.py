@@ -10,6 +10,7 @@ from brakethermo.cli._app import app
 # Command modules register on import; keep one line per module, sorted.
 from brakethermo.cli import batch_cmd  # noqa: F401  isort: skip
 from brakethermo.cli import diagnose_cmd  # noqa: F401  isort: skip
+from brakethermo.cli import ebooster_cmd  # noqa: F401  isort: skip
 from brakethermo.cli import estimate_cmd  # noqa: F401  isort: skip
 from brakethermo.cli import identify_cmd  # noqa: F401  isort: skip
 from brakethermo.cli import inspect_cmd  # noqa: F401  isort: skip

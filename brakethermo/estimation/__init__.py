@@ -16,6 +16,7 @@ from brakethermo.estimation.covariance import CovarianceGuard, symmetrise
 from brakethermo.estimation.ekf import ExtendedKalmanFilter, batched_jacobian
 from brakethermo.estimation.kf import LinearFilterResult, kalman_filter, rts_smoother
 from brakethermo.estimation.results import FilterResult, SmootherResult
+from brakethermo.estimation.rls import RLSResult, even_powers, rls_fit
 from brakethermo.estimation.sigma_points import MerweWeights, merwe_weights, sigma_points
 from brakethermo.estimation.ukf import UnscentedKalmanFilter
 from brakethermo.estimation.urts import urts_smooth
@@ -26,12 +27,15 @@ __all__ = [
     "FilterResult",
     "LinearFilterResult",
     "MerweWeights",
+    "RLSResult",
     "SmootherResult",
     "UnscentedKalmanFilter",
     "augment_random_walk",
     "batched_jacobian",
+    "even_powers",
     "kalman_filter",
     "merwe_weights",
+    "rls_fit",
     "rts_smoother",
     "sigma_points",
     "symmetrise",

@@ -1,7 +1,8 @@
-"""Rig physics as pure functions: contact mechanics, electric drives (no files, no filters).
+"""Rig physics as pure functions (no files, no filters), one concept per module.
 
-One concept per module: :mod:`hertz` (normal contact), :mod:`kalker` (Kalker's creep
-coefficients), :mod:`polach` (Polach's creep-force law and slip-velocity friction),
-:mod:`fastsim` (Kalker's FASTSIM), :mod:`motor` (induction motor under V/f control);
-:mod:`roller_rig` holds the roller rig's datasheet.
+Roller rig: :mod:`hertz` (normal contact), :mod:`kalker` (Kalker's creep coefficients),
+:mod:`polach` (Polach's creep-force law and slip-velocity friction), :mod:`fastsim`
+(Kalker's FASTSIM), :mod:`motor` (induction motor under V/f control), :mod:`roller_rig`
+(the rig's datasheet). Electric brake booster: :mod:`booster` (hydraulics, reaction
+disk, leverage) and :mod:`booster_datasheet`.
 """
