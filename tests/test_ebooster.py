@@ -208,7 +208,7 @@ def test_bad_input_exits_1_with_one_clear_line(tmp_path):
     assert res.exit_code == 1 and "moves only 0.000 mm" in res.output
     # a unit we do not know
     good, _ = write_ebooster_session(sim, tmp_path / "units.csv")
-    text = good.read_text().replace("reaction_disk_delta [mm]", "reaction_disk_delta [furlong]")
+    text = good.read_text().replace("reaction_disk_delta [mm]", "reaction_disk_delta [wibble]")
     good.write_text(text)
     res = runner.invoke(app, ["ebooster", str(good), "--out", str(tmp_path)])
-    assert res.exit_code == 1 and "furlong" in res.output and "reaction_disk_delta" in res.output
+    assert res.exit_code == 1 and "wibble" in res.output and "reaction_disk_delta" in res.output

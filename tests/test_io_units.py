@@ -161,5 +161,5 @@ def test_not_a_unit_of_the_channel(unit: str) -> None:
 def test_angle_and_dimensionless_are_told_apart() -> None:
     with pytest.raises(DataError, match="angle unit but 'slip_ratio' is a dimensionless"):
         to_si(np.ones(1), "deg", "slip_ratio")
-    with pytest.raises(DataError, match="dimensionless unit but 'motor_angle' is a angle"):
+    with pytest.raises(DataError, match="dimensionless unit but 'motor_angle' is an angle"):
         to_si(np.ones(1), "%", "motor_angle")

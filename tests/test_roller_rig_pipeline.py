@@ -173,7 +173,7 @@ def _synthetic(
         ({"drop": "roller_omega"}, "roller_omega"),
         ({"torque": 0.0}, "no traction"),
         ({"zero": "wheel_omega"}, "zero throughout"),
-        ({"unit": "furlong/s"}, "unknown unit"),
+        ({"unit": "wibble/s"}, "unknown unit"),
     ],
 )
 def test_bad_input_one_clear_line_exit_1(tmp_path: Path, kwargs: dict, needle: str) -> None:

@@ -236,6 +236,12 @@ def si_unit(canonical: str) -> str:
     return SI_UNIT[dimension_of(canonical)]
 
 
+def _article(dimension: str) -> str:
+    """``"an angular speed"``, ``"a pressure"``: a dimension name for a sentence."""
+    words = dimension.replace("_", " ")
+    return f"{'an' if words[0] in 'aeiou' else 'a'} {words}"
+
+
 def to_si(
     values: np.ndarray,
     unit_text: str | None,
@@ -275,8 +281,8 @@ def to_si(
     unit = parse_unit(text, path=path, channel=label, expected=expected)
     if unit.dimension != expected:
         raise DataError(
-            f"unit '{text}' is a {unit.dimension.replace('_', ' ')} unit but '{canonical}' is a"
-            f" {expected.replace('_', ' ')}; fix the unit in the file or the alias table",
+            f"unit '{text}' is {_article(unit.dimension)} unit but '{canonical}' is"
+            f" {_article(expected)}; fix the unit in the file or the alias table",
             path=path,
             channel=label,
         )
