@@ -190,7 +190,8 @@ def calibrated_tuning(cal: DiscCalibration, options: EstimateOptions) -> Estimat
     """
     tuning, _ = load_tuning(options.tuning)
     user = user_tuning_keys(options.tuning, "estimate")
-    calibrated: dict[str, Any] = {"sigma_crown": cal.sigma_crown, "adapt_power": cal.adapt_power}
+    calibrated: dict[str, Any] = {"sigma_crown": cal.sigma_crown, "adapt_power": cal.adapt_power,
+                                  "sigma_temp": cal.sigma_temp}
     if cal.layers is not None and "layers" not in user:
         calibrated["layers"] = cal.layers
         calibrated["layer_growth"] = cal.layer_growth
@@ -388,6 +389,7 @@ def estimate_from_session(
             "layers": tuning.layers,
             "layer_growth": tuning.layer_growth,
             "sigma_crown": tuning.sigma_crown,
+            "sigma_temp": tuning.sigma_temp,
             "kz_ratio": cal.kz_ratio,
             "power_scale_prior": cal.power_scale,
             "band_scale_check": cal.band_scale,

@@ -327,7 +327,8 @@ def auto_effects(session: Session, options: IdentifyOptions) -> tuple[str, ...]:
     return tuple(result.summary["combined"]["effects"])
 
 
-SIGMA_CROWN_GRID = (0.05, 0.1, 0.2, 0.4)  # relative crown-share noise tried by validation
+SIGMA_CROWN_GRID = (0.1, 0.2, 0.4)  # relative crown-share noise tried by validation
+NODE_NOISE_FACTORS = (1.0, 3.0)  # white node noise tried, times the tuning's sigma_temp
 
 
 def _held_out(
@@ -366,8 +367,9 @@ def validate_filter(
 ) -> tuple[float, bool, float, dict[str, float]]:
     """Crown-split noise, power adaptation and band scale chosen on unmeasured spots.
 
-    For each crown-noise level of :data:`SIGMA_CROWN_GRID`, with and without the
-    braking-power scale as a state, the race estimator runs with only ``spot``
+    For each crown-noise level of :data:`SIGMA_CROWN_GRID` and white node noise of
+    :data:`NODE_NOISE_FACTORS`, with and without the braking-power scale as a state,
+    the race estimator runs with only ``spot``
     measured; the variant under which the other spots' readings are most probable
     (held-out predictive log-likelihood, each reading with its own noise) wins: the
     process noise is identified from data the filter did not see. Then, as a check,
@@ -379,6 +381,7 @@ def validate_filter(
     Returns
     -------
     sigma_crown : float
+    sigma_temp : float — degC per step
     adapt_power : bool
     band_scale : float
     scores : dict of str to float — held-out log-likelihood per reading of every variant
@@ -387,18 +390,22 @@ def validate_filter(
 
     scores = {}
     runs = {}
-    for sigma in SIGMA_CROWN_GRID:
-        for adapt in (True, False):
-            variant = replace(calibration, sigma_crown=sigma, adapt_power=adapt)
-            e, s, noise = _held_out(session, variant, options, spot)
-            key = f"sigma_crown={sigma:g}, adapt_power={str(adapt).lower()}"
-            # Held-out predictive log-likelihood per reading: the process noise that
-            # makes the unmeasured spots most probable, bands and errors together.
-            var = s**2 + noise**2
-            scores[key] = float(np.mean(-0.5 * (np.log(2.0 * np.pi * var) + e**2 / var)))
-            runs[key] = (sigma, adapt, e, s, noise)
+    sigma_temp0 = load_tuning(options.tuning)[0].sigma_temp
+    grid = [(sigma, factor * sigma_temp0, adapt) for sigma in SIGMA_CROWN_GRID
+            for factor in NODE_NOISE_FACTORS for adapt in (True, False)]
+    for sigma, sigma_temp, adapt in grid:
+        variant = replace(calibration, sigma_crown=sigma, adapt_power=adapt,
+                          sigma_temp=sigma_temp)
+        e, s, noise = _held_out(session, variant, options, spot)
+        key = (f"sigma_crown={sigma:g}, sigma_temp={sigma_temp:g},"
+               f" adapt_power={str(adapt).lower()}")
+        # Held-out predictive log-likelihood per reading: the process noise that
+        # makes the unmeasured spots most probable, bands and errors together.
+        var = s**2 + noise**2
+        scores[key] = float(np.mean(-0.5 * (np.log(2.0 * np.pi * var) + e**2 / var)))
+        runs[key] = (sigma, sigma_temp, adapt, e, s, noise)
     best = max(scores, key=scores.__getitem__)
-    sigma_best, adapt_best, e, s, noise = runs[best]
+    sigma_best, temp_best, adapt_best, e, s, noise = runs[best]
     e = np.abs(e)
     z = float(norm.ppf(0.5 + level / 2.0))
 
@@ -407,13 +414,13 @@ def validate_filter(
 
     lo, hi = 1.0, 50.0
     if e.size == 0 or covered(lo) >= level:
-        return sigma_best, adapt_best, lo, scores
+        return sigma_best, temp_best, adapt_best, lo, scores
     if covered(hi) < level:
-        return sigma_best, adapt_best, hi, scores
+        return sigma_best, temp_best, adapt_best, hi, scores
     for _ in range(40):
         mid = float(np.sqrt(lo * hi))
         lo, hi = (mid, hi) if covered(mid) < level else (lo, mid)
-    return sigma_best, adapt_best, hi, scores
+    return sigma_best, temp_best, adapt_best, hi, scores
 
 
 def _law_dict(law: HLaw) -> dict[str, Any]:
@@ -466,11 +473,11 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         effects=structure.effects if structure else {},
         source=str(session.path),
     )
-    sigma_crown, adapt_power, band_scale, validation = validate_filter(
+    sigma_crown, sigma_temp, adapt_power, band_scale, validation = validate_filter(
         session, calibration, options
     )
     calibration = replace(calibration, band_scale=band_scale, sigma_crown=sigma_crown,
-                          adapt_power=adapt_power)
+                          sigma_temp=sigma_temp, adapt_power=adapt_power)
     t_end = time.perf_counter()
 
     samples = pd.DataFrame({
@@ -508,8 +515,9 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         "with_effects": list(effects),
         "band_scale": band_scale,
         "sigma_crown": sigma_crown,
+        "sigma_temp": sigma_temp,
         "adapt_power": adapt_power,
-        "validation_error_c": validation,
+        "validation_loglik": validation,
         "run": {
             "brakethermo": __version__,
             "disc": disc.id,
@@ -563,6 +571,7 @@ def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
         "power_scale": cal.power_scale,
         "band_scale": cal.band_scale,
         "sigma_crown": cal.sigma_crown,
+        "sigma_temp": cal.sigma_temp,
         "adapt_power": cal.adapt_power,
         "layers": cal.layers,
         "layer_growth": cal.layer_growth,

@@ -44,6 +44,8 @@ class DiscCalibration:
     band_scale : float
         Factor on the filter's 1-sigma that makes the 95 % band cover the unmeasured
         spots of the identification session.
+    sigma_temp : float or None — degC per step
+        White process noise on the nodes chosen by the same validation.
     sigma_crown : float or None
         Crown-split process noise chosen by held-out-spot validation on that session.
     adapt_power : bool or None
@@ -64,6 +66,7 @@ class DiscCalibration:
     power_scale: float = 1.0
     band_scale: float = 1.0
     sigma_crown: float | None = None
+    sigma_temp: float | None = None
     adapt_power: bool | None = None
     layers: int | None = None
     layer_growth: float | None = None
@@ -77,6 +80,7 @@ CALIBRATION_BOUNDS: dict[str, tuple[float, float]] = {
     "power_scale": (0.2, 5.0),
     "band_scale": (1.0, 100.0),
     "sigma_crown": (0.0, 5.0),
+    "sigma_temp": (0.0, 50.0),
     "layers": (1, 8),
     "layer_growth": (0.2, 10.0),
 }
