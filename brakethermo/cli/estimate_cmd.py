@@ -112,11 +112,16 @@ def estimate_command(
         bool, typer.Option("--report/--no-report", help="Write the per-lap HTML/PNG reports.")
     ] = True,
     as_json: JsonOpt = False,
+    workers: Annotated[
+        int,
+        typer.Option(min=1, max=64, help="Threads smoothing windows in parallel (fine meshes)."),
+    ] = 1,
 ) -> None:
     """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
     options = EstimateOptions(
         spot=spot, h_law=h_law, disc=disc, tuning=tuning, nodes=nodes, layers=layers,
         smoother=smoother, adapt_power=adapt_power, aliases=aliases, ambient_c=ambient,
+        workers=workers,
     )  # fmt: skip
     result = run_with_status(as_json, f"estimating {session.name} ...",
                              lambda: estimate_session(session, options))

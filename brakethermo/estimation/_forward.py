@@ -171,6 +171,16 @@ def readout_matrix(readout: Array | None, n: int) -> Array:
     return M
 
 
+def gain_dtype(n: int, store_dtype: type[np.floating] | np.dtype | None) -> np.dtype:
+    """The dtype the smoother's gains are stored in for state size ``n``."""
+    if store_dtype is None:
+        store_dtype = np.float64 if n < FLOAT32_STORE_N else np.float32
+    dtype = np.dtype(store_dtype)
+    if dtype not in (np.dtype(np.float64), np.dtype(np.float32)):
+        raise ConfigError(f"store_dtype must be float64 or float32, got {store_dtype}")
+    return dtype
+
+
 def allocate(
     K: int,
     n: int,
@@ -182,10 +192,7 @@ def allocate(
     """Allocate the outputs for K steps; covariance stacks only as ``store`` needs."""
     if store not in STORES:
         raise ConfigError(f"store must be one of {STORES}, got {store!r}")
-    if store_dtype is None:
-        store_dtype = np.float64 if n < FLOAT32_STORE_N else np.float32
-    if np.dtype(store_dtype) not in (np.dtype(np.float64), np.dtype(np.float32)):
-        raise ConfigError(f"store_dtype must be float64 or float32, got {store_dtype}")
+    store_dtype = gain_dtype(n, store_dtype)
     full = store == "full"
     gains = store in ("full", "smoother")
     stacks = (3 * 8 if full else 0) + (2 * np.dtype(store_dtype).itemsize if gains else 0)
@@ -194,7 +201,7 @@ def allocate(
         raise ConfigError(
             f"store={store!r} would hold {need / 2**30:.1f} GiB of covariances for {K} steps "
             f"at state size {n} (limit {MAX_STORE_BYTES / 2**30:.0f} GiB); use store='diag' "
-            "(filter only) or split the run"
+            "(filter only) or smooth in windows (urts.urts_smooth_windowed)"
         )
     nf = K if full else 0
     ngain = max(K - 1, 0) if gains else 0

@@ -359,10 +359,17 @@ def ukf_step(k, Xf, work, W, par, gate_thr, Q, H, R, y, M, st, cov, gs, iv, sc, 
 
 
 @njit(cache=True, nogil=True)
-def rts_backward(x_filt, x_pred, G_all, Sigma_all, P_last, x_s, var_s, P_all, full, M, ro, ro_var):
-    """Backward RTS recursion with stored gains (see urts.py), in place into the outputs."""
+def rts_backward(
+    x_filt, x_pred, G_all, Sigma_all, x_last, P_last, x_s, var_s, P_all, full, M, ro, ro_var,
+    P_first,
+):
+    """Backward RTS recursion with stored gains (see urts.py), in place into the outputs.
+
+    The recursion starts from the smoothed (x_last, P_last) of the last step and leaves
+    the smoothed covariance of step 0 in ``P_first`` (a window's hand-over).
+    """
     K, n = x_filt.shape
-    xs = x_filt[K - 1].copy()
+    xs = x_last.copy()
     Ps = P_last.copy()
     d = np.empty(n)
     for k in range(K - 1, -1, -1):
@@ -387,3 +394,4 @@ def rts_backward(x_filt, x_pred, G_all, Sigma_all, P_last, x_s, var_s, P_all, fu
         if full:
             P_all[k] = Ps
         _record_posterior(k, xs, Ps, x_s, var_s, P_all, False, M, ro, ro_var)
+    P_first[:, :] = Ps
