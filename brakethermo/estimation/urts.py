@@ -187,7 +187,7 @@ def urts_smooth_windowed(
     y: Array,
     *,
     readout: Array | None = None,
-    max_store_bytes: int = DEFAULT_MAX_STORE_BYTES,
+    max_store_bytes: int | None = None,
     window: int | None = None,
     workers: int = 1,
     store_dtype: type[np.floating] | None = None,
@@ -199,7 +199,8 @@ def urts_smooth_windowed(
     ----------
     ukf : UnscentedKalmanFilter — the filter (its model steps are the session's).
     x0, P0, y, readout, store_dtype : as :meth:`UnscentedKalmanFilter.run`.
-    max_store_bytes : int — bytes of gains held at one time, all workers together.
+    max_store_bytes : int, optional — bytes of gains held at one time, all workers
+        together; default :data:`DEFAULT_MAX_STORE_BYTES`.
     window : int, optional — steps per window; default: the whole session if its gains
         fit ``max_store_bytes``, else as many as fit.
     workers : int — threads re-running windows while the backward pass goes on (the
@@ -213,6 +214,8 @@ def urts_smooth_windowed(
     """
     if workers < 1:
         raise ConfigError(f"workers must be at least 1, got {workers}")
+    if max_store_bytes is None:
+        max_store_bytes = DEFAULT_MAX_STORE_BYTES
     x0, P0, y = check_prior(x0, P0, y)
     K, m = y.shape
     n = x0.shape[0]
