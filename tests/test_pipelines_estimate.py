@@ -51,7 +51,11 @@ def test_beats_single_spot_baseline_against_truth(estimated, sim_race_session):
     assert sc["contact_ratio"]["smoother"] < 0.6
     assert rows["smoother"]["spot4"] < rows["single-spot"]["spot4"]
     assert abs(sc["peak_spot3"]["mean_abs_pct"]) < 5.0
-    assert sc["coverage95"]["spot4"] > 0.6
+    # README: the 95 % band covers the truth at the unmeasured spots (85-99 % is the
+    # accuracy benchmark's target over seeds; this 2-lap session sits near its low end)
+    cov = [sc["coverage95"][s] for s in ("spot1", "spot2", "spot4")]
+    assert 0.85 <= np.mean(cov) <= 0.99
+    assert min(cov) >= 0.75
 
 
 def test_scores_itself_on_a_multi_spot_session(estimated):
@@ -96,7 +100,8 @@ def test_dropout_spike_and_bad_start_do_not_derail(sim_race_session, identified)
     late = slice(mid + 600, n)
     err = est[late] - truth["spot3"].to_numpy()[late]
     assert np.sqrt(np.mean(err**2)) < 25.0
-    assert res.summary["run"]["covariance_repairs"] >= 0
+    # the bad start, dropout and spike are absorbed without one covariance repair
+    assert res.summary["run"]["covariance_repairs"] == 0
 
 
 def test_spot_not_logged_is_a_clear_error(sim_race_session, identified, tmp_path):
