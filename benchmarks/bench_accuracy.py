@@ -11,6 +11,8 @@ against the truth. Every figure is reported over the replicates as mean and min-
     python benchmarks/bench_accuracy.py --replicates 1       # quicker, one seed per row
     python benchmarks/bench_accuracy.py --effects power_distribution,slipstream
     python benchmarks/bench_accuracy.py --workers 2          # cases in parallel processes
+    python benchmarks/bench_accuracy.py --json acc.json      # keep every case; a re-run
+                                                             # skips the cases already there
 
 Seeds: case (effect i, replicate r) uses ``seed_base + 100 r + 10 i`` for the test
 session and that + 1 for the race. Tuning used 500-579; report on 9000+.
@@ -22,7 +24,7 @@ import argparse
 import json
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -109,17 +111,29 @@ def main() -> None:
     jobs = [(e, args.seed_base + 100 * r + 10 * i, args.test_laps, args.race_laps)
             for r in range(args.replicates) for i, e in enumerate(effects)]
     t0 = time.perf_counter()
-    if args.workers > 1:
-        with ProcessPoolExecutor(args.workers) as pool:
-            cases = list(pool.map(run_case, *zip(*jobs, strict=True)))
-    else:
-        cases = [run_case(*job) for job in jobs]
-    for case in cases:
+    done = json.loads(args.json.read_text()) if args.json and args.json.exists() else []
+    have = {(c["effect"], c["seed"]) for c in done}
+    cases = [c for c in done if (c["effect"], c["seed"]) in {j[:2] for j in jobs}]
+    todo = [j for j in jobs if j[:2] not in have]
+
+    def finished(case: dict) -> None:
+        cases.append(case)
+        done.append(case)
         f = figures(case)
         print(f"{case['effect']:22s} seed {case['seed']}/{case['seed'] + 1}: smoother "
               f"{f['smoother']:.2f}x, open-loop {f['open_loop']:.2f}x, one layer "
               f"{f['one_layer']:.2f}x, peak {f['peak_pct']:.1f} %, coverage "
-              f"{f['coverage_pct']:.0f} % ({f['layers']} layers)")
+              f"{f['coverage_pct']:.0f} % ({f['layers']} layers)", flush=True)
+        if args.json:
+            args.json.write_text(json.dumps(done, indent=1, default=float))
+
+    if args.workers > 1:
+        with ProcessPoolExecutor(args.workers) as pool:
+            for fut in as_completed([pool.submit(run_case, *job) for job in todo]):
+                finished(fut.result())
+    else:
+        for job in todo:
+            finished(run_case(*job))
     print(f"\n{len(cases)} cases in {time.perf_counter() - t0:.0f} s; "
           f"mean (min–max) over {args.replicates} seed(s) per row\n")
     print("| session | smoother, layered | open-loop 1D-FE | paper model (1 layer, own law) "
@@ -136,8 +150,6 @@ def main() -> None:
                 spread([r["peak_pct"] for r in rows], ".1f") + " %",
                 spread([r["coverage_pct"] for r in rows], ".0f") + " %"]
         print(f"| {name} | " + " | ".join(cols) + " |")
-    if args.json:
-        args.json.write_text(json.dumps(cases, indent=1, default=float))
 
 
 if __name__ == "__main__":

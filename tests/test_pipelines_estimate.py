@@ -50,7 +50,7 @@ def test_beats_single_spot_baseline_against_truth(estimated, sim_race_session):
     rows = {r["method"]: r for r in sc["table"]}
     assert sc["contact_ratio"]["smoother"] < 0.6
     assert rows["smoother"]["spot4"] < rows["single-spot"]["spot4"]
-    assert abs(sc["peak_spot3"]["mean_abs_pct"]) < 5.0
+    assert abs(sc["peak_spot3"]["mean_abs_pct"]) < 1.5  # README: 0.3-1.1 % on model effects
     # README: the 95 % band covers the truth at the unmeasured spots (85-99 % is the
     # accuracy benchmark's target over seeds; this 2-lap session sits near its low end)
     cov = [sc["coverage95"][s] for s in ("spot1", "spot2", "spot4")]

@@ -54,6 +54,32 @@ def _chol(P, L):
 
 
 @njit(cache=True, nogil=True)
+def chol_downdate(L, v):
+    """Lower factor of L L' - v v' in place, O(n^2); False (L spoilt) if not SPD.
+
+    The exact linear update with one measurement (eq. 47) is the rank-1 downdate
+    P - K S K' = P - v v', v = C_xy / sqrt(S): the posterior's factor follows from the
+    prior's (already computed for the smoother's gain) without an O(n^3) Cholesky.
+    """
+    n = v.shape[0]
+    w = v.copy()
+    for k in range(n):
+        lkk = L[k, k]
+        r2 = lkk * lkk - w[k] * w[k]
+        if not r2 > 0.0:
+            return False
+        r = math.sqrt(r2)
+        c = r / lkk
+        s = w[k] / lkk
+        L[k, k] = r
+        for i in range(k + 1, n):
+            lik = (L[i, k] - s * w[i]) / c
+            L[i, k] = lik
+            w[i] = c * w[i] - s * lik
+    return True
+
+
+@njit(cache=True, nogil=True)
 def _repair(P, abs_floor):
     """Eigenvalue clipping in place, as CovarianceGuard.repair."""
     n = P.shape[0]
