@@ -106,6 +106,8 @@ def main() -> None:
     ap.add_argument("--race-laps", type=int, default=6)
     ap.add_argument("--workers", type=int, default=1, help="cases run in parallel processes")
     ap.add_argument("--json", type=Path, help="also write all scores to this file")
+    ap.add_argument("--table-only", action="store_true",
+                    help="print the table from the cases already in --json, run nothing")
     args = ap.parse_args()
     effects = args.effects.split(",")
     jobs = [(e, args.seed_base + 100 * r + 10 * i, args.test_laps, args.race_laps)
@@ -114,7 +116,7 @@ def main() -> None:
     done = json.loads(args.json.read_text()) if args.json and args.json.exists() else []
     have = {(c["effect"], c["seed"]) for c in done}
     cases = [c for c in done if (c["effect"], c["seed"]) in {j[:2] for j in jobs}]
-    todo = [j for j in jobs if j[:2] not in have]
+    todo = [] if args.table_only else [j for j in jobs if j[:2] not in have]
 
     def finished(case: dict) -> None:
         cases.append(case)
@@ -135,15 +137,18 @@ def main() -> None:
         for job in todo:
             finished(run_case(*job))
     print(f"\n{len(cases)} cases in {time.perf_counter() - t0:.0f} s; "
-          f"mean (min–max) over {args.replicates} seed(s) per row\n")
+          "mean (min–max) over the seeds of each row (n)\n")
     print("| session | smoother, layered | open-loop 1D-FE | paper model (1 layer, own law) "
           "| spot-3 peak error | 95 % band coverage |")
     print("|---|---|---|---|---|---|")
     for effect in effects:
         rows = [figures(c) for c in cases if c["effect"] == effect]
+        if not rows:
+            continue
         name = effect if effect != "none" else "mild effects only"
         if effect in SENSOR_FAULTS:
             name += " (sensor fault)"
+        name += f" (n = {len(rows)})"
         cols = [spread([r["smoother"] for r in rows], ".2f") + "x",
                 spread([r["open_loop"] for r in rows], ".2f") + "x",
                 spread([r["one_layer"] for r in rows], ".2f") + "x",

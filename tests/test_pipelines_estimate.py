@@ -74,6 +74,21 @@ def test_layered_model_beats_one_layer(estimated, sim_race_session, identified):
     assert r3 < r1
 
 
+def test_smoother_in_windows_gives_the_same_estimate(estimated, sim_race_session, identified,
+                                                    monkeypatch):
+    """A mesh whose gains do not fit is smoothed in windows, in parallel: same answer."""
+    from brakethermo.estimation import urts
+
+    assert estimated.summary["run"]["smoother_windows"] == 1
+    monkeypatch.setattr(urts, "DEFAULT_MAX_STORE_BYTES", 2**20)  # ~20 windows
+    res = estimate_session(sim_race_session[0], EstimateOptions(h_law=identified[1], workers=2))
+    assert res.summary["run"]["smoother_windows"] > 10
+    assert res.summary["run"]["workers"] == 2
+    cols = [c for c in estimated.frame.columns if c.startswith(("spot", "contact", "node_"))]
+    diff = (res.frame[cols] - estimated.frame[cols]).abs().to_numpy().max()
+    assert diff < 1e-6  # degC, against a 95 % band tens of degC wide
+
+
 def test_filter_only_has_no_smoother_row(sim_race_session, identified):
     res = estimate_session(sim_race_session[0],
                            EstimateOptions(h_law=identified[1], smoother=False))
