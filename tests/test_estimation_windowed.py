@@ -117,3 +117,25 @@ def test_bad_workers_and_window_are_config_errors():
         urts_smooth_windowed(ukf, x0, P0, y, workers=0)
     with pytest.raises(ConfigError, match="window"):
         urts_smooth_windowed(ukf, x0, P0, y, window=0)
+
+
+def test_checkpoints_of_a_killed_run_are_removed(tmp_path, monkeypatch):
+    import subprocess
+    import sys
+    import tempfile
+
+    from brakethermo.estimation.urts import CHECKPOINT_PREFIX
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    stale = tmp_path / f"{CHECKPOINT_PREFIX}{dead}-abc"
+    stale.mkdir()
+    (stale / "P0.npy").write_bytes(b"x" * 100)
+    live = tmp_path / f"{CHECKPOINT_PREFIX}1-abc"  # pid 1 is always alive
+    live.mkdir()
+    ukf, x0, P0, y, H = _linear("numpy")
+    run = urts_smooth_windowed(ukf, x0, P0, y, readout=H, window=40)
+    assert len(run.windows) == 3
+    assert not stale.exists() and live.exists()
+    assert [p.name for p in tmp_path.iterdir()] == [live.name]  # its own folder is gone too

@@ -23,6 +23,8 @@ rounding. The re-runs of different windows are independent and run in parallel.
 
 from __future__ import annotations
 
+import os
+import shutil
 import tempfile
 import time
 from collections.abc import Callable, Iterator
@@ -255,7 +257,8 @@ def urts_smooth_windowed(
     peak = 0
 
     t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="brakethermo-urts-") as tmp:
+    _remove_stale_checkpoints()
+    with tempfile.TemporaryDirectory(prefix=f"{CHECKPOINT_PREFIX}{os.getpid()}-") as tmp:
         ckpt = Path(tmp)
         x, P = x0, P0
         last: FilterResult | None = None
@@ -319,6 +322,23 @@ def urts_smooth_windowed(
     )  # fmt: skip
     return WindowedSmootherResult(forward=forward, smoothed=smoothed, windows=spans,
                                   peak_store_bytes=peak, forward_s=t1 - t0, backward_s=t2 - t1)
+
+
+CHECKPOINT_PREFIX = "brakethermo-urts-"
+
+
+def _remove_stale_checkpoints() -> None:
+    """Delete checkpoint folders left by runs that were killed (their process is gone)."""
+    for folder in Path(tempfile.gettempdir()).glob(f"{CHECKPOINT_PREFIX}*-*"):
+        pid = folder.name[len(CHECKPOINT_PREFIX):].split("-", 1)[0]
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            shutil.rmtree(folder, ignore_errors=True)
+        except PermissionError:  # another user's live process
+            continue
 
 
 def _gain_bytes(res: FilterResult) -> int:
