@@ -49,7 +49,7 @@ def test_beats_single_spot_baseline_against_truth(estimated, sim_race_session):
     sc = score_against_truth(estimated.frame, truth, measured, estimated.open_loop)
     rows = {r["method"]: r for r in sc["table"]}
     # README: 0.2x over the reporting seeds' 4-lap races with mild effects; this 2-lap
-    # race (a cold first lap weighs more) reaches 0.40x
+    # race (seed 4243) reaches 0.40x
     assert sc["contact_ratio"]["smoother"] < 0.45
     assert rows["smoother"]["spot4"] < rows["single-spot"]["spot4"]
     assert abs(sc["peak_spot3"]["mean_abs_pct"]) < 1.5  # README: 0.3-1.1 % on model effects
