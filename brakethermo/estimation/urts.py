@@ -296,7 +296,11 @@ def urts_smooth_windowed(
         limit = threadpool_limits(1) if parallel else nullcontext()
         with limit:
             try:
-                for j, res in _backwards(len(spans), last, rerun, pool, workers):
+                # handed over in a list the generator empties, so the last window's gains
+                # are freed once smoothed instead of living through the whole pass
+                held_last = [last]
+                del last
+                for j, res in _backwards(len(spans), held_last, rerun, pool, workers):
                     a, b = spans[j]
                     L = b - a
                     peak = max(peak, _gain_bytes(res) * (held if parallel else 1))
@@ -347,7 +351,7 @@ def _gain_bytes(res: FilterResult) -> int:
 
 def _backwards(
     J: int,
-    last: FilterResult,
+    last: list[FilterResult],
     rerun: Callable[[int], FilterResult],
     pool: ThreadPoolExecutor | None,
     workers: int,
@@ -356,7 +360,7 @@ def _backwards(
 
     With a pool, up to ``workers`` re-runs go on ahead of the window being smoothed.
     """
-    yield J - 1, last
+    yield J - 1, last.pop()
     if pool is None:
         for j in range(J - 2, -1, -1):
             yield j, rerun(j)
