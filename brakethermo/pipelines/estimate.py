@@ -141,6 +141,10 @@ class EstimateResult:
     innovation, innovation_var : ndarray (K,) or None — degC, degC²
         The filter's one-step-ahead innovation of the measured spot and its variance
         (NaN where nothing was measured): what diagnose reads on a single-spot session.
+    spread : ndarray (K, 4) or None — degC
+        The filter's (smoother's) own 1-sigma at spot1..4, without the pyrometer
+        calibration term of the reported band: what readings of the same sensor, which
+        share that calibration error, are compared with.
     """
 
     session: Session
@@ -153,6 +157,7 @@ class EstimateResult:
     timings: dict[str, float] = field(default_factory=dict)
     innovation: np.ndarray | None = None
     innovation_var: np.ndarray | None = None
+    spread: np.ndarray | None = None
 
     @property
     def stem(self) -> str:
@@ -366,15 +371,16 @@ def estimate_from_session(
 
     std = np.sqrt(np.maximum(out_var, 0.0))
     online = {p.name: ssm.index[p.name] for p in plan.online}
-    frame = _estimate_frame(inputs, model, states, out, std, tuning, h, online)
+    frame = _estimate_frame(inputs, model, states, out, band_std(out, std, tuning), tuning, h,
+                            online)
     open_loop = None
     scores = None
     if options.score and len(inputs.measured) > 1:
         T_ol = model.open_loop(x0[: model.n_state], inputs.q_brk[:-1], h[:-1], inputs.t_amb[:-1],
                                scale=cal.power_scale)
         open_loop = T_ol @ model.spot_matrix(spot_radii).T
-        scores = score_estimate(frame, forward.readout[:, :4], open_loop, inputs, options.spot,
-                                tuning.smoother,
+        scores = score_estimate(frame, std[:, :4], forward.readout[:, :4], open_loop, inputs,
+                                options.spot, tuning.smoother,
                                 zones=detect_zones(inputs.time,
                                                    session.values("brake_pressure_front")))
     t_end = time.perf_counter()
@@ -404,6 +410,7 @@ def estimate_from_session(
             "band_scale_check": cal.band_scale,
             "sigma_meas_c": tuning.sigma_meas,
             "sigma_meas_source": sigma_meas_source,
+            "ir_calibration_pct": tuning.ir_calibration_pct,
             "crown_weights": [float(w) for w in model.weights],
             "filter": "UKF (Merwe scaled sigma points)",
             "smoother": tuning.smoother,
@@ -423,7 +430,32 @@ def estimate_from_session(
         "scores": scores,
     }
     return EstimateResult(session, frame, model.radii.copy(), summary, scores, open_loop, disc,
-                          timings, forward.innovation[:, 0], forward.innovation_var[:, 0])
+                          timings, forward.innovation[:, 0], forward.innovation_var[:, 0],
+                          std[:, :4])
+
+
+def band_std(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning) -> np.ndarray:
+    """1-sigma of the true disc temperature: the filter's spread and the pyrometer's calibration.
+
+    Every reading shares one calibration error (the carbon face's emissivity is known to a
+    few hundredths and drifts with glazing and oxidation), so the filter, fed by that one
+    sensor, cannot see it; the reported band adds it in quadrature to the spot and
+    contact-band readouts, in % of the absolute temperature because an emissivity error
+    scales the radiance temperature.
+
+    Parameters
+    ----------
+    out : ndarray (K, m) — degC
+        Readouts; the first five are spot1..4 and the contact-band average.
+    std : ndarray (K, m) — degC or the readout's unit
+        The filter's (or smoother's) 1-sigma of each readout.
+    tuning : EstimateTuning
+        ``ir_calibration_pct``, 1-sigma in % of the absolute temperature.
+    """
+    band = std.copy()
+    calib = 0.01 * tuning.ir_calibration_pct * (out[:, :5] + 273.15)
+    band[:, :5] = np.hypot(std[:, :5], calib)
+    return band
 
 
 def _estimate_frame(
@@ -466,6 +498,7 @@ def _estimate_frame(
 
 def score_estimate(
     frame: pd.DataFrame,
+    std: np.ndarray,
     filtered: np.ndarray,
     open_loop: np.ndarray,
     inputs: DiscInputs,
@@ -476,12 +509,12 @@ def score_estimate(
     """The paper's Tables 3 and 4 on a multi-spot session, plus peaks and coverage.
 
     The reference is the measured spots, as in the paper; the band coverage adds each
-    reading's own noise, measured from the reading itself.
+    reading's own noise, measured from the reading itself. ``std`` (K, 4) is the filter's
+    spread without the pyrometer calibration term: the readings share that error.
     """
     ref = inputs.spots.copy()
     ref[ref <= SENSOR_FLOOR_C] = np.nan
     smooth = frame[[f"spot{i}" for i in range(1, 5)]].to_numpy()
-    std = frame[[f"spot{i}_std" for i in range(1, 5)]].to_numpy()
     baseline = scoring.single_spot_baseline(ref[:, spot - 1])
     rows = [
         scoring.score_method("smoother" if smoothed else "filter", smooth, ref),

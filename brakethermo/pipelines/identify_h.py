@@ -356,7 +356,7 @@ def _held_out(
         ref = readings[:, i - 1]
         ok = np.isfinite(ref)
         err.append(est.frame[f"spot{i}"].to_numpy()[ok] - ref[ok])
-        std.append(est.frame[f"spot{i}_std"].to_numpy()[ok])
+        std.append(est.spread[ok, i - 1])
         noise.append(np.full(int(ok.sum()), scoring.reading_noise(ref)))
     return np.concatenate(err), np.concatenate(std), np.concatenate(noise)
 

@@ -49,6 +49,9 @@ class EstimateTuning(SigmaPointTuning):
         another bike changes the cooling air straight by straight).
     sigma_kz_step, init_sigma_kz : float — per step, dimensionless
     sigma_h_factor_step, init_sigma_h_factor : float — per step, dimensionless
+    ir_calibration_pct : float — % of absolute temperature, 1 sigma
+        The pyrometer's absolute calibration (emissivity) uncertainty, common to every
+        reading: added to the reported band, which the filter alone cannot widen for it.
     """
 
     nodes: int = 10
@@ -71,6 +74,7 @@ class EstimateTuning(SigmaPointTuning):
     init_sigma_kz: float = 0.3
     sigma_h_factor_step: float = 0.01
     init_sigma_h_factor: float = 0.05
+    ir_calibration_pct: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -107,6 +111,7 @@ BOUNDS: dict[str, tuple[float, float]] = {
     "layer_growth": (0.2, 10.0),
     "thin_skin_layer_growth": (0.2, 10.0),
     "thin_skin_kz_ratio": (0.0, 10.0),
+    "ir_calibration_pct": (0.0, 10.0),
     "alpha": (1e-4, 1.0),
     "beta": (0.0, 10.0),
     "kappa": (-1e3, 1e3),

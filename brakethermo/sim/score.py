@@ -6,6 +6,7 @@ The estimator never reads truth; this module is the one place where an estimate 
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +22,11 @@ SPOTS = ("spot1", "spot2", "spot3", "spot4")
 def read_truth(path: str | Path) -> pd.DataFrame:
     """The truth table (10 Hz grid, degC, W, W/(m² K))."""
     return pq.read_table(path).to_pandas()
+
+
+def read_truth_params(path: str | Path) -> dict[str, Any]:
+    """The truth model's own parameters (effect strengths, k_z, brake-chain errors)."""
+    return json.loads(pq.read_schema(path).metadata[b"brakethermo_truth"])
 
 
 def score_against_truth(
