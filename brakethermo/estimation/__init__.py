@@ -14,7 +14,12 @@ Random-walk parameters are extra state components (:func:`augment_random_walk`).
 from brakethermo.estimation.augment import augment_random_walk
 from brakethermo.estimation.covariance import CovarianceGuard, symmetrise
 from brakethermo.estimation.ekf import ExtendedKalmanFilter, batched_jacobian
-from brakethermo.estimation.kf import LinearFilterResult, kalman_filter, rts_smoother
+from brakethermo.estimation.kf import (
+    LinearFilterResult,
+    kalman_filter,
+    kalman_filter_tv,
+    rts_smoother,
+)
 from brakethermo.estimation.results import FilterResult, SmootherResult
 from brakethermo.estimation.sigma_points import MerweWeights, merwe_weights, sigma_points
 from brakethermo.estimation.ukf import UnscentedKalmanFilter
@@ -31,6 +36,7 @@ __all__ = [
     "augment_random_walk",
     "batched_jacobian",
     "kalman_filter",
+    "kalman_filter_tv",
     "merwe_weights",
     "rts_smoother",
     "sigma_points",

@@ -1,0 +1,1 @@
+"""Rig physics: pure functions, one concept per module."""
