@@ -112,7 +112,7 @@ def rts_smoother(A: Array, result: LinearFilterResult) -> tuple[Array, Array]:
 
 @njit(cache=True, nogil=True)
 def _kf_tv_kernel(A, Q, H, R, x0, P0, y, b, x_pred, x_filt, P_pred, P_filt, loglik):
-    K, n = x_pred.shape
+    K = x_pred.shape[0]
     x, P = x0.copy(), P0.copy()
     for k in range(K):
         if k > 0:

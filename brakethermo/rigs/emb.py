@@ -38,7 +38,9 @@ def stiffness_input(theta: Array, beta: Array) -> Array:
     return stiffness_regressors(theta) @ np.asarray(beta, dtype=float)
 
 
-def dynamic_stiffness(theta: Array, alpha0: float, beta: Array, F_init: float | None = None) -> Array:
+def dynamic_stiffness(
+    theta: Array, alpha0: float, beta: Array, F_init: float | None = None
+) -> Array:
     """Run eq. 6 open loop: F(k) = α0 F(k−1) + u(k), N.
 
     Parameters
@@ -158,7 +160,9 @@ class DynamicStiffness:
         return stiffness_input(theta, np.array(self.beta))
 
 
-def fit_dynamic_stiffness(theta: Array, F: Array, ts: float, tau0_s: float = 0.02) -> DynamicStiffness:
+def fit_dynamic_stiffness(
+    theta: Array, F: Array, ts: float, tau0_s: float = 0.02
+) -> DynamicStiffness:
     """Least squares of eq. 6 on the simulation (output) error, started from the static cubic.
 
     An equation-error fit with the sensor's F(k−1) as regressor gives α0 → 1 at kHz rates
@@ -177,10 +181,11 @@ def fit_dynamic_stiffness(theta: Array, F: Array, ts: float, tau0_s: float = 0.0
     col = np.maximum(np.abs(Phi).max(axis=0), 1e-300)
     static = np.linalg.lstsq(Phi / col, F, rcond=None)[0] / col
     a0 = float(np.exp(-ts / tau0_s))
+
     # parameters: p = [log(ts / (1 − α0)), static cubic]; F_ss = Φ·static
     def residual(p: Array) -> Array:
         alpha0 = 1.0 - ts * np.exp(-p[0])
-        return dynamic_stiffness(theta, alpha0, (1.0 - alpha0) * p[1:] , F[0]) - F
+        return dynamic_stiffness(theta, alpha0, (1.0 - alpha0) * p[1:], F[0]) - F
 
     p0 = np.concatenate([[np.log(ts / (1.0 - a0))], static])
     sol = least_squares(residual, p0, x_scale=np.concatenate([[1.0], 1.0 / col]), method="lm")

@@ -87,7 +87,9 @@ def magic_formula_mu(
     E : array_like — curvature factor, –.
     """
     Bs = np.asarray(B) * np.asarray(s, float)
-    return np.asarray(D) * np.sin(np.asarray(C) * np.arctan(Bs - np.asarray(E) * (Bs - np.arctan(Bs))))
+    return np.asarray(D) * np.sin(
+        np.asarray(C) * np.arctan(Bs - np.asarray(E) * (Bs - np.arctan(Bs)))
+    )
 
 
 def magic_formula_peak(B: float, C: float, D: float, E: float = 0.0) -> tuple[float, float]:
