@@ -1,0 +1,204 @@
+"""``mu-slip``: the tyre μ–slip peak of a braking-to-lock rig session (Rudd 2011, and beyond).
+
+Slip from the speeds (or the rig's ``slip_ratio``), μ = drag / normal force; the ramp
+from free rolling up to wheel lock is found in the log; the EKF and Levenberg–Marquardt
+fits of the two-parameter curve run on its points, then the curve families that can
+fit a real tyre, the best chosen by held-out error.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.ndimage import median_filter
+
+from brakethermo.errors import ConfigError, DataError
+from brakethermo.estimation.results import FilterResult
+from brakethermo.io.load import load_session
+from brakethermo.io.session import Session
+from brakethermo.models.mu_slip import FamilyFit, fit_families, noise_std, rudd_ekf, rudd_lm
+
+CHANNELS = ("vehicle_speed", "wheel_speed", "drag_force", "normal_force", "slip_ratio")
+RADIUS_FACTS = ("wheel_radius_m", "rolling_radius_m")
+LOCK_SLIP = 0.95  # slip at which the wheel counts as locked
+
+
+@dataclass(frozen=True)
+class MuSlipOptions:
+    """Options of the EKF start and the ramp search.
+
+    Attributes
+    ----------
+    mu_range : (float, float) — expected range of the peak μ, – (paper: 0.1–1.0 for cars).
+    slip_range : (float, float) — expected range of the peak slip, – (paper: 0.1–0.2).
+    inflation : float — constant factor on the noise std (paper: 3).
+    radius_m : float or None — wheel radius, m, when the session does not give it.
+    """
+
+    mu_range: tuple[float, float] = (0.1, 1.5)
+    slip_range: tuple[float, float] = (0.05, 0.3)
+    inflation: float = 3.0
+    radius_m: float | None = None
+
+    def __post_init__(self) -> None:
+        for name, (lo, hi) in (("mu_range", self.mu_range), ("slip_range", self.slip_range)):
+            if not 0.0 < lo < hi:
+                raise ConfigError(f"{name} must be 0 < low < high, got {lo}, {hi}")
+        if self.inflation < 1.0:
+            raise ConfigError(f"inflation must be at least 1, got {self.inflation}")
+        if self.radius_m is not None and not self.radius_m > 0.0:
+            raise ConfigError(f"wheel radius must be positive, got {self.radius_m} m")
+
+
+@dataclass(frozen=True)
+class MuSlipResult:
+    """Everything ``mu-slip`` computed on one session."""
+
+    session: Session
+    time: np.ndarray
+    slip: np.ndarray
+    mu: np.ndarray
+    sigma: float
+    ekf: FilterResult
+    lm_one_pass: tuple[np.ndarray, np.ndarray]
+    lm_converged: tuple[np.ndarray, np.ndarray]
+    families: list[FamilyFit]
+    best: FamilyFit
+    radius_m: float | None
+    ramp_s: tuple[float, float]
+
+
+def slip_and_mu(
+    session: Session, radius_m: float | None
+) -> tuple[np.ndarray, np.ndarray, float | None]:
+    """Slip (–) and μ (–) on the session grid; the radius used (None with ``slip_ratio``)."""
+    session.require("drag_force", "normal_force")
+    Fz = session.values("normal_force")
+    if np.nanmax(np.abs(Fz)) <= 0.0:
+        raise DataError(
+            "normal force is zero throughout", path=session.path, channel="normal_force"
+        )
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mu = session.values("drag_force") / Fz
+    mu[np.abs(Fz) < 0.05 * np.nanmax(np.abs(Fz))] = np.nan
+    if session.has("slip_ratio"):
+        return session.values("slip_ratio"), mu, None
+    session.require("vehicle_speed", "wheel_speed")
+    if radius_m is None:
+        for key in RADIUS_FACTS:
+            if key in session.metadata:
+                try:
+                    radius_m = float(session.metadata[key])
+                except ValueError:
+                    raise DataError(
+                        f"session fact {key}={session.metadata[key]!r} is not a number; fix it"
+                        " or pass --radius",
+                        path=session.path,
+                    ) from None
+                break
+    if radius_m is None:
+        raise DataError(
+            "no wheel radius: the session has no slip_ratio channel and no fact"
+            f" {' or '.join(RADIUS_FACTS)}; pass --radius METRES",
+            path=session.path,
+        )
+    V = session.values("vehicle_speed")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slip = (V - session.values("wheel_speed") * radius_m) / V
+    slip[V < 1.0] = np.nan  # slip is undefined near standstill
+    return slip, mu, radius_m
+
+
+def find_ramp(session: Session, slip: np.ndarray) -> tuple[int, int]:
+    """Index range [start, lock) of the first braking ramp from free rolling to wheel lock.
+
+    Raises
+    ------
+    DataError
+        No sample reaches wheel lock (a session without braking to lock).
+    """
+    w = max(3, int(round(0.01 / session.dt)) | 1)
+    smooth = median_filter(np.nan_to_num(slip, nan=0.0), size=w, mode="nearest")
+    locked = np.flatnonzero(smooth >= LOCK_SLIP)
+    if locked.size == 0:
+        raise DataError(
+            f"no braking ramp to wheel lock found (slip never reaches {LOCK_SLIP:g}); give a"
+            " session of a brake ramp to lock",
+            path=session.path,
+        )
+    lock = int(locked[0])
+    before = smooth[:lock]
+    free = float(np.percentile(before, 5)) if before.size else 0.0
+    rolling = np.flatnonzero(before <= free + 0.01)
+    start = int(rolling[-1]) + 1 if rolling.size else 0
+    if lock - start < 20:
+        raise DataError(
+            f"the braking ramp to lock holds only {lock - start} samples; log faster or brake"
+            " more slowly",
+            path=session.path,
+        )
+    return start, lock
+
+
+def mu_slip(
+    path: str | Path, options: MuSlipOptions | None = None, *, aliases: Path | None = None
+) -> MuSlipResult:
+    """Run the whole ``mu-slip`` pipeline on one session file."""
+    options = options or MuSlipOptions()
+    session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases)
+    slip, mu, radius = slip_and_mu(session, options.radius_m)
+    start, lock = find_ramp(session, slip)
+    sl = slice(start, lock)
+    ok = np.isfinite(slip[sl]) & np.isfinite(mu[sl]) & (slip[sl] > 0.0)
+    t, s, m = session.time[sl][ok], slip[sl][ok], mu[sl][ok]
+    sigma = noise_std(m)
+    (m_lo, m_hi), (s_lo, s_hi) = options.mu_range, options.slip_range
+    x0 = np.array([m_hi, s_hi])  # paper: start at the high end, covariance covering the range
+    P0 = np.diag([(m_hi - m_lo) ** 2, (s_hi - s_lo) ** 2])
+    ekf = rudd_ekf(s, m, sigma, x0, P0, inflation=options.inflation)
+    fams = fit_families(s, m)
+    best = min(fams, key=lambda f: f.heldout_rmse)
+    return MuSlipResult(
+        session=session,
+        time=t,
+        slip=s,
+        mu=m,
+        sigma=sigma,
+        ekf=ekf,
+        lm_one_pass=rudd_lm(s, m, x0, 1),
+        lm_converged=rudd_lm(s, m, x0, None),
+        families=fams,
+        best=best,
+        radius_m=radius,
+        ramp_s=(float(session.time[start]), float(session.time[lock])),
+    )
+
+
+def shape_mismatch(result: MuSlipResult) -> dict[str, object]:
+    """How far the two-parameter curve is from the best family, in words and figures."""
+    rudd = next(f for f in result.families if f.name == "rudd")
+    best = result.best
+    d_mu = 100.0 * (rudd.mu_peak / best.mu_peak - 1.0) if best.mu_peak else float("nan")
+    d_s = rudd.slip_peak - best.slip_peak
+    if best.name == "rudd":
+        words = (
+            "the two-parameter curve fits as well as any family on held-out points;"
+            " its peak is the answer"
+        )
+    else:
+        words = (
+            f"the two-parameter curve has the wrong shape for this tyre: its held-out RMSE is"
+            f" {rudd.heldout_rmse:.4f} against {best.heldout_rmse:.4f} for {best.name}, and its"
+            f" peak μ is {abs(d_mu):.1f} % {'above' if d_mu > 0 else 'below'} and its peak slip"
+            f" {abs(d_s):.3f} {'above' if d_s > 0 else 'below'} the {best.name} peak"
+        )
+    return {
+        "best_family": best.name,
+        "rudd_mu_peak_minus_best_pct": d_mu,
+        "rudd_slip_peak_minus_best": d_s,
+        "rudd_heldout_rmse": rudd.heldout_rmse,
+        "best_heldout_rmse": best.heldout_rmse,
+        "words": words,
+    }
