@@ -119,7 +119,7 @@ def find_ramp(session: Session, slip: np.ndarray) -> tuple[int, int]:
     DataError
         No sample reaches wheel lock (a session without braking to lock).
     """
-    w = max(3, int(round(0.01 / session.dt)) | 1)
+    w = max(3, round(0.01 / session.dt) | 1)
     smooth = median_filter(np.nan_to_num(slip, nan=0.0), size=w, mode="nearest")
     locked = np.flatnonzero(smooth >= LOCK_SLIP)
     if locked.size == 0:

@@ -165,8 +165,8 @@ def simulate_tyre_rig(
     n = n_free + core.shape[0] + n_tail
     time = np.arange(n) * dt
     omega = np.full(n, omega0)
-    Fx_t = rig.rolling_resistance * Fz_t
     Fz_t = rig.load * (1.0 + rig.load_ripple * np.sin(2 * np.pi * rig.load_freq_hz * time + phase))
+    Fx_t = rig.rolling_resistance * Fz_t
     sl = slice(n_free, n_free + core.shape[0])
     omega[sl], Fx_t[sl], Fz_t[sl] = core[:, 1], core[:, 2], core[:, 3]
     slip = np.clip((V - omega * R) / V, 0.0, 1.0)
