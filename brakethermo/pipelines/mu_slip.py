@@ -8,17 +8,34 @@ fit a real tyre, the best chosen by held-out error.
 
 from __future__ import annotations
 
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt
 import numpy as np
+import pandas as pd
 from scipy.ndimage import median_filter
 
 from brakethermo.errors import ConfigError, DataError
 from brakethermo.estimation.results import FilterResult
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
-from brakethermo.models.mu_slip import FamilyFit, fit_families, noise_std, rudd_ekf, rudd_lm
+from brakethermo.models.mu_slip import (
+    FAMILIES,
+    FamilyFit,
+    fit_families,
+    noise_std,
+    rudd_ekf,
+    rudd_lm,
+)
+from brakethermo.report.page import Card, Page, Section, TableBlock
+from brakethermo.rigs.tyre import rudd_mu
 
 CHANNELS = ("vehicle_speed", "wheel_speed", "drag_force", "normal_force", "slip_ratio")
 RADIUS_FACTS = ("wheel_radius_m", "rolling_radius_m")
@@ -202,3 +219,202 @@ def shape_mismatch(result: MuSlipResult) -> dict[str, object]:
         "best_heldout_rmse": best.heldout_rmse,
         "words": words,
     }
+
+
+def result_frame(res: MuSlipResult) -> pd.DataFrame:
+    """The ``mu_slip.parquet`` table: the points used and the EKF track."""
+    x, v = res.ekf.x_filt, res.ekf.var_filt
+    return pd.DataFrame(
+        {
+            "time": res.time,
+            "slip": res.slip,
+            "mu": res.mu,
+            "ekf_mu_peak": x[:, 0],
+            "ekf_mu_peak_std": np.sqrt(v[:, 0]),
+            "ekf_slip_peak": x[:, 1],
+            "ekf_slip_peak_std": np.sqrt(v[:, 1]),
+        }
+    )
+
+
+UNITS = {
+    "time": "s",
+    "slip": "-",
+    "mu": "-",
+    "ekf_mu_peak": "-",
+    "ekf_mu_peak_std": "-",
+    "ekf_slip_peak": "-",
+    "ekf_slip_peak_std": "-",
+}
+
+
+def _peak(x: np.ndarray, sd: np.ndarray | None = None) -> dict[str, float]:
+    out = {"mu_peak": float(x[0]), "slip_peak": float(x[1])}
+    if sd is not None:
+        out |= {"mu_peak_std": float(sd[0]), "slip_peak_std": float(sd[1])}
+    return out
+
+
+def summary(res: MuSlipResult) -> dict[str, Any]:
+    """The ``summary.json`` of OUTPUTS.md "mu-slip"."""
+    return {
+        "session": str(res.session.path),
+        "rate_hz": res.session.rate_hz,
+        "ramp_s": list(res.ramp_s),
+        "points": int(res.slip.size),
+        "noise_std_mu": res.sigma,
+        "wheel_radius_m": res.radius_m,
+        "ekf": _peak(res.ekf.x_filt[-1], np.sqrt(res.ekf.var_filt[-1])),
+        "lm_one_pass": _peak(*res.lm_one_pass),
+        "lm_converged": _peak(*res.lm_converged),
+        "families": [
+            {
+                "model": f.name,
+                "params": f.params,
+                "rmse": f.rmse,
+                "heldout_rmse": f.heldout_rmse,
+                "mu_peak": f.mu_peak,
+                "slip_peak": f.slip_peak,
+            }
+            for f in res.families
+        ],
+        "peak": {"mu": res.best.mu_peak, "slip": res.best.slip_peak, "model": res.best.name},
+        "shape_mismatch": shape_mismatch(res),
+    }
+
+
+def _ellipse(P: np.ndarray, n: int = 60) -> np.ndarray:
+    """1σ contour of a 2-D Gaussian around 0: points (n, 2)."""
+    w, V = np.linalg.eigh(P)
+    a = np.linspace(0.0, 2.0 * np.pi, n)
+    return (V @ (np.sqrt(np.maximum(w, 0.0))[:, None] * np.stack([np.cos(a), np.sin(a)]))).T
+
+
+def animation_gif(res: MuSlipResult, frames: int = 40) -> bytes:
+    """GIF of the EKF: data so far, estimated curve, peak and its 1σ ellipse, per frame."""
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    K = res.slip.size
+    idx = np.unique(np.linspace(0, K - 1, frames).astype(int))
+    x, P = res.ekf.x_filt, res.ekf.P_filt
+    fig, ax = plt.subplots(figsize=(6, 4))
+    s_grid = np.linspace(0.0, max(1.0, float(res.slip.max())), 300)
+    ax.plot(res.slip, res.mu, ".", color="0.8", ms=2)
+    (pts,) = ax.plot([], [], ".", color="tab:green", ms=2)
+    (curve,) = ax.plot([], [], color="tab:red")
+    (ell,) = ax.plot([], [], color="tab:blue")
+    (pk,) = ax.plot([], [], "o", color="tab:red")
+    ax.set_xlim(0, s_grid[-1])
+    ax.set_ylim(0, 1.4 * max(float(np.nanmax(res.mu)), 0.1))
+    ax.set_xlabel("slip (–)")
+    ax.set_ylabel("μ (–)")
+    title = ax.set_title("")
+
+    def draw(i: int):
+        k = idx[i]
+        pts.set_data(res.slip[: k + 1], res.mu[: k + 1])
+        curve.set_data(s_grid, rudd_mu(s_grid, x[k, 0], x[k, 1]))
+        e = _ellipse(P[k])
+        ell.set_data(x[k, 1] + e[:, 1], x[k, 0] + e[:, 0])
+        pk.set_data([x[k, 1]], [x[k, 0]])
+        title.set_text(f"point {k + 1}/{K}: μp {x[k, 0]:.3f}, sp {x[k, 1]:.3f}")
+        return pts, curve, ell, pk, title
+
+    anim = FuncAnimation(fig, draw, frames=idx.size, blit=False)
+    with tempfile.TemporaryDirectory() as tmp:
+        target = Path(tmp) / "ekf.gif"
+        anim.save(target, writer=PillowWriter(fps=8))
+        data = target.read_bytes()
+    plt.close(fig)
+    return data
+
+
+def page(res: MuSlipResult, summ: dict[str, Any]) -> Page:
+    """The report page: convergence, curve fits, the families and the shape mismatch."""
+    x, P = res.ekf.x_filt, res.ekf.P_filt
+    k = np.arange(1, res.slip.size + 1)
+    fig, axs = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    for j, (name, ax) in enumerate(zip(("μ peak", "slip peak"), axs[:2], strict=True)):
+        sd = np.sqrt(P[:, j, j])
+        ax.fill_between(k, x[:, j] - sd, x[:, j] + sd, alpha=0.3)
+        ax.plot(k, x[:, j])
+        ax.set_ylabel(f"{name} (–)")
+    axs[2].plot(k, P[:, 0, 0] / P[0, 0, 0], label="var μp / initial")
+    axs[2].plot(k, P[:, 1, 1] / P[0, 1, 1], label="var sp / initial")
+    axs[2].plot(k, P[:, 0, 1] / np.sqrt(P[:, 0, 0] * P[:, 1, 1]), label="correlation")
+    axs[2].set_xlabel("point")
+    axs[2].legend(fontsize=8)
+    fig.tight_layout()
+    fig2, ax2 = plt.subplots(figsize=(9, 4))
+    ax2.plot(res.slip, res.mu, ".", color="0.7", ms=2, label="points")
+    sg = np.linspace(1e-4, float(res.slip.max()), 400)
+    fams = {f.name: f for f in FAMILIES}
+    for f in res.families:
+        ax2.plot(
+            sg,
+            fams[f.name].curve(sg, *f.params.values()),
+            label=f"{f.name} (held-out {f.heldout_rmse:.4f})",
+        )
+    ax2.plot(sg, rudd_mu(sg, *x[-1]), "--", label="EKF (one pass)")
+    ax2.set_xlabel("slip (–)")
+    ax2.set_ylabel("μ (–)")
+    ax2.legend(fontsize=8)
+    fig2.tight_layout()
+    rows = [
+        [
+            "EKF (one pass)",
+            f"{summ['ekf']['mu_peak']:.3f} ± {summ['ekf']['mu_peak_std']:.3f}",
+            f"{summ['ekf']['slip_peak']:.3f} ± {summ['ekf']['slip_peak_std']:.3f}",
+        ]
+    ]
+    for key, lab in (("lm_one_pass", "LM, one pass"), ("lm_converged", "LM, converged")):
+        rows.append(
+            [
+                lab,
+                f"{summ[key]['mu_peak']:.3f} ± {summ[key]['mu_peak_std']:.3f}",
+                f"{summ[key]['slip_peak']:.3f} ± {summ[key]['slip_peak_std']:.3f}",
+            ]
+        )
+    fam_rows = [
+        [f.name, f"{f.rmse:.4f}", f"{f.heldout_rmse:.4f}", f"{f.mu_peak:.3f}", f"{f.slip_peak:.3f}"]
+        for f in res.families
+    ]
+    mm = summ["shape_mismatch"]
+    return Page(
+        title=f"mu-slip — {res.session.path.name}",
+        subtitle="tyre μ–slip peak: EKF, Levenberg–Marquardt and curve families",
+        cards=[
+            Card("peak μ", f"{res.best.mu_peak:.3f}"),
+            Card("peak slip", f"{res.best.slip_peak:.3f}"),
+            Card("from", res.best.name),
+            Card("points", str(res.slip.size)),
+        ],
+        sections=[
+            Section(
+                "Two-parameter curve (Rudd)",
+                paragraphs=[
+                    f"Ramp {res.ramp_s[0]:.2f}–{res.ramp_s[1]:.2f} s up to wheel lock;"
+                    f" noise std of μ {res.sigma:.4f} (from point-to-point differences), inflated"
+                    " ×3 plus second-order pseudo-noise in the EKF."
+                ],
+                tables=[TableBlock(["estimator", "μ peak", "slip peak"], rows)],
+                figures={"ekf_convergence": fig},
+                notes=[
+                    "Animation of the EKF (curve and 1σ ellipse after each point):"
+                    " ekf_animation.gif beside this page."
+                ],
+            ),
+            Section(
+                "Curve families",
+                paragraphs=[mm["words"] + "."],
+                tables=[
+                    TableBlock(
+                        ["family", "RMSE", "held-out RMSE", "μ peak", "slip peak"],
+                        fam_rows,
+                        caption="5-fold cross-validation",
+                    )
+                ],
+                figures={"curve_fits": fig2},
+            ),
+        ],
+    )
