@@ -185,7 +185,7 @@ def fit_dynamic_stiffness(
     # parameters: p = [log(ts / (1 − α0)), static cubic]; F_ss = Φ·static
     def residual(p: Array) -> Array:
         alpha0 = 1.0 - ts * np.exp(-p[0])
-        return dynamic_stiffness(theta, alpha0, (1.0 - alpha0) * p[1:], F[0]) - F
+        return dynamic_stiffness(theta, alpha0, (1.0 - alpha0) * p[1:]) - F
 
     p0 = np.concatenate([[np.log(ts / (1.0 - a0))], static])
     sol = least_squares(residual, p0, x_scale=np.concatenate([[1.0], 1.0 / col]), method="lm")

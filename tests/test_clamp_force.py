@@ -1,0 +1,199 @@
+"""clamp-force: eq. 6-8 against exact data, the filters, targets on unseen sessions, the CLI."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from brakethermo.cli import app
+from brakethermo.estimation.kf import kalman_filter, kalman_filter_tv
+from brakethermo.io.writers import Channel, SessionData, write_session
+from brakethermo.models.clamp_force import estimate, train
+from brakethermo.rigs.emb import (
+    TorqueBalance,
+    dynamic_stiffness,
+    fit_dynamic_stiffness,
+    fit_torque_balance,
+    ml_fusion,
+    rmse,
+    torque_balance_force,
+)
+from brakethermo.sim.emb import simulate_emb, write_emb_simulation
+
+TS = 1e-3
+
+
+def _arrays(sim):
+    ch = {c.name: c.value for c in sim.session.channels}
+    return ch["motor_angle"], ch["motor_current"], ch.get("clamp_force", np.nan) * 1e3
+
+
+def test_fits_recover_exact_models() -> None:
+    rng = np.random.default_rng(1)
+    theta = np.cumsum(rng.normal(0, 0.02, 5000)) + 4.0
+    beta = np.array([30.0, 20.0, 600.0, -100.0])
+    F = dynamic_stiffness(theta, 0.6, beta)
+    ds = fit_dynamic_stiffness(theta, F, TS)
+    assert ds.alpha0 == pytest.approx(0.6, rel=1e-3)
+    np.testing.assert_allclose(ds.beta, beta, rtol=2e-3, atol=1e-3)
+    p = TorqueBalance(gamma=1.6e-3, inertia=6e-4, mu=2.4e-4, offset=1.0, bias=0.4)
+    from brakethermo.rigs.emb import motor_rates
+
+    omega, acc = motor_rates(theta, TS)
+    sg = np.sign(omega)
+    current = (p.gamma + p.mu * sg) * F + p.inertia * acc + p.offset * sg + p.bias
+    q = fit_torque_balance(current, theta, TS, F)
+    np.testing.assert_allclose(
+        [q.gamma, q.inertia, q.mu, q.offset, q.bias],
+        [p.gamma, p.inertia, p.mu, p.offset, p.bias],
+        rtol=1e-6,
+    )
+    np.testing.assert_allclose(torque_balance_force(current, theta, TS, q), F, rtol=1e-6)
+
+
+def test_ml_fusion_weights() -> None:
+    assert ml_fusion(np.array([1.0]), np.array([3.0]), 1.0, 1.0)[0] == pytest.approx(2.0)
+    assert ml_fusion(np.array([1.0]), np.array([3.0]), 0.0, 1.0)[0] == pytest.approx(1.0)
+
+
+def test_compiled_kf_matches_reference_and_explicit_time_varying_loop() -> None:
+    rng = np.random.default_rng(3)
+    K, n = 200, 2
+    A = np.eye(n) + rng.normal(0, 0.2, (K, n, n))
+    Q, H, R = np.eye(n) * 0.1, np.array([[1.0, 0.3]]), np.array([[0.5]])
+    y, b = rng.normal(size=(K, 1)), rng.normal(size=(K, n))
+    y[17] = np.nan
+    ref = kalman_filter(A[0], Q, H, R, np.zeros(n), np.eye(n), y, b)
+    got = kalman_filter_tv(A[0], Q, H, R, np.zeros(n), np.eye(n), y, b)
+    np.testing.assert_allclose(got.x_filt, ref.x_filt, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(got.loglik, ref.loglik, rtol=1e-10, atol=1e-12)
+    tv = kalman_filter_tv(A, Q, H, R, np.zeros(n), np.eye(n), y, b)
+    x, P = np.zeros(n), np.eye(n)
+    for k in range(K):
+        if k:
+            x, P = A[k - 1] @ x + b[k - 1], A[k - 1] @ P @ A[k - 1].T + Q
+        if np.isfinite(y[k]).all():
+            S = H @ P @ H.T + R
+            G = P @ H.T / S[0, 0]
+            x, P = x + (G @ (y[k] - H @ x)), P - G @ S @ G.T
+    np.testing.assert_allclose(tv.x_filt[-1], x, rtol=1e-10)
+
+
+@pytest.fixture(scope="module")
+def trained():
+    th, cur, F = _arrays(simulate_emb("nominal", seed=6001, duration_s=40.0))
+    return train(th, cur, F, TS)
+
+
+@pytest.mark.parametrize("seed", [6101, 6102])
+def test_targets_on_unseen_sessions(trained, seed: int) -> None:
+    nominal = simulate_emb("nominal", seed=seed, duration_s=30.0)
+    truth = nominal.truth.column("clamp_force").to_numpy() * 1e3
+    th, cur, _ = _arrays(nominal)
+    e = estimate(trained, th, cur, TS)
+    kf, ml, ds = rmse(e.kf, truth), rmse(e.ml_fusion, truth), rmse(e.stiffness, truth)
+    assert kf <= 0.85 * ds
+    assert kf < ml
+    # wear: re-train on 20 s of a worn-pad session, estimate an unseen worn session
+    thw, cw, Fw = _arrays(simulate_emb("worn", seed=seed + 50, duration_s=20.0))
+    worn = simulate_emb("worn", seed=seed + 60, duration_s=30.0)
+    tw = worn.truth.column("clamp_force").to_numpy() * 1e3
+    thv, cv, _ = _arrays(worn)
+    stale = rmse(estimate(trained, thv, cv, TS).kf, tw)
+    fresh = rmse(estimate(train(thw, cw, Fw, TS), thv, cv, TS).kf, tw)
+    assert fresh <= 1.3 * kf < stale
+    # heating pads: the adaptive filter holds the error down without a sensor
+    hot = simulate_emb("heating", seed=seed + 70, duration_s=60.0)
+    th_h, c_h, _ = _arrays(hot)
+    eh = estimate(trained, th_h, c_h, TS)
+    th_true = hot.truth.column("clamp_force").to_numpy() * 1e3
+    assert rmse(eh.adaptive, th_true) < 0.5 * rmse(eh.kf, th_true)
+    assert rmse(eh.adaptive, th_true) < 1.3 * kf
+
+
+def test_cli_outputs_and_json(tmp_path: Path) -> None:
+    tr, _ = write_emb_simulation(
+        simulate_emb("nominal", seed=6201, duration_s=15), tmp_path / "t.mcap"
+    )
+    ev, _ = write_emb_simulation(
+        simulate_emb("nominal", seed=6202, duration_s=10), tmp_path / "e.parquet"
+    )
+    rt, _ = write_emb_simulation(simulate_emb("worn", seed=6203, duration_s=10), tmp_path / "w.csv")
+    res = CliRunner().invoke(
+        app,
+        [
+            "clamp-force",
+            str(ev),
+            "--train",
+            str(tr),
+            "--retrain",
+            str(rt),
+            "--out",
+            str(tmp_path / "o"),
+            "--json",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    summ = json.loads(res.output)
+    assert set(summ["rmse_kn"]) == {"kf", "ml_fusion", "stiffness", "torque_balance"}
+    assert all(v > 0 for v in summ["rmse_kn"].values())
+    assert "wear" in summ
+    import pyarrow.parquet as pq
+
+    tab = pq.read_table(tmp_path / "o" / "e" / "clamp_force.parquet")
+    for col in ("time", "kf", "kf_std", "ml_fusion", "stiffness", "torque_balance"):
+        assert col in tab.column_names
+    assert (tmp_path / "o" / "e" / "index.html").stat().st_size > 0
+
+
+def _run_bad(tmp_path: Path, *args: str) -> str:
+    res = CliRunner().invoke(app, ["clamp-force", *args, "--out", str(tmp_path / "o")])
+    assert res.exit_code == 1, res.output
+    assert "Traceback" not in res.output
+    return res.output
+
+
+def test_bad_inputs_exit_1(tmp_path: Path) -> None:
+    sim = simulate_emb("nominal", seed=6301, duration_s=3)
+    good, _ = write_emb_simulation(sim, tmp_path / "good.mcap")
+    nosensor, _ = write_emb_simulation(
+        simulate_emb("nominal", seed=6302, duration_s=3, with_sensor=False), tmp_path / "ns.mcap"
+    )
+    assert "sensor" in _run_bad(tmp_path, str(good), "--train", str(nosensor))
+    ch = {c.name: c for c in sim.session.channels}
+    no_current = write_session(
+        tmp_path / "nc.csv", SessionData((ch["motor_angle"], ch["clamp_force"]), {})
+    )
+    assert "motor_current" in _run_bad(tmp_path, str(no_current), "--train", str(good))
+    still = write_session(
+        tmp_path / "still.csv",
+        SessionData(
+            (
+                Channel(
+                    "motor_angle",
+                    "rad",
+                    ch["motor_angle"].time,
+                    np.full(ch["motor_angle"].time.size, 2.0),
+                ),
+                ch["motor_current"],
+                ch["clamp_force"],
+            ),
+            {},
+        ),
+    )
+    assert "no braking" in _run_bad(tmp_path, str(still), "--train", str(good))
+    odd = write_session(
+        tmp_path / "odd.csv",
+        SessionData(
+            (
+                Channel("motor_angle", "parsec", ch["motor_angle"].time, ch["motor_angle"].value),
+                ch["motor_current"],
+            ),
+            {},
+        ),
+    )
+    assert "unknown unit" in _run_bad(tmp_path, str(odd), "--train", str(good))
