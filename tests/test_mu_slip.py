@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from brakethermo.cli import app
@@ -144,3 +146,46 @@ def test_bad_inputs_exit_1(tmp_path: Path) -> None:
         for c in ch.values()
     )
     assert "unknown unit" in _bad(tmp_path, odd, facts)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    c1=st.floats(0.3, 2.0),
+    c2=st.floats(5.0, 60.0),
+    c3=st.floats(0.05, 0.8),
+)
+def test_burckhardt_peak_is_the_maximum(c1: float, c2: float, c3: float) -> None:
+    mu, _ = burckhardt_peak(c1, c2, c3)
+    grid = np.linspace(0.0, 1.0, 20001)
+    assert mu == pytest.approx(burckhardt_mu(grid, c1, c2, c3).max(), abs=1e-6)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    B=st.floats(3.0, 40.0), C=st.floats(1.05, 1.95), D=st.floats(0.2, 1.5), E=st.floats(-1.0, 0.9)
+)
+def test_magic_formula_peak_is_the_maximum(B: float, C: float, D: float, E: float) -> None:
+    mu, s = magic_formula_peak(B, C, D, E)
+    grid = np.linspace(0.0, max(1.0, 2 * s), 40001)
+    assert mu == pytest.approx(magic_formula_mu(grid, B, C, D, E).max(), abs=1e-6)
+    assert magic_formula_mu(s, B, C, D, E) == pytest.approx(mu, abs=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(mu_p=st.floats(0.05, 2.0), s_p=st.floats(0.02, 0.5))
+def test_rudd_curve_peaks_at_its_parameters(mu_p: float, s_p: float) -> None:
+    assert rudd_mu(s_p, mu_p, s_p) == pytest.approx(mu_p)
+    grid = np.linspace(0.0, 1.0, 20001)
+    assert rudd_mu(grid, mu_p, s_p).max() <= mu_p * (1 + 1e-12)
+
+
+def test_simulate_tyre_command_writes_a_readable_session(tmp_path: Path) -> None:
+    out = tmp_path / "t.parquet"
+    res = CliRunner().invoke(
+        app, ["simulate-tyre", "--out", str(out), "--tyre", "rudd", "--log-slip", "--json"]
+    )
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["peak_mu"] == pytest.approx(0.35)
+    assert (tmp_path / "t.truth.parquet").exists()
+    bad = CliRunner().invoke(app, ["simulate-tyre", "--out", str(out), "--tyre", "slick"])
+    assert bad.exit_code == 1 and "unknown tyre" in bad.output

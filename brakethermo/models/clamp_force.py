@@ -27,6 +27,7 @@ from brakethermo.rigs.emb import (
     fit_dynamic_stiffness,
     fit_torque_balance,
     ml_fusion,
+    motor_rates,
     rmse,
     torque_balance_force,
 )
@@ -57,11 +58,21 @@ class ClampForceModels:
     window: int = 1
 
 
-# Candidate derivative windows for eq. 7, samples (1 = the paper's differences).
+# Candidate derivative windows for eq. 7, samples (1 = the paper's differences), and
+# friction sign bands, rad/s (0 = the paper's sgn).
 WINDOWS = (1, 5, 7, 9, 11, 15, 21)
+SIGN_BANDS = (0.0, 0.05, 0.1, 0.2, 0.5, 1.0)
+CV_BLOCK_S = 2.0  # s, blocks of the two-fold cross-validation of eq. 7's choices
 
 
-def train(theta: Array, current: Array, F: Array, ts: float) -> ClampForceModels:
+def train(
+    theta: Array,
+    current: Array,
+    F: Array,
+    ts: float,
+    *,
+    structure: ClampForceModels | None = None,
+) -> ClampForceModels:
     """Fit eq. 6 and eq. 7 by least squares on a session with the clamp-force sensor.
 
     Parameters
@@ -70,20 +81,43 @@ def train(theta: Array, current: Array, F: Array, ts: float) -> ClampForceModels
     current : ndarray (K,) — motor current, A.
     F : ndarray (K,) — clamp-force sensor, N.
     ts : float — sample time, s.
+    structure : ClampForceModels, optional — re-training (wear): keep its derivative
+        window and friction sign band, which belong to the drive and the log rather
+        than to the pads, and refit the parameters only. A short re-training session
+        chooses them less reliably than the full training one.
 
-    The derivative window of eq. 7 is the one of :data:`WINDOWS` with the smallest
-    training RMSE (the paper's differences are the first candidate).
+    The derivative window and the friction sign band of eq. 7 are the pair of
+    :data:`WINDOWS` x :data:`SIGN_BANDS` with the smallest cross-validated error: fitted
+    on alternate blocks of :data:`CV_BLOCK_S` seconds and scored on the others, both
+    ways (the in-sample RMSE of a 20 s re-training session picks noise). The paper's
+    differences and sgn are the first candidates. Then eq. 7 is refitted on all samples.
     """
     ds = fit_dynamic_stiffness(theta, F, ts)
-    sigma_ds = rmse(ds.simulate(theta, F[0]), F)
-    best: tuple[float, TorqueBalance, int] | None = None
-    for window in WINDOWS:
-        tb = fit_torque_balance(current, theta, ts, F, window)
-        err = rmse(torque_balance_force(current, theta, ts, tb, window), F)
-        if best is None or err < best[0]:
-            best = (err, tb, window)
+    sigma_ds = rmse(ds.simulate(theta), F)
+    fold = (np.arange(theta.size) * ts // CV_BLOCK_S).astype(int) % 2
+    omega_acc = {w: motor_rates(theta, ts, w) for w in (WINDOWS if structure is None else ())}
+    best: tuple[float, int, float] | None = None
+    if structure is not None:
+        best = (0.0, structure.window, structure.torque.omega_s)
+        omega_acc = {structure.window: motor_rates(theta, ts, structure.window)}
+    for window in WINDOWS if structure is None else ():
+        for band in SIGN_BANDS:
+            err = []
+            for j in (0, 1):
+                tb = fit_torque_balance(
+                    current, theta, ts, F, window, band, rows=fold == j, rates=omega_acc[window]
+                )
+                F_tb = torque_balance_force(current, theta, ts, tb, window, rates=omega_acc[window])
+                err.append((F_tb - F)[fold != j])
+            score = float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+            if best is None or score < best[0]:
+                best = (score, window, band)
     assert best is not None
-    sigma_tb, tb, window = best
+    _, window, band = best
+    tb = fit_torque_balance(current, theta, ts, F, window, band, rates=omega_acc[window])
+    sigma_tb = rmse(
+        torque_balance_force(current, theta, ts, tb, window, rates=omega_acc[window]), F
+    )
     return ClampForceModels(ds, tb, sigma_ds, sigma_tb, ts, window)
 
 
@@ -148,8 +182,14 @@ def estimate(
     b = np.zeros((K, 1))
     b[:-1, 0] = u[1:]
     res = kalman_filter_tv(
-        np.array([[ds.alpha0]]), np.array([[Q]]), np.eye(1), np.array([[R]]),
-        np.array([F_ds[0]]), np.array([[Q]]), y, b,
+        np.array([[ds.alpha0]]),
+        np.array([[Q]]),
+        np.eye(1),
+        np.array([[R]]),
+        np.array([F_ds[0]]),
+        np.array([[Q]]),
+        y,
+        b,
     )
     kf, kf_std = res.x_filt[:, 0], np.sqrt(res.P_filt[:, 0, 0])
 
@@ -160,8 +200,13 @@ def estimate(
     A[:, 1, 1] = 1.0
     Qa = np.diag([Q, factor_walk**2 * ts])
     ra = kalman_filter_tv(
-        A, Qa, np.array([[1.0, 0.0]]), np.array([[R]]),
-        np.array([F_ds[0], 1.0]), np.diag([Q, 0.1**2]), y,
+        A,
+        Qa,
+        np.array([[1.0, 0.0]]),
+        np.array([[R]]),
+        np.array([F_ds[0], 1.0]),
+        np.diag([Q, 0.1**2]),
+        y,
     )
     return ClampForceEstimates(
         kf=kf,

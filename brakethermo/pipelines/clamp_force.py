@@ -114,12 +114,13 @@ def clamp_force(
     rt = mr = er = None
     if retrain_path is not None:
         rt = load_emb(retrain_path, need_sensor=True, role="re-training", aliases=aliases)
-        mr = train(rt.theta, rt.current, rt.force, rt.ts)
+        mr = train(rt.theta, rt.current, rt.force, rt.ts, structure=models)
         er = estimate(mr, data.theta, data.current, data.ts, factor_walk=factor_walk)
     return ClampForceResult(data, tr, models, est, rt, mr, er)
 
 
-def _series(est: ClampForceEstimates) -> dict[str, np.ndarray]:
+def estimator_series(est: ClampForceEstimates) -> dict[str, np.ndarray]:
+    """Each estimator's clamp force by output column name, N."""
     return {
         "kf": est.kf,
         "ml_fusion": est.ml_fusion,
@@ -130,20 +131,23 @@ def _series(est: ClampForceEstimates) -> dict[str, np.ndarray]:
 
 
 def _rmse_kn(est: ClampForceEstimates, force: np.ndarray | None) -> dict[str, float | None]:
-    return {k: (None if force is None else rmse(v, force) / 1e3) for k, v in _series(est).items()}
+    return {
+        k: (None if force is None else rmse(v, force) / 1e3)
+        for k, v in estimator_series(est).items()
+    }
 
 
 def result_frame(res: ClampForceResult) -> pd.DataFrame:
     """The ``clamp_force.parquet`` table, kN (``stiffness_factor`` –)."""
     e = res.est
     cols: dict[str, np.ndarray] = {"time": res.data.session.time}
-    cols |= {k: v / 1e3 for k, v in _series(e).items()}
+    cols |= {k: v / 1e3 for k, v in estimator_series(e).items()}
     cols["kf_std"] = e.kf_std / 1e3
     cols["kf_adaptive_std"] = e.adaptive_std / 1e3
     cols["stiffness_factor"] = e.stiffness_factor
     cols["stiffness_factor_std"] = e.stiffness_factor_std
     if res.est_retrained is not None:
-        cols |= {f"{k}_retrained": v / 1e3 for k, v in _series(res.est_retrained).items()}
+        cols |= {f"{k}_retrained": v / 1e3 for k, v in estimator_series(res.est_retrained).items()}
     if res.data.force is not None:
         cols["sensor"] = res.data.force / 1e3
     order = ["time", "kf", "kf_std", "ml_fusion", "stiffness", "torque_balance"]
@@ -181,6 +185,7 @@ def _model_dict(m: ClampForceModels, path: Path) -> dict[str, Any]:
             "mu_a_per_kn": m.torque.mu * 1e3,
             "offset_a": m.torque.offset,
             "current_offset_a": m.torque.bias,
+            "friction_sign_band_rad_s": m.torque.omega_s,
         },
         "derivative_window": m.window,
         "training_rmse_kn": {"stiffness": m.sigma_ds / 1e3, "torque_balance": m.sigma_tb / 1e3},
@@ -253,10 +258,12 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
         ],
     )
     fig, ax = plt.subplots(figsize=(10, 3.6))
-    win = (t >= t[0]) & (t <= t[0] + min(4.0, t[-1]))
+    # 2 s after the filters settled (or the whole of a short session)
+    t0 = t[0] + 1.0 if t[-1] - t[0] > 3.0 else t[0]
+    win = (t >= t0) & (t <= t0 + 2.0)
     if force is not None:
         ax.plot(t[win], force[win] / 1e3, "k", lw=1.6, label="sensor")
-    for name, v in _series(res.est).items():
+    for name, v in estimator_series(res.est).items():
         ax.plot(t[win], v[win] / 1e3, lw=0.8, label=name)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("clamp force (kN)")

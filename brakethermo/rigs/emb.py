@@ -95,6 +95,8 @@ class TorqueBalance:
     mu : float — μ/Km, A/N: load-proportional Coulomb friction.
     offset : float — A/Km, A: load-independent Coulomb friction.
     bias : float — T0/Km, A: constant current offset.
+    omega_s : float — speed band of the friction sign, rad/s: sgn ω is replaced by
+        tanh(ω / ω_s), 0 keeping the paper's sgn (see :func:`friction_sign`).
     """
 
     gamma: float
@@ -102,22 +104,47 @@ class TorqueBalance:
     mu: float
     offset: float
     bias: float
+    omega_s: float = 0.0
+
+
+def friction_sign(omega: Array, omega_s: float) -> Array:
+    """sgn ω of eq. 7, or tanh(ω / ω_s) for ω_s > 0.
+
+    Real friction does not switch sign in one sample at standstill, and a speed from a
+    quantised angle dithers around zero there; a band of a fraction of a rad/s, chosen
+    on the training session, follows the reversal instead of flipping on noise.
+    """
+    return np.sign(omega) if omega_s <= 0.0 else np.tanh(omega / omega_s)
 
 
 def torque_balance_force(
-    current: Array, theta: Array, ts: float, p: TorqueBalance, window: int = 1
+    current: Array,
+    theta: Array,
+    ts: float,
+    p: TorqueBalance,
+    window: int = 1,
+    *,
+    rates: tuple[Array, Array] | None = None,
 ) -> Array:
     """Clamp force of eq. 7, N, from the motor current (A) and angle (rad) on a grid of step
-    ts (s); ``window`` as :func:`motor_rates`."""
-    omega, acc = motor_rates(theta, ts, window)
-    sgn = np.sign(omega)
+    ts (s); ``window`` as :func:`motor_rates`, whose result ``rates`` may be passed in."""
+    omega, acc = motor_rates(theta, ts, window) if rates is None else rates
+    sgn = friction_sign(omega, p.omega_s)
     return (np.asarray(current, float) - p.inertia * acc - p.offset * sgn - p.bias) / (
         p.gamma + p.mu * sgn
     )
 
 
 def fit_torque_balance(
-    current: Array, theta: Array, ts: float, F: Array, window: int = 1
+    current: Array,
+    theta: Array,
+    ts: float,
+    F: Array,
+    window: int = 1,
+    omega_s: float = 0.0,
+    *,
+    rows: NDArray[np.bool_] | None = None,
+    rates: tuple[Array, Array] | None = None,
 ) -> TorqueBalance:
     """Least squares of eq. 7 rearranged linearly: I = (γ + μ sgn ω) F + J θ̈ + A sgn ω + T0.
 
@@ -128,14 +155,19 @@ def fit_torque_balance(
     ts : float — sample time, s.
     F : ndarray (K,) — clamp force from the sensor, N.
     window : int — derivative window of :func:`motor_rates`.
+    omega_s : float — friction sign band of :func:`friction_sign`, rad/s.
+    rows : ndarray (K,) of bool, optional — samples to fit on (default all).
+    rates : (ndarray, ndarray), optional — :func:`motor_rates` of ``theta``, if known.
     """
-    omega, acc = motor_rates(theta, ts, window)
-    sgn = np.sign(omega)
+    omega, acc = motor_rates(theta, ts, window) if rates is None else rates
+    sgn = friction_sign(omega, omega_s)
     X = np.stack([F, acc, F * sgn, sgn, np.ones_like(F)], axis=1)
     ok = np.isfinite(X).all(axis=1) & np.isfinite(current)
+    if rows is not None:
+        ok &= rows
     scale = np.maximum(np.abs(X[ok]).max(axis=0), 1e-300)
     coef = np.linalg.lstsq(X[ok] / scale, np.asarray(current)[ok], rcond=None)[0] / scale
-    return TorqueBalance(*(float(c) for c in coef))
+    return TorqueBalance(*(float(c) for c in coef), omega_s=omega_s)
 
 
 @dataclass(frozen=True)
