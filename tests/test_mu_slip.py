@@ -189,3 +189,27 @@ def test_simulate_tyre_command_writes_a_readable_session(tmp_path: Path) -> None
     assert (tmp_path / "t.truth.parquet").exists()
     bad = CliRunner().invoke(app, ["simulate-tyre", "--out", str(out), "--tyre", "slick"])
     assert bad.exit_code == 1 and "unknown tyre" in bad.output
+
+
+def test_rudd_ekf_matches_filterpy_with_the_same_pseudo_noise() -> None:
+    from filterpy.kalman import ExtendedKalmanFilter as FpEKF
+
+    rng = np.random.default_rng(7100)
+    s = (np.arange(1, 41) / 40.0) ** 2
+    mu = rudd_mu(s, 0.35, 0.15) + rng.normal(0.0, 0.04, 40)
+    x0, P0 = np.array([0.6, 0.2]), np.diag([0.5**2, 0.1**2])
+    ours = rudd_ekf(s, mu, 0.04, x0, P0)
+    fp = FpEKF(dim_x=2, dim_z=1)
+    fp.x, fp.P, fp.Q = x0.copy()[:, None], P0.copy(), np.zeros((2, 2))
+    for k in range(s.size):
+        h_mm, h_ss, h_ms = rudd_hessian(s[k], fp.x[0, 0], fp.x[1, 0])
+        p_m, p_s = fp.P[0, 0], fp.P[1, 1]
+        pseudo = (0.5 * h_mm * p_m) ** 2 + (0.5 * h_ss * p_s) ** 2 + h_ms**2 * p_m * p_s
+        fp.update(
+            np.array([[mu[k]]]),
+            lambda x, k=k: rudd_jacobian(s[k], x[0, 0], x[1, 0])[None, :],
+            lambda x, k=k: np.array([[rudd_mu(s[k], x[0, 0], x[1, 0])]]),
+            R=np.array([[(3 * 0.04) ** 2 + pseudo]]),
+        )
+        np.testing.assert_allclose(ours.x_filt[k], fp.x[:, 0], rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(ours.P_filt[-1], fp.P, rtol=1e-4, atol=1e-9)
