@@ -171,9 +171,13 @@ def session_file_frame(n_laps: int, seed: int, multi: bool) -> pd.DataFrame:
 
 
 def write_session_parquet(
-    path: Path, n_laps: int = 2, seed: int = 0, multi: bool = False, date: str = "2026-05-01"
+    path: Path, n_laps: int = 2, seed: int = 0, multi: bool = False, date: str = "2026-05-01",
+    facts: dict[str, str] | None = None,
 ) -> Path:
-    """A session Parquet file as a logger export would write it (CHANNELS.md)."""
+    """A session Parquet file as a logger export would write it (CHANNELS.md).
+
+    ``facts`` overrides the session facts (``track``, ``vehicle``, ``disc``...).
+    """
     out = session_file_frame(n_laps, seed, multi)
     table = pa.Table.from_pandas(out, preserve_index=False)
     fields = [
@@ -188,6 +192,7 @@ def write_session_parquet(
                 "date": date,
                 "disc": "cc-340-8",
                 "ambient_temp_c": "25",
+                **(facts or {}),
             }
         )
     }

@@ -22,6 +22,7 @@ from _synth_race import (
 )
 from typer.testing import CliRunner
 
+from brakethermo.config import config_dir
 from brakethermo.errors import EXIT_BATCH_PARTIAL
 from brakethermo.io.atomic import write_text_atomic
 from brakethermo.io.load import load_session
@@ -132,7 +133,7 @@ def test_failures_isolated_and_rerun_skips(folder: Path, tmp_path: Path) -> None
     assert by_name["test_pm"].kind == "multi" and by_name["race"].kind == "single"
     assert by_name["race"].h_law_source == "identified: test_pm"
     assert (out / "race" / "law_used.txt").read_text() == str(out / "test_pm" / "h_law.toml")
-    assert by_name["race"].laps == 2 and by_name["race"].peaks["spot3"] > 200
+    assert by_name["race"].laps == 1 and by_name["race"].peaks["spot3"] > 200
     assert not (out / "truncated").exists()
     index = (out / "index.html").read_text()
     assert 'href="race/index.html"' in index and 'href="truncated' not in index
@@ -148,7 +149,7 @@ def test_failures_isolated_and_rerun_skips(folder: Path, tmp_path: Path) -> None
         "garbage": "failed",
     }
     assert again.exit_code == EXIT_BATCH_PARTIAL
-    assert {o.name: o.laps for o in again.outcomes}["race"] == 2
+    assert {o.name: o.laps for o in again.outcomes}["race"] == 1
 
     # A changed input is re-processed; the others stay skipped.
     write_session_csv(folder / "day1" / "fp1.csv", 1, seed=9)
@@ -160,12 +161,13 @@ def test_failures_isolated_and_rerun_skips(folder: Path, tmp_path: Path) -> None
 
 def test_given_h_law_used_and_part_of_the_key(folder: Path, tmp_path: Path) -> None:
     law = tmp_path / "law.toml"
-    law.write_text("a = 1\n")
+    shipped = (config_dir() / "hlaw" / "cc-340-8.toml").read_text()
+    law.write_text(shipped)
     options = _options(tmp_path, h_law=law, reports=False)
     first = {o.name: o for o in run_batch(folder, options, job=JOB).outcomes}
     assert first["race"].h_law_source == "given"
     assert (options.out / "race" / "law_used.txt").read_text() == str(law)
-    law.write_text("a = 2\n")
+    law.write_text(shipped + "# edited\n")
     second = {o.name: o.status for o in run_batch(folder, options, job=JOB).outcomes}
     assert second["race"] == "ok" and second["test_am"] == "skipped"
 
@@ -256,10 +258,10 @@ def test_worker_processes(tmp_path: Path) -> None:
     src.mkdir()
     write_session_parquet(src / "a.parquet", 1, seed=1)
     write_session_parquet(src / "b.parquet", 1, seed=2, multi=True)
-    (src / "c.csv").write_text("time,speed [furlong/fortnight]\n0,1\n")
+    (src / "c.csv").write_text("time,speed [wibble/fortnight]\n0,1\n")
     result = run_batch(src, _options(tmp_path, workers=2), job=JOB)
     assert [o.status for o in result.outcomes] == ["ok", "ok", "failed"]
-    assert "furlong" in result.outcomes[2].reason
+    assert "wibble" in result.outcomes[2].reason
     assert result.outcomes[0].h_law_source == "identified: b"
 
 

@@ -34,9 +34,15 @@ def test_outputs_of_both_kinds(batch_out: Path) -> None:
     for name in ("h_law.toml", "h_samples.parquet", "estimate.parquet", "summary.json"):
         assert (test / name).is_file(), name
     assert not (race / "h_law.toml").exists()
-    assert json.loads((test / "summary.json").read_text())["scores"] is not None
+    test_summary = json.loads((test / "summary.json").read_text())
+    assert test_summary["scores"] is not None
+    # issue 12 item 10: the final law, not the staging folder it was written in
+    assert test_summary["run"]["h_law"] == str(test / "h_law.toml")
+    race_summary = json.loads((race / "summary.json").read_text())
+    assert race_summary["run"]["h_law"] == str(test / "h_law.toml")
+    assert race_summary["run"]["h_law_choice"].startswith("identified from test (same disc")
     manifest = json.loads((race / MANIFEST).read_text())
-    assert manifest["h_law_source"] == "identified: test" and manifest["laps"] == 2
+    assert manifest["h_law_source"] == "identified: test" and manifest["laps"] == 1
     assert (race / "lap_01" / "index.html").is_file() and (race / "index.html").is_file()
 
 

@@ -61,7 +61,7 @@ def test_cli_exit_code_and_message(tmp_path: Path, monkeypatch, budget: float, c
     if code:
         assert "lap 1 took" in res.output and "over the budget of 0.02 s/lap" in res.output
     else:
-        assert "worst lap 1" in res.output
+        assert "worst: lap 1" in res.output
     res = CliRunner().invoke(app, [*args, "--json"])
     assert res.exit_code == code
     record = json.loads(res.stdout)

@@ -29,7 +29,8 @@ def test_estimate_rich_output_prints_tables(sim_race_session, identified, tmp_pa
                               "--no-report"])
     assert res.exit_code == 0, res.output
     assert not (tmp_path / "race_multi" / "lap_01").exists()
-    assert "disc temperature per lap" in res.output and "single-spot" in res.output
+    assert "disc °C per lap" in res.output and "single-spot" in res.output
+    assert "h law: " in res.output and "given with --h-law" in res.output
 
 
 def test_bad_h_law_file_is_one_line_exit_1(sim_race_session, tmp_path):

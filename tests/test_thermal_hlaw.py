@@ -96,15 +96,16 @@ def test_toml_round_trip_and_layout(tmp_path: Path) -> None:
     ("text", "match"),
     [
         ("knee = 0.8\n[power]\na = 1.0\nb = 0.5\n[cubic]\nc = [1, 0, 0, 0]\n", "v_ref_kmh"),
-        ('v_ref_kmh = 350\nknee = 0.8\n[power]\na = "x"\nb = 0.5\n', "invalid value"),
+        ('v_ref_kmh = 350\nknee = 0.8\n[power]\na = "x"\nb = 0.5\n',
+         "key 'power.a': expected a finite number >= 0, found the text 'x'"),
         ("v_ref_kmh = 350\nknee = 0.8\n[power]\na = 1.0\nb = 0.5\n[cubic]\nc = [2, 0, 0, 0]\n",
          "continuity"),
         ("v_ref_kmh = 350\nknee = 0.8\n[power]\na = 1.0\nb = 0.5\n[cubic]\nc = [1, 0, 0]\n",
-         "four"),
+         r"key .cubic\.c.: expected a list of 4 finite numbers, found \[1, 0, 0\]"),
         ("v_ref_kmh = 350\nknee = 0.8\n[power]\na = 1.0\nb = 0.0\n[cubic]\nc = [1, 0, 0, 0]\n"
-         "[weights]\nw = [1, -1, 1]\n", "weights"),
+         "[weights]\nw = [1, -1, 1]\n", r"key 'weights\.w\[1\]'"),
         ("v_ref_kmh = -1\nknee = 0.8\n[power]\na = 1.0\nb = 0.0\n[cubic]\nc = [1, 0, 0, 0]\n",
-         "v_ref > 0"),
+         "key 'v_ref_kmh': expected a finite number > 0, found -1"),
         ("v_ref_kmh = 350\nknee = [\n", "invalid TOML"),
     ],
 )  # fmt: skip

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from typing import Any, TypeVar
 
 import click
+import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from typer.core import TyperGroup
 
 from brakethermo import __version__
@@ -18,13 +21,23 @@ err_console = Console(stderr=True)
 
 
 class _UserErrorGroup(TyperGroup):
-    """Turn :class:`BrakethermoError` into one red line and its exit code, no traceback."""
+    """Turn :class:`BrakethermoError` into one red line and its exit code, no traceback.
+
+    The message quotes file names, channel names and units from the user's files, so it
+    is printed as text, never as rich markup (a ``[km/h]`` or ``[/b]`` must show as
+    written). numpy's floating-point RuntimeWarnings (an all-NaN lap's mean...) are
+    internal: the commands report what matters in their own words.
+    """
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
-            return super().invoke(ctx)
+            with warnings.catch_warnings(), np.errstate(all="ignore"):
+                warnings.simplefilter("ignore", RuntimeWarning)
+                return super().invoke(ctx)
         except BrakethermoError as exc:
-            err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+            # The message quotes file names, keys and values: text, never markup.
+            err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False,
+                              soft_wrap=True)
             ctx.exit(exc.exit_code)
 
 
@@ -34,6 +47,7 @@ app = typer.Typer(
     help="Carbon brake-disc temperature across the radius, from one IR spot sensor.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,
     add_completion=False,
 )
 
@@ -60,5 +74,5 @@ def run_with_status(quiet: bool, message: str, work: Callable[[], R]) -> R:
     """Run ``work()`` behind a rich spinner, or silently when output must stay JSON."""
     if quiet:
         return work()
-    with console.status(message):
+    with console.status(escape(message)):
         return work()

@@ -1,17 +1,64 @@
-"""Command-line options shared by several commands (one help text, one spelling)."""
+"""Command-line options shared by several commands (one help text, one spelling, one check)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from brakethermo.pipelines.tuning import BOUNDS
+
+NODES_MIN, NODES_MAX = (int(v) for v in BOUNDS["nodes"])
+LAYERS_MIN, LAYERS_MAX = (int(v) for v in BOUNDS["layers"])
+AMBIENT_RANGE_C = (-60.0, 80.0)
+
+
+def _finite_ambient(value: float | None) -> float | None:
+    lo, hi = AMBIENT_RANGE_C
+    if value is not None and not lo <= value <= hi:  # also false for nan
+        raise typer.BadParameter(
+            f"{value} is not an air temperature; give degC in [{lo:g}, {hi:g}]"
+        )
+    return value
+
+
+def positive_finite(value: float) -> float:
+    """Option callback: a finite number > 0 (budgets, durations)."""
+    if not (math.isfinite(value) and value > 0):
+        raise typer.BadParameter(f"{value} must be a finite number > 0")
+    return value
+
+
 OutDir = Annotated[Path, typer.Option("--out", "-o", help="Output folder.")]
 DiscOpt = Annotated[str | None, typer.Option(help="Disc datasheet id or TOML file.")]
 TuningOpt = Annotated[Path | None, typer.Option(help="Filter tuning TOML.")]
 AliasesOpt = Annotated[Path | None, typer.Option(help="Channel alias TOML.")]
-AmbientOpt = Annotated[
-    float | None, typer.Option(help="Ambient temperature, degC (else from the session).")
+HLawOpt = Annotated[
+    Path | None,
+    typer.Option("--h-law", help="h_law.toml from identify-h (default: see the command help)."),
 ]
-JsonOpt = Annotated[bool, typer.Option("--json", help="Print a JSON summary.")]
+NodesOpt = Annotated[
+    int | None,
+    typer.Option(min=NODES_MIN, max=NODES_MAX, help="Radial nodes (as the tuning file caps them)."),
+]
+LayersOpt = Annotated[
+    int | None,
+    typer.Option(min=LAYERS_MIN, max=LAYERS_MAX, help="Layers over the half thickness."),
+]
+AmbientOpt = Annotated[
+    float | None,
+    typer.Option(
+        callback=_finite_ambient, help="Ambient temperature, degC (else from the session)."
+    ),
+]
+JsonOpt = Annotated[
+    bool, typer.Option("--json", metavar="", help="Print a JSON summary instead of tables.")
+]
+
+NoReportsOpt = Annotated[
+    bool, typer.Option("--no-reports", metavar="", help="Skip the per-lap HTML/PNG reports.")
+]
+# The old spelling of estimate, kept working but out of the help.
+LegacyReportOpt = Annotated[bool | None, typer.Option("--report/--no-report", hidden=True)]

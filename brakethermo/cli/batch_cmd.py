@@ -8,15 +8,18 @@ from typing import Annotated
 
 import typer
 from rich import box
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
-from brakethermo.cli._options import AliasesOpt, JsonOpt
+from brakethermo.cli._options import AliasesOpt, JsonOpt, LegacyReportOpt, NodesOpt, NoReportsOpt
 from brakethermo.pipelines.batch import (
     DEFAULT_LAW,
+    SESSION_SUFFIXES,
     BatchOptions,
     BatchResult,
+    Phase,
     SessionOutcome,
     run_batch,
 )
@@ -34,7 +37,7 @@ def _law_tag(source: str) -> str:
 
 def _table(result: BatchResult, out: Path) -> Table:
     table = Table(
-        title=f"batch: {len(result.outcomes)} sessions -> {out}",
+        title=f"batch: {len(result.outcomes)} sessions -> {escape(str(out))}",
         title_justify="left",
         box=box.SIMPLE_HEAD,
         show_edge=False,
@@ -51,17 +54,18 @@ def _table(result: BatchResult, out: Path) -> Table:
     for o in result.outcomes:
         peaks = [f"{o.peaks[s]:.0f}" if s in o.peaks else "-" for s in SPOTS]
         table.add_row(
-            o.name,
+            escape(o.name),
             o.kind or "-",
             str(o.laps) if o.laps else "-",
             f"[{STATUS_STYLE.get(o.status, 'white')}]{o.status}[/]",
             f"{o.wall_s:.1f}" if o.status != "skipped" else "-",
             *peaks,
-            _law_tag(o.h_law_source),
+            escape(_law_tag(o.h_law_source)),
         )
     table.caption = (
-        "S1..S4: peak estimated spot temperature, °C. h law: own = identified from the "
-        "session; batch = the most recent identified in this batch; default = shipped law"
+        "S1..S4: peak estimated spot temperature, °C. laps: flying laps (out-lap not "
+        "counted). h law: own = identified from the session; batch = identified in this "
+        "batch for the same disc (reason below); default = shipped for the disc"
     )
     return table
 
@@ -74,32 +78,44 @@ def batch(
             metavar="FOLDER", help="Folder searched recursively for .mcap, .parquet, .csv sessions."
         ),
     ],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Output root; one folder per session.")],
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Output root; one folder per session.")
+    ] = Path("out"),
     h_law: Annotated[
         Path | None,
         typer.Option(
             "--h-law",
-            help="h law TOML for race (single-spot) sessions; default: the most recent "
-            "law identified in this batch, else the shipped default.",
+            help="h law TOML for race (single-spot) sessions; default: a law identified in "
+            "this batch for the same disc (same track/vehicle first, then the newest), "
+            "else the law shipped for the disc.",
         ),
     ] = None,
-    workers: Annotated[int, typer.Option(min=1, help="Local worker processes.")] = 1,
+    workers: Annotated[int, typer.Option(min=1, max=256, help="Local worker processes.")] = 1,
     scheduler: Annotated[
         str | None,
         typer.Option(help="Dask scheduler address (tcp://host:8786); also DASK_SCHEDULER_ADDRESS."),
     ] = None,
     force: Annotated[
-        bool, typer.Option("--force", help="Re-process sessions whose outputs are up to date.")
+        bool,
+        typer.Option(
+            "--force", metavar="", help="Re-process sessions whose outputs are up to date."
+        ),
     ] = False,
-    nodes: Annotated[int | None, typer.Option(min=10, help="Radial nodes.")] = None,
+    nodes: NodesOpt = None,
     aliases: AliasesOpt = None,
     mcap_out: Annotated[
         bool,
-        typer.Option("--mcap-out", help="Also write OUT/<session>/estimate.mcap for Foxglove."),
+        typer.Option(
+            "--mcap-out", metavar="", help="Also write OUT/<session>/estimate.mcap for Foxglove."
+        ),
     ] = False,
-    no_reports: Annotated[
-        bool, typer.Option("--no-reports", help="Skip the per-lap HTML reports.")
+    mdf_out: Annotated[
+        bool,
+        typer.Option("--mdf-out", metavar="",
+                     help="Also write OUT/<session>/estimate.mf4 (ASAM MDF4)."),
     ] = False,
+    no_reports: NoReportsOpt = False,
+    legacy_report: LegacyReportOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Estimate every session in FOLDER and write per-lap reports; failures are isolated."""
@@ -108,8 +124,9 @@ def batch(
         h_law=h_law,
         nodes=nodes,
         aliases=aliases,
-        reports=not no_reports,
+        reports=not no_reports and legacy_report is not False,
         mcap_out=mcap_out,
+        mdf_out=mdf_out,
         workers=workers,
         scheduler=scheduler,
         force=force,
@@ -118,44 +135,61 @@ def batch(
         result = run_batch(folder, options)
         print(json.dumps(result.to_json(), indent=2))
     else:
-        progress = Progress(
-            TextColumn("[bold]{task.description}"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TextColumn("{task.fields[last]}"),
-            TimeElapsedColumn(),
-            console=console,
-        )
-        with progress:
-            files = progress.add_task("sessions", total=None, last="")
-            laps = progress.add_task("laps", total=None, last="")
-
-            def on_event(kind: str, payload: SessionOutcome | int) -> None:
-                if kind == "start":
-                    progress.update(files, total=int(payload))  # type: ignore[arg-type]
-                    return
-                assert isinstance(payload, SessionOutcome)
-                progress.update(files, advance=1, last=f"{payload.name}: {payload.status}")
-                task = progress.tasks[laps]
-                progress.update(laps, total=(task.total or 0) + payload.laps, advance=payload.laps)
-
-            result = run_batch(folder, options, on_event=on_event)
+        result = _run_with_progress(folder, options)
         if not result.outcomes:
-            console.print(f"[yellow]no session files (.mcap, .parquet, .csv) under {folder}[/]")
+            console.print(
+                f"[yellow]no session files ({', '.join(SESSION_SUFFIXES)}) under"
+                f" {escape(str(folder))}[/]"
+            )
             return
         console.print(_table(result, out))
-        sources = {o.h_law_source for o in result.outcomes if o.kind == "single"}
-        for source in sorted(sources - {""}):
-            console.print(f"race sessions estimated with h law: {source}")
+        for o in result.outcomes:
+            if o.kind == "single" and o.h_law_reason:
+                console.print(f"{escape(o.name)}: h law {escape(_law_tag(o.h_law_source))} — "
+                              f"{escape(o.h_law_reason)}")
         share = ", ".join(
             f"{k.removesuffix('_s')} {v:.1f} s ({f:.0%})"
             for k, (v, f) in result.step_shares().items()
         )
         console.print(f"wall time {result.wall_s:.1f} s" + (f"  ({share})" if share else ""))
         if options.reports:
-            console.print(f"open [bold]{out / 'index.html'}[/] for the reports")
+            console.print(f"open [bold]{escape(str(out / 'index.html'))}[/] for the reports")
         for o in result.failed:
             where = "" if str(o.path) in o.reason else f"{o.path}: "
-            console.print(f"[bold red]failed:[/] {where}{o.reason}", soft_wrap=True)
+            console.print(f"[bold red]failed:[/] {escape(where + o.reason)}", soft_wrap=True)
     if result.exit_code:
         raise typer.Exit(result.exit_code)
+
+
+def _run_with_progress(folder: Path, options: BatchOptions) -> BatchResult:
+    """Run the batch behind two bars: sessions done, and the current session's phase/laps."""
+    progress = Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(bar_width=20),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[last]}"),
+        TimeElapsedColumn(),
+        console=console,
+    )
+    with progress:
+        files = progress.add_task("sessions", total=None, last="")
+        current = progress.add_task("waiting", total=None, last="", visible=False)
+
+        def on_event(kind: str, payload: object) -> None:
+            if kind == "start":
+                progress.update(files, total=int(payload))  # type: ignore[call-overload]
+                if options.workers > 1 or options.scheduler:
+                    progress.update(files, last=f"on {options.workers} workers")
+                return
+            if kind == "phase":
+                assert isinstance(payload, Phase)
+                total = payload.total or None
+                progress.reset(current, total=total, completed=payload.done, visible=True,
+                               description=escape(f"{payload.name}: {payload.phase}"),
+                               last="laps" if total else "")
+                return
+            assert isinstance(payload, SessionOutcome)
+            progress.update(files, advance=1, last=escape(f"{payload.name}: {payload.status}"))
+            progress.update(current, visible=False)
+
+        return run_batch(folder, options, on_event=on_event)

@@ -6,22 +6,32 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+from rich import box
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
-from brakethermo.cli._options import AliasesOpt, AmbientOpt, DiscOpt, JsonOpt, OutDir, TuningOpt
+from brakethermo.cli._options import (
+    AliasesOpt,
+    AmbientOpt,
+    DiscOpt,
+    JsonOpt,
+    LayersOpt,
+    LegacyReportOpt,
+    NodesOpt,
+    NoReportsOpt,
+    OutDir,
+    TuningOpt,
+)
 from brakethermo.pipelines.estimate import (
     EstimateOptions,
     EstimateResult,
     disc_of,
-    estimate_session,
+    estimate_from_session,
     write_estimate,
 )
 from brakethermo.pipelines.outputs import to_json
-
-
-def _lap_label(lap: int) -> str:
-    return "out" if lap == 0 else str(lap)
+from brakethermo.pipelines.summary import lap_label, temp_text
 
 
 def _fmt(x: Any, spec: str = ".1f") -> str:
@@ -29,31 +39,43 @@ def _fmt(x: Any, spec: str = ".1f") -> str:
 
 
 def render_laps(result: EstimateResult) -> None:
-    """Per-lap rich table: lap time, peaks per spot, time vs the operating window."""
+    """Per-lap rich table: lap time, peaks per spot, hottest radius, time vs the window.
+
+    Sized for 80 columns (CI logs, pipes): short headers, no wrapping inside cells.
+    """
     run = result.summary["run"]
-    lo, hi = result.summary["run"]["window_c"]
+    lo, hi = run["window_c"]
     table = Table(
-        title=f"{result.stem}: disc temperature per lap, °C ({run['nodes']} nodes x "
-        f"{run['layers']} layers, spot {run['measured_spot']} measured, "
+        title=f"{escape(result.stem)}: disc °C per lap ({run['nodes']}x{run['layers']} nodes, "
+        f"spot {run['measured_spot']} measured, "
         f"{'smoother' if run['smoother'] else 'filter only'})",
         title_justify="left",
-        caption=f"time below / in / above the {lo:.0f}-{hi:.0f} °C window, contact-band average",
+        caption=f"peaks °C; hot = hottest radius °C @ mm; window {lo:.0f}-{hi:.0f} °C: "
+        "contact band s below/in/above, hottest radius s above",
         caption_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
     )
-    table.add_column("lap", justify="right")
+    table.add_column("lap", justify="right", no_wrap=True)
     table.add_column("time", justify="right", no_wrap=True)
     for i in range(1, 5):
-        table.add_column(f"pk S{i}", justify="right")
-    table.add_column("mean", justify="right")
-    table.add_column("window s", justify="right", no_wrap=True)
+        table.add_column(f"S{i}", justify="right", no_wrap=True)
+    table.add_column("hot @mm", justify="right", no_wrap=True)
+    table.add_column("contact", justify="right", no_wrap=True)
+    table.add_column("hot>", justify="right", no_wrap=True)
     for lap in result.summary["laps"]:
         peaks = [lap["peak"].get(f"spot{i}", {}).get("temp_c") for i in range(1, 5)]
+        hot = lap.get("hottest") or {}
+        radius = hot.get("radius_mm")
         m, s = divmod(lap["lap_time_s"], 60.0)
+        hot_text = temp_text(hot.get("temp_c")) + (f"@{radius:.0f}" if radius is not None else "")
+        above_hot = hot.get("time_above_window_s", 0.0)
         table.add_row(
-            _lap_label(lap["lap"]), f"{int(m)}:{s:04.1f}", *[_fmt(p, ".0f") for p in peaks],
-            _fmt(lap["mean_contact_c"], ".0f"),
+            lap_label(lap["lap"]), f"{int(m)}:{s:04.1f}", *[temp_text(p) for p in peaks],
+            f"[bold red]{hot_text}[/]" if above_hot > 0 else hot_text,
             f"{lap['time_below_window_s']:.0f}/{lap['time_in_window_s']:.0f}/"
             f"{lap['time_above_window_s']:.0f}",
+            f"[bold red]{above_hot:.0f}[/]" if above_hot > 0 else f"{above_hot:.0f}",
         )  # fmt: skip
     console.print(table)
 
@@ -64,6 +86,8 @@ def render_scores(scores: dict[str, Any]) -> None:
         title=f"accuracy against the measured spots (spot {scores['measured_spot']} is the "
         "filter's input; RMSE °C)",
         title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
     )
     table.add_column("method", no_wrap=True)
     for col in ("spot1", "spot2", "spot3", "spot4", "contact", "ratio"):
@@ -80,9 +104,28 @@ def render_scores(scores: dict[str, Any]) -> None:
     cov = ", ".join(f"{k} {v * 100:.0f} %" for k, v in scores["coverage95"].items())
     console.print(
         f"peak error at spot {scores['measured_spot']}: mean |{_fmt(peak['mean_abs_pct'])}| %"
-        f" over {peak['zones']} braking zones, session peak {_fmt(peak['max_peak_pct'], '+.1f')} %"
+        f" over {peak['zones']} of {peak.get('zones_total', peak['zones'])} braking zones,"
+        f" session peak {_fmt(peak['max_peak_pct'], '+.1f')} %"
     )
     console.print(f"95 % band coverage of the unmeasured spots: {cov}")
+
+
+def preflight(
+    *, tuning: Path | None = None, h_law: Path | None = None, aliases: Path | None = None,
+    disc: str | None = None,
+) -> None:
+    """Validate the configuration files a run was given, before reading any session."""
+    from brakethermo.io.aliases import load_aliases
+    from brakethermo.pipelines.models import read_calibration
+    from brakethermo.pipelines.tuning import load_tuning
+    from brakethermo.thermal.disc import load_disc
+
+    load_tuning(tuning)
+    load_aliases(aliases)
+    if h_law is not None:
+        read_calibration(h_law)
+    if disc is not None:
+        load_disc(disc)
 
 
 @app.command("estimate")
@@ -91,12 +134,15 @@ def estimate_command(
     out: OutDir = Path("out"),
     spot: Annotated[int, typer.Option(min=1, max=4, help="Spot used as measurement.")] = 3,
     h_law: Annotated[
-        Path | None, typer.Option("--h-law", help="h_law.toml from identify-h.")
+        Path | None,
+        typer.Option(
+            "--h-law",
+            help="h_law.toml from identify-h; default: the one identify-h wrote for this "
+            "session in --out, else the law shipped for the disc.",
+        ),
     ] = None,
-    nodes: Annotated[int | None, typer.Option(min=10, help="Radial nodes.")] = None,
-    layers: Annotated[
-        int | None, typer.Option(min=1, max=8, help="Layers over the half thickness.")
-    ] = None,
+    nodes: NodesOpt = None,
+    layers: LayersOpt = None,
     smoother: Annotated[
         bool | None, typer.Option("--smoother/--no-smoother", help="RTS smoother (offline).")
     ] = None,
@@ -108,34 +154,72 @@ def estimate_command(
     tuning: TuningOpt = None,
     aliases: AliasesOpt = None,
     ambient: AmbientOpt = None,
-    report: Annotated[
-        bool, typer.Option("--report/--no-report", help="Write the per-lap HTML/PNG reports.")
-    ] = True,
+    no_reports: NoReportsOpt = False,
+    legacy_report: LegacyReportOpt = None,
+    mdf_out: Annotated[
+        bool,
+        typer.Option("--mdf-out", help="Also write OUT/<session>/estimate.mf4 (ASAM MDF4, "
+                     "for WinTAX / ATLAS / asammdf beside the source log)."),
+    ] = False,
     as_json: JsonOpt = False,
+    workers: Annotated[
+        int,
+        typer.Option(min=1, max=64, help="Threads smoothing windows in parallel (fine meshes)."),
+    ] = 1,
 ) -> None:
     """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
+    from brakethermo.pipelines.inputs import load_timed
+    from brakethermo.pipelines.models import choose_h_law, disc_for
+    from brakethermo.pipelines.output_dir import check_output_dir, replace_session_dir
+
+    reports = not no_reports and legacy_report is not False
+    check_output_dir(out)
+    preflight(tuning=tuning, h_law=h_law, aliases=aliases, disc=disc)
+    loaded, read_s = run_with_status(as_json, f"reading {session.name} ...",
+                                     lambda: load_timed(session, aliases))
+    law, law_reason = choose_h_law(h_law, out / session.stem, loaded, disc_for(loaded, disc))
     options = EstimateOptions(
-        spot=spot, h_law=h_law, disc=disc, tuning=tuning, nodes=nodes, layers=layers,
+        spot=spot, h_law=law, disc=disc, tuning=tuning, nodes=nodes, layers=layers,
         smoother=smoother, adapt_power=adapt_power, aliases=aliases, ambient_c=ambient,
+        workers=workers,
     )  # fmt: skip
     result = run_with_status(as_json, f"estimating {session.name} ...",
-                             lambda: estimate_session(session, options))
-    folder = write_estimate(result, out)
-    if report:
-        from brakethermo.report.lap_report import write_session_report
+                             lambda: estimate_from_session(loaded, options))
+    run = result.summary["run"]
+    result.timings["read_s"] = read_s
+    run["timings_s"]["read_s"] = read_s
+    run["wall_time_s"] += read_s
+    run["h_law_choice"] = law_reason
+    folder = out / result.stem
+    with replace_session_dir(folder) as stage:
+        write_estimate(result, out, folder=stage)
+        if mdf_out:
+            from brakethermo.report.mdf_export import write_estimate_mdf
 
-        write_session_report(result.frame, result.session, folder,
-                             node_radii=result.node_radii, disc=disc_of(result))
+            write_estimate_mdf(result.frame, stage / "estimate.mf4",
+                               node_radii=result.node_radii, spot_radii=result.disc.spot_radii,
+                               start_epoch_s=result.session.start_epoch_s,
+                               source=result.session.path.name)
+        if reports:
+            from brakethermo.report.lap_report import write_session_report
+
+            write_session_report(result.frame, result.session, stage,
+                                 node_radii=result.node_radii, disc=disc_of(result),
+                                 summary=result.summary)
     if as_json:
         print(to_json({**result.summary, "output": str(folder)}))
         return
     render_laps(result)
     if result.scores:
         render_scores(result.scores)
-    for warning in result.summary["run"]["warnings"]:
-        console.print(f"[yellow]warning:[/] {warning}")
+    console.print(f"h law: {escape(str(run['h_law']))} ({law_reason})", soft_wrap=True)
+    for warning in run["warnings"]:
+        console.print(f"[yellow]warning:[/] {escape(warning)}", soft_wrap=True)
     console.print(
-        f"wrote {folder / 'estimate.parquet'} and summary.json "
+        f"wrote {escape(str(folder / 'estimate.parquet'))}"
+        f"{', estimate.mf4' if mdf_out else ''} and summary.json "
         f"({result.timings['total_s']:.2f} s)"
-        + (f"; open {folder / 'index.html'} for the per-lap reports" if report else "")
+        + (f"; open {escape(str(folder / 'index.html'))} for the per-lap reports"
+           if reports else ""),
+        soft_wrap=True,
     )

@@ -6,10 +6,19 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
-from brakethermo.cli._options import AliasesOpt, AmbientOpt, DiscOpt, JsonOpt, OutDir, TuningOpt
+from brakethermo.cli._options import (
+    AliasesOpt,
+    AmbientOpt,
+    DiscOpt,
+    JsonOpt,
+    NodesOpt,
+    OutDir,
+    TuningOpt,
+)
 from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
 from brakethermo.pipelines.outputs import to_json
 
@@ -18,9 +27,7 @@ from brakethermo.pipelines.outputs import to_json
 def identify_command(
     session: Annotated[Path, typer.Argument(help="Four-spot test session file.")],
     out: OutDir = Path("out"),
-    nodes: Annotated[
-        int | None, typer.Option(min=10, help="Radial nodes of the h-identification model.")
-    ] = None,
+    nodes: NodesOpt = None,
     structure: Annotated[
         bool,
         typer.Option(
@@ -28,6 +35,11 @@ def identify_command(
             help="Also fit crown weights, k_z ratio and power scale (and refine h).",
         ),
     ] = True,
+    with_effect: Annotated[
+        str | None,
+        typer.Option(help="Fit these effects jointly with h(V): a comma-separated list of"
+                          " effect names, or 'auto' (the diagnosis's forward selection)."),
+    ] = None,
     disc: DiscOpt = None,
     tuning: TuningOpt = None,
     aliases: AliasesOpt = None,
@@ -35,8 +47,14 @@ def identify_command(
     as_json: JsonOpt = False,
 ) -> None:
     """Identify h(V) (joint UKF, h as a random walk) and the disc model's structure."""
+    from brakethermo.cli.estimate_cmd import preflight
+    from brakethermo.pipelines.output_dir import check_output_dir
+
+    check_output_dir(out)
+    preflight(tuning=tuning, aliases=aliases, disc=disc)
     options = IdentifyOptions(disc=disc, tuning=tuning, nodes=nodes, aliases=aliases,
-                              ambient_c=ambient, fit_structure=structure)
+                              ambient_c=ambient, fit_structure=structure,
+                              with_effects=with_effect)
     result = run_with_status(as_json, f"identifying h(V) on {session.name} ...",
                              lambda: identify_h(session, options))
     folder = write_identify(result, out)
@@ -44,7 +62,7 @@ def identify_command(
         print(to_json({**result.summary, "output": str(folder)}))
         return
     law = result.law
-    table = Table(title=f"{result.stem}: h(V) law", title_justify="left")
+    table = Table(title=f"{escape(result.stem)}: h(V) law", title_justify="left")
     table.add_column("speed km/h", justify="right")
     table.add_column("h W/(m² K)", justify="right")
     table.add_column("UKF-only law", justify="right")
@@ -63,12 +81,15 @@ def identify_command(
             f"k_z ratio {s.kz_ratio:.3f}, power scale {s.power_scale:.3f} "
             f"({s.nodes} nodes x {s.layers} layers)"
         )
+        for name, values in s.effects.items():
+            console.print(f"effect {name}: " + ", ".join(
+                f"{k} = {v:.3g}" for k, v in values.items() if isinstance(v, float)))
         console.print(
             "open-loop RMSE per spot °C: "
             + ", ".join(f"{k} {v:.1f} (uniform {s.rmse_uniform_c[k]:.1f})"
                         for k, v in s.rmse_c.items())
         )
     for warning in result.summary["run"]["warnings"]:
-        console.print(f"[yellow]warning:[/] {warning}")
-    console.print(f"wrote {folder / 'h_law.toml'}, h_samples.parquet, h_law.png "
+        console.print(f"[yellow]warning:[/] {escape(warning)}", soft_wrap=True)
+    console.print(f"wrote {escape(str(folder / 'h_law.toml'))}, h_samples.parquet, h_law.png "
                   f"({result.timings['total_s']:.1f} s)")

@@ -1,4 +1,8 @@
-"""``brakethermo inspect SESSION``: channels, units, rates, gaps and laps of a session."""
+"""``brakethermo inspect SESSION``: format, channels, units, rates, gaps and laps of a session.
+
+Everything printed from the file (names, units, facts, warnings) is escaped: a channel
+called ``[/b]`` is shown as written, never read as rich markup.
+"""
 
 from __future__ import annotations
 
@@ -7,11 +11,13 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
 from brakethermo.io import Session, load_session
 from brakethermo.io.aliases import resolve
+from brakethermo.io.units import si_unit
 
 
 def summary(session: Session) -> dict[str, Any]:
@@ -19,6 +25,7 @@ def summary(session: Session) -> dict[str, Any]:
     mapped = set(resolve(session.aliases, session.available).values())
     return {
         "path": str(session.path),
+        "format": session.format,
         "channels": [
             {
                 "name": c.name,
@@ -41,13 +48,18 @@ def summary(session: Session) -> dict[str, Any]:
         "duration_s": float(session.time[-1]) if len(session.frame) else 0.0,
         "grid_points": len(session.frame),
         "start_epoch_s": session.start_epoch_s,
+        "constants": dict(session.constants),
+        "unusable": dict(session.unusable),
+        "sources": list(session.available),
         "unmapped": [n for n in session.available if n not in mapped],
         "warnings": list(session.warnings),
     }
 
 
 def _render(session: Session) -> None:
-    channels = Table(title=f"{session.path.name}: channels", title_justify="left")
+    found = resolve(session.aliases, session.available)
+    channels = Table(title=escape(f"{session.path.name} ({session.format}): channels"),
+                     title_justify="left")
     channels.add_column("channel", no_wrap=True)
     channels.add_column("source", overflow="fold")
     channels.add_column("unit", no_wrap=True)
@@ -55,12 +67,18 @@ def _render(session: Session) -> None:
         channels.add_column(col, justify="right", no_wrap=True)
     for c in session.channels.values():
         gap_text = "-" if not c.gaps else f"{len(c.gaps)} ({sum(d for _, d in c.gaps):.1f} s)"
-        channels.add_row(c.name, c.source, c.unit, f"{c.rate_hz:.1f}", str(c.samples),
-                         gap_text, str(c.spikes))
+        channels.add_row(c.name, escape(c.source), escape(c.unit), f"{c.rate_hz:.1f}",
+                         str(c.samples), gap_text, str(c.spikes))
+    for name, value in session.constants.items():
+        channels.add_row(name, escape(found.get(name, "")), si_unit(name), "once",
+                         f"1 (= {value:g})", "-", "-")
+    for name, why in session.unusable.items():
+        channels.add_row(name, escape(found.get(name, "")), "-", "-", "0", escape(why), "-")
     console.print(channels)
     info = summary(session)
     if info["unmapped"]:
-        console.print("[dim]not mapped to a canonical channel:[/] " + ", ".join(info["unmapped"]))
+        console.print("[dim]not mapped to a canonical channel:[/] "
+                      + escape(", ".join(info["unmapped"])), highlight=False)
 
     laps = Table(title="laps", title_justify="left")
     laps.add_column("lap", justify="right")
@@ -76,19 +94,25 @@ def _render(session: Session) -> None:
     facts.add_column("key")
     facts.add_column("value")
     for key, value in session.metadata.items():
-        facts.add_row(key, str(value))
-    facts.add_row("duration", f"{info['duration_s']:.1f} s ({info['grid_points']} points at 10 Hz)")
+        facts.add_row(escape(str(key)), escape(str(value)))
+    facts.add_row("format", escape(session.format))
+    facts.add_row(
+        "duration",
+        f"{info['duration_s']:.1f} s ({info['grid_points']} points at {session.rate_hz:g} Hz)",
+    )
     if session.start_epoch_s is not None:
         facts.add_row("start (epoch s)", f"{session.start_epoch_s:.3f}")
     console.print(facts)
     for warning in session.warnings:
-        console.print(f"[yellow]warning:[/] {warning}", highlight=False)
+        console.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False)
 
 
 @app.command("inspect")
 def inspect(
     session_file: Annotated[
-        Path, typer.Argument(metavar="SESSION", help="MCAP, Parquet or CSV session file.")
+        Path,
+        typer.Argument(metavar="SESSION",
+                       help="Session file: MCAP, Parquet, CSV, MDF (.mf4/.mdf), AiM (.xrk/.xrz)."),
     ],
     aliases: Annotated[
         Path | None,

@@ -7,17 +7,20 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
-from brakethermo.cli._options import AliasesOpt, JsonOpt
+from brakethermo.cli._options import AliasesOpt, JsonOpt, NodesOpt, positive_finite
 from brakethermo.errors import BrakethermoError
+from brakethermo.pipelines.summary import lap_label, lap_name
 from brakethermo.pipelines.timing import TimingReport, time_laps
 
 
 def _table(report: TimingReport, name: str) -> Table:
     table = Table(
-        title=f"{name}: estimate wall time per lap (budget {report.budget_per_lap_s:.1f} s/lap)",
+        title=f"{escape(name)}: estimate wall time per lap "
+        f"(budget {report.budget_per_lap_s:.1f} s/lap)",
         title_justify="left",
     )
     for col in ("lap", "data s", "wall s", "share of budget"):
@@ -25,24 +28,30 @@ def _table(report: TimingReport, name: str) -> Table:
     for t in report.laps:
         share = t.wall_s / report.budget_per_lap_s
         style = "bold red" if share > 1 else ("yellow" if share > 0.5 else "green")
-        table.add_row(str(t.lap), f"{t.data_s:.1f}", f"{t.wall_s:.3f}", f"[{style}]{share:.1%}[/]")
+        table.add_row(
+            lap_label(t.lap), f"{t.data_s:.1f}", f"{t.wall_s:.3f}", f"[{style}]{share:.1%}[/]"
+        )
     return table
 
 
 @app.command("timing-check")
 def timing_check(
     session_path: Annotated[Path, typer.Argument(metavar="SESSION", help="Session file.")],
-    budget_s: Annotated[float, typer.Option(min=0.0, help="Budget for a whole race, s.")] = 300.0,
-    race_laps: Annotated[int, typer.Option(min=1, help="Laps in that race.")] = 25,
+    budget_s: Annotated[
+        float, typer.Option(callback=positive_finite, help="Budget for a whole race, s (> 0).")
+    ] = 300.0,
+    race_laps: Annotated[int, typer.Option(min=1, max=1000, help="Laps in that race.")] = 25,
     h_law: Annotated[Path | None, typer.Option("--h-law", help="h law TOML.")] = None,
-    nodes: Annotated[int | None, typer.Option(min=10, help="Radial nodes.")] = None,
+    nodes: NodesOpt = None,
     aliases: AliasesOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Estimate each lap on its own; fail (exit 1) if the slowest lap exceeds its budget."""
+    from brakethermo.cli.estimate_cmd import preflight
     from brakethermo.io.load import load_session
     from brakethermo.pipelines.estimate import EstimateOptions, estimate_from_session
 
+    preflight(h_law=h_law, aliases=aliases)
     session = load_session(session_path, aliases=aliases)
     options = EstimateOptions(h_law=h_law, nodes=nodes, aliases=aliases, score=False)
     report = time_laps(session, lambda s: estimate_from_session(s, options), budget_s, race_laps)
@@ -57,13 +66,13 @@ def timing_check(
     if not report.passed:
         worst = report.worst
         raise BrakethermoError(
-            f"lap {worst.lap} took {worst.wall_s:.2f} s to estimate, over the budget of "
+            f"{lap_name(worst.lap)} took {worst.wall_s:.2f} s to estimate, over the budget of "
             f"{report.budget_per_lap_s:.2f} s/lap ({budget_s:g} s for {race_laps} laps);"
             " use fewer --nodes or profile the filter",
             path=session_path,
         )
     if not as_json:
         console.print(
-            f"[green]ok:[/] worst lap {report.worst.lap} {report.worst.wall_s:.2f} s "
+            f"[green]ok:[/] worst: {lap_name(report.worst.lap)} {report.worst.wall_s:.2f} s "
             f"<= {report.budget_per_lap_s:.2f} s/lap"
         )

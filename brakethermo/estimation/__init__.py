@@ -21,6 +21,7 @@ from brakethermo.estimation.kf import (
     rts_smoother,
 )
 from brakethermo.estimation.results import FilterResult, SmootherResult
+from brakethermo.estimation.rls import RLSResult, even_powers, rls_fit
 from brakethermo.estimation.sigma_points import MerweWeights, merwe_weights, sigma_points
 from brakethermo.estimation.ukf import UnscentedKalmanFilter
 from brakethermo.estimation.urts import urts_smooth
@@ -31,13 +32,16 @@ __all__ = [
     "FilterResult",
     "LinearFilterResult",
     "MerweWeights",
+    "RLSResult",
     "SmootherResult",
     "UnscentedKalmanFilter",
     "augment_random_walk",
     "batched_jacobian",
+    "even_powers",
     "kalman_filter",
     "kalman_filter_tv",
     "merwe_weights",
+    "rls_fit",
     "rts_smoother",
     "sigma_points",
     "symmetrise",

@@ -54,6 +54,32 @@ def _chol(P, L):
 
 
 @njit(cache=True, nogil=True)
+def chol_downdate(L, v):
+    """Lower factor of L L' - v v' in place, O(n^2); False (L spoilt) if not SPD.
+
+    The exact linear update with one measurement (eq. 47) is the rank-1 downdate
+    P - K S K' = P - v v', v = C_xy / sqrt(S): the posterior's factor follows from the
+    prior's (already computed for the smoother's gain) without an O(n^3) Cholesky.
+    """
+    n = v.shape[0]
+    w = v.copy()
+    for k in range(n):
+        lkk = L[k, k]
+        r2 = lkk * lkk - w[k] * w[k]
+        if not r2 > 0.0:
+            return False
+        r = math.sqrt(r2)
+        c = r / lkk
+        s = w[k] / lkk
+        L[k, k] = r
+        for i in range(k + 1, n):
+            lik = (L[i, k] - s * w[i]) / c
+            L[i, k] = lik
+            w[i] = c * w[i] - s * lik
+    return True
+
+
+@njit(cache=True, nogil=True)
 def _repair(P, abs_floor):
     """Eigenvalue clipping in place, as CovarianceGuard.repair."""
     n = P.shape[0]
@@ -359,10 +385,17 @@ def ukf_step(k, Xf, work, W, par, gate_thr, Q, H, R, y, M, st, cov, gs, iv, sc, 
 
 
 @njit(cache=True, nogil=True)
-def rts_backward(x_filt, x_pred, G_all, Sigma_all, P_last, x_s, var_s, P_all, full, M, ro, ro_var):
-    """Backward RTS recursion with stored gains (see urts.py), in place into the outputs."""
+def rts_backward(
+    x_filt, x_pred, G_all, Sigma_all, x_last, P_last, x_s, var_s, P_all, full, M, ro, ro_var,
+    P_first,
+):
+    """Backward RTS recursion with stored gains (see urts.py), in place into the outputs.
+
+    The recursion starts from the smoothed (x_last, P_last) of the last step and leaves
+    the smoothed covariance of step 0 in ``P_first`` (a window's hand-over).
+    """
     K, n = x_filt.shape
-    xs = x_filt[K - 1].copy()
+    xs = x_last.copy()
     Ps = P_last.copy()
     d = np.empty(n)
     for k in range(K - 1, -1, -1):
@@ -387,3 +420,4 @@ def rts_backward(x_filt, x_pred, G_all, Sigma_all, P_last, x_s, var_s, P_all, fu
         if full:
             P_all[k] = Ps
         _record_posterior(k, xs, Ps, x_s, var_s, P_all, False, M, ro, ro_var)
+    P_first[:, :] = Ps

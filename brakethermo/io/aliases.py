@@ -10,39 +10,19 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-from brakethermo.config import config_dir, load_toml
-from brakethermo.errors import ConfigError
+from brakethermo.config import ConfigTable, config_dir, load_toml
 from brakethermo.io.units import CANONICAL_CHANNELS
 
 AliasTable = dict[str, tuple[str, ...]]
 
 
 def _parse_table(raw: Mapping[str, object], path: Path) -> AliasTable:
-    """Validate the ``[aliases]`` table of a parsed TOML document."""
-    if set(raw) - {"aliases"}:
-        extra = ", ".join(sorted(set(raw) - {"aliases"}))
-        raise ConfigError(f"unexpected top-level key(s) {extra}; put names under [aliases]",
-                          path=path)
-    table = raw.get("aliases")
-    if not isinstance(table, dict):
-        raise ConfigError("missing table [aliases] (canonical name = [names to try])", path=path)
-    parsed: AliasTable = {}
-    for canonical, names in table.items():
-        if canonical not in CANONICAL_CHANNELS:
-            raise ConfigError(
-                f"unknown canonical channel '{canonical}' in [aliases]; known channels are: "
-                + ", ".join(CANONICAL_CHANNELS),
-                path=path,
-            )
-        if isinstance(names, str):
-            names = [names]
-        if not isinstance(names, list) or not all(isinstance(n, str) and n for n in names):
-            raise ConfigError(
-                f"aliases.{canonical} must be a list of non-empty strings, got {names!r}",
-                path=path,
-            )
-        parsed[canonical] = tuple(dict.fromkeys(names))
-    return parsed
+    """Validate the ``[aliases]`` table of a parsed TOML document (config schema layer)."""
+    top = ConfigTable(dict(raw), path)
+    top.only(("aliases",))
+    table = top.table("aliases")
+    table.only(CANONICAL_CHANNELS, "a canonical channel name")
+    return {canonical: tuple(dict.fromkeys(table.strings(canonical))) for canonical in table.raw}
 
 
 def default_aliases() -> AliasTable:

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import glob
 import os
 import shutil
+import socket
 import tempfile
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -54,16 +57,72 @@ def write_text_atomic(target: str | Path, text: str) -> None:
     write_bytes_atomic(target, text.encode("utf-8"))
 
 
+_STAGE = ".stage."
+_ASIDE = ".old."
+STALE_FOREIGN_S = 24 * 3600.0  # a stage of another host this old is from a dead run
+
+
+def _host() -> str:
+    return socket.gethostname().replace(".", "-") or "host"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # exists, owned by someone else
+        return True
+    return True
+
+
+def clean_stale_stages(target: str | Path) -> list[Path]:
+    """Remove what killed runs left beside ``target`` (staging and set-aside folders).
+
+    A stage is named ``.<name>.stage.<host>.<pid>.<random>``: it is stale when its
+    process no longer runs on this host (or, from another host, when it is older than
+    :data:`STALE_FOREIGN_S`). Stages of live runs are left alone.
+
+    Returns
+    -------
+    list of Path
+        The folders removed.
+    """
+    target = Path(target)
+    host = _host()
+    removed = []
+    for prefix in (_STAGE, _ASIDE):
+        for path in target.parent.glob(f".{glob.escape(target.name)}{prefix}*"):
+            parts = path.name[len(target.name) + 1 + len(prefix):].split(".")
+            stage_host, pid = (parts[0], parts[1]) if len(parts) >= 2 else ("", "")
+            if not pid.isdigit():
+                continue
+            try:
+                age = time.time() - path.stat().st_mtime
+            except OSError:
+                continue
+            mine = stage_host == host
+            if (mine and not _alive(int(pid))) or (not mine and age > STALE_FOREIGN_S):
+                shutil.rmtree(path, ignore_errors=True)
+                removed.append(path)
+    return removed
+
+
 @contextmanager
 def atomic_dir(target: str | Path) -> Iterator[Path]:
     """Yield a temporary directory; on success it replaces ``target`` as a whole.
 
     A reader never sees a half-written directory: the old one stays until the new
-    one is complete, then the swap is two renames (old aside, new in place).
+    one is complete, then the swap is two renames (old aside, new in place). Stages
+    left by a killed run are removed first (:func:`clean_stale_stages`); the new
+    directory gets the usual permissions (``mkdtemp`` alone would make it private).
     """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+    clean_stale_stages(target)
+    tag = f"{_host()}.{os.getpid()}."
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}{_STAGE}{tag}", dir=target.parent))
+    os.chmod(tmp, 0o777 & ~_umask())
     try:
         yield tmp
     except BaseException:
@@ -71,7 +130,7 @@ def atomic_dir(target: str | Path) -> Iterator[Path]:
         raise
     old = None
     if target.exists():
-        old = target.with_name(f".{target.name}.old.{os.getpid()}")
+        old = target.with_name(f".{target.name}{_ASIDE}{tag}{os.urandom(4).hex()}")
         os.replace(target, old)
     os.replace(tmp, target)
     if old is not None:

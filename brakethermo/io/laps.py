@@ -9,6 +9,14 @@ from brakethermo.io.session import Lap
 
 # A beacon exactly on a grid point starts its lap there despite float round-off, s.
 _ON_GRID = 1e-9
+# Largest lap number taken as real (a 24 h race at 1 min a lap is 1440 laps).
+MAX_LAP = 9999
+# A crossing sooner than this after the previous one is a beacon bounce, s ...
+MIN_LAP_S = 5.0
+# ... or than this fraction of the median lap, whichever is longer.
+MIN_LAP_FRACTION = 0.25
+# A lap longer than this many median laps is reported (a beacon was probably missed).
+LONG_LAP_FACTOR = 1.8
 
 
 def laps_from_beacons(
@@ -32,7 +40,8 @@ def laps_from_beacons(
     -------
     laps : tuple of Lap
         Lap 0 (out-lap) from 0 s to the first beacon if that is later than 0, then one lap
-        per beacon; with no beacon, the whole session as lap 0.
+        per beacon; with no beacon, the whole session as lap 0. A first beacon numbered 0
+        starts lap 0 at 0 s (no lap is listed twice).
     lap : ndarray of int64
         Lap number of every grid point.
 
@@ -51,7 +60,10 @@ def laps_from_beacons(
         )
     numbers = lap_number.astype(np.int64)
     starts = t_beacon.astype(np.float64)
-    if starts.size == 0 or starts[0] > _ON_GRID:
+    if starts.size and numbers[0] == 0:
+        starts = starts.copy()
+        starts[0] = 0.0  # a beacon "lap 0" marks the out-lap, which began with the session
+    elif starts.size == 0 or starts[0] > _ON_GRID:
         starts = np.concatenate(([0.0], starts))
         numbers = np.concatenate(([0], numbers))
     ends = np.append(starts[1:], max(end_s, starts[-1]))
@@ -61,3 +73,102 @@ def laps_from_beacons(
     )
     idx = np.searchsorted(starts, t_grid + _ON_GRID, side="right") - 1
     return laps, numbers[np.clip(idx, 0, None)]
+
+
+def validate_beacons(
+    t_beacon: np.ndarray, lap_number: np.ndarray, *, path: object = None,
+    channel: str = "lap_beacon",
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Check beacon crossings and repair them, saying what was done.
+
+    * A crossing closer to the previous one than :data:`MIN_LAP_FRACTION` of the median
+      lap (or :data:`MIN_LAP_S`) is a bounce of the beacon and is dropped.
+    * Lap numbers must be whole, within 0..:data:`MAX_LAP` and increasing. When a
+      minority of them is not (a value that steps back, repeats, or is garbage such as
+      1e20), the laps are renumbered in crossing order from the first good value.
+    * A lap more than :data:`LONG_LAP_FACTOR` times the median is reported (a missed
+      beacon), as are lap numbers that are skipped; both are kept as logged.
+
+    Parameters
+    ----------
+    t_beacon : ndarray — s, sorted
+    lap_number : ndarray
+        Beacon values as logged.
+
+    Returns
+    -------
+    t_beacon, lap_number : ndarray
+        The crossings kept and their lap numbers (whole, increasing).
+    warnings : list of str
+
+    Raises
+    ------
+    DataError
+        Most beacon values are not lap numbers (the channel is probably not a beacon).
+    """
+    warnings: list[str] = []
+    t = np.asarray(t_beacon, dtype=np.float64)
+    v = np.asarray(lap_number, dtype=np.float64)
+    if t.size >= 2:
+        step = np.diff(t)
+        min_lap = max(MIN_LAP_S, MIN_LAP_FRACTION * float(np.median(step)))
+        keep = np.ones(t.size, dtype=bool)
+        last = t[0]
+        for i in range(1, t.size):  # beacons are few (one per lap): a plain loop
+            if t[i] - last < min_lap:
+                keep[i] = False
+            else:
+                last = t[i]
+        if not keep.all():
+            gone = t[~keep]
+            warnings.append(
+                f"lap beacon '{channel}': {gone.size} crossing(s) less than {min_lap:.1f} s after"
+                " the previous one dropped as beacon bounces (at t = "
+                + ", ".join(f"{x:.2f}" for x in gone[:5]) + (" ..." if gone.size > 5 else "")
+                + " s)"
+            )
+            t, v = t[keep], v[keep]
+    valid = np.isfinite(v) & (v == np.round(v)) & (v >= 0) & (v <= MAX_LAP)
+    if v.size and valid.sum() * 2 < v.size:
+        bad = v[~valid][0]
+        raise DataError(
+            f"beacon value {bad!r} is not a lap number (a whole number 0..{MAX_LAP}), nor are"
+            f" {int((~valid).sum())} of the {v.size} values; is '{channel}' really the lap"
+            " beacon? Fix the alias table (--aliases FILE)",
+            path=path, channel=channel,
+        )
+    increasing = bool(valid.all() and (np.diff(v) > 0).all())
+    if v.size and not increasing:
+        first = int(np.argmax(valid))
+        start = max(int(v[first]) - first, 0)
+        fixed = start + np.arange(v.size, dtype=np.float64)
+        changed = np.flatnonzero(fixed != v)
+        warnings.append(
+            f"lap beacon '{channel}': values "
+            + ", ".join(f"{x:g}" for x in v[:12]) + (" ..." if v.size > 12 else "")
+            + " are not increasing lap numbers; laps renumbered in crossing order from"
+            f" {start} ("
+            + ", ".join(f"t = {t[i]:.2f} s: {v[i]:g} -> {int(fixed[i])}" for i in changed[:5])
+            + (" ..." if changed.size > 5 else "") + ")"
+        )
+        v = fixed
+    skipped = np.flatnonzero(np.diff(v) > 1)
+    if skipped.size:
+        warnings.append(
+            f"lap beacon '{channel}': no crossing for lap(s) "
+            + ", ".join(f"{int(v[i]) + 1}" + (f"-{int(v[i + 1]) - 1}" if v[i + 1] - v[i] > 2
+                                              else "") for i in skipped[:5])
+            + "; the lap before each gap is kept as logged (it spans the missing laps)"
+        )
+    if t.size >= 4:
+        step = np.diff(t)
+        median = float(np.median(step))
+        long = np.flatnonzero(step > LONG_LAP_FACTOR * median)
+        if long.size and not skipped.size:
+            warnings.append(
+                f"lap beacon '{channel}': lap(s) "
+                + ", ".join(f"{int(v[i])} ({step[i]:.1f} s)" for i in long[:5])
+                + f" last more than {LONG_LAP_FACTOR:g} times the median lap ({median:.1f} s):"
+                " a missed beacon? Kept as logged"
+            )
+    return t, v, warnings

@@ -1,4 +1,10 @@
-"""``load_session``: any session file of CHANNELS.md -> one :class:`Session` on a uniform grid.
+"""``load_session``: any session file -> one :class:`Session` on a uniform grid.
+
+Each format is one reader module registered in :mod:`brakethermo.io.formats`; it only
+turns the file into native-rate channels (:class:`RawSession`). Everything else is
+done here once for all formats: time sanity (clock jumps, impossible spans), aliases,
+units, non-finite samples, unusable channels, spikes, gaps, beacon checks, laps and
+resampling.
 
 The disc pipelines take the 10 Hz grid of OUTPUTS.md (the default); the rig pipelines
 pass their own ``rate_hz`` (or ``None``: the fastest native rate of the channels they
@@ -7,7 +13,8 @@ use). One reader stack serves both.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+import dataclasses
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -15,20 +22,17 @@ import pandas as pd
 
 from brakethermo.errors import DataError
 from brakethermo.io.aliases import AliasTable, load_aliases, resolve
-from brakethermo.io.csv_reader import read_csv
-from brakethermo.io.laps import laps_from_beacons
-from brakethermo.io.mcap_reader import read_mcap
-from brakethermo.io.parquet_reader import read_parquet
+from brakethermo.io.formats import BY_SUFFIX
+from brakethermo.io.laps import laps_from_beacons, validate_beacons
 from brakethermo.io.raw import RawChannel, RawSession
 from brakethermo.io.resample import grid, hampel, resample, sort_checked
 from brakethermo.io.session import GRID_DT, ChannelInfo, Session
+from brakethermo.io.timebase import settle
 from brakethermo.io.units import CANONICAL_CHANNELS, si_unit, to_si
 
-READERS: dict[str, Callable[[Path], RawSession]] = {
-    ".mcap": read_mcap,
-    ".parquet": read_parquet,
-    ".csv": read_csv,
-}
+# Most grid points a session may plan (about 0.8 GB per channel): beyond it the rate or
+# the time stamps are wrong, and the user is told before anything is allocated.
+MAX_GRID_POINTS = 100_000_000
 
 # Channels whose isolated spikes are rejected (IR pyrometer readings).
 IR_PREFIX = "disc_temp"
@@ -36,6 +40,9 @@ IR_PREFIX = "disc_temp"
 
 def read_raw(path: str | Path) -> RawSession:
     """Read a session file at native rates, dispatching on the extension.
+
+    The times are settled (:func:`brakethermo.io.timebase.settle`): isolated samples
+    far outside the session dropped with a warning, an implausible span refused.
 
     Raises
     ------
@@ -48,23 +55,24 @@ def read_raw(path: str | Path) -> RawSession:
         raise DataError("file not found; check the path", path=path)
     if not path.is_file():
         raise DataError("is not a file; give one session file (batch reads folders)", path=path)
-    reader = READERS.get(path.suffix.lower())
-    if reader is None:
+    fmt = BY_SUFFIX.get(path.suffix.lower())
+    if fmt is None:
         raise DataError(
             f"unknown session file type '{path.suffix}'; expected one of "
-            + ", ".join(READERS),
+            + ", ".join(BY_SUFFIX),
             path=path,
         )
     if path.stat().st_size == 0:
         raise DataError("the file is empty (0 bytes)", path=path)
-    return reader(path)
+    raw = fmt.read(path)
+    return settle(dataclasses.replace(raw, format=raw.format or fmt.name))
 
 
-def _finite(ch: RawChannel) -> tuple[np.ndarray, np.ndarray]:
+def _finite(ch: RawChannel) -> tuple[np.ndarray, np.ndarray, int]:
     keep = np.isfinite(ch.v) & np.isfinite(ch.t)
     if keep.all():
-        return ch.t, ch.v
-    return ch.t[keep], ch.v[keep]
+        return ch.t, ch.v, 0
+    return ch.t[keep], ch.v[keep], int((~keep).sum())
 
 
 def load_session(
@@ -80,7 +88,8 @@ def load_session(
     Parameters
     ----------
     path : str or Path
-        ``.mcap``, ``.parquet`` or ``.csv`` session file (extension case-insensitive).
+        Session file of any registered format (``.mcap``, ``.parquet``, ``.csv``,
+        ``.mf4``/``.mdf``, ``.xrk``/``.xrz``; extension case-insensitive).
     aliases : str, Path or mapping, optional
         A user alias TOML file merged over the shipped table, or a ready alias table.
     gap_limit_s : float
@@ -98,7 +107,8 @@ def load_session(
     Session
         Only channels that map to canonical names are in :attr:`Session.frame`; every
         source name is in :attr:`Session.available`. A channel with a single finite
-        sample goes to :attr:`Session.constants` instead of the frame.
+        sample goes to :attr:`Session.constants` instead of the frame, one with none to
+        :attr:`Session.unusable`.
 
     Raises
     ------
@@ -123,12 +133,26 @@ def load_session(
     wanted = CANONICAL_CHANNELS if channels is None else channels
     series: dict[str, tuple[RawChannel, np.ndarray, np.ndarray, str]] = {}
     constants: dict[str, float] = {}
+    unusable: dict[str, str] = {}
+    warnings = list(raw.warnings)
     for canonical in wanted:
         if canonical not in found or canonical == "lap_beacon":
             continue
         src = by_name[found[canonical]]
-        t, v = sort_checked(*_finite(src), path=path, channel=src.name)
+        t, v, n_bad = _finite(src)
         v, unit = to_si(v, src.unit, canonical, path=path, source=src.name)
+        if t.size == 0:
+            unusable[canonical] = (
+                f"'{src.name}' holds no finite sample"
+                + (f" (all {n_bad} are null, NaN or infinite)" if n_bad else " (it is empty)")
+            )
+            continue
+        if n_bad:
+            warnings.append(
+                f"channel '{canonical}' ({src.name}): {n_bad} non-finite sample(s) (NaN or"
+                " infinite) dropped"
+            )
+        t, v = sort_checked(t, v, path=path, channel=src.name)
         if t.size == 1:
             constants[canonical] = float(v[0])
         else:
@@ -140,11 +164,18 @@ def load_session(
     if not (np.isfinite(rate_hz) and rate_hz > 0):
         raise DataError(f"grid rate must be a positive number of Hz, got {rate_hz}", path=path)
     dt = 1.0 / rate_hz
+    points = raw.end_s * rate_hz
+    if points > MAX_GRID_POINTS:
+        raise DataError(
+            f"the session spans {raw.end_s:.1f} s: at {rate_hz:g} Hz that is {points:.3g} grid"
+            f" points, more than {MAX_GRID_POINTS:.0e}; check the time stamps or use a lower"
+            " grid rate",
+            path=path,
+        )
     t_grid = grid(raw.end_s, dt)
 
     columns: dict[str, np.ndarray] = {"time": t_grid}
     infos: dict[str, ChannelInfo] = {}
-    warnings = list(raw.warnings)
     for canonical, (src, t, v, unit) in series.items():
         spikes = 0
         if canonical.startswith(IR_PREFIX):
@@ -164,7 +195,10 @@ def load_session(
 
     if "lap_beacon" in found:
         src = by_name[found["lap_beacon"]]
-        tb, vb = sort_checked(*_finite(src), path=path, channel=src.name)
+        tb, vb, _ = _finite(src)
+        tb, vb = sort_checked(tb, vb, path=path, channel=src.name)
+        tb, vb, notes = validate_beacons(tb, vb, path=path, channel=src.name)
+        warnings.extend(notes)
         laps, lap = laps_from_beacons(tb, vb, t_grid, raw.end_s, path=path, channel=src.name)
     else:
         laps, lap = laps_from_beacons(np.empty(0), np.empty(0), t_grid, raw.end_s, path=path)
@@ -181,4 +215,6 @@ def load_session(
         warnings=tuple(warnings),
         dt=dt,
         constants=constants,
+        format=raw.format,
+        unusable=unusable,
     )

@@ -10,6 +10,10 @@ Two ways through a file, both decoding message payloads in bulk with numpy:
   Metadata record); a truncated file keeps every intact record and says how much
   was lost.
 
+Every chunk's CRC (when the writer stored one) is checked after decompression: a
+corrupt chunk — bad CRC, or data that will not decompress — is skipped with a warning
+naming the time range it held, and every intact chunk is still read.
+
 Payloads of the exact form ``{"value": <number>}`` are parsed as fixed-width numbers;
 any other JSON object is decoded with :class:`JsonDecoderFactory`, one parser call per
 channel and chunk.
@@ -19,6 +23,7 @@ from __future__ import annotations
 
 import json
 import struct
+import zlib
 from collections import defaultdict
 from collections.abc import Callable, Iterator, Sequence
 from io import BytesIO
@@ -36,7 +41,7 @@ from mcap.records import Channel, Chunk, Metadata, Schema
 from mcap.summary import Summary
 
 from brakethermo.errors import DataError
-from brakethermo.io.raw import RawChannel, RawSession, rebase_ns
+from brakethermo.io.raw import Format, RawChannel, RawSession, rebase_ns
 
 _MAGIC_SIZE = 8
 _OPCODE_CHANNEL = 0x04
@@ -77,6 +82,14 @@ class _Corrupt(Exception):
     """The file's indexes or records cannot be trusted."""
 
 
+class _BadChunk(Exception):
+    """One chunk fails its CRC or will not decompress: skip it, keep the others."""
+
+
+# What a damaged chunk raises on the way to its records.
+_CHUNK_ERRORS = (_BadChunk, *_TRUNCATION_ERRORS)
+
+
 def _topic(channel: Channel) -> str:
     return channel.topic.lstrip("/")
 
@@ -95,6 +108,17 @@ class _Collector:
         self.values: dict[str, list[np.ndarray]] = defaultdict(list)
         self.units: dict[str, str | None] = {}
         self.order: list[str] = []
+        # (byte offset, first and last log_time in ns or None, reason) per skipped chunk
+        self.lost: list[tuple[int, int | None, int | None, str]] = []
+        self.known: dict[int, Channel] = {}  # every Channel record seen
+
+    def add_silent(self) -> None:
+        """Channels registered in the file but without a single message, as empty channels
+        (so that a required one is reported as empty, not as absent)."""
+        for channel in self.known.values():
+            topic = _topic(channel)
+            if topic not in self.units and not any(n.startswith(topic + ".") for n in self.order):
+                self.add(topic, _unit(channel, "value"), np.empty(0, np.int64), np.empty(0))
 
     def add(self, name: str, unit: str | None, t_ns: np.ndarray, v: np.ndarray) -> None:
         if name not in self.units:
@@ -142,7 +166,23 @@ class _Collector:
         pieces = [t for ts in self.times.values() for t in ts if t.size]
         return (max(int(t.max()) for t in pieces) - min(int(t.min()) for t in pieces)) * 1e-9
 
+    def lost_warnings(self) -> list[str]:
+        """One warning per skipped corrupt chunk, with its time range from the session start."""
+        pieces = [t for ts in self.times.values() for t in ts if t.size]
+        t0 = min((int(t.min()) for t in pieces), default=0)
+        out = []
+        for offset, start, end, reason in self.lost:
+            span = (
+                f"messages from t = {(start - t0) * 1e-9:.2f} s to {(end - t0) * 1e-9:.2f} s"
+                " are lost"
+                if start is not None and end is not None
+                else "its messages are lost (time range unreadable)"
+            )
+            out.append(f"corrupt chunk at byte {offset} ({reason}): skipped; {span}")
+        return out
+
     def build(self, metadata: dict[str, str], warnings: list[str]) -> RawSession:
+        warnings = [*warnings, *self.lost_warnings()]
         times = [np.concatenate(self.times[n]) for n in self.order]
         values = [np.concatenate(self.values[n]) for n in self.order]
         times_s, epoch = rebase_ns(times)
@@ -167,15 +207,25 @@ def _check_encodings(path: Path, channels: Sequence[Channel]) -> None:
 
 
 def _decompress(chunk: Chunk) -> bytes:
-    if chunk.compression == "zstd":
-        return zstandard.ZstdDecompressor().decompress(
-            chunk.data, max_output_size=chunk.uncompressed_size
-        )
-    if chunk.compression == "lz4":
-        return lz4.frame.decompress(chunk.data)
-    if chunk.compression == "":
-        return chunk.data
-    raise _Corrupt(f"unknown chunk compression '{chunk.compression}'")
+    """The chunk's records, CRC-checked (raises :class:`_BadChunk` when damaged)."""
+    try:
+        if chunk.compression == "zstd":
+            data = zstandard.ZstdDecompressor().decompress(
+                chunk.data, max_output_size=chunk.uncompressed_size
+            )
+        elif chunk.compression == "lz4":
+            data = lz4.frame.decompress(chunk.data)
+        elif chunk.compression == "":
+            data = chunk.data
+        else:
+            raise _Corrupt(f"unknown chunk compression '{chunk.compression}'")
+    except _TRUNCATION_ERRORS:
+        raise _BadChunk(f"{chunk.compression} data will not decompress") from None
+    if len(data) != chunk.uncompressed_size:
+        raise _BadChunk("wrong decompressed size")
+    if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
+        raise _BadChunk("CRC mismatch")
+    return data
 
 
 def _gather(buf: np.ndarray, start: np.ndarray, width: int) -> np.ndarray:
@@ -274,7 +324,13 @@ def _read_indexed(f: Any, summary: Summary, out: _Collector) -> None:
     """Bulk path over chunk and message indexes; raises :class:`_Corrupt` if they disagree."""
     for ci in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
         f.seek(ci.chunk_start_offset + 9)
-        data = _decompress(Chunk.read(ReadDataStream(f)))
+        try:
+            data = _decompress(Chunk.read(ReadDataStream(f)))
+        except _CHUNK_ERRORS as exc:
+            reason = str(exc) if isinstance(exc, _BadChunk) else "unreadable chunk record"
+            out.lost.append((ci.chunk_start_offset, ci.message_start_time,
+                             ci.message_end_time, reason))
+            continue
         buf = np.frombuffer(data, dtype=np.uint8)
         f.seek(ci.chunk_start_offset + ci.chunk_length)
         for channel_id, entries in _message_indexes(f.read(ci.message_index_length)):
@@ -341,19 +397,24 @@ def _read_sequential(path: Path, out: _Collector) -> tuple[dict[str, str], list[
     """Record-by-record path; recovers the intact part of a truncated file."""
     data = path.read_bytes()
     size = len(data)
-    channels: dict[int, Channel] = {}
+    channels = out.known
     metadata: dict[str, str] = {}
     messages, chunks, last_good, complete = _walk(data, _MAGIC_SIZE, size, channels, metadata)
     _check_encodings(path, list(channels.values()))
     _add_records(out, channels, data, messages)
     for pos in chunks:
+        # Every listed chunk record is complete (the walk stops at a cut one): a chunk
+        # that fails here is damaged, not truncated; skip it and read the next.
+        chunk = None
         try:
             _, length = _RECORD_HEAD.unpack_from(data, pos)
             chunk = Chunk.read(ReadDataStream(BytesIO(data[pos + 9 : pos + 9 + length])))
             inner = _decompress(chunk)
-        except _TRUNCATION_ERRORS:
-            complete, last_good = False, pos
-            break
+        except _CHUNK_ERRORS as exc:
+            reason = str(exc) if isinstance(exc, _BadChunk) else "unreadable chunk record"
+            span = (chunk.message_start_time, chunk.message_end_time) if chunk else (None, None)
+            out.lost.append((pos, *span, reason))
+            continue
         known = len(channels)
         messages, _, _, _ = _walk(inner, 0, len(inner), channels, metadata)
         if len(channels) > known:
@@ -416,6 +477,7 @@ def read_mcap(path: Path) -> RawSession:
         if _indexed_usable(summary):
             assert summary is not None
             _check_encodings(path, list(summary.channels.values()))
+            out.known.update(summary.channels)
             try:
                 _read_indexed(f, summary, out)
                 for record in reader.iter_metadata():
@@ -430,7 +492,17 @@ def read_mcap(path: Path) -> RawSession:
         except _Corrupt as exc:
             raise DataError(f"not a readable MCAP file: {exc}", path=path) from None
     if not out.order:
+        if out.lost:
+            raise DataError(
+                f"not a readable MCAP file: all {len(out.lost)} chunk(s) are corrupt"
+                f" ({out.lost[0][3]}); nothing could be recovered",
+                path=path,
+            )
         raise DataError(
             "the MCAP file holds no channels with messages; nothing to read", path=path
         )
+    out.add_silent()
     return out.build(metadata, warnings)
+
+
+FORMAT = Format("MCAP", (".mcap",), read_mcap)

@@ -12,7 +12,8 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from brakethermo.errors import DataError
-from brakethermo.io.raw import RawChannel, RawSession, rebase_ns, rebase_s
+from brakethermo.io.raw import Format, RawChannel, RawSession, rebase_ns, rebase_s
+from brakethermo.io.timebase import integer_time_scale
 
 
 def _session_metadata(schema: pa.Schema, path: Path) -> dict[str, str]:
@@ -31,19 +32,46 @@ def _session_metadata(schema: pa.Schema, path: Path) -> dict[str, str]:
     return {str(k): v if isinstance(v, str) else json.dumps(v) for k, v in facts.items()}
 
 
-def _time_seconds(column: pa.ChunkedArray, path: Path) -> tuple[np.ndarray, float | None]:
-    """The ``time`` column as seconds from its earliest value, and the epoch start if any."""
+_TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}
+
+
+def _time_seconds(column: pa.ChunkedArray, unit: str | None, path: Path
+                  ) -> tuple[np.ndarray, float | None, str | None]:
+    """The ``time`` column as seconds from its earliest value, the clock origin, a note.
+
+    Timestamps and durations carry their unit; a number column takes the field's
+    ``unit`` metadata (s, ms, us, ns), else seconds for floats, else (integers) the unit
+    inferred from the span and step, said in the note.
+    """
     if column.null_count:
         raise DataError("column 'time' has empty cells; every row needs a time", path=path)
     kind = column.type
     if pa.types.is_timestamp(kind) or pa.types.is_duration(kind):
         ns = pc.cast(column, pa.timestamp("ns") if pa.types.is_timestamp(kind)
                      else pa.duration("ns"))
-        (t,), epoch = rebase_ns([ns.to_numpy().view(np.int64)])
-        return t, epoch
+        (t,), origin = rebase_ns([ns.to_numpy().view(np.int64)])
+        return t, origin, None
     if pa.types.is_integer(kind) or pa.types.is_floating(kind):
-        (t,), epoch = rebase_s([column.to_numpy().astype(np.float64)])
-        return t, epoch
+        values = column.to_numpy()
+        note = None
+        if unit is not None and unit.strip():
+            if unit.strip() not in _TIME_UNITS:
+                raise DataError(
+                    f"column 'time' has unit '{unit}'; use s, ms, us or ns", path=path
+                )
+            scale = _TIME_UNITS[unit.strip()]
+        elif pa.types.is_integer(kind):
+            scale, note = integer_time_scale(values, path=path, column="time")
+        else:
+            scale = 1.0
+        if scale == 1.0:
+            (t,), origin = rebase_s([values.astype(np.float64)])
+        else:
+            # Rebase in integers first: epoch nanoseconds do not fit a float exactly.
+            base = values.min()
+            (t,), _ = rebase_s([(values - base).astype(np.float64) * scale])
+            origin = float(base) * scale
+        return t, origin, note
     raise DataError(
         f"column 'time' has type {kind}; it must be float seconds or timestamp[ns]", path=path
     )
@@ -78,6 +106,37 @@ def _numeric(column: pa.ChunkedArray, name: str, path: Path) -> np.ndarray | Non
     return pc.cast(column, pa.float64()).to_numpy(zero_copy_only=False)
 
 
+def _read_table(path: Path) -> tuple[pa.Table, list[str]]:
+    """The whole table, or its intact row groups with a warning for each damaged one.
+
+    Page checksums are verified where the writer stored them.
+    """
+    try:
+        return pq.read_table(path, page_checksum_verification=True), []
+    except (pa.ArrowException, OSError) as exc:
+        whole_error = exc
+    try:
+        pf = pq.ParquetFile(path, page_checksum_verification=True)
+    except (pa.ArrowException, OSError):
+        raise DataError(f"not a readable Parquet file ({whole_error})", path=path) from None
+    groups, warnings = [], []
+    n = pf.metadata.num_row_groups
+    row = 0
+    for k in range(n):
+        rows = pf.metadata.row_group(k).num_rows
+        try:
+            groups.append(pf.read_row_group(k))
+        except (pa.ArrowException, OSError) as exc:
+            warnings.append(
+                f"corrupt row group {k + 1} of {n} (rows {row + 1}-{row + rows}): skipped,"
+                f" its samples are lost ({str(exc)[:120]})"
+            )
+        row += rows
+    if not groups:
+        raise DataError(f"not a readable Parquet file ({whole_error})", path=path) from None
+    return pa.concat_tables(groups), warnings
+
+
 def read_parquet(path: Path) -> RawSession:
     """Read a wide Parquet session table into native-rate channels.
 
@@ -99,18 +158,19 @@ def read_parquet(path: Path) -> RawSession:
         Not a Parquet file, no ``time`` column, a column mixing numbers and text (a
         column that is not numeric at all is skipped with a warning).
     """
-    try:
-        table = pq.read_table(path)
-    except (pa.ArrowException, OSError) as exc:
-        raise DataError(f"not a readable Parquet file ({exc})", path=path) from None
+    table, warnings = _read_table(path)
     if "time" not in table.column_names:
         raise DataError(
             f"no 'time' column; the columns are: {', '.join(table.column_names) or 'none'}",
             path=path,
         )
-    t, epoch = _time_seconds(table.column("time"), path)
+    time_meta = (table.schema.field("time").metadata or {}).get(b"unit")
+    t, epoch, note = _time_seconds(
+        table.column("time"), time_meta.decode() if time_meta else None, path
+    )
+    if note:
+        warnings.append(note)
     channels = []
-    warnings = []
     for fld in table.schema:
         if fld.name == "time":
             continue
@@ -125,3 +185,6 @@ def read_parquet(path: Path) -> RawSession:
         )
     return RawSession(path, tuple(channels), _session_metadata(table.schema, path), epoch,
                       tuple(warnings))
+
+
+FORMAT = Format("Parquet", (".parquet",), read_parquet)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -37,13 +38,35 @@ class RawChannel:
 
 @dataclass(frozen=True)
 class RawSession:
-    """Everything a reader extracted from one file, at native rates."""
+    """Everything a reader extracted from one file, at native rates.
+
+    Attributes
+    ----------
+    path : Path
+    channels : tuple of RawChannel
+    metadata : dict of str to str
+        Session facts.
+    origin_s : float or None
+        The file's clock reading at ``t = 0`` (the earliest sample), s: an epoch time
+        when the file carries absolute time; ``None`` when the file has no clock.
+    warnings : tuple of str
+    format : str
+        Name of the file format (set by the registry, ``"MCAP"``, ``"MDF4"``...).
+    """
 
     path: Path
     channels: tuple[RawChannel, ...]
     metadata: dict[str, str] = field(default_factory=dict)
-    start_epoch_s: float | None = None
+    origin_s: float | None = None
     warnings: tuple[str, ...] = ()
+    format: str = ""
+
+    @property
+    def start_epoch_s(self) -> float | None:
+        """Epoch time of ``t = 0`` when the file carries absolute time, s."""
+        if self.origin_s is not None and self.origin_s > EPOCH_THRESHOLD_S:
+            return self.origin_s
+        return None
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -64,21 +87,42 @@ def rebase_ns(times_ns: list[np.ndarray]) -> tuple[list[np.ndarray], float | Non
     -------
     times_s : list of ndarray
         Float64 seconds from the earliest timestamp.
-    start_epoch_s : float or None
-        The earliest timestamp as epoch seconds, when the timestamps are absolute.
+    origin_s : float or None
+        The earliest timestamp, s (an epoch time when the timestamps are absolute).
     """
     starts = [int(t.min()) for t in times_ns if t.size]
     if not starts:
         return [np.asarray(t, dtype=np.float64) for t in times_ns], None
     t0 = min(starts)
     out = [(t.astype(np.int64) - np.int64(t0)).astype(np.float64) * 1e-9 for t in times_ns]
-    return out, (t0 * 1e-9 if t0 > EPOCH_THRESHOLD_NS else None)
+    return out, t0 * 1e-9
 
 
 def rebase_s(times_s: list[np.ndarray]) -> tuple[list[np.ndarray], float | None]:
     """Float-seconds counterpart of :func:`rebase_ns`."""
-    starts = [float(np.nanmin(t)) for t in times_s if t.size]
+    starts = [float(np.nanmin(t)) for t in times_s if t.size and not np.isnan(t).all()]
     if not starts:
         return list(times_s), None
     t0 = min(starts)
-    return [t - t0 for t in times_s], (t0 if t0 > EPOCH_THRESHOLD_S else None)
+    return [t - t0 for t in times_s], t0
+
+
+@dataclass(frozen=True)
+class Format:
+    """One session file format: a reader module registers one of these.
+
+    Attributes
+    ----------
+    name : str
+        Shown to the user (``inspect``), e.g. ``"MDF4"``.
+    suffixes : tuple of str
+        File extensions, lower case with the dot.
+    read : callable
+        ``read(path) -> RawSession``: the file at native rates, times in s from the
+        earliest sample. Aliases, units, time sanity, gaps, laps and resampling are
+        shared (:mod:`brakethermo.io.load`), not the reader's business.
+    """
+
+    name: str
+    suffixes: tuple[str, ...]
+    read: Callable[[Path], RawSession]

@@ -96,6 +96,12 @@ class Session:
         Grid spacing, s (0.1 on the disc grid).
     constants : dict of str to float
         Canonical channels logged as a single sample (e.g. ``rolling_radius_ref``), SI.
+    format : str
+        The file format the session was read from (``MCAP``, ``MDF 4.10``, ``CSV``...).
+    unusable : dict of str to str
+        Canonical channels the file maps but that hold no finite sample (all null, NaN
+        or infinite), with what was found; they are neither in :attr:`frame` nor in
+        :attr:`constants`, and :meth:`require` names them.
     """
 
     path: Path
@@ -109,6 +115,8 @@ class Session:
     warnings: tuple[str, ...] = ()
     dt: float = GRID_DT
     constants: dict[str, float] = field(default_factory=dict)
+    format: str = ""
+    unusable: dict[str, str] = field(default_factory=dict)
 
     @property
     def rate_hz(self) -> float:
@@ -136,6 +144,13 @@ class Session:
         so the user can fix the alias table (``--aliases FILE``).
         """
         for name in names:
+            if name in self.unusable:
+                raise DataError(
+                    f"{self.unusable[name]}; it cannot carry the computation. Check the"
+                    " logger's channel setup or map another channel with --aliases FILE",
+                    path=self.path,
+                    channel=name,
+                )
             if name in self.constants:
                 raise DataError(
                     f"holds a single sample ({self.constants[name]:g} {si_unit(name)}) where a"

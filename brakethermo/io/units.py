@@ -1,13 +1,20 @@
-"""Unit strings of CHANNELS.md §4 and their conversion to the SI units used inside.
+"""Unit strings of the logged channels and their conversion to the SI units used inside.
+
+Units are parsed by ``pint`` (any unit it knows: ``km/h``, ``psi``, ``mbar``, ``K``,
+``degF``...) after a small registry of logger spellings that pint reads differently or
+not at all (``°C``, ``C`` — coulomb to pint —, ``1/min``, ``kph``, ``Nm``, ``-``...).
 
 Inside brakethermo every quantity is SI except temperature, which stays in degC (the
 disc datasheet, the operating window and every output are in degC). A conversion is
-affine, ``si = scale * value + offset``, so degF and K map onto degC exactly.
+affine, ``si = scale * value + offset``, taken from pint once per unit string, so degF
+and K map onto degC with their offsets right.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
+from typing import Any
 
 import numpy as np
 
@@ -21,7 +28,7 @@ class Unit:
     Attributes
     ----------
     dimension : str
-        Physical quantity (``speed``, ``pressure``, ...).
+        Physical quantity (``speed``, ``pressure``, ...), a key of :data:`SI_UNIT`.
     scale : float
         Factor to the SI unit of the dimension.
     offset : float
@@ -33,69 +40,71 @@ class Unit:
     offset: float = 0.0
 
 
+# Dimension -> (unit held inside, its pint spelling, unit strings quoted in messages).
+_DIMENSIONS: dict[str, tuple[str, str, str]] = {
+    "speed": ("m/s", "m/s", "km/h, m/s, mph, kph"),
+    "angular_speed": ("rad/s", "rad/s", "rad/s, rpm, 1/min, deg/s"),
+    "pressure": ("Pa", "Pa", "bar, mbar, kPa, MPa, Pa, psi"),
+    "temperature": ("degC", "degC", "degC, °C, K, degF, °F"),
+    "force": ("N", "N", "N, kN, lbf"),
+    "torque": ("N m", "N*m", "N m, Nm, kN m"),
+    "length": ("m", "m", "m, mm, cm, km, in"),
+    "angle": ("rad", "rad", "rad, deg, °"),
+    "current": ("A", "A", "A, mA"),
+    "dimensionless": ("-", "dimensionless", "-, 1, %"),
+}
+
 # SI unit held inside for each dimension (temperatures in degC, see module docstring).
-SI_UNIT: dict[str, str] = {
-    "speed": "m/s",
-    "angular_speed": "rad/s",
-    "pressure": "Pa",
-    "temperature": "degC",
-    "force": "N",
-    "torque": "N m",
-    "length": "m",
-    "angle": "rad",
-    "current": "A",
-    "dimensionless": "-",
-}
+SI_UNIT: dict[str, str] = {dim: si for dim, (si, _, _) in _DIMENSIONS.items()}
 
-_KMH = 1.0 / 3.6
-_MPH = 0.44704
-_RPM = 2.0 * np.pi / 60.0
-_PSI = 6894.757293168
-_DEG = np.pi / 180.0
-
-UNITS: dict[str, Unit] = {
-    "km/h": Unit("speed", _KMH),
-    "kmh": Unit("speed", _KMH),
-    "kph": Unit("speed", _KMH),
-    "m/s": Unit("speed", 1.0),
-    "mph": Unit("speed", _MPH),
-    "rad/s": Unit("angular_speed", 1.0),
-    "rpm": Unit("angular_speed", _RPM),
-    "1/min": Unit("angular_speed", _RPM),
-    "deg/s": Unit("angular_speed", _DEG),
-    "bar": Unit("pressure", 1.0e5),
-    "mbar": Unit("pressure", 1.0e2),
-    "Pa": Unit("pressure", 1.0),
-    "kPa": Unit("pressure", 1.0e3),
-    "MPa": Unit("pressure", 1.0e6),
-    "psi": Unit("pressure", _PSI),
-    "degC": Unit("temperature", 1.0),
-    "°C": Unit("temperature", 1.0),
-    "C": Unit("temperature", 1.0),
-    "K": Unit("temperature", 1.0, -273.15),
-    "degF": Unit("temperature", 5.0 / 9.0, -32.0 * 5.0 / 9.0),
-    "°F": Unit("temperature", 5.0 / 9.0, -32.0 * 5.0 / 9.0),
-    "F": Unit("temperature", 5.0 / 9.0, -32.0 * 5.0 / 9.0),
-    "N": Unit("force", 1.0),
-    "kN": Unit("force", 1.0e3),
-    "N m": Unit("torque", 1.0),
-    "Nm": Unit("torque", 1.0),
-    "N*m": Unit("torque", 1.0),
-    "N.m": Unit("torque", 1.0),
-    "N·m": Unit("torque", 1.0),
-    "m": Unit("length", 1.0),
-    "cm": Unit("length", 1.0e-2),
-    "mm": Unit("length", 1.0e-3),
-    "km": Unit("length", 1.0e3),
-    "rad": Unit("angle", 1.0),
-    "deg": Unit("angle", _DEG),
-    "°": Unit("angle", _DEG),
-    "A": Unit("current", 1.0),
-    "mA": Unit("current", 1.0e-3),
-    "-": Unit("dimensionless", 1.0),
-    "1": Unit("dimensionless", 1.0),
-    "%": Unit("dimensionless", 1.0e-2),
+# Logger and export spellings -> pint expression. Exact match first, then the
+# case-insensitive table (only spellings with no case-sensitive meaning in SI: ``MPa``
+# and ``mPa`` differ, ``KPH`` and ``kph`` do not).
+LOGGER_SPELLINGS: dict[str, str] = {
+    "°C": "degC",
+    "ºC": "degC",
+    "℃": "degC",
+    "C": "degC",
+    "deg C": "degC",
+    "°F": "degF",
+    "ºF": "degF",
+    "℉": "degF",
+    "F": "degF",
+    "deg F": "degF",
+    "°K": "kelvin",
+    "1/min": "rpm",
+    "min-1": "rpm",
+    "min^-1": "rpm",
+    "U/min": "rpm",
+    "rev/min": "rpm",
+    "km/hr": "km/h",
+    "km h-1": "km/h",
+    "kmh": "km/h",
+    "kph": "km/h",
+    "kmph": "km/h",
+    "Nm": "N*m",
+    "N m": "N*m",
+    "N.m": "N*m",
+    "N·m": "N*m",
+    "N-m": "N*m",
+    "kNm": "kN*m",
+    "kN m": "kN*m",
+    "°": "deg",
+    "º": "deg",
+    "degrees": "deg",
+    "°/s": "deg/s",
+    "-": "dimensionless",
+    "1": "dimensionless",
+    "%": "percent",
 }
+_CASELESS: dict[str, str] = {
+    k.casefold(): v
+    for k, v in {
+        "km/h": "km/h", "kph": "km/h", "kmh": "km/h", "km/hr": "km/h", "mph": "mph",
+        "rpm": "rpm", "bar": "bar", "psi": "psi", "degC": "degC", "degF": "degF",
+        "deg C": "degC", "deg F": "degF", "deg": "deg", "rad": "rad", "rad/s": "rad/s",
+    }.items()
+}  # fmt: skip
 
 # Unit a channel is logged in when the file names none (CHANNELS.md §2 tables).
 CANONICAL_UNIT: dict[str, str] = {
@@ -133,28 +142,104 @@ CANONICAL_UNIT: dict[str, str] = {
 
 CANONICAL_CHANNELS: tuple[str, ...] = tuple(CANONICAL_UNIT)
 
+_ANGLE_WORDS = ("radian", "degree", "revolution", "turn", "grad", "arcminute", "arcsecond")
 
-def parse_unit(text: str, *, path: object = None, channel: str | None = None) -> Unit:
+
+@cache
+def registry() -> Any:
+    """The pint unit registry (built on first use: it costs a fraction of a second)."""
+    import pint
+
+    return pint.UnitRegistry(autoconvert_offset_to_baseunit=True)
+
+
+def _angular(units: Any) -> bool:
+    """Whether a pint unit carries an angle (pint counts radians as dimensionless)."""
+    names = [n for n in units._units if "Celsius" not in n and "Fahrenheit" not in n]
+    return any(word in name for name in names for word in _ANGLE_WORDS)
+
+
+@cache
+def _dimension_keys() -> dict[tuple[Any, bool], str]:
+    ureg = registry()
+    keys = {}
+    for dim, (_, spelling, _) in _DIMENSIONS.items():
+        units = ureg.parse_units(spelling)
+        keys[(units.dimensionality, _angular(units))] = dim
+    return keys
+
+
+@cache
+def _lookup(key: str) -> Unit | None:
+    """Parse a normalised unit string with pint; ``None`` if it is not a unit we hold."""
+    spelling = LOGGER_SPELLINGS.get(key) or _CASELESS.get(key.casefold()) or key
+    if not spelling or any(c in spelling for c in "[]{}=#"):
+        return None  # pint reads "[length]" as a dimension; a logger unit never is one
+    ureg = registry()
+    try:
+        quantity = ureg.Quantity(spelling)
+    except Exception:  # pint raises many kinds (undefined, syntax, tokenizer) on junk
+        return None
+    if not isinstance(quantity, ureg.Quantity) or quantity.magnitude != 1:
+        return None  # "10 m", "2": a number is not a unit
+    units = quantity.units
+    dim = _dimension_keys().get((units.dimensionality, _angular(units)))
+    if dim is None:
+        return None
+    target = _DIMENSIONS[dim][1]
+    zero = float(ureg.Quantity(0.0, units).to(target).magnitude)
+    # The slope over a wide step: pint's offset arithmetic loses digits over a step of 1.
+    scale = (float(ureg.Quantity(1.0e3, units).to(target).magnitude) - zero) / 1.0e3
+    return Unit(dim, scale, zero)
+
+
+def parse_unit(text: str, *, path: object = None, channel: str | None = None,
+               expected: str | None = None) -> Unit:
     """Look up a unit string, tolerating surrounding blanks and repeated spaces.
+
+    Parameters
+    ----------
+    text : str
+        Unit string from the file.
+    path, channel
+        File and channel, for the error message.
+    expected : str, optional
+        Dimension the channel needs, to quote fitting units in the error message.
 
     Raises
     ------
     DataError
-        The string is not an accepted unit; the message names file and channel.
+        The string is not a unit of any dimension brakethermo reads.
     """
     key = " ".join(text.split())
-    unit = UNITS.get(key)
+    unit = _lookup(key)
     if unit is None:
-        accepted = ", ".join(sorted(UNITS, key=str.lower))
+        hint = (f"a {expected.replace('_', ' ')} unit such as {_DIMENSIONS[expected][2]}"
+                if expected else "a unit such as km/h, rad/s, bar, degC, N, N m, mm, rad, A")
         raise DataError(
-            f"unknown unit '{text}'; accepted units are: {accepted}", path=path, channel=channel
+            f"unknown unit '{text}'; write {hint} in the file (or the channel's unit field)",
+            path=path,
+            channel=channel,
         )
     return unit
 
 
+def dimension_of(canonical: str) -> str:
+    """Dimension (``speed``, ``pressure``...) of canonical channel ``canonical``."""
+    unit = _lookup(CANONICAL_UNIT[canonical])
+    assert unit is not None  # every canonical unit is a known unit (tested)
+    return unit.dimension
+
+
 def si_unit(canonical: str) -> str:
     """SI unit (degC for temperatures) of the values of canonical channel ``canonical``."""
-    return SI_UNIT[UNITS[CANONICAL_UNIT[canonical]].dimension]
+    return SI_UNIT[dimension_of(canonical)]
+
+
+def _article(dimension: str) -> str:
+    """``"an angular speed"``, ``"a pressure"``: a dimension name for a sentence."""
+    words = dimension.replace("_", " ")
+    return f"{'an' if words[0] in 'aeiou' else 'a'} {words}"
 
 
 def to_si(
@@ -192,12 +277,12 @@ def to_si(
     """
     label = source or canonical
     text = unit_text if unit_text and unit_text.strip() else CANONICAL_UNIT[canonical]
-    unit = parse_unit(text, path=path, channel=label)
-    expected = UNITS[CANONICAL_UNIT[canonical]].dimension
+    expected = dimension_of(canonical)
+    unit = parse_unit(text, path=path, channel=label, expected=expected)
     if unit.dimension != expected:
         raise DataError(
-            f"unit '{text}' is a {unit.dimension.replace('_', ' ')} unit but '{canonical}' is a"
-            f" {expected.replace('_', ' ')}; fix the unit in the file or the alias table",
+            f"unit '{text}' is {_article(unit.dimension)} unit but '{canonical}' is"
+            f" {_article(expected)}; fix the unit in the file or the alias table",
             path=path,
             channel=label,
         )

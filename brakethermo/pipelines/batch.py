@@ -2,8 +2,9 @@
 
 The unit of work is one session (:func:`process_session`); the same function runs
 in-process, in local worker processes or on a Dask distributed cluster. Multi-spot
-(test) sessions are identified and estimated first, so single-spot (race) sessions can
-be estimated with the most recent h law identified in the same batch.
+(test) sessions are identified and estimated first; each single-spot (race) session is
+then estimated with a law chosen deliberately (:func:`choose_law`: same disc, then same
+track and vehicle, then the newest), never silently with another disc's law.
 
 Each session's outputs go to ``OUT/<name>/`` through :func:`atomic_dir`: a failure or
 an interruption leaves the previous outputs as they were. A manifest in that directory
@@ -34,16 +35,19 @@ from brakethermo import __version__
 from brakethermo.config import config_dir
 from brakethermo.errors import EXIT_BATCH_PARTIAL, EXIT_OK, BrakethermoError, ConfigError
 from brakethermo.io.atomic import atomic_dir, write_text_atomic
+from brakethermo.io.formats import SUFFIXES as FORMAT_SUFFIXES
 from brakethermo.io.session import Session
+from brakethermo.pipelines.outputs import write_json
+from brakethermo.pipelines.summary import flying_laps, round_temp
 from brakethermo.thermal.disc import DiscSpec
 
-SESSION_SUFFIXES = (".mcap", ".parquet", ".csv")
+SESSION_SUFFIXES = FORMAT_SUFFIXES  # every registered reader (brakethermo.io.formats)
 TRUTH_SUFFIX = ".truth.parquet"  # simulator truth: for scoring only, never an input
 MANIFEST = "batch_manifest.json"
 MULTI_SPOT = tuple(f"disc_temp_spot{i}" for i in range(1, 5))
 DEFAULT_LAW = "default (shipped)"
 # Top-level steps of a session's wall time (sub-steps such as estimate_filter_s nest in them).
-STEPS = ("read_s", "identify_s", "estimate_s", "write_s", "report_s", "mcap_s")
+STEPS = ("read_s", "identify_s", "estimate_s", "write_s", "report_s", "mcap_s", "mdf_s")
 SCHEDULER_TIMEOUT_S = 30.0  # connecting to a Dask scheduler
 WORKER_PRELOAD = ("brakethermo.pipelines.batch", "brakethermo.report.lap_report")
 
@@ -70,6 +74,8 @@ class BatchOptions:
         Write the per-lap reports.
     mcap_out : bool
         Write ``estimate.mcap`` beside the estimate.
+    mdf_out : bool
+        Write ``estimate.mf4`` (ASAM MDF4) beside the estimate.
     workers : int
         Local worker processes (1 runs in this process).
     scheduler : str or None
@@ -84,6 +90,7 @@ class BatchOptions:
     aliases: Path | None = None
     reports: bool = True
     mcap_out: bool = False
+    mdf_out: bool = False
     workers: int = 1
     scheduler: str | None = None
     force: bool = False
@@ -100,6 +107,7 @@ class BatchOptions:
             "aliases": aliases,
             "reports": self.reports,
             "mcap_out": self.mcap_out,
+            **({"mdf_out": True} if self.mdf_out else {}),  # old keys unchanged without it
             "configs": _configs_digest(),
         }
         return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
@@ -165,6 +173,8 @@ class SessionTask:
     h_law_source : str
         Where that law comes from, for the table (``given``, ``identified: <name>``,
         ``default (shipped)``).
+    h_law_reason : str
+        Why that law was chosen (printed and recorded).
     defer_single : bool
         Return a single-spot session unprocessed (status ``deferred``, loaded session
         attached) because its h law is not known yet.
@@ -180,6 +190,7 @@ class SessionTask:
     h_law_source: str = DEFAULT_LAW
     defer_single: bool = False
     session: Session | None = None
+    h_law_reason: str = ""
 
 
 @dataclass
@@ -204,8 +215,15 @@ class SessionOutcome:
         ``identified``.
     h_law_file : str or None
         Path of the law identified from this session (multi-spot).
+    h_law_used : str or None
+        Final path of the law the estimate used (None: the shipped default).
+    h_law_reason : str
+        Why that law was chosen.
     session_date : str
         The session's ``date`` fact, to find the most recent identified law.
+    facts : dict of str to str
+        ``disc`` (the datasheet id the session is processed with), ``track``,
+        ``vehicle``, ``date`` — what :func:`choose_law` matches on.
     timings : dict of str to float — s
         ``read_s``, ``identify_s``, ``estimate_s``, ``report_s``, ``mcap_s``...
     session : Session or None
@@ -222,7 +240,10 @@ class SessionOutcome:
     reason: str = ""
     h_law_source: str = ""
     h_law_file: str | None = None
+    h_law_used: str | None = None
+    h_law_reason: str = ""
     session_date: str = ""
+    facts: dict[str, str] = field(default_factory=dict)
     timings: dict[str, float] = field(default_factory=dict)
     session: Session | None = None
 
@@ -235,9 +256,12 @@ class SessionOutcome:
             "kind": self.kind,
             "laps": self.laps,
             "wall_s": round(self.wall_s, 3),
-            "peaks_c": {k: round(v, 1) for k, v in self.peaks.items()},
+            "peaks_c": {k: round_temp(v) for k, v in self.peaks.items()},
             "reason": self.reason,
             "h_law": self.h_law_source,
+            "h_law_file": self.h_law_used,
+            "h_law_reason": self.h_law_reason,
+            "facts": self.facts,
             "timings_s": {k: round(v, 3) for k, v in self.timings.items()},
         }
 
@@ -379,7 +403,44 @@ def _reason(exc: BaseException) -> str:
     return f"internal error {type(exc).__name__}: {exc}{at}"
 
 
-def process_session(task: SessionTask, runner: SessionRunner | None = None) -> SessionOutcome:
+@dataclass(frozen=True)
+class Phase:
+    """Progress inside one session, for the batch progress display.
+
+    Attributes
+    ----------
+    name : str
+        The session's output name.
+    phase : str
+        ``reading``, ``identifying h(V)``, ``estimating``, ``writing``, ``reports``, ``mcap``.
+    done, total : int
+        Laps done of the session's laps in this phase (0/0 when the phase has no laps).
+    """
+
+    name: str
+    phase: str
+    done: int = 0
+    total: int = 0
+
+
+Progress = Callable[[Phase], None]
+
+
+def session_facts(session: Session) -> dict[str, str]:
+    """What the h-law choice matches on: disc id as processed, track, vehicle, date."""
+    from brakethermo.pipelines.models import DEFAULT_DISC
+
+    meta = session.metadata
+    facts = {"disc": str(meta.get("disc") or DEFAULT_DISC)}
+    for key in ("track", "vehicle", "date"):
+        if meta.get(key):
+            facts[key] = str(meta[key])
+    return facts
+
+
+def process_session(
+    task: SessionTask, runner: SessionRunner | None = None, progress: Progress | None = None
+) -> SessionOutcome:
     """Process one session into ``options.out/<name>/``, never raising.
 
     Loads the session (unless the task carries it), identifies and estimates it
@@ -392,22 +453,34 @@ def process_session(task: SessionTask, runner: SessionRunner | None = None) -> S
     task : SessionTask
     runner : SessionRunner, optional
         The science; :class:`PipelineRunner` (the project's pipelines) by default.
+    progress : callable, optional
+        Called with a :class:`Phase` as the session moves through its steps.
     """
-    runner = runner or PipelineRunner()
+
+    def report(phase: str, done: int = 0, total: int = 0) -> None:
+        if progress is not None:
+            progress(Phase(task.name, phase, done, total))
+
+    if runner is None:
+        runner = PipelineRunner()
+        if hasattr(runner, "progress"):
+            runner.progress = report
     t0 = time.perf_counter()
     outcome = SessionOutcome(path=task.path, name=task.name, status="failed")
     try:
         session = task.session
         if session is None:
+            report("reading")
             session = runner.load(task.path, task.options)
         outcome.timings["read_s"] = time.perf_counter() - t0
         outcome.kind = "multi" if is_multi_spot(session) else "single"
-        outcome.session_date = str(session.metadata.get("date", ""))
+        outcome.facts = session_facts(session)
+        outcome.session_date = outcome.facts.get("date", "")
         if outcome.kind == "single" and task.defer_single:
             outcome.status, outcome.session = "deferred", session
             outcome.wall_s = time.perf_counter() - t0
             return outcome
-        _write_outputs(task, session, runner, outcome)
+        _write_outputs(task, session, runner, outcome, report)
         outcome.status = "ok"
     except Exception as exc:  # one bad file never stops the batch
         outcome.status, outcome.reason = "failed", _reason(exc)
@@ -415,8 +488,24 @@ def process_session(task: SessionTask, runner: SessionRunner | None = None) -> S
     return outcome
 
 
+def _finalise_summary(stage: Path, target: Path, choice: str) -> dict[str, Any] | None:
+    """Point ``summary.json`` at the final folder (not the stage) and record the law choice."""
+    path = stage / "summary.json"
+    if not path.is_file():
+        return None
+    summary = json.loads(path.read_text())
+    run = summary.setdefault("run", {})
+    law = run.get("h_law")
+    if isinstance(law, str) and law and Path(law).is_relative_to(stage):
+        run["h_law"] = str(target / Path(law).relative_to(stage))
+    run["h_law_choice"] = choice
+    write_json(path, summary)
+    return summary
+
+
 def _write_outputs(
-    task: SessionTask, session: Session, runner: SessionRunner, outcome: SessionOutcome
+    task: SessionTask, session: Session, runner: SessionRunner, outcome: SessionOutcome,
+    report: Callable[..., None],
 ) -> None:
     # Imported here: matplotlib loads only where sessions are processed (fast CLI start).
     from brakethermo.report.lap_report import write_session_report
@@ -425,15 +514,33 @@ def _write_outputs(
     target = task.options.out / task.name
     single = outcome.kind == "single"
     with atomic_dir(target) as stage:
+        report("identifying h(V)" if not single else "estimating")
         run = runner.run(session, stage, task.options, task.h_law if single else None)
         outcome.timings.update(run.timings)
+        if single:
+            outcome.h_law_source = task.h_law_source
+            outcome.h_law_reason = task.h_law_reason
+            outcome.h_law_used = str(task.h_law) if task.h_law is not None else None
+            law_sha = file_sha256(task.h_law) if task.h_law is not None else DEFAULT_LAW
+        else:
+            outcome.h_law_source = "identified"
+            outcome.h_law_reason = "identified from this session"
+            law_sha = file_sha256(run.h_law) if run.h_law is not None else None
+            if run.h_law is not None:
+                outcome.h_law_file = str(target / run.h_law.relative_to(stage))
+                outcome.h_law_used = outcome.h_law_file
+        summary = _finalise_summary(stage, target, outcome.h_law_reason)
+        laps = [int(v) for v in pd.unique(run.frame["lap"])]
         if task.options.reports:
             t = time.perf_counter()
             write_session_report(
-                run.frame, session, stage, node_radii=run.node_radii, disc=run.disc
-            )
+                run.frame, session, stage, node_radii=run.node_radii, disc=run.disc,
+                summary=summary, progress=lambda done, total: report("reports", done, total),
+                back_href="../index.html",
+            )  # fmt: skip
             outcome.timings["report_s"] = time.perf_counter() - t
         if task.options.mcap_out:
+            report("mcap")
             t = time.perf_counter()
             write_estimate_mcap(
                 run.frame,
@@ -444,16 +551,21 @@ def _write_outputs(
                 source=task.path.name,
             )
             outcome.timings["mcap_s"] = time.perf_counter() - t
-        outcome.laps = int(pd.unique(run.frame["lap"]).size)
+        if task.options.mdf_out:
+            from brakethermo.report.mdf_export import write_estimate_mdf
+
+            t = time.perf_counter()
+            write_estimate_mdf(
+                run.frame,
+                stage / "estimate.mf4",
+                node_radii=run.node_radii,
+                **({"spot_radii": run.disc.spot_radii} if run.disc is not None else {}),
+                start_epoch_s=session.start_epoch_s,
+                source=task.path.name,
+            )
+            outcome.timings["mdf_s"] = time.perf_counter() - t
+        outcome.laps = flying_laps(laps)
         outcome.peaks = _peaks(run.frame)
-        if single:
-            outcome.h_law_source = task.h_law_source
-            law_sha = file_sha256(task.h_law) if task.h_law is not None else DEFAULT_LAW
-        else:
-            outcome.h_law_source = "identified"
-            law_sha = file_sha256(run.h_law) if run.h_law is not None else None
-            if run.h_law is not None:
-                outcome.h_law_file = str(target / run.h_law.relative_to(stage))
         manifest = {
             "input": str(task.path),
             "input_sha256": task.input_sha256,
@@ -463,7 +575,10 @@ def _write_outputs(
             "h_law_sha256": law_sha,
             "h_law_source": outcome.h_law_source,
             "h_law_file": outcome.h_law_file,
+            "h_law_used": outcome.h_law_used,
+            "h_law_reason": outcome.h_law_reason,
             "session_date": outcome.session_date,
+            "facts": outcome.facts,
             "laps": outcome.laps,
             "peaks_c": outcome.peaks,
         }
@@ -471,7 +586,20 @@ def _write_outputs(
 
 
 class PipelineRunner:
-    """The project's pipelines: ``identify-h`` then ``estimate`` (multi-spot), ``estimate``."""
+    """The project's pipelines: ``identify-h`` then ``estimate`` (multi-spot), ``estimate``.
+
+    Parameters
+    ----------
+    progress : callable, optional
+        ``progress(phase, done, total)`` as the run moves from identification to estimation.
+    """
+
+    def __init__(self, progress: Callable[[str, int, int], None] | None = None):
+        self.progress = progress
+
+    def _phase(self, phase: str) -> None:
+        if self.progress is not None:
+            self.progress(phase, 0, 0)
 
     def load(self, path: Path, options: BatchOptions) -> Session:
         """Read ``path`` with the project's readers."""
@@ -507,12 +635,14 @@ class PipelineRunner:
             timings["write_s"] = time.perf_counter() - t
             law_out = stage / "h_law.toml"
             h_law = law_out
+            self._phase("estimating")
         t = time.perf_counter()
         estimate_options = EstimateOptions(
             h_law=h_law, nodes=options.nodes, aliases=options.aliases
         )
         result = estimate_from_session(session, estimate_options)
         timings["estimate_s"] = time.perf_counter() - t
+        self._phase("writing")
         for step in ("filter_s", "smoother_s", "scoring_s"):
             if step in result.timings:
                 timings[f"estimate_{step}"] = result.timings[step]
@@ -539,7 +669,7 @@ def _flatten(written: Path, stage: Path) -> None:
 # ----------------------------------------------------------------------------- orchestration
 
 Job = Callable[[SessionTask], SessionOutcome]
-Event = Callable[[str, SessionOutcome | int], None]
+Event = Callable[[str, Any], None]
 
 
 @contextmanager
@@ -583,7 +713,11 @@ def _run_tasks(
 
     if executor is None:
         for task in tasks:
-            finished(job(task))
+            if job is process_session and on_event is not None:
+                # In this process the session can tell where it is; a worker cannot.
+                finished(process_session(task, progress=lambda p: on_event("phase", p)))
+            else:
+                finished(job(task))
         return outcomes
     futures: dict[Future, SessionTask] = {executor.submit(job, t): t for t in tasks}
     for fut in as_completed(futures):
@@ -602,6 +736,8 @@ def _up_to_date(manifest: dict[str, Any] | None, sha: str, key: str) -> bool:
         and manifest.get("input_sha256") == sha
         and manifest.get("options_key") == key
         and manifest.get("version") == __version__
+        # Written before the law choice recorded session facts: redo it once.
+        and isinstance(manifest.get("facts"), dict)
     )
 
 
@@ -617,25 +753,90 @@ def _skipped(path: Path, name: str, manifest: dict[str, Any], out: Path) -> Sess
         reason="up to date",
         h_law_source=str(manifest.get("h_law_source", "")),
         h_law_file=str(law_file) if law_file is not None and law_file.is_file() else None,
+        h_law_used=manifest.get("h_law_used"),
+        h_law_reason=str(manifest.get("h_law_reason", "")),
         session_date=str(manifest.get("session_date", "")),
+        facts={str(k): str(v) for k, v in dict(manifest.get("facts") or {}).items()},
     )
 
 
-def _latest_law(outcomes: Iterable[SessionOutcome]) -> tuple[Path | None, str]:
-    """The law of the most recent multi-spot session (session date, then file time)."""
-    laws = [o for o in outcomes if o.kind == "multi" and o.h_law_file and o.status != "failed"]
-    if not laws:
-        return None, DEFAULT_LAW
+@dataclass(frozen=True)
+class LawChoice:
+    """The h law a single-spot session is estimated with, and why.
 
-    def recency(o: SessionOutcome) -> tuple[str, float]:
+    Attributes
+    ----------
+    path : Path or None
+        The law file; None is the law shipped for the session's disc.
+    source : str
+        Short tag for tables: ``given``, ``identified: <session>``, ``default (shipped)``.
+    reason : str
+        One sentence for the console, the batch JSON, the manifest and summary.json.
+    """
+
+    path: Path | None
+    source: str
+    reason: str
+
+
+def choose_law(facts: dict[str, str], outcomes: Iterable[SessionOutcome]) -> LawChoice:
+    """Choose the identified law for a single-spot session with ``facts``.
+
+    Only laws identified for the same disc qualify (a law of another disc is never
+    used); among them the one from the same track and vehicle wins, then the newest
+    (session date, then file time). Without a qualifying law, the law shipped for the
+    disc — and the reason says which other laws were passed over.
+    """
+    laws = [o for o in outcomes if o.kind == "multi" and o.h_law_file and o.status != "failed"]
+    disc = facts.get("disc", "")
+    same_disc = [o for o in laws if o.facts.get("disc") == disc]
+    if not same_disc:
+        others = sorted(f"{o.name} ({o.facts.get('disc', '?')})" for o in laws)
+        passed = f"; laws of other discs not used: {', '.join(others)}" if others else ""
+        return LawChoice(
+            None, DEFAULT_LAW,
+            f"no law identified in this batch for disc {disc}: shipped default{passed}",
+        )  # fmt: skip
+
+    def matches(o: SessionOutcome, key: str) -> bool:
+        return bool(facts.get(key)) and o.facts.get(key) == facts.get(key)
+
+    def rank(o: SessionOutcome) -> tuple[bool, bool, str, float]:
         try:
             mtime = o.path.stat().st_mtime
         except OSError:
             mtime = 0.0
-        return o.session_date, mtime
+        return matches(o, "track"), matches(o, "vehicle"), o.session_date, mtime
 
-    best = max(laws, key=recency)
-    return Path(str(best.h_law_file)), f"identified: {best.name}"
+    best = max(same_disc, key=rank)
+    why = [f"same disc {disc}"]
+    why += [f"same {k} {facts[k]}" for k in ("track", "vehicle") if matches(best, k)]
+    if len(same_disc) > 1:
+        why.append(f"newest of {len(same_disc)} for this disc")
+    return LawChoice(
+        Path(str(best.h_law_file)), f"identified: {best.name}",
+        f"identified from {best.name} ({', '.join(why)})",
+    )  # fmt: skip
+
+
+def preflight(options: BatchOptions) -> None:
+    """The user's errors, before any session is touched (exit 1, not a batch of failures).
+
+    Raises
+    ------
+    ConfigError
+        An output place that cannot be written, a broken ``--h-law`` or ``--aliases``.
+    """
+    from brakethermo.io.aliases import load_aliases
+    from brakethermo.pipelines.models import read_calibration
+    from brakethermo.pipelines.output_dir import check_output_dir
+    from brakethermo.pipelines.tuning import check_overrides
+
+    check_output_dir(options.out)
+    check_overrides({"nodes": options.nodes}, "--nodes:")
+    load_aliases(options.aliases)
+    if options.h_law is not None:
+        read_calibration(options.h_law)
 
 
 def run_batch(
@@ -667,9 +868,8 @@ def run_batch(
     t0 = time.perf_counter()
     folder = Path(folder)
     out = Path(options.out)
-    if options.h_law is not None and not Path(options.h_law).is_file():
-        raise ConfigError("h law file not found; check --h-law", path=options.h_law)
     files = discover_sessions(folder, exclude=[out])
+    preflight(options)
     names = output_names(files, folder)
     if on_event is not None:
         on_event("start", len(files))
@@ -706,6 +906,7 @@ def run_batch(
                 input_sha256=sha,
                 h_law=options.h_law,
                 h_law_source="given" if options.h_law is not None else DEFAULT_LAW,
+                h_law_reason="given with --h-law" if options.h_law is not None else "",
                 defer_single=options.h_law is None,
             )
         )
@@ -718,23 +919,28 @@ def run_batch(
     with _executor(options) as executor:
         for o in _run_tasks(first, executor, job, on_event):
             done[o.path] = o
-        law, law_source = _latest_law(done.values())
-        law_sha = file_sha256(law) if law is not None else DEFAULT_LAW
+        identified = [o for o in done.values() if o.kind == "multi"]
         second: list[SessionTask] = []
         for path, name, sha, manifest in known_single:
+            facts = {str(k): str(v) for k, v in dict(manifest["facts"]).items()}
+            choice = choose_law(facts, identified)
+            law_sha = file_sha256(choice.path) if choice.path is not None else DEFAULT_LAW
             if manifest.get("h_law_sha256") == law_sha:
                 done[path] = _skipped(path, name, manifest, out)
                 if on_event is not None:
                     on_event("done", done[path])
                 continue
-            second.append(SessionTask(path, name, options, sha, law, law_source))
+            second.append(SessionTask(path, name, options, sha, choice.path, choice.source,
+                                      h_law_reason=choice.reason))
         for o in [o for o in done.values() if o.status == "deferred"]:
             task = next(t for t in first if t.path == o.path)
+            choice = choose_law(o.facts, identified)
             second.append(
                 replace(
-                    task, h_law=law, h_law_source=law_source, defer_single=False, session=o.session
+                    task, h_law=choice.path, h_law_source=choice.source,
+                    h_law_reason=choice.reason, defer_single=False, session=o.session,
                 )
-            )
+            )  # fmt: skip
         for o in _run_tasks(second, executor, job, on_event):
             first_pass = done.get(o.path)
             if first_pass is not None and first_pass.status == "deferred":

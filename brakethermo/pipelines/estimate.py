@@ -17,20 +17,36 @@ import numpy as np
 import pandas as pd
 
 from brakethermo import __version__
-from brakethermo.errors import DataError
-from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
+from brakethermo.errors import ConfigError, DataError
+from brakethermo.estimation import UnscentedKalmanFilter
+from brakethermo.estimation.urts import urts_smooth_windowed
 from brakethermo.io.session import Session
+from brakethermo.models.disc import (
+    H_FACTOR_PARAM,
+    KZ_PARAM,
+    SCALE_PARAM,
+    DiscEffects,
+    DiscStateSpace,
+    RandomWalkParam,
+)
+from brakethermo.models.effects import true_from_reading
 from brakethermo.pipelines import scoring
-from brakethermo.pipelines.disc_ssm import SCALE_PARAM, DiscStateSpace, RandomWalkParam
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.summary import lap_summaries
-from brakethermo.pipelines.tuning import EstimateTuning, load_tuning, user_tuning_keys
+from brakethermo.pipelines.tuning import (
+    EstimateTuning,
+    check_overrides,
+    load_tuning,
+    user_tuning_keys,
+)
+from brakethermo.report.braking_zones import detect_zones
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
 
 SENSOR_FLOOR_C = 100.0  # IR pyrometers read nothing useful below this (datasheet floor)
+SIGMA_MEAS_FLOOR_C = 0.5  # degC: never trust a reading beyond its quantisation
 
 
 @dataclass(frozen=True)
@@ -51,10 +67,15 @@ class EstimateOptions:
     smoother, adapt_power : bool, optional
     sigma_crown : float, optional
         Crown-split process noise (identify-h's validation sets it per variant).
+    adapt_kz, adapt_slipstream : bool, optional
+        Online k_z factor and slipstream h factor (diagnose compares with and without).
     aliases : path, optional
     ambient_c : float, optional — degC
     score : bool
         Score against the unmeasured spots when the session has them.
+    workers : int
+        Threads re-running smoother windows in parallel (a fine mesh's smoother runs in
+        windows to bound its memory; see ``estimation.urts``).
     """
 
     spot: int = 3
@@ -66,9 +87,20 @@ class EstimateOptions:
     smoother: bool | None = None
     adapt_power: bool | None = None
     sigma_crown: float | None = None
+    adapt_kz: bool | None = None
+    adapt_slipstream: bool | None = None
     aliases: str | Path | None = None
     ambient_c: float | None = None
     score: bool = True
+    workers: int = 1
+
+    def __post_init__(self) -> None:
+        check_overrides(self.overrides())
+        if self.ambient_c is not None and not -60.0 <= self.ambient_c <= 80.0:
+            raise ConfigError(
+                f"ambient temperature {self.ambient_c} degC must be a finite value between"
+                " -60 and 80 degC"
+            )
 
     def overrides(self) -> dict[str, Any]:
         """The tuning values this run sets explicitly."""
@@ -80,6 +112,8 @@ class EstimateOptions:
                 ("smoother", self.smoother),
                 ("adapt_power", self.adapt_power),
                 ("sigma_crown", self.sigma_crown),
+                ("adapt_kz", self.adapt_kz),
+                ("adapt_slipstream", self.adapt_slipstream),
             )
             if v is not None
         }
@@ -104,6 +138,9 @@ class EstimateResult:
     disc : DiscSpec
         The datasheet the estimate was computed with.
     timings : dict of str to float — s
+    innovation, innovation_var : ndarray (K,) or None — degC, degC²
+        The filter's one-step-ahead innovation of the measured spot and its variance
+        (NaN where nothing was measured): what diagnose reads on a single-spot session.
     """
 
     session: Session
@@ -114,6 +151,8 @@ class EstimateResult:
     open_loop: np.ndarray | None
     disc: DiscSpec
     timings: dict[str, float] = field(default_factory=dict)
+    innovation: np.ndarray | None = None
+    innovation_var: np.ndarray | None = None
 
     @property
     def stem(self) -> str:
@@ -143,7 +182,7 @@ def _initial_temperature(y: np.ndarray, t_amb: np.ndarray) -> float:
     """First temperature: the first valid reading if it comes in the first 5 s, else ambient."""
     first = np.flatnonzero(np.isfinite(y))
     if first.size and first[0] < 50:
-        return float(y[first[0]])
+        return max(float(y[first[0]]), float(t_amb[0]))  # never colder than the air
     return float(t_amb[0])
 
 
@@ -156,7 +195,8 @@ def calibrated_tuning(cal: DiscCalibration, options: EstimateOptions) -> Estimat
     """
     tuning, _ = load_tuning(options.tuning)
     user = user_tuning_keys(options.tuning, "estimate")
-    calibrated: dict[str, Any] = {"sigma_crown": cal.sigma_crown, "adapt_power": cal.adapt_power}
+    calibrated: dict[str, Any] = {"sigma_crown": cal.sigma_crown, "adapt_power": cal.adapt_power,
+                                  "sigma_temp": cal.sigma_temp}
     if cal.layers is not None and "layers" not in user:
         calibrated["layers"] = cal.layers
         calibrated["layer_growth"] = cal.layer_growth
@@ -174,11 +214,78 @@ def disc_model(
                        layer_growth=tuning.layer_growth)
 
 
+@dataclass(frozen=True)
+class EffectPlan:
+    """How the fitted effects of an h law enter the race filter.
+
+    Attributes
+    ----------
+    fixed : DiscEffects
+        μ(T) and sensor lag at their test-session values.
+    online : tuple of RandomWalkParam
+        Effects one spot can follow: the slipstream h factor (off the brakes) and the
+        through-thickness conductivity factor.
+    emissivity_ratio : float or None
+        ε_disc/ε_set of the pyrometer: readings are converted back to face
+        temperatures before filtering.
+    facts : dict
+        What was done with each effect, for the run facts.
+    """
+
+    fixed: DiscEffects
+    online: tuple[RandomWalkParam, ...]
+    emissivity_ratio: float | None
+    facts: dict[str, dict[str, Any]]
+
+
+def effect_plan(effects: dict[str, dict[str, Any]], tuning: EstimateTuning) -> EffectPlan:
+    """Turn ``[effects.<name>]`` tables and the tuning into fixed and online effects.
+
+    The k_z factor and the slipstream h factor are online whenever the tuning says so
+    (the default): they are what one spot can follow on a disc the test session never
+    saw; an h law that carries the effect switches them on regardless.
+    """
+    facts: dict[str, dict[str, Any]] = {}
+    fixed = DiscEffects()
+    online: list[RandomWalkParam] = []
+    ratio = None
+    tables = dict(effects)
+    if tuning.adapt_kz:
+        tables.setdefault("thickness_gradient", {})
+    if tuning.adapt_slipstream:
+        tables.setdefault("slipstream", {})
+    for name, values in tables.items():
+        use = "fixed at the test-session value"
+        if name == "friction_temperature":
+            fixed = replace(fixed, mu_beta=values.get("beta", 0.0),
+                            mu_t_mid_c=values.get("t_mid", 400.0))
+        elif name == "sensor_lag":
+            fixed = replace(fixed, sensor_tau_s=values.get("tau_s", 0.0))
+        elif name == "emissivity_error":
+            ratio = values.get("ratio", 1.0)
+            use = ("readings corrected with the test-session value; a single pyrometer cannot"
+                   " tell its own bias from the disc, so this correction is all there is")
+        elif name == "slipstream":
+            online.append(RandomWalkParam(H_FACTOR_PARAM, 1.0, tuning.init_sigma_h_factor,
+                                          tuning.sigma_h_factor_step, lower=0.3,
+                                          off_brake_only=True))
+            use = "adapted online: an h factor that moves off the brakes"
+        elif name == "thickness_gradient":
+            online.append(RandomWalkParam(KZ_PARAM, 1.0, tuning.init_sigma_kz,
+                                          tuning.sigma_kz_step, lower=0.05))
+            use = ("test-session value, adapted online (a race disc's k_z differs from batch"
+                   " to batch)")
+        elif name in ("h_speed_knee", "power_distribution"):
+            use = "in the h law and crown weights of the file"
+        facts[name] = {"values": values, "use": use}
+    return EffectPlan(fixed, tuple(online), ratio, facts)
+
+
 def build_state_space(
     model: DiscFEModel, inputs: DiscInputs, h: np.ndarray, tuning: EstimateTuning,
-    power_scale: float = 1.0,
+    power_scale: float = 1.0, plan: EffectPlan | None = None, spot_radius: float | None = None,
 ) -> DiscStateSpace:
-    """The estimate filter's state space: nodes (+ braking-power scale)."""
+    """The estimate filter's state space: nodes (+ braking-power scale, + effects)."""
     params = []
     if tuning.adapt_power:
         scale = RandomWalkParam(
@@ -186,9 +293,12 @@ def build_state_space(
             lower=0.05,
         )
         params.append(scale)
+    plan = plan or effect_plan({}, tuning)
+    params.extend(plan.online)
     return DiscStateSpace(
         model, inputs.q_brk, inputs.t_amb, h, params,
         sigma_temp=tuning.sigma_temp, sigma_crown=tuning.sigma_crown,
+        effects=plan.fixed, spot_radius=spot_radius,
     )  # fmt: skip
 
 
@@ -214,9 +324,19 @@ def estimate_from_session(
         )
     h = cal.law(inputs.speed)
     model = disc_model(disc, tuning, cal.weights, cal.kz_ratio)
-    ssm = build_state_space(model, inputs, h, tuning, cal.power_scale)
-
     spot_radii = np.asarray(disc.spot_radii)
+    plan = effect_plan(cal.effects, tuning)
+    if plan.emissivity_ratio is not None:
+        y = true_from_reading(y, plan.emissivity_ratio)
+    sigma_meas_source = "tuning file"
+    if "sigma_meas" not in user_tuning_keys(options.tuning, "estimate"):
+        # The reading noise of this very sensor, from the signal itself: a fixed guess
+        # either starves the filter of the measurement or trusts it too much.
+        tuning = replace(tuning, sigma_meas=max(scoring.reading_noise(y), SIGMA_MEAS_FLOOR_C))
+        sigma_meas_source = "measured from the signal (second differences)"
+    ssm = build_state_space(model, inputs, h, tuning, cal.power_scale, plan,
+                            float(spot_radii[options.spot - 1]))
+
     H_spots = ssm.H(spot_radii)
     readout = np.vstack([H_spots, H_spots[1:4].mean(axis=0, keepdims=True)])
     if tuning.adapt_power:
@@ -224,24 +344,29 @@ def estimate_from_session(
     x0, P0 = ssm.prior(model.initial_state(_initial_temperature(y, inputs.t_amb)),
                        tuning.init_sigma_temp)
     ukf = UnscentedKalmanFilter(
-        ssm.f, ssm.Q, np.array([[tuning.sigma_meas**2]]), H=ssm.H([spot_radii[options.spot - 1]]),
+        ssm.f, ssm.Q, np.array([[tuning.sigma_meas**2]]),
+        H=ssm.H_measured(float(spot_radii[options.spot - 1])),
         alpha=tuning.alpha, beta=tuning.beta, kappa=tuning.kappa,
     )  # fmt: skip
     t_filter = time.perf_counter()
-    forward = ukf.run(
-        x0, P0, y[:, None], store="smoother" if tuning.smoother else "diag", readout=readout
-    )
-    t_smooth = time.perf_counter()
+    windows = 1
     if tuning.smoother:
-        smoothed = urts_smooth(forward, store="diag", readout=readout)
+        # windows bound the gains' memory whatever the mesh and session length; the
+        # answer is the whole-session smoother's (estimation.urts)
+        run = urts_smooth_windowed(ukf, x0, P0, y[:, None], readout=readout,
+                                   workers=options.workers)
+        forward, smoothed, windows = run.forward, run.smoothed, len(run.windows)
         states, out, out_var = smoothed.x_smooth, smoothed.readout, smoothed.readout_var
+        t_smooth = t_filter + run.forward_s
     else:
+        forward = ukf.run(x0, P0, y[:, None], store="diag", readout=readout)
         states, out, out_var = forward.x_filt, forward.readout, forward.readout_var
+        t_smooth = time.perf_counter()
     t_done = time.perf_counter()
 
     std = np.sqrt(np.maximum(out_var, 0.0))
-    std[:, :5] *= cal.band_scale  # temperatures only, not the power scale
-    frame = _estimate_frame(inputs, model, states, out, std, tuning, h)
+    online = {p.name: ssm.index[p.name] for p in plan.online}
+    frame = _estimate_frame(inputs, model, states, out, std, tuning, h, online)
     open_loop = None
     scores = None
     if options.score and len(inputs.measured) > 1:
@@ -249,7 +374,9 @@ def estimate_from_session(
                                scale=cal.power_scale)
         open_loop = T_ol @ model.spot_matrix(spot_radii).T
         scores = score_estimate(frame, forward.readout[:, :4], open_loop, inputs, options.spot,
-                                tuning.smoother)
+                                tuning.smoother,
+                                zones=detect_zones(inputs.time,
+                                                   session.values("brake_pressure_front")))
     t_end = time.perf_counter()
     timings = {
         "setup_s": t_filter - t_start,
@@ -261,7 +388,7 @@ def estimate_from_session(
     summary = {
         "session": str(session.path),
         "metadata": session.metadata,
-        "laps": lap_summaries(frame, session.laps, disc.window_c),
+        "laps": lap_summaries(frame, session.laps, disc.window_c, model.radii),
         "run": {
             "brakethermo": __version__,
             "disc": disc.id,
@@ -271,14 +398,20 @@ def estimate_from_session(
             "layers": tuning.layers,
             "layer_growth": tuning.layer_growth,
             "sigma_crown": tuning.sigma_crown,
+            "sigma_temp": tuning.sigma_temp,
             "kz_ratio": cal.kz_ratio,
             "power_scale_prior": cal.power_scale,
-            "band_scale": cal.band_scale,
+            "band_scale_check": cal.band_scale,
+            "sigma_meas_c": tuning.sigma_meas,
+            "sigma_meas_source": sigma_meas_source,
             "crown_weights": [float(w) for w in model.weights],
             "filter": "UKF (Merwe scaled sigma points)",
             "smoother": tuning.smoother,
+            "smoother_windows": windows,
+            "workers": options.workers,
             "adapt_power": tuning.adapt_power,
             "measured_spot": options.spot,
+            "effects": plan.facts,
             "steps": len(frame),
             "covariance_repairs": forward.n_repairs,
             "log_likelihood": forward.log_likelihood,
@@ -290,7 +423,7 @@ def estimate_from_session(
         "scores": scores,
     }
     return EstimateResult(session, frame, model.radii.copy(), summary, scores, open_loop, disc,
-                          timings)
+                          timings, forward.innovation[:, 0], forward.innovation_var[:, 0])
 
 
 def _estimate_frame(
@@ -301,22 +434,31 @@ def _estimate_frame(
     std: np.ndarray,
     tuning: EstimateTuning,
     h: np.ndarray,
+    online: dict[str, int],
 ) -> pd.DataFrame:
     cols: dict[str, np.ndarray] = {"time": inputs.time, "lap": inputs.lap.astype(np.int64)}
+    # A disc is never colder than the air around it: project the estimate onto T >= T_amb
+    # (estimate projection of a constrained Kalman filter, Simon & Chia 2002). Without it
+    # the smoother, with no reading below the pyrometer floor, can start the disc colder.
+    floor = inputs.t_amb
+    out = out.copy()
+    out[:, :5] = np.fmax(out[:, :5], floor[:, None])
     for i in range(4):
         cols[f"spot{i + 1}"] = out[:, i]
         cols[f"spot{i + 1}_std"] = std[:, i]
     cols["contact_avg"] = out[:, 4]
     cols["contact_avg_std"] = std[:, 4]
     for k, j in enumerate(model.face_index):
-        cols[f"node_{k}"] = states[:, j]
+        cols[f"node_{k}"] = np.fmax(states[:, j], floor)
     if model.layers > 1:
         mid = model.face_index + model.layers - 1
         for k, j in enumerate(mid):
-            cols[f"mid_{k}"] = states[:, j]
+            cols[f"mid_{k}"] = np.fmax(states[:, j], floor)
     if tuning.adapt_power:
         cols["power_scale"] = out[:, 5]
         cols["power_scale_std"] = std[:, 5]
+    for name, j in online.items():  # online effect factors, e.g. kz_factor, h_factor
+        cols[name] = states[:, j]
     cols["braking_power"] = inputs.q_brk
     cols["h"] = h
     return pd.DataFrame(cols)
@@ -329,6 +471,7 @@ def score_estimate(
     inputs: DiscInputs,
     spot: int,
     smoothed: bool,
+    zones: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The paper's Tables 3 and 4 on a multi-spot session, plus peaks and coverage.
 
@@ -357,7 +500,7 @@ def score_estimate(
             r.method: scoring.ratio(r.contact_rmse, base.contact_rmse) for r in rows[:-1]
         },
         "peak": {
-            f"spot{i}": scoring.peak_errors(smooth[:, i - 1], ref[:, i - 1], braking)
+            f"spot{i}": scoring.peak_errors(smooth[:, i - 1], ref[:, i - 1], braking, zones=zones)
             for i in range(1, 5)
         },
         "coverage95": {
@@ -390,9 +533,14 @@ def estimate_session(path: str | Path, options: EstimateOptions | None = None) -
     return result
 
 
-def write_estimate(result: EstimateResult, out_dir: str | Path) -> Path:
-    """Write ``<out_dir>/<stem>/estimate.parquet`` and ``summary.json``; return the folder."""
-    folder = Path(out_dir) / result.stem
+def write_estimate(
+    result: EstimateResult, out_dir: str | Path, *, folder: str | Path | None = None
+) -> Path:
+    """Write ``<out_dir>/<stem>/estimate.parquet`` and ``summary.json``; return the folder.
+
+    ``folder`` writes there instead (a staging folder that replaces ``<out_dir>/<stem>``).
+    """
+    folder = Path(folder) if folder is not None else Path(out_dir) / result.stem
     field_meta: dict[str, dict[str, str]] = {"time": {"unit": "s"}}
     for col in result.frame.columns:
         if col.startswith(("spot", "contact_avg", "node_", "mid_")):

@@ -26,8 +26,9 @@ from brakethermo import __version__
 from brakethermo.errors import DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.session import GRID_DT, Session
+from brakethermo.models.disc import H_PARAM, DiscStateSpace, RandomWalkParam
+from brakethermo.models.effects import parse_effects
 from brakethermo.pipelines import scoring
-from brakethermo.pipelines.disc_ssm import H_PARAM, DiscStateSpace, RandomWalkParam
 from brakethermo.pipelines.estimate import (
     SENSOR_FLOOR_C,
     EstimateOptions,
@@ -58,6 +59,7 @@ class IdentifyOptions:
     aliases: str | Path | None = None
     ambient_c: float | None = None
     fit_structure: bool = True
+    with_effects: str | None = None
 
 
 @dataclass(frozen=True)
@@ -81,6 +83,7 @@ class StructureFit:
     layers: int
     rmse_c: dict[str, float]
     rmse_uniform_c: dict[str, float]
+    effects: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
 @dataclass
@@ -252,17 +255,89 @@ def fit_structure(
     )
 
 
-SIGMA_CROWN_GRID = (0.05, 0.1, 0.2, 0.4)  # relative crown-share noise tried by validation
+def _law_with_knee(a: float, b: float, gain: float, v_ref: float, knee: float) -> HLaw:
+    """The power-cubic law closest to ``a x^b (1 + g u²)`` above the knee (u as in
+    :func:`effects.knee_factor`), continuous at the knee, fitted on ``x`` up to 1.15."""
+    x = np.linspace(knee, 1.15, 60)
+    u_k = (x - knee) / (1.0 - knee)
+    target = a * x**b * (1.0 + gain * u_k**2)
+    u = x - knee
+    c0 = a * knee**b
+    c, *_ = np.linalg.lstsq(np.column_stack([u, u**2, u**3]), target - c0, rcond=None)
+    return HLaw(v_ref=v_ref, a=a, b=b, c=(float(c[0]), float(c[1]), float(c[2])), knee=knee)
+
+
+def fit_with_effects(
+    session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec, law0: HLaw,
+    est: EstimateTuning, effects: tuple[str, ...], max_nfev: int = 30,
+) -> tuple[HLaw, StructureFit]:
+    """The structure fit of :func:`fit_structure` with registered effects fitted jointly.
+
+    One parameter vector of :class:`~brakethermo.models.disc_effects.ExtendedDisc` on
+    the estimation model (its through-thickness factor is the k_z ratio): h(V) with the
+    knee gain when the session runs long enough above the knee, the mean crown weights,
+    the power scale, the k_z ratio and the named effects, by output error over all four
+    spots — so that an unmodelled μ(T), lag or slipstream is not folded into h(V).
+    """
+    from brakethermo.models.disc_effects import ExtendedDisc
+    from brakethermo.pipelines.diagnose import _fit, build_segments, lap_distance
+    from brakethermo.report.braking_zones import detect_zones
+
+    spot_radii = np.asarray(disc.spot_radii)
+    model = disc_model(disc, est)
+    T0 = np.repeat(_initial_profile(model.radii, spot_radii, y, float(inputs.t_amb[0])),
+                   est.layers)
+    pressure = np.nan_to_num(session.values("brake_pressure_front"), nan=0.0)
+    segments = build_segments(inputs, detect_zones(inputs.time, pressure),
+                              lap_distance(inputs, session))
+    v = inputs.speed[:-1]
+    upper = np.count_nonzero(v >= law0.knee * law0.v_ref) * GRID_DT >= MIN_ABOVE_KNEE_S
+    names = tuple(dict.fromkeys(("thickness_gradient", *(("h_speed_knee",) if upper else ()),
+                                 *effects)))
+    ext = ExtendedDisc(model, inputs.speed, inputs.q_brk, inputs.t_amb, T0, spot_radii,
+                       disc.v_ref, names, segments)
+    p0 = ext.neutral()
+    p0[0], p0[1] = np.log(max(law0.a, 1.0)), law0.b
+    p = _fit(ext, p0, y, np.isfinite(y), np.ones(ext.size, bool), max_nfev)
+    gain = ext.values(p, "h_speed_knee").get("gain", 0.0) if upper else 0.0
+    assert isinstance(gain, float)
+    law = _law_with_knee(float(np.exp(p[0])), float(p[1]), gain, disc.v_ref, law0.knee)
+    kz = ext.values(p, "thickness_gradient")["kz_factor"]
+    assert isinstance(kz, float)
+    fitted = {name: ext.values(p, name) for name in effects}
+    return law, StructureFit(
+        weights=ext.weights(p),
+        kz_ratio=kz,
+        power_scale=float(np.exp(p[2])),
+        nodes=est.nodes,
+        layers=est.layers,
+        rmse_c=_spot_rmse(ext.predict(p)[0], y),
+        rmse_uniform_c=_spot_rmse(ext.predict(p0)[0], y),
+        effects=fitted,
+    )
+
+
+def auto_effects(session: Session, options: IdentifyOptions) -> tuple[str, ...]:
+    """The effects the diagnosis's forward selection keeps on this session."""
+    from brakethermo.pipelines.diagnose import DiagnoseOptions, diagnose_session
+
+    result = diagnose_session(session, DiagnoseOptions(
+        disc=options.disc, tuning=options.tuning, aliases=options.aliases,
+        ambient_c=options.ambient_c))
+    return tuple(result.summary["combined"]["effects"])
+
+
+SIGMA_CROWN_GRID = (0.1, 0.2, 0.4)  # relative crown-share noise tried by validation
+NODE_NOISE_FACTORS = (1.0, 3.0)  # white node noise tried, times the tuning's sigma_temp
 
 
 def _held_out(
     session: Session, calibration: DiscCalibration, options: IdentifyOptions, spot: int,
-) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Run the race estimator with only ``spot`` measured; errors and sigmas elsewhere.
 
     Returns the errors and 1-sigmas of the other spots' estimates against their
-    readings (pooled), the contact-band RMSE against the measured average and the
-    reading noise (degC) of each pooled point.
+    readings (pooled) and the reading noise (degC) of each pooled point.
     """
     est = estimate_from_session(
         session,
@@ -283,9 +358,7 @@ def _held_out(
         err.append(est.frame[f"spot{i}"].to_numpy()[ok] - ref[ok])
         std.append(est.frame[f"spot{i}_std"].to_numpy()[ok])
         noise.append(np.full(int(ok.sum()), scoring.reading_noise(ref)))
-    contact = est.frame["contact_avg"].to_numpy() - readings[:, 1:4].mean(axis=1)
-    return (np.concatenate(err), np.concatenate(std), float(np.sqrt(np.nanmean(contact**2))),
-            np.concatenate(noise))
+    return np.concatenate(err), np.concatenate(std), np.concatenate(noise)
 
 
 def validate_filter(
@@ -294,36 +367,45 @@ def validate_filter(
 ) -> tuple[float, bool, float, dict[str, float]]:
     """Crown-split noise, power adaptation and band scale chosen on unmeasured spots.
 
-    For each crown-noise level of :data:`SIGMA_CROWN_GRID`, with and without the
-    braking-power scale as a state, the race estimator runs with only ``spot``
-    measured; the variant with the smallest error at the other spots (their RMSE plus
-    the contact-band RMSE) wins. Then, by bisection, the factor ``a`` on the
-    filter's 1-sigma for which a fraction ``level`` of those readings lie within
-    ``z · sqrt(a² sigma² + sigma_n²)``, with ``sigma_n`` each reading's own noise
-    (:func:`scoring.reading_noise`): the filter's own sigma only knows the noise it
-    was told about, not the structural error of a 1D model (the per-braking power split,
-    the skin the layers do not resolve).
+    For each crown-noise level of :data:`SIGMA_CROWN_GRID` and white node noise of
+    :data:`NODE_NOISE_FACTORS`, with and without the braking-power scale as a state,
+    the race estimator runs with only ``spot``
+    measured; the variant under which the other spots' readings are most probable
+    (held-out predictive log-likelihood, each reading with its own noise) wins: the
+    process noise is identified from data the filter did not see. Then, as a check,
+    by bisection, the factor ``a`` on the filter's 1-sigma for which a fraction
+    ``level`` of those readings lie within ``z · sqrt(a² sigma² + sigma_n²)``, with
+    ``sigma_n`` each reading's own noise (:func:`scoring.reading_noise`). It is
+    reported, not applied: near 1 the filter's own bands are honest.
 
     Returns
     -------
     sigma_crown : float
+    sigma_temp : float — degC per step
     adapt_power : bool
     band_scale : float
-    scores : dict of str to float — the validation error (degC) of every variant tried
+    scores : dict of str to float — held-out log-likelihood per reading of every variant
     """
     from scipy.stats import norm
 
     scores = {}
     runs = {}
-    for sigma in SIGMA_CROWN_GRID:
-        for adapt in (True, False):
-            variant = replace(calibration, sigma_crown=sigma, adapt_power=adapt)
-            e, s, contact, noise = _held_out(session, variant, options, spot)
-            key = f"sigma_crown={sigma:g}, adapt_power={str(adapt).lower()}"
-            scores[key] = float(np.sqrt(np.mean(e**2)) + contact)
-            runs[key] = (sigma, adapt, e, s, noise)
-    best = min(scores, key=scores.__getitem__)
-    sigma_best, adapt_best, e, s, noise = runs[best]
+    sigma_temp0 = load_tuning(options.tuning)[0].sigma_temp
+    grid = [(sigma, factor * sigma_temp0, adapt) for sigma in SIGMA_CROWN_GRID
+            for factor in NODE_NOISE_FACTORS for adapt in (True, False)]
+    for sigma, sigma_temp, adapt in grid:
+        variant = replace(calibration, sigma_crown=sigma, adapt_power=adapt,
+                          sigma_temp=sigma_temp)
+        e, s, noise = _held_out(session, variant, options, spot)
+        key = (f"sigma_crown={sigma:g}, sigma_temp={sigma_temp:g},"
+               f" adapt_power={str(adapt).lower()}")
+        # Held-out predictive log-likelihood per reading: the process noise that
+        # makes the unmeasured spots most probable, bands and errors together.
+        var = s**2 + noise**2
+        scores[key] = float(np.mean(-0.5 * (np.log(2.0 * np.pi * var) + e**2 / var)))
+        runs[key] = (sigma, sigma_temp, adapt, e, s, noise)
+    best = max(scores, key=scores.__getitem__)
+    sigma_best, temp_best, adapt_best, e, s, noise = runs[best]
     e = np.abs(e)
     z = float(norm.ppf(0.5 + level / 2.0))
 
@@ -332,13 +414,13 @@ def validate_filter(
 
     lo, hi = 1.0, 50.0
     if e.size == 0 or covered(lo) >= level:
-        return sigma_best, adapt_best, lo, scores
+        return sigma_best, temp_best, adapt_best, lo, scores
     if covered(hi) < level:
-        return sigma_best, adapt_best, hi, scores
+        return sigma_best, temp_best, adapt_best, hi, scores
     for _ in range(40):
         mid = float(np.sqrt(lo * hi))
         lo, hi = (mid, hi) if covered(mid) < level else (lo, mid)
-    return sigma_best, adapt_best, hi, scores
+    return sigma_best, temp_best, adapt_best, hi, scores
 
 
 def _law_dict(law: HLaw) -> dict[str, Any]:
@@ -364,12 +446,22 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
                        v_ref=disc.v_ref, knee=tuning.knee)
     t_law = time.perf_counter()
     law, structure = law_ukf, None
-    if options.fit_structure:
-        law, structure = fit_structure(inputs, y, disc, law_ukf, est_tuning)
+    effects: tuple[str, ...] = ()
+    if options.with_effects:
+        effects = (auto_effects(session, options) if options.with_effects.strip() == "auto"
+                   else parse_effects(options.with_effects))
+
+    def structure_fit(start: HLaw, tuning_: EstimateTuning) -> tuple[HLaw, StructureFit]:
+        if effects:
+            return fit_with_effects(session, inputs, y, disc, start, tuning_, effects)
+        return fit_structure(inputs, y, disc, start, tuning_)
+
+    if options.fit_structure or effects:
+        law, structure = structure_fit(law_ukf, est_tuning)
         if structure.kz_ratio < est_tuning.thin_skin_kz_ratio:
             est_tuning = replace(est_tuning, layers=est_tuning.thin_skin_layers,
                                  layer_growth=est_tuning.thin_skin_layer_growth)
-            law, structure = fit_structure(inputs, y, disc, law, est_tuning)
+            law, structure = structure_fit(law, est_tuning)
     t_struct = time.perf_counter()
     calibration = DiscCalibration(
         law=law,
@@ -378,13 +470,14 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         power_scale=structure.power_scale if structure else 1.0,
         layers=est_tuning.layers,
         layer_growth=est_tuning.layer_growth,
+        effects=structure.effects if structure else {},
         source=str(session.path),
     )
-    sigma_crown, adapt_power, band_scale, validation = validate_filter(
+    sigma_crown, sigma_temp, adapt_power, band_scale, validation = validate_filter(
         session, calibration, options
     )
     calibration = replace(calibration, band_scale=band_scale, sigma_crown=sigma_crown,
-                          adapt_power=adapt_power)
+                          sigma_temp=sigma_temp, adapt_power=adapt_power)
     t_end = time.perf_counter()
 
     samples = pd.DataFrame({
@@ -417,11 +510,14 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             "layers": structure.layers,
             "open_loop_rmse_c": structure.rmse_c,
             "open_loop_rmse_uniform_c": structure.rmse_uniform_c,
+            "effects": structure.effects,
         },
+        "with_effects": list(effects),
         "band_scale": band_scale,
         "sigma_crown": sigma_crown,
+        "sigma_temp": sigma_temp,
         "adapt_power": adapt_power,
-        "validation_error_c": validation,
+        "validation_loglik": validation,
         "run": {
             "brakethermo": __version__,
             "disc": disc.id,
@@ -475,13 +571,15 @@ def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
         "power_scale": cal.power_scale,
         "band_scale": cal.band_scale,
         "sigma_crown": cal.sigma_crown,
+        "sigma_temp": cal.sigma_temp,
         "adapt_power": cal.adapt_power,
         "layers": cal.layers,
         "layer_growth": cal.layer_growth,
     }
     if result.structure is not None:
         extra.update(nodes=result.structure.nodes)
-    result.law.to_toml(folder / "h_law.toml", weights=cal.weights, extra=extra)
+    result.law.to_toml(folder / "h_law.toml", weights=cal.weights, extra=extra,
+                       effects=cal.effects)
     write_parquet(
         folder / "h_samples.parquet", result.samples,
         {"time": {"unit": "s"}, "speed": {"unit": "m/s"}, "h": {"unit": "W/(m2 K)"},

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from brakethermo.config import config_dir
+from brakethermo.config import ConfigTable, config_dir
 from brakethermo.errors import ConfigError
 from brakethermo.io.session import Session
+from brakethermo.models.effects import EFFECTS
 from brakethermo.thermal.disc import DiscSpec, load_disc
 from brakethermo.thermal.hlaw import HLaw, read_h_law
 
@@ -44,6 +44,8 @@ class DiscCalibration:
     band_scale : float
         Factor on the filter's 1-sigma that makes the 95 % band cover the unmeasured
         spots of the identification session.
+    sigma_temp : float or None — degC per step
+        White process noise on the nodes chosen by the same validation.
     sigma_crown : float or None
         Crown-split process noise chosen by held-out-spot validation on that session.
     adapt_power : bool or None
@@ -51,6 +53,9 @@ class DiscCalibration:
     layers, layer_growth : int or None, float or None
         The through-thickness layering the calibration was fitted with (``kz_ratio``
         belongs to it); ``None`` leaves the tuning's.
+    effects : dict of str to dict
+        Fitted effect parameters by effect name (``[effects.<name>]`` of the file),
+        validated against :data:`brakethermo.models.effects.EFFECTS`.
     source : str
         Where it came from (file path).
     """
@@ -61,9 +66,11 @@ class DiscCalibration:
     power_scale: float = 1.0
     band_scale: float = 1.0
     sigma_crown: float | None = None
+    sigma_temp: float | None = None
     adapt_power: bool | None = None
     layers: int | None = None
     layer_growth: float | None = None
+    effects: dict[str, dict[str, Any]] = field(default_factory=dict)
     source: str = ""
 
 
@@ -73,6 +80,7 @@ CALIBRATION_BOUNDS: dict[str, tuple[float, float]] = {
     "power_scale": (0.2, 5.0),
     "band_scale": (1.0, 100.0),
     "sigma_crown": (0.0, 5.0),
+    "sigma_temp": (0.0, 50.0),
     "layers": (1, 8),
     "layer_growth": (0.2, 10.0),
 }
@@ -81,26 +89,40 @@ CALIBRATION_BOUNDS: dict[str, tuple[float, float]] = {
 def read_calibration(path: str | Path) -> DiscCalibration:
     """Read an ``h_law.toml`` written by identify-h, checking its ``[extra]`` values."""
     record = read_h_law(path)
-    extra = record.extra
+    extra = ConfigTable(record.extra, path, "extra")
     values: dict[str, Any] = {}
     for key, (lo, hi) in CALIBRATION_BOUNDS.items():
-        raw = extra.get(key)
-        if raw is None:
-            continue
-        whole = key == "layers"
-        if isinstance(raw, bool) or not isinstance(raw, int | float) or (
-            whole and raw != int(raw)
-        ) or not math.isfinite(raw) or not lo <= raw <= hi:
-            kind = "a whole number" if whole else "a number"
-            raise ConfigError(
-                f"[extra] {key} = {raw!r} must be {kind} between {lo:g} and {hi:g}", path=path
-            )
-        values[key] = int(raw) if whole else float(raw)
-    adapt = extra.get("adapt_power")
-    if adapt is not None and not isinstance(adapt, bool):
-        raise ConfigError(f"[extra] adapt_power = {adapt!r} must be true or false", path=path)
+        if extra.has(key):
+            if key == "layers":
+                values[key] = extra.integer(key, lo=lo, hi=hi)
+            else:
+                values[key] = extra.number(key, lo=lo, hi=hi)
+    adapt = extra.boolean("adapt_power", None)
     return DiscCalibration(law=record.law, weights=record.weights, adapt_power=adapt,
-                           source=str(path), **values)
+                           effects=_checked_effects(record.effects, path), source=str(path),
+                           **values)
+
+
+def _checked_effects(tables: dict[str, Any], path: str | Path) -> dict[str, dict[str, Any]]:
+    """``[effects.<name>]`` tables checked against the registry: names, keys, bounds."""
+    ConfigTable(tables, path, "effects").only(EFFECTS, "a registered effect")
+    out: dict[str, dict[str, Any]] = {}
+    for name, raw in tables.items():
+        effect = EFFECTS[name]
+        table = ConfigTable(raw, path, f"effects.{name}")
+        latent = effect.latent_params
+        known = {p.name: p for p in (*effect.params, *latent)}
+        table.only(known, f"a parameter of {name}")
+        checked: dict[str, Any] = {}
+        for key, param in known.items():
+            if not table.has(key):
+                continue
+            if param in latent:
+                checked[key] = list(table.numbers(key, lo=param.lower, hi=param.upper))
+            else:
+                checked[key] = table.number(key, lo=param.lower, hi=param.upper)
+        out[name] = checked
+    return out
 
 
 def calibration_for(disc: DiscSpec, h_law: str | Path | None) -> DiscCalibration:
@@ -112,3 +134,35 @@ def calibration_for(disc: DiscSpec, h_law: str | Path | None) -> DiscCalibration
             " test session and pass its h_law.toml with --h-law"
         )
     return read_calibration(path)
+
+
+def own_h_law(folder: str | Path, session: Session) -> Path | None:
+    """The ``h_law.toml`` identify-h wrote for this very session into ``folder``, if any.
+
+    identify-h writes ``OUT/<stem>/h_law.toml`` and records the session in ``[extra]``;
+    a law there of another session with the same file stem is not this session's.
+    """
+    path = Path(folder) / "h_law.toml"
+    if not path.is_file():
+        return None
+    source = read_h_law(path).extra.get("session")
+    if isinstance(source, str) and Path(source).name != session.path.name:
+        return None
+    return path
+
+
+def choose_h_law(
+    given: str | Path | None, folder: str | Path, session: Session, disc: DiscSpec
+) -> tuple[Path | None, str]:
+    """The law a single ``estimate`` uses, and why (printed and recorded in summary.json).
+
+    Order: the ``--h-law`` file; the law identify-h wrote for this session beside its
+    outputs (``OUT/<stem>/h_law.toml``); the law shipped for the disc.
+    """
+    if given is not None:
+        return Path(given), "given with --h-law"
+    own = own_h_law(folder, session)
+    if own is not None:
+        return own, "identified from this session by identify-h (beside it in --out)"
+    shipped = shipped_h_law(disc)
+    return shipped, f"shipped default for disc {disc.id}"

@@ -86,17 +86,21 @@ def single_spot_baseline(measured_spot: np.ndarray) -> np.ndarray:
 
 def peak_errors(
     estimate: np.ndarray, reference: np.ndarray, braking: np.ndarray, dt: float = 0.1,
-    settle_s: float = 3.0,
+    settle_s: float = 3.0, zones: np.ndarray | None = None,
 ) -> dict[str, float]:
     """Relative peak error per braking zone at one spot.
 
     Each zone runs from the brake application to ``settle_s`` after release, where the
     face peak occurs. Returns the mean absolute and the worst relative error (%) and the
-    signed error of the session's highest peak.
+    signed error of the session's highest peak, the zones scored and ``zones_total``.
+    ``zones`` (``[start, stop)`` rows, e.g. the report's
+    :func:`~brakethermo.report.braking_zones.detect_zones`) replaces the runs of
+    ``braking``, so that scores and reports count the same braking zones.
     """
     pad = round(settle_s / dt)
     errors = []
-    for a, b in segments(braking, min_len=5):
+    runs = segments(braking, min_len=5) if zones is None else [(int(a), int(b)) for a, b in zones]
+    for a, b in runs:
         stop = min(b + pad, len(reference))
         ok = np.isfinite(reference[a:stop]) & np.isfinite(estimate[a:stop])
         if not ok.any():
@@ -105,13 +109,14 @@ def peak_errors(
         est = estimate[a:stop][ok]
         errors.append((np.nanmax(est) - np.nanmax(ref)) / np.nanmax(ref) * 100.0)
     if not errors:
-        return {"zones": 0, "mean_abs_pct": float("nan"), "worst_pct": float("nan"),
-                "max_peak_pct": float("nan")}
+        return {"zones": 0, "zones_total": len(runs), "mean_abs_pct": float("nan"),
+                "worst_pct": float("nan"), "max_peak_pct": float("nan")}
     arr = np.asarray(errors)
     ref_peak = np.nanmax(reference)
     est_peak = np.nanmax(estimate[np.isfinite(reference)])
     return {
         "zones": len(errors),
+        "zones_total": len(runs),
         "mean_abs_pct": float(np.mean(np.abs(arr))),
         "worst_pct": float(arr[np.argmax(np.abs(arr))]),
         "max_peak_pct": float((est_peak - ref_peak) / ref_peak * 100.0),

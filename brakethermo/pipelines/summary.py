@@ -1,62 +1,156 @@
-"""Per-lap summary of an estimate (summary.json of OUTPUTS.md)."""
+"""Per-lap summary of an estimate (summary.json of OUTPUTS.md), and the one definition of
+the names and counts every output shares: lap labels, lap counts, rounding of temperatures.
+
+Console tables, HTML pages, summary.json and the batch index all go through these, so
+an out-lap is called the same everywhere, a 5-lap session has 5 laps everywhere, and a
+peak of 699.46 °C shows as the same integer everywhere.
+"""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from brakethermo.io.session import GRID_DT, Lap
+from brakethermo.io.session import Lap
+
+OUT_LAP = "out-lap"
+SPOTS = ("spot1", "spot2", "spot3", "spot4")
+
+
+def lap_label(lap: int) -> str:
+    """How a lap is named to people: ``out-lap`` for lap 0, else its number."""
+    return OUT_LAP if int(lap) == 0 else str(int(lap))
+
+
+def lap_name(lap: int) -> str:
+    """A lap in a sentence or a title: ``out-lap`` or ``lap 3``."""
+    return OUT_LAP if int(lap) == 0 else f"lap {int(lap)}"
+
+
+def lap_folder(lap: int) -> str:
+    """The report folder of a lap (OUTPUTS.md ``lap_<NN>``)."""
+    return f"lap_{int(lap):02d}"
+
+
+def flying_laps(laps: Iterable[int]) -> int:
+    """Laps of a session as every output counts them: the flying laps, not the out-lap."""
+    return sum(1 for lap in {int(v) for v in laps} if lap >= 1)
+
+
+def round_temp(x: float | None) -> float | None:
+    """A temperature to 0.1 degC, half away from zero (batch JSON; the step before display)."""
+    if x is None or not math.isfinite(x):
+        return None
+    return math.copysign(math.floor(abs(float(x)) * 10.0 + 0.5) / 10.0, x)
+
+
+def temp_text(x: float | None) -> str:
+    """A temperature as shown (tables, pages): the integer of :func:`round_temp`.
+
+    Rounding to 0.1 degC first, then to the integer, gives every output the same integer
+    whether it starts from the raw estimate, from summary.json (0.001 degC) or from the
+    batch JSON (0.1 degC): 699.46 shows as 700 everywhere.
+    """
+    r = round_temp(x)
+    return "–" if r is None else str(int(math.copysign(math.floor(abs(r) + 0.5), r)))
 
 
 def _finite_or_none(x: float) -> float | None:
     return round(float(x), 3) if np.isfinite(x) else None
 
 
+def node_columns(frame: pd.DataFrame) -> list[str]:
+    """The ``node_<k>`` columns of an estimate frame, in node order."""
+    cols = [c for c in frame.columns if c.startswith("node_") and c[5:].isdigit()]
+    return sorted(cols, key=lambda c: int(c[5:]))
+
+
+def hottest_radius(frame: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """Temperature of the hottest face node at each step and its node index (-1: none).
+
+    The contact-band average hides a hot edge (pad-pressure asymmetry); the operating
+    window is judged on this as well.
+    """
+    cols = node_columns(frame)
+    if not cols:
+        n = len(frame)
+        return np.full(n, np.nan), np.full(n, -1)
+    nodes = frame[cols].to_numpy(dtype=float)
+    finite = np.isfinite(nodes).any(axis=1)
+    idx = np.where(finite, np.argmax(np.where(np.isfinite(nodes), nodes, -np.inf), axis=1), -1)
+    hot = np.where(finite, nodes[np.arange(len(nodes)), np.maximum(idx, 0)], np.nan)
+    return hot, idx
+
+
 def lap_summaries(
-    frame: pd.DataFrame, laps: tuple[Lap, ...], window_c: tuple[float, float]
+    frame: pd.DataFrame, laps: tuple[Lap, ...], window_c: tuple[float, float],
+    node_radii: np.ndarray | None = None,
 ) -> list[dict[str, Any]]:
     """One record per lap: lap time, peaks per spot, time vs the operating window.
 
     Parameters
     ----------
     frame : pandas.DataFrame
-        The estimate table (``time``, ``lap``, ``spot1..4``, ``contact_avg``), degC.
+        The estimate table (``time``, ``lap``, ``spot1..4``, ``contact_avg``,
+        ``node_<k>``), degC.
     laps : tuple of Lap
         The session's laps (lap times from the beacons).
     window_c : (float, float) — degC
-        Operating window; time is counted on the contact-band average.
+        Operating window; time is counted on the contact-band average, on each spot and
+        on the hottest radius.
+    node_radii : ndarray — m, optional
+        Radius of each ``node_<k>``, to report where the hottest radius lies.
     """
     lo, hi = window_c
     lap_col = frame["lap"].to_numpy()
     time = frame["time"].to_numpy()
+    dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
     contact = frame["contact_avg"].to_numpy()
+    hot, hot_idx = hottest_radius(frame)
     records = []
     for lap in laps:
         sel = lap_col == lap.lap
         if not sel.any():
             continue
         peaks = {}
-        for i in range(1, 5):
-            vals = frame[f"spot{i}"].to_numpy()[sel]
+        above_by_spot = {}
+        for i, s in enumerate(SPOTS, start=1):
+            vals = frame[s].to_numpy()[sel]
             if np.isfinite(vals).any():
                 j = int(np.nanargmax(vals))
                 peaks[f"spot{i}"] = {
                     "temp_c": _finite_or_none(vals[j]),
                     "time_s": round(float(time[sel][j]), 1),
                 }
+                above_by_spot[s] = round(float(np.sum(vals > hi) * dt), 1)
         c = contact[sel]
-        records.append(
-            {
-                "lap": int(lap.lap),
-                "lap_time_s": round(float(lap.duration_s), 3),
-                "start_s": round(float(lap.start_s), 1),
-                "peak": peaks,
-                "time_below_window_s": round(float(np.sum(c < lo) * GRID_DT), 1),
-                "time_in_window_s": round(float(np.sum((c >= lo) & (c <= hi)) * GRID_DT), 1),
-                "time_above_window_s": round(float(np.sum(c > hi) * GRID_DT), 1),
-                "mean_contact_c": _finite_or_none(np.nanmean(c)),
+        h = hot[sel]
+        record: dict[str, Any] = {
+            "lap": int(lap.lap),
+            "label": lap_label(lap.lap),
+            "lap_time_s": round(float(lap.duration_s), 3),
+            "start_s": round(float(lap.start_s), 1),
+            "peak": peaks,
+            "time_below_window_s": round(float(np.sum(c < lo) * dt), 1),
+            "time_in_window_s": round(float(np.sum((c >= lo) & (c <= hi)) * dt), 1),
+            "time_above_window_s": round(float(np.sum(c > hi) * dt), 1),
+            "time_above_window_by_spot_s": above_by_spot,
+            "mean_contact_c": _finite_or_none(np.nanmean(c)) if np.isfinite(c).any() else None,
+        }
+        if np.isfinite(h).any():
+            j = int(np.nanargmax(h))
+            k = int(hot_idx[sel][j])
+            record["hottest"] = {
+                "temp_c": _finite_or_none(h[j]),
+                "time_s": round(float(time[sel][j]), 1),
+                "radius_mm": (
+                    round(float(node_radii[k]) * 1e3, 1) if node_radii is not None else None
+                ),
+                "time_above_window_s": round(float(np.sum(h > hi) * dt), 1),
             }
-        )
+        records.append(record)
     return records

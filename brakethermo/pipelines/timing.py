@@ -9,6 +9,7 @@ run on a mid-session slice first and reported apart.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -16,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from brakethermo.errors import ConfigError
 from brakethermo.io.session import Session
 
 WARMUP_STEPS = 100  # grid points of the warm-up run (taken mid-session)
@@ -111,7 +113,16 @@ def time_laps(
         Budget for a whole race.
     race_laps : int
         Laps in that race; the per-lap budget is ``budget_s / race_laps``.
+
+    Raises
+    ------
+    ConfigError
+        A budget that is not a finite number > 0, or fewer than one race lap.
     """
+    if not (math.isfinite(budget_s) and budget_s > 0) or race_laps < 1:
+        raise ConfigError(
+            f"budget {budget_s} s for {race_laps} laps: need a finite budget > 0 and >= 1 lap"
+        )
     lap_col = session.frame["lap"].to_numpy()
     t0 = time.perf_counter()
     # Warm up mid-session: the start of an out-lap may have no IR reading at all.

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
-from brakethermo.config import config_dir, load_toml
+from brakethermo.config import ConfigTable, config_dir, config_file
 from brakethermo.errors import ConfigError
 
 
@@ -41,6 +41,14 @@ class EstimateTuning(SigmaPointTuning):
     sigma_scale_step : float — per step
     init_sigma_temp : float — degC
     init_sigma_scale : float — dimensionless
+    adapt_kz : bool
+        Through-thickness conductivity factor as a random-walk state (race discs differ
+        from the test session's disc batch to batch).
+    adapt_slipstream : bool
+        An h factor as a random-walk state that moves off the brakes only (following
+        another bike changes the cooling air straight by straight).
+    sigma_kz_step, init_sigma_kz : float — per step, dimensionless
+    sigma_h_factor_step, init_sigma_h_factor : float — per step, dimensionless
     """
 
     nodes: int = 10
@@ -57,6 +65,12 @@ class EstimateTuning(SigmaPointTuning):
     sigma_scale_step: float = 0.003
     init_sigma_temp: float = 40.0
     init_sigma_scale: float = 0.15
+    adapt_kz: bool = True
+    adapt_slipstream: bool = True
+    sigma_kz_step: float = 0.002
+    init_sigma_kz: float = 0.3
+    sigma_h_factor_step: float = 0.01
+    init_sigma_h_factor: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -102,6 +116,10 @@ BOUNDS: dict[str, tuple[float, float]] = {
     "sigma_scale_step": (0.0, 1.0),
     "init_sigma_temp": (1e-3, 1000.0),
     "init_sigma_scale": (0.0, 5.0),
+    "sigma_kz_step": (0.0, 1.0),
+    "init_sigma_kz": (0.0, 5.0),
+    "sigma_h_factor_step": (0.0, 1.0),
+    "init_sigma_h_factor": (0.0, 5.0),
     "h_init": (0.0, 5000.0),
     "h_init_sigma": (1e-3, 5000.0),
     "h_step": (0.0, 1000.0),
@@ -109,60 +127,65 @@ BOUNDS: dict[str, tuple[float, float]] = {
 }
 
 
-def _build(cls: type[T], table: dict[str, Any], path: Path, section: str) -> T:
-    fields = {f.name: f for f in dataclasses.fields(cls)}
-    unknown = sorted(set(table) - set(fields))
-    if unknown:
-        raise ConfigError(
-            f"[{section}] has unknown keys {unknown}; known keys: {sorted(fields)}", path=path
-        )
+def _build(cls: type[T], table: ConfigTable) -> T:
+    """Validate ``table`` against the fields of ``cls`` (types from the defaults, BOUNDS)."""
+    fields = [f.name for f in dataclasses.fields(cls)]
+    table.only(fields)
+    defaults = cls()
     values: dict[str, Any] = {}
-    for key, raw in table.items():
-        kind = type(getattr(cls(), key))
-        if kind is bool:
-            if not isinstance(raw, bool):
-                raise ConfigError(f"[{section}] {key} must be true or false", path=path)
-            values[key] = raw
+    for key in fields:
+        default = getattr(defaults, key)
+        if isinstance(default, bool):
+            values[key] = table.boolean(key, default)
+        elif isinstance(default, int):
+            lo, hi = BOUNDS.get(key, (1, math.inf))
+            values[key] = table.integer(key, default, lo=lo, hi=hi)
+        elif key in BOUNDS:
+            lo, hi = BOUNDS[key]
+            values[key] = table.number(key, default, lo=lo, hi=hi)
+        else:
+            values[key] = table.number(key, default, positive=True)
+    return cls(**values)
+
+
+def check_overrides(overrides: dict[str, Any], where: str = "option") -> None:
+    """The same bounds for values set on the command line or by a caller as for the file.
+
+    Raises
+    ------
+    ConfigError
+        A value outside :data:`BOUNDS` (``--nodes 100000`` would ask for terabytes).
+    """
+    for key, value in overrides.items():
+        if value is None or isinstance(value, bool) or key not in BOUNDS:
             continue
-        if isinstance(raw, bool) or not isinstance(raw, int | float):
-            raise ConfigError(f"[{section}] {key} must be a number, got {raw!r}", path=path)
-        if kind is int and raw != int(raw):
-            raise ConfigError(f"[{section}] {key} must be a whole number, got {raw}", path=path)
-        values[key] = kind(raw)
-    tuning = cls(**values)
-    for key, value in dataclasses.asdict(tuning).items():
-        if isinstance(value, bool):
-            continue
-        lo, hi = BOUNDS.get(key, (0.0, math.inf))
-        if not math.isfinite(value) or not lo <= value <= hi or (key not in BOUNDS and value <= 0):
-            limits = f"between {lo:g} and {hi:g}" if key in BOUNDS else "finite and > 0"
-            raise ConfigError(f"[{section}] {key} = {value} must be {limits}", path=path)
-    return tuning
+        lo, hi = BOUNDS[key]
+        if not math.isfinite(value) or not lo <= value <= hi:
+            raise ConfigError(
+                f"{where} {key} = {value} must be between {lo:g} and {hi:g}"
+                " (the same limits as the tuning file)"
+            )
 
 
 def load_tuning(path: str | Path | None = None) -> tuple[EstimateTuning, IdentifyTuning]:
-    """Load the shipped tuning, overlaid with a user's TOML file when given."""
-    shipped = config_dir() / "tuning.toml"
-    base = load_toml(shipped)
-    user_path = Path(path) if path is not None else shipped
-    if path is not None:
-        user = load_toml(user_path)
-        extra = sorted(set(user) - {"estimate", "identify"})
-        if extra:
-            raise ConfigError(
-                f"unknown sections {extra}; expected [estimate] and [identify]", path=user_path
-            )
-        for section in ("estimate", "identify"):
-            base[section] = {**base.get(section, {}), **user.get(section, {})}
-    return (
-        _build(EstimateTuning, base.get("estimate", {}), user_path, "estimate"),
-        _build(IdentifyTuning, base.get("identify", {}), user_path, "identify"),
-    )
+    """Load the shipped tuning, overlaid key by key with a user's TOML file when given."""
+    shipped = config_file(config_dir() / "tuning.toml")
+    user = config_file(path) if path is not None else None
+    if user is not None:
+        user.only(("estimate", "identify"))
+    tunings = []
+    for cls, section in ((EstimateTuning, "estimate"), (IdentifyTuning, "identify")):
+        base = shipped.table(section, {})
+        built = _build(cls, base)  # the shipped file alone must be valid too
+        if user is not None:
+            mine = user.table(section, {})
+            built = _build(cls, ConfigTable({**base.raw, **mine.raw}, user.path, section))
+        tunings.append(built)
+    return tunings[0], tunings[1]  # type: ignore[return-value]
 
 
 def user_tuning_keys(path: str | Path | None, section: str) -> frozenset[str]:
     """The keys a user's tuning file sets in ``[section]`` (empty without a file)."""
     if path is None:
         return frozenset()
-    table = load_toml(path).get(section, {})
-    return frozenset(table) if isinstance(table, dict) else frozenset()
+    return frozenset(config_file(path).table(section, {}).raw)

@@ -352,16 +352,18 @@ class LapFigures:
             )
         self._contours = None
         cax = fig.add_axes((RIGHT + 0.045, 0.17, 0.015, 0.69))
-        cbar = fig.colorbar(self.image, cax=cax)
+        cbar = fig.colorbar(self.image, cax=cax, extend="both")  # clipped ends are marked
         cbar.set_label("temperature [°C]")
         for edge in self.window_c:
             cax.axhline(edge, color="white", linewidth=1.6)
             cax.axhline(edge, color=WINDOW_COLOUR, linewidth=1.0, linestyle="--")
         ax.set_xlabel("lap time [s]")
         ax.set_ylabel("radius [mm]")
+        # The window contours appear only where the disc crosses an edge; the title says
+        # so rather than promising lines a lap inside the window never shows.
         ax.set_title(
-            f"Disc temperature across the radius (dashed contours: window "
-            f"{self.window_c[0]:.0f}–{self.window_c[1]:.0f} °C)",
+            f"Disc temperature across the radius; window {self.window_c[0]:.0f}–"
+            f"{self.window_c[1]:.0f} °C marked on the colour bar (white dashed where crossed)",
             loc="left",
         )
 
@@ -415,9 +417,8 @@ class LapFigures:
             self.spot_lines[i].set_data(t, lap.spot[i])
             self.meas_lines[i].set_data(t, lap.measured[i])
         self.zone_spots.update(lap.zones_t)
-        spots_ylim = _rounded_range(
-            (lap.spot - lap.spot_std, lap.spot + lap.spot_std, lap.measured), self.scales.spots
-        )
+        # From the estimate and the readings: a wide start-up band must not stretch the axis.
+        spots_ylim = _rounded_range((lap.spot, lap.measured), self.scales.spots)
         self.ax_spots.set_ylim(*spots_ylim)
 
         field = self._interp @ lap.nodes[self._node_order]

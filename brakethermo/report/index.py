@@ -8,6 +8,7 @@ from typing import Any
 
 from brakethermo import __version__
 from brakethermo.io.atomic import write_text_atomic
+from brakethermo.pipelines.summary import temp_text
 from brakethermo.report.page import template_environment
 
 
@@ -39,10 +40,12 @@ def write_batch_index(
                 "peaks": s.get("peaks_c", {}),
                 "reason": s.get("reason", ""),
                 "h_law": s.get("h_law") or "–",
+                "h_law_reason": s.get("h_law_reason", ""),
                 "href": f"{s['name']}/index.html" if page.is_file() else None,
             }
         )
     env = template_environment()
+    env.filters["temp"] = temp_text
     html = env.get_template("batch.html.j2").render(
         sessions=rows, folder=str(folder), footer=f"brakethermo {__version__}"
     )

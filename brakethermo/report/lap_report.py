@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import base64
 import time as _time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -20,6 +22,15 @@ from jinja2 import Environment
 from brakethermo import __version__
 from brakethermo.io.atomic import write_bytes_atomic, write_text_atomic
 from brakethermo.io.session import Session
+from brakethermo.pipelines.summary import (
+    flying_laps,
+    hottest_radius,
+    lap_folder,
+    lap_label,
+    lap_name,
+    node_columns,
+    temp_text,
+)
 from brakethermo.report.braking_zones import (
     BAR,
     KMH,
@@ -90,26 +101,30 @@ def read_estimate(path: str | Path) -> tuple[pd.DataFrame, np.ndarray | None]:
     return table.to_pandas(), np.asarray(radii)
 
 
-def node_columns(frame: pd.DataFrame) -> list[str]:
-    """The ``node_<k>`` columns of an estimate frame, in node order."""
-    cols = [c for c in frame.columns if c.startswith("node_") and c[5:].isdigit()]
-    return sorted(cols, key=lambda c: int(c[5:]))
-
-
-def lap_stats(estimate: pd.DataFrame, window_c: tuple[float, float]) -> pd.DataFrame:
+def lap_stats(
+    estimate: pd.DataFrame, window_c: tuple[float, float], node_radii: np.ndarray | None = None
+) -> pd.DataFrame:
     """Per-lap statistics of an estimate frame.
 
     Returns
     -------
     DataFrame indexed by lap
         ``lap_time_s``, ``peak_spot1..4`` (degC), ``peak_spot1..4_t`` (lap time of the
-        peak, s), ``peak_contact``, ``mean_contact`` (degC), ``below_s``, ``inside_s``,
-        ``above_s`` (contact band vs the window, s), ``inside_pct`` (% of the lap).
+        peak, s), ``above_spot1..4_s`` (each spot above the window, s), ``peak_contact``,
+        ``mean_contact`` (degC), ``below_s``, ``inside_s``, ``above_s`` (contact band vs
+        the window, s), ``inside_pct`` (% of the lap), ``peak_hot`` (hottest radius,
+        degC), ``peak_hot_radius_mm`` (where, NaN without radii) and ``above_hot_s``
+        (hottest radius above the window, s).
     """
     time = estimate["time"].to_numpy(dtype=float)
     dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
     lo, hi = window_c
     contact = estimate["contact_avg"].to_numpy(dtype=float)
+    hot, hot_idx = hottest_radius(estimate)
+    radii_mm = (
+        np.asarray(node_radii, dtype=float) * 1e3 if node_radii is not None
+        else np.full(max(len(node_columns(estimate)), 1), np.nan)
+    )
     lap_time = time - estimate.groupby("lap")["time"].transform("min").to_numpy()
     work = pd.DataFrame(
         {
@@ -119,7 +134,11 @@ def lap_stats(estimate: pd.DataFrame, window_c: tuple[float, float]) -> pd.DataF
             "below": (contact < lo) * dt,
             "above": (contact > hi) * dt,
             "valid": np.isfinite(contact) * dt,
+            "hot": hot,
+            "hot_r": np.where(hot_idx >= 0, radii_mm[np.maximum(hot_idx, 0)], np.nan),
+            "above_hot": (hot > hi) * dt,
             **{s: estimate[s].to_numpy(dtype=float) for s in SPOTS},
+            **{f"above_{s}": (estimate[s].to_numpy(dtype=float) > hi) * dt for s in SPOTS},
         }
     )
     g = work.groupby("lap", sort=True)
@@ -128,6 +147,11 @@ def lap_stats(estimate: pd.DataFrame, window_c: tuple[float, float]) -> pd.DataF
         out[f"peak_{s}"] = g[s].max()
         idx = work[s].fillna(-np.inf).groupby(work["lap"]).idxmax()
         out[f"peak_{s}_t"] = work.loc[idx.to_numpy(), "t"].to_numpy()
+        out[f"above_{s}_s"] = g[f"above_{s}"].sum()
+    out["peak_hot"] = g["hot"].max()
+    hot_at = work["hot"].fillna(-np.inf).groupby(work["lap"]).idxmax()
+    out["peak_hot_radius_mm"] = work.loc[hot_at.to_numpy(), "hot_r"].to_numpy()
+    out["above_hot_s"] = g["above_hot"].sum()
     out["peak_contact"] = g["contact"].max()
     out["mean_contact"] = g["contact"].mean()
     out["below_s"] = g["below"].sum()
@@ -172,20 +196,74 @@ def _facts(session: Session | None) -> str:
 
 
 def _colour_range(nodes: np.ndarray, step: float = 50.0) -> tuple[float, float]:
-    """Heat-map colour range of a session: its node temperatures, out to ``step`` degC."""
-    if not np.isfinite(nodes).any():
+    """Heat-map colour range of a session: where its node temperatures lie, to ``step`` degC.
+
+    From the 1st to the 99.9th percentile, so a few cold minutes of the out-lap do not
+    spend a third of the scale on temperatures the laps never show.
+    """
+    finite = nodes[np.isfinite(nodes)]
+    if not finite.size:
         return 0.0, 1000.0
-    lo = step * np.floor(np.nanmin(nodes) / step)
-    hi = step * np.ceil(np.nanmax(nodes) / step)
+    lo = step * np.floor(np.percentile(finite, 1.0) / step)
+    hi = step * np.ceil(np.percentile(finite, 99.9) / step)
     return float(lo), float(max(hi, lo + step))
 
 
 def _environment() -> Environment:
-    return template_environment(keep_trailing_newline=True)
+    env = template_environment(keep_trailing_newline=True)
+    env.filters["temp"] = temp_text
+    return env
 
 
-def _lap_label(lap: int) -> str:
-    return f"{lap:02d}"
+def _spot_roles(summary: dict[str, Any] | None, measured: tuple[int, ...]) -> str:
+    """Which spot fed the filter and which were held out to check it (four-spot sessions)."""
+    run = (summary or {}).get("run", {})
+    spot = run.get("measured_spot")
+    if spot is None:
+        return ""
+    scored = ((summary or {}).get("scores") or {}).get("coverage95", {})
+    held = [i for i in measured if i != spot] or [int(k[4:]) for k in scored if k[4:].isdigit()]
+    if not held:
+        return f"spot {spot} measured (the filter's input)"
+    listed = ", ".join(str(i) for i in held)
+    return (f"spot {spot} measured (the filter's input); spot{'s' if len(held) > 1 else ''} "
+            f"{listed} held out to check the estimate")
+
+
+def _scores_view(summary: dict[str, Any] | None) -> dict[str, Any] | None:
+    """The self-scores of a four-spot session (Tables 3/4, peaks, coverage) for the page."""
+    scores = (summary or {}).get("scores")
+    if not scores:
+        return None
+    ratios = scores.get("contact_ratio_vs_single_spot", {})
+    rows = [
+        {**row, "ratio": ratios.get(row["method"])} for row in scores.get("table", [])
+    ]
+    spot = scores.get("measured_spot")
+    peak = scores.get("peak", {}).get(f"spot{spot}", {})
+    return {
+        "rows": rows,
+        "measured_spot": spot,
+        "peak": peak,
+        "coverage": {k: 100.0 * v for k, v in scores.get("coverage95", {}).items()
+                     if v is not None},
+    }
+
+
+def _law_view(summary: dict[str, Any] | None, out_dir: Path) -> dict[str, Any] | None:
+    """The h law the estimate used (and its plot when identify-h wrote it here)."""
+    run = (summary or {}).get("run", {})
+    law = run.get("h_law")
+    png = out_dir / "h_law.png"
+    if not png.is_file() and law:
+        png = Path(law).with_name("h_law.png")  # the plot identify-h wrote beside the law
+    if not law and not png.is_file():
+        return None
+    return {
+        "path": law or "",
+        "choice": run.get("h_law_choice", ""),
+        "png_b64": base64.b64encode(png.read_bytes()).decode("ascii") if png.is_file() else None,
+    }
 
 
 def write_session_report(
@@ -197,6 +275,9 @@ def write_session_report(
     disc: DiscSpec | None = None,
     name: str | None = None,
     detection: ZoneDetection | None = None,
+    summary: dict[str, Any] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    back_href: str | None = None,
 ) -> ReportResult:
     """Write the per-lap reports and the session index into ``out_dir``.
 
@@ -219,6 +300,13 @@ def write_session_report(
         Title of the pages; the session file stem by default.
     detection : ZoneDetection, optional
         Braking-zone thresholds.
+    summary : dict, optional
+        The estimate's ``summary.json``: the measured spot, the self-scores of a
+        four-spot session and the h law used go on the session page.
+    progress : callable, optional
+        ``progress(laps_done, laps_total)`` after each lap page.
+    back_href : str, optional
+        Link from the session page up to an index of sessions (batch: ``../index.html``).
     """
     t_start = _time.perf_counter()
     out_dir = Path(out_dir)
@@ -244,20 +332,37 @@ def write_session_report(
 
     zones = detect_zones(time, pressure, detection)
     zones_df = zone_table(estimate, speed, pressure, zones, disc.window_c)
-    stats = lap_stats(estimate, disc.window_c)
+    stats = lap_stats(estimate, disc.window_c, node_radii)
     stats["zones"] = zones_df.groupby("lap").size().reindex(stats.index, fill_value=0)
+    # What the sensors read beats any estimate: a measured spot above the window counts
+    # even when the model (e.g. with unmodelled pad asymmetry) keeps its estimate inside.
+    dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
+    measured_above = {}
+    for i, s in enumerate(SPOTS):
+        if np.isfinite(measured[i]).any():
+            reading = pd.Series(measured[i])
+            measured_above[s] = (
+                (reading > disc.window_c[1]).groupby(laps_col).sum().reindex(stats.index) * dt
+            )
+            stats[f"meas_peak_{s}"] = reading.groupby(laps_col).max().reindex(stats.index)
+    for s, above in measured_above.items():
+        stats[f"meas_above_{s}_s"] = above
 
     env = _environment()
     lap_tpl = env.get_template("lap.html.j2")
     window = f"{disc.window_c[0]:.0f}–{disc.window_c[1]:.0f} °C"
     facts = _facts(session)
+    spot_roles = _spot_roles(summary, tuple(
+        int(i) + 1 for i in np.flatnonzero(np.isfinite(measured).any(axis=1))))
     footer = f"brakethermo {__version__} · disc {disc.id} · {len(nodes_cols)} nodes"
     lap_numbers = [int(v) for v in stats.index]
     lap_slices = pd.Series(np.arange(len(laps_col))).groupby(laps_col).agg(["min", "max"])
 
-    contact_lo, contact_hi = padded_range(contact - contact_std, contact + contact_std)
+    # Ranges from the estimate and the readings, not the bands: a wide start-up band
+    # would drag the axis far below anything the disc does.
+    contact_lo, contact_hi = padded_range(contact)
     scales = AxisScales(
-        spots=padded_range(spot - spot_std, spot + spot_std, measured),
+        spots=padded_range(spot, measured),
         contact=(
             min(contact_lo, disc.window_c[0] - 50.0),
             max(contact_hi, disc.window_c[1] + 50.0),
@@ -265,6 +370,7 @@ def write_session_report(
         speed_kmh=max(padded_range(speed * KMH)[1], 10.0),
         pressure_bar=max(padded_range(pressure / BAR)[1], 1.0),
     )
+    measured_spots = tuple(int(i) + 1 for i in np.flatnonzero(np.isfinite(measured).any(axis=1)))
     figs = LapFigures(
         node_radii,
         disc.spot_radii,
@@ -272,8 +378,9 @@ def write_session_report(
         disc.r_int,
         disc.r_est,
         scales,
-        temp_range_c=_colour_range(nodes),
-        measured_spots=tuple(int(i) + 1 for i in np.flatnonzero(np.isfinite(measured).any(axis=1))),
+        # The flying laps set the scale; a cold out-lap shows at the bottom colour.
+        temp_range_c=_colour_range(nodes[:, laps_col >= 1] if (laps_col >= 1).any() else nodes),
+        measured_spots=measured_spots,
     )
     render_s = 0.0
     pages: dict[int, Path] = {}
@@ -305,15 +412,17 @@ def write_session_report(
             r0 = _time.perf_counter()
             pngs = figs.render(data)
             render_s += _time.perf_counter() - r0
-            lap_dir = out_dir / f"lap_{_lap_label(lap)}"
+            lap_dir = out_dir / lap_folder(lap)
             for fig_name, png in pngs.items():
                 write_bytes_atomic(lap_dir / f"{fig_name}.png", png)
             html = lap_tpl.render(
                 session_name=name,
-                lap_label=_lap_label(lap),
+                lap_title=lap_name(lap),
                 facts=facts,
+                spot_roles=spot_roles,
                 window=window,
                 stats=stats.loc[lap],
+                measured_keys=[s for s in SPOTS if f"meas_above_{s}_s" in stats],
                 zones=zones_df[zones_df["lap"] == lap].to_dict("records"),
                 zone_threshold_bar=detection.on_pa / BAR,
                 footer=footer,
@@ -321,21 +430,27 @@ def write_session_report(
                     {"alt": FIGURE_ALT[n], "b64": base64.b64encode(p).decode("ascii")}
                     for n, p in pngs.items()
                 ],
-                prev_href=(f"../lap_{_lap_label(lap_numbers[k - 1])}/index.html" if k else None),
-                prev_label=_lap_label(lap_numbers[k - 1]) if k else None,
+                prev_href=(f"../{lap_folder(lap_numbers[k - 1])}/index.html" if k else None),
+                prev_label=lap_name(lap_numbers[k - 1]) if k else None,
                 next_href=(
-                    f"../lap_{_lap_label(lap_numbers[k + 1])}/index.html"
+                    f"../{lap_folder(lap_numbers[k + 1])}/index.html"
                     if k + 1 < len(lap_numbers)
                     else None
                 ),
-                next_label=_lap_label(lap_numbers[k + 1]) if k + 1 < len(lap_numbers) else None,
+                next_label=lap_name(lap_numbers[k + 1]) if k + 1 < len(lap_numbers) else None,
             )
             pages[lap] = lap_dir / "index.html"
             write_text_atomic(pages[lap], html)
+            if progress is not None:
+                progress(k + 1, len(lap_numbers))
     finally:
         figs.close()
 
-    index = _write_index(env, out_dir, name, facts, window, footer, stats, disc)
+    index = _write_index(
+        env, out_dir, name, facts, window, footer, stats, disc,
+        extras={"spot_roles": spot_roles, "scores": _scores_view(summary),
+                "law": _law_view(summary, out_dir), "back_href": back_href},
+    )  # fmt: skip
     total = _time.perf_counter() - t_start
     return ReportResult(
         index=index,
@@ -355,6 +470,7 @@ def _write_index(
     footer: str,
     stats: pd.DataFrame,
     disc: DiscSpec,
+    extras: dict[str, Any] | None = None,
 ) -> Path:
     laps = stats.index.to_numpy()
     png = trend_figure(
@@ -366,7 +482,7 @@ def _write_index(
     )
     write_bytes_atomic(out_dir / "trend.png", png)
     rows = [
-        {**row, "label": _lap_label(int(lap)), "href": f"lap_{_lap_label(int(lap))}/index.html"}
+        {**row, "label": lap_label(int(lap)), "href": f"{lap_folder(int(lap))}/index.html"}
         for lap, row in zip(laps, stats.to_dict("records"), strict=True)
     ]
     hottest = max(rows, key=lambda r: -np.inf if np.isnan(r["peak_contact"]) else r["peak_contact"])
@@ -377,7 +493,10 @@ def _write_index(
         window=window,
         footer=footer,
         laps=rows,
+        flying_laps=flying_laps(int(v) for v in laps),
+        has_out_lap=bool((laps == 0).any()),
         hottest=hottest,
+        **(extras or {}),
         session_inside_pct=session_inside,
         trend_b64=base64.b64encode(png).decode("ascii"),
     )

@@ -1,19 +1,35 @@
-"""One simulated session: rider, disc truth model, sensors; channels and truth out."""
+"""One simulated session: planned ride, rider and brake chain coupled to the disc truth
+model through mu(T), sensors; channels and truth out."""
 
 from __future__ import annotations
 
 import json
 import time
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pyarrow as pa
+from numba import njit
 
 from brakethermo.errors import ConfigError
 from brakethermo.io.writers import Channel, SessionData, write_session, write_table_parquet
-from brakethermo.sim.effects import Effects, make_effects
+from brakethermo.sim.brake_chain import (
+    OUT_FORCE,
+    OUT_P,
+    OUT_S,
+    OUT_TORQUE,
+    OUT_V,
+    BrakeChain,
+    S,
+    advance,
+    chain_params,
+    draw_brake_chain,
+    hand_modulation,
+)
+from brakethermo.sim.effects import Effects, make_effects, strengths_of
 from brakethermo.sim.heat import HLaw, MuLaw, crown_overlap, crown_weights
 from brakethermo.sim.sensors import (
     IRSensor,
@@ -27,11 +43,12 @@ from brakethermo.sim.sensors import (
 )
 from brakethermo.sim.track import TrackSpec, load_track
 from brakethermo.sim.truth_disc import Boundary, TruthDisc, make_grid
-from brakethermo.sim.vehicle import RiderRun, VehicleSpec, drive_session
+from brakethermo.sim.vehicle import G, RiderRun, VehicleSpec, drive_session
 from brakethermo.thermal.disc import BAR, DiscSpec, load_disc
 
 KMH = 3.6  # km/h per m/s
 TRUTH_DT = 0.1  # s, the OUTPUTS.md grid
+KZ_REF_C = 400.0  # degC, temperature at which the truth k_z is stated
 
 
 @dataclass(frozen=True)
@@ -42,18 +59,28 @@ class SimConfig:
     ----------
     track : str — shipped track name or TOML path
     laps : int — flying laps after the out-lap
-    effects : tuple of str — effects at their strong level
+    effects : mapping of str to float, or tuple of str
+        Strength of each named effect (0 = mild baseline, 1 = strong, up to 1.5); a
+        bare name is strength 1; effects not named stay at 0. See
+        :mod:`brakethermo.sim.effects`.
     sensor : {"multi", "single"} — four IR spots, or only ``disc_temp`` at spot 3
     seed : int
     disc : str — datasheet id or path
     nr, nz : int — truth grid, radial x half-thickness cells
     dt : float — s, thermal time step (divides 0.1 s)
     date : str — session date written in the facts
+    model_errors : bool
+        True: the true torque per bar, heat share, caliper nonlinearity and pressure
+        sensor offset / gain differ from the datasheet by this seed's draw.
+    bike_seed : int, optional
+        Seed of the bike's hardware (true torque per bar, heat share, caliper
+        nonlinearity, pressure-sensor gain): sessions with the same ``bike_seed`` share
+        it, as a test and a race of one bike do. Default: drawn from ``seed``.
     """
 
     track: str = "mugello-like"
     laps: int = 5
-    effects: tuple[str, ...] = ()
+    effects: Mapping[str, float] | tuple[str, ...] = ()
     sensor: str = "multi"
     seed: int = 0
     disc: str = "cc-340-8"
@@ -61,6 +88,13 @@ class SimConfig:
     nz: int = 5
     dt: float = 0.05
     date: str = "2026-05-30"
+    model_errors: bool = True
+    bike_seed: int | None = None
+
+    @property
+    def strengths(self) -> dict[str, float]:
+        """Strength of every named effect (validated)."""
+        return strengths_of(self.effects)
 
 
 @dataclass(frozen=True)
@@ -101,71 +135,176 @@ def _validate(cfg: SimConfig) -> None:
         raise ConfigError(f"the thermal step must divide {TRUTH_DT} s, got {cfg.dt}")
 
 
-def _braking_events(brake: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Event index of every sample (-1 off the brakes) and each event's first sample."""
-    on = brake > 0.0
-    starts = np.flatnonzero(on & ~np.concatenate([[False], on[:-1]]))
-    event = np.cumsum(on & ~np.concatenate([[False], on[:-1]])) - 1
-    return np.where(on, event, -1), starts
+class ThermalStepper:
+    """The truth disc advanced one thermal step at a time from ambient, recording the
+    face, mid-plane and mean temperatures and the energy flows (whole disc)."""
 
+    def __init__(self, model: TruthDisc, h_law: HLaw, t_amb0: float, n_max: int):
+        self.model = model
+        self.h_law = h_law
+        grid = model.grid
+        self.T = np.full((grid.nr, grid.nz), float(t_amb0))
+        self.H0 = model.enthalpy(self.T)
+        self.t_face, self.t_rims = model.initial_surfaces(self.T)
+        self.faces = np.empty((n_max + 1, grid.nr))
+        self.mids = np.empty((n_max + 1, grid.nr))
+        self.means = np.empty(n_max + 1)
+        self.vol = model.volume
+        self.k = 0
+        self._record()
+        self.flows = np.zeros(5)
 
-def _step_mean(x: np.ndarray, per: int, n_steps: int) -> np.ndarray:
-    """Mean of a 500 Hz signal over each thermal step (trapezoid, both ends included)."""
-    body = x[: n_steps * per].reshape(n_steps, per, *x.shape[1:])
-    ends = x[per : n_steps * per + 1 : per]
-    return (body.sum(axis=1) - 0.5 * body[:, 0] + 0.5 * ends) / per
+    def _record(self) -> None:
+        self.faces[self.k] = self.t_face
+        self.mids[self.k] = self.model.mid_plane(self.T)
+        self.means[self.k] = float(np.sum(self.T * self.vol) / self.vol.sum())
 
-
-def run_thermal(
-    model: TruthDisc,
-    dt: float,
-    q_face: np.ndarray,
-    h_face: np.ndarray,
-    h_law: HLaw,
-    t_amb: np.ndarray,
-) -> ThermalRun:
-    """Integrate the truth disc from ambient through the given boundary histories.
-
-    Parameters
-    ----------
-    model : TruthDisc
-    dt : float — s
-    q_face : ndarray, shape (n_steps, nr) — W/m^2 into each face
-    h_face : ndarray, shape (n_steps,) — W/(m^2 K)
-    h_law : HLaw — rim factors
-    t_amb : ndarray, shape (n_steps + 1,) — degC
-    """
-    grid = model.grid
-    T = np.full((grid.nr, grid.nz), float(t_amb[0]))
-    H0 = model.enthalpy(T)
-    t_face, t_rims = model.initial_surfaces(T)
-    n = h_face.size
-    faces = np.empty((n + 1, grid.nr))
-    mids = np.empty((n + 1, grid.nr))
-    means = np.empty(n + 1)
-    faces[0], mids[0] = t_face, model.mid_plane(T)
-    vol = model.volume
-    means[0] = float(np.sum(T * vol) / vol.sum())
-    flows = np.zeros(5)
-    for k in range(n):
+    def step(self, dt: float, q_face: np.ndarray, h_face: float, t_amb: float) -> None:
+        """One step with face flux ``q_face`` (W/m^2 per column), face h (W/(m^2 K))."""
         bc = Boundary(
-            q_face=q_face[k],
-            h_face=float(h_face[k]),
-            h_inner=h_law.inner_factor * h_face[k],
-            h_outer=h_law.outer_factor * h_face[k],
-            t_amb=float(t_amb[k + 1]),
+            q_face=q_face,
+            h_face=h_face,
+            h_inner=self.h_law.inner_factor * h_face,
+            h_outer=self.h_law.outer_factor * h_face,
+            t_amb=t_amb,
         )
-        T, t_face, t_rims, fl = model.step(T, dt, bc, t_face, t_rims)
-        flows += fl
-        faces[k + 1], mids[k + 1] = t_face, model.mid_plane(T)
-        means[k + 1] = float(np.sum(T * vol) / vol.sum())
-    # Both halves of the disc are alike: whole-disc energies are twice the half's.
-    names = ("heat_in", "face_convection", "face_radiation", "rim_convection", "rim_radiation")
-    energy = {n_: 2.0 * float(v) for n_, v in zip(names, flows, strict=True)}
-    energy["stored"] = 2.0 * (model.enthalpy(T) - H0)
-    energy["residual"] = energy["heat_in"] - sum(energy[n_] for n_ in names[1:]) - energy["stored"]
-    return ThermalRun(
-        time=np.arange(n + 1) * dt, t_face=faces, t_mid=mids, t_mean=means, energy=energy
+        self.T, self.t_face, self.t_rims, fl = self.model.step(
+            self.T, dt, bc, self.t_face, self.t_rims
+        )
+        self.flows += fl
+        self.k += 1
+        self._record()
+
+    def result(self, dt: float) -> ThermalRun:
+        n = self.k
+        # Both halves of the disc are alike: whole-disc energies are twice the half's.
+        names = ("heat_in", "face_convection", "face_radiation", "rim_convection", "rim_radiation")
+        energy = {n_: 2.0 * float(v) for n_, v in zip(names, self.flows, strict=True)}
+        energy["stored"] = 2.0 * (self.model.enthalpy(self.T) - self.H0)
+        energy["residual"] = (
+            energy["heat_in"] - sum(energy[n_] for n_ in names[1:]) - energy["stored"]
+        )
+        return ThermalRun(
+            time=np.arange(n + 1) * dt,
+            t_face=self.faces[: n + 1],
+            t_mid=self.mids[: n + 1],
+            t_mean=self.means[: n + 1],
+            energy=energy,
+        )
+
+
+@dataclass
+class _Context:
+    """What the per-sample derived quantities need (one run)."""
+
+    track: TrackSpec
+    laps: int
+    disc: DiscSpec
+    veh: VehicleSpec
+    chain: BrakeChain
+    eff: Effects
+    h_law: HLaw
+    following: np.ndarray
+    slip_red: np.ndarray  # (laps + 1, n_segments) relative h reduction while following
+    w_event: np.ndarray  # (laps + 1, n_corners, 3) crown weights per braking
+    seg_ends: np.ndarray
+    seg_straight: np.ndarray
+    corner_ends: np.ndarray
+
+
+def _derive(ctx: _Context, v: np.ndarray, s: np.ndarray, torque: np.ndarray) -> dict:
+    """Per-sample quantities of the realised run: wheel speed, heat, crowns, h."""
+    L = ctx.track.length
+    lap = np.minimum((s // L).astype(np.int64), ctx.laps)
+    lap_distance = s - lap * L
+    f_front = 2.0 * torque / ctx.disc.tyre_rolling_radius
+    slip = ctx.veh.slip_per_g * f_front / (ctx.veh.mass * G)
+    omega = v * (1.0 - slip) / ctx.disc.tyre_rolling_radius
+    q = ctx.chain.heat_share * torque * omega  # W into this disc
+    corner = np.searchsorted(ctx.corner_ends, lap_distance, side="right") % ctx.corner_ends.size
+    on = torque > 0.0
+    w = np.where(on[:, None], ctx.w_event[lap, corner], np.nan)
+    seg = np.minimum(
+        np.searchsorted(ctx.seg_ends, lap_distance, side="right"), ctx.seg_ends.size - 1
+    )
+    slip_on = ctx.following[lap] & ctx.seg_straight[seg] & ~on & (v * KMH > 150.0)
+    e = ctx.eff
+    h = ctx.h_law.face(v, ctx.disc.v_ref, e.knee_gain, e.knee_frac, e.knee_exponent)
+    h = h * np.where(slip_on, 1.0 - ctx.slip_red[lap, seg], 1.0)
+    return dict(
+        lap=lap,
+        lap_distance=lap_distance,
+        slip=slip,
+        omega=omega,
+        q=q,
+        w=w,
+        slip_on=slip_on,
+        h=h,
+        corner=corner,
+        f_front=f_front,
+    )
+
+
+@njit(cache=True)
+def _step_inputs(
+    v: np.ndarray,
+    s: np.ndarray,
+    torque: np.ndarray,
+    geo: np.ndarray,
+    corner_ends: np.ndarray,
+    seg_ends: np.ndarray,
+    seg_straight: np.ndarray,
+    following: np.ndarray,
+    slip_red: np.ndarray,
+    w_event: np.ndarray,
+) -> tuple[np.ndarray, float]:  # pragma: no cover - compiled
+    """Trapezoid means over one thermal step of the heat per crown (W) and the face h,
+    the same per-sample quantities as :func:`_derive` (a test holds them equal)."""
+    L, laps, R, slip_per_g, mg, share = geo[0], int(geo[1]), geo[2], geo[3], geo[4], geo[5]
+    h0, ha, hn, v_ref, gain, frac, expo = geo[6], geo[7], geo[8], geo[9], geo[10], geo[11], geo[12]
+    n = v.size
+    qw = np.zeros(3)
+    h_sum = 0.0
+    v_k = frac * v_ref
+    for j in range(n):
+        wt = 0.5 if (j == 0 or j == n - 1) else 1.0
+        lap = min(int(s[j] // L), laps)
+        dist = s[j] - lap * L
+        vj = max(v[j], 0.0)
+        x = max(vj - v_k, 0.0) / (v_ref - v_k)
+        h = (h0 + ha * vj**hn) * (1.0 + gain * x**expo)
+        seg = min(np.searchsorted(seg_ends, dist, side="right"), seg_ends.size - 1)
+        if torque[j] > 0.0:
+            corner = np.searchsorted(corner_ends, dist, side="right") % corner_ends.size
+            slip = slip_per_g * 2.0 * torque[j] / R / mg
+            q = share * torque[j] * v[j] * (1.0 - slip) / R
+            for c in range(3):
+                qw[c] += wt * q * w_event[lap, corner, c]
+        elif following[lap] and seg_straight[seg] and v[j] * 3.6 > 150.0:
+            h *= 1.0 - slip_red[lap, seg]
+        h_sum += wt * h
+    return qw / (n - 1), h_sum / (n - 1)
+
+
+def _geo(ctx: _Context) -> np.ndarray:
+    """Scalar parameters of :func:`_step_inputs`."""
+    e, hl = ctx.eff, ctx.h_law
+    return np.array(
+        [
+            ctx.track.length,
+            ctx.laps,
+            ctx.disc.tyre_rolling_radius,
+            ctx.veh.slip_per_g,
+            ctx.veh.mass * G,
+            ctx.chain.heat_share,
+            hl.h0,
+            hl.a,
+            hl.n,
+            ctx.disc.v_ref,
+            e.knee_gain,
+            e.knee_frac,
+            e.knee_exponent,
+        ]
     )
 
 
@@ -173,76 +312,114 @@ def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResu
     """Simulate one session; see :class:`SimConfig`. Deterministic for a given config.
 
     ``timings``, when given, receives the wall time of each stage in seconds
-    (``rider``, ``thermal``, ``sensors``, ``truth``).
+    (``rider``, ``thermal``, ``sensors``, ``truth``); ``thermal`` includes the rider's
+    braking, which is coupled to the disc through mu(T).
     """
     clock = _StageClock(timings)
     _validate(cfg)
     disc = load_disc(cfg.disc)
     track = load_track(cfg.track)
-    eff = make_effects(cfg.effects)
+    rng_rider, rng_heat, rng_sens, rng_env, rng_eff, rng_chain = (
+        np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(6)
+    )
+    eff = make_effects(cfg.strengths, rng_eff)
+    bike_rng = (
+        None
+        if cfg.bike_seed is None
+        else np.random.default_rng(np.random.SeedSequence(cfg.bike_seed).spawn(7)[6])
+    )
+    chain = draw_brake_chain(disc, rng_chain, cfg.model_errors, bike_rng)
     veh = VehicleSpec()
     h_law = HLaw()
-    rng_rider, rng_heat, rng_sens, rng_env = (
-        np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(4)
-    )
 
-    ride = drive_session(track, cfg.laps, rng_rider, veh, slip_fraction_laps=eff.slip_fraction_laps)
+    plan = drive_session(track, cfg.laps, rng_rider, veh, slip_fraction_laps=eff.slip_fraction_laps)
     clock.lap("rider")
-    per = round(cfg.dt * ride.rate)  # rider samples per thermal step
-    n_steps = (ride.v.size - 1) // per
-    duration = n_steps * cfg.dt
-    t500 = ride.time
+    rate = plan.rate
+    per = round(cfg.dt * rate)  # rider samples per thermal step
+    n_max = int(1.25 * plan.v.size / per) + 10  # steps; the realised run is a little longer
+    n500 = n_max * per + 1
+    t500 = np.arange(n500) / rate
 
-    # Braking: the torque the deceleration needs, on this one front disc.
-    f_disc = veh.front_share * ride.brake_force / 2.0  # N at the tyre contact
-    torque = f_disc * disc.tyre_rolling_radius  # N m
-    omega = ride.v * (1.0 - ride.slip) / disc.tyre_rolling_radius  # rad/s
-    q_brake = disc.heat_share * torque * omega  # W into the disc
-
-    # Pad crowns: weights per braking event, per corner.
-    event, starts = _braking_events(ride.brake_force)
-    w_event = crown_weights(
-        ride.next_corner[starts],
-        len(track.corners),
-        eff.crown_base_concentration,
-        eff.crown_event_concentration,
-        rng_heat,
-    )
-    w500 = np.where(event[:, None] >= 0, w_event[np.maximum(event, 0)], np.nan)
-    qw = _step_mean(np.nan_to_num(w500) * q_brake[:, None], per, n_steps)  # W per crown
-    crown_edges = disc.crown_edges
-    crown_area = np.pi * np.diff(crown_edges**2)
-    grid = make_grid(disc.r_int, disc.r_est, disc.thickness, cfg.nr, cfg.nz)
-    overlap = crown_overlap(grid.r_edges, crown_edges)
-    q_face = (0.5 * qw / crown_area) @ overlap.T  # W/m^2 per face
-
-    # Convection: true h(V), knee, slipstream while following on straights.
     amb0 = track.ambient_c + float(rng_env.normal(0.0, 2.0))
     phase = float(rng_env.uniform(0, 2 * np.pi))
     t_amb500 = amb0 + 0.4 * np.sin(2 * np.pi * t500 / 1800.0 + phase)
-    slip_red = rng_env.uniform(*eff.slip_reduction, size=cfg.laps + 1)
-    seg_kind = _on_straight(track, ride.lap_distance)
-    slip_on = ride.following[ride.lap] & seg_kind & (ride.brake_force <= 0) & (ride.v * KMH > 150.0)
-    h500 = h_law.face(ride.v, disc.v_ref, eff.knee_gain) * np.where(
-        slip_on, 1.0 - slip_red[ride.lap], 1.0
+    segs = track.segments
+    slip_red = eff.slip_reduction * rng_env.uniform(0.8, 1.2, size=(cfg.laps + 1, len(segs)))
+    ctx = _Context(
+        track=track,
+        laps=cfg.laps,
+        disc=disc,
+        veh=veh,
+        chain=chain,
+        eff=eff,
+        h_law=h_law,
+        following=plan.following,
+        slip_red=slip_red,
+        w_event=crown_weights(
+            cfg.laps + 1, len(track.corners), eff.crown_sigma_base, eff.crown_sigma_event,
+            rng_heat,
+        ),
+        seg_ends=np.cumsum([sg.length for sg in segs]),
+        seg_straight=np.array([sg.kind == "straight" for sg in segs]),
+        corner_ends=track.corner_spans()[:, 1],
     )
-    h_step = _step_mean(h500, per, n_steps)
-    t_amb_steps = t_amb500[::per][: n_steps + 1]
 
+    grid = make_grid(disc.r_int, disc.r_est, disc.thickness, cfg.nr, cfg.nz)
+    crown_area = np.pi * np.diff(disc.crown_edges**2)
+    overlap = crown_overlap(grid.r_edges, disc.crown_edges)
+    kz_ratio = eff.k_z / float(disc.conductivity(KZ_REF_C))
     model = TruthDisc(
-        grid, disc.density, disc.specific_heat, disc.conductivity, eff.kz_ratio, disc.emissivity
+        grid, disc.density, disc.specific_heat, disc.conductivity, kz_ratio, disc.emissivity
     )
-    thermal = run_thermal(model, cfg.dt, q_face, h_step, h_law, t_amb_steps)
+    stepper = ThermalStepper(model, h_law, float(t_amb500[0]), n_max)
+    mu_law = MuLaw(eff.mu_deficit, eff.mu_gain, eff.mu_t_mid, eff.mu_t_width)
+    pad = (grid.r_centres >= disc.pad_r1) & (grid.r_centres <= disc.pad_r4)
+    pad_area = grid.ring_areas[pad]
+
+    # Rider, brake chain and disc, coupled through mu(T) of the rubbed face: mu is
+    # frozen over one thermal step at the face temperature of its start.
+    prm = chain_params(chain, veh, disc, rate)
+    mod = hand_modulation(chain, n500, rate, rng_chain)
+    plan_s, plan_v, plan_a = plan.s, plan.v, plan.a
+    plan_f = plan.brake_force
+    out = np.zeros((5, n500))
+    state = np.array([plan_v[0], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    out[OUT_V, 0] = plan_v[0]
+    mu_step = np.empty(n_max)
+    total = (cfg.laps + 1) * track.length
+    n_steps = n_max
+    kernel_args = (
+        _geo(ctx),
+        ctx.corner_ends,
+        ctx.seg_ends,
+        ctx.seg_straight,
+        ctx.following,
+        ctx.slip_red,
+        ctx.w_event,
+    )
+    for k in range(n_max):
+        j0 = k * per
+        mu = float(mu_law.ratio(stepper.t_face[pad] @ pad_area / pad_area.sum()))
+        mu_step[k] = mu
+        advance(state, prm, plan_s, plan_v, plan_a, plan_f, mod, mu, j0, per, out)
+        c = slice(j0, j0 + per + 1)
+        qw, h_step = _step_inputs(out[OUT_V, c], out[OUT_S, c], out[OUT_TORQUE, c], *kernel_args)
+        q_face = (0.5 * qw / crown_area) @ overlap.T  # W/m^2 per face
+        stepper.step(cfg.dt, q_face, h_step, float(t_amb500[j0 + per]))
+        if state[S] >= total:
+            n_steps = k + 1
+            break
+    thermal = stepper.result(cfg.dt)
     clock.lap("thermal")
 
-    # Friction: mu follows the rubbed-face temperature; the rider asks for the torque,
-    # so the line pressure carries mu: p = torque / (torque_per_Pa * mu/mu_nom).
-    pad = (grid.r_centres >= disc.pad_r1) & (grid.r_centres <= disc.pad_r4)
-    area = grid.ring_areas
-    t_rub = thermal.t_face[:, pad] @ area[pad] / area[pad].sum()
-    mu = MuLaw(eff.mu_amplitude)
-    mu500 = mu.ratio(np.interp(t500, thermal.time, t_rub))
-    p500 = torque / (disc.torque_per_pa * mu500)  # Pa
+    n = n_steps * per + 1
+    v, s_real, p_line, torque = (out[r, :n] for r in (OUT_V, OUT_S, OUT_P, OUT_TORQUE))
+    t500, t_amb500, mod = t500[:n], t_amb500[:n], mod[:n]
+    d = _derive(ctx, v, s_real, torque)
+    ride = _realised_run(plan, track, cfg.laps, rate, v, s_real, out[OUT_FORCE, :n], d)
+    mu500 = np.repeat(mu_step[:n_steps], per)
+    mu500 = np.append(mu500, mu500[-1])
+    duration = n_steps * cfg.dt
 
     spot_r = np.asarray(disc.spot_radii)
     ir = IRSensor()
@@ -255,11 +432,12 @@ def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResu
         disc,
         ride,
         eff,
+        chain,
         ir,
         thermal.time,
         spots_face,
-        p500,
-        omega,
+        p_line,
+        d["omega"],
         t_amb500,
         duration,
         rng_sens,
@@ -270,6 +448,7 @@ def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResu
         if cfg.sensor == "multi"
         else {}
     )
+    strengths = eff.strength
     facts = {
         "vehicle": veh.name,
         "track": track.name,
@@ -277,7 +456,7 @@ def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResu
         "disc": disc.id,
         "ambient_temp_c": f"{amb0:.1f}",
         "seed": str(cfg.seed),
-        "effects": ",".join(eff.strong) or "none",
+        "effects": ",".join(f"{n_}={strengths[n_]:g}" for n_ in eff.active) or "none",
         "laps": str(cfg.laps),
         "sensor": cfg.sensor,
         "simulator": "brakethermo.sim",
@@ -287,7 +466,7 @@ def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResu
     stride = round(TRUTH_DT / cfg.dt)
     g = slice(0, None, stride)
     t_grid = thermal.time[g]
-    i500 = np.round(t_grid * ride.rate).astype(int)
+    i500 = np.round(t_grid * rate).astype(int)
     lap_grid = np.searchsorted(ride.beacon_times, t_grid + 1e-9, side="right") - 1
     truth = {
         "time": t_grid,
@@ -300,33 +479,46 @@ def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResu
     for i in range(4):
         truth[f"spot{i + 1}_mid"] = spots_mid[g, i]
     truth["disc_mean"] = thermal.t_mean[g]
-    truth["h"] = h500[i500]
-    truth["q_brake"] = q_brake[i500]
-    truth["q_brake_nominal"] = disc.braking_power(p500, omega)[i500]
+    truth["h"] = d["h"][i500]
+    truth["q_brake"] = d["q"][i500]
+    truth["q_brake_nominal"] = disc.braking_power(p_line * BAR, d["omega"])[i500]
     truth["mu_ratio"] = mu500[i500]
-    for c in range(3):
-        truth[f"w{c + 1}"] = w500[i500, c]
-    truth["slipstream"] = slip_on[i500]
+    truth["p_line_bar"] = p_line[i500]
+    truth["brake_torque"] = torque[i500]
+    for c_ in range(3):
+        truth[f"w{c_ + 1}"] = d["w"][i500, c_]
+    truth["slipstream"] = d["slip_on"][i500]
     truth["ambient"] = t_amb500[i500]
 
     params = {
         "track": track.name,
         "laps": cfg.laps,
         "seed": cfg.seed,
+        "bike_seed": cfg.bike_seed,
         "sensor": cfg.sensor,
         "disc": disc.id,
         "date": cfg.date,
-        "effects": list(eff.strong),
-        "effect_levels": eff.levels(),
-        "effect_params": eff.as_dict(),
+        "effects": list(eff.active),
+        "effect_strengths": strengths,
+        "effect_params": eff.params(),
+        "effect_mild": dict(eff.mild),
+        "model_errors": chain.as_dict(),
         "h_law": {
             **h_law.as_dict(),
+            "knee_gain": eff.knee_gain,
+            "knee_frac": eff.knee_frac,
+            "knee_exponent": eff.knee_exponent,
             "v_ref_m_s": disc.v_ref,
-            "formula": "(h0 + a*V^n) * (1 + knee_gain*max(V - knee_frac*V_ref, 0)^2"
-            " / ((1 - knee_frac)*V_ref)^2), V in m/s",
+            "formula": "(h0 + a*V^n) * (1 + knee_gain*(max(V - knee_frac*V_ref, 0)"
+            " / ((1 - knee_frac)*V_ref))^knee_exponent), V in m/s",
         },
-        "k_z_ratio": eff.kz_ratio,
-        "mu_law": asdict(mu),
+        "k_z_w_mk": eff.k_z,
+        "k_z_ref_c": KZ_REF_C,
+        "k_z_ratio": kz_ratio,
+        "mu_law": {
+            **asdict(mu_law),
+            "formula": "1 - deficit + (deficit + gain) / (1 + exp(-(T - t_mid) / t_width))",
+        },
         "grid": {"nr": cfg.nr, "nz": cfg.nz, "dt_s": cfg.dt},
         "vehicle": asdict(veh),
         "ambient_temp_c": amb0,
@@ -348,6 +540,34 @@ def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResu
     )
 
 
+def _realised_run(
+    plan: RiderRun,
+    track: TrackSpec,
+    laps: int,
+    rate: float,
+    v: np.ndarray,
+    s: np.ndarray,
+    brake_force: np.ndarray,
+    d: dict,
+) -> RiderRun:
+    """The run as it happened (the plan bent by the brake chain)."""
+    L = track.length
+    crossings = np.searchsorted(s, np.arange(1, laps + 1) * L)
+    return RiderRun(
+        rate=rate,
+        v=v,
+        s=s,
+        a=np.gradient(v, 1.0 / rate),
+        brake_force=brake_force,
+        slip=d["slip"],
+        lap=d["lap"],
+        lap_distance=d["lap_distance"],
+        next_corner=d["corner"],
+        beacon_times=np.concatenate([[0.0], crossings / rate]),
+        following=plan.following,
+    )
+
+
 class _StageClock:
     """Records the wall time between successive :meth:`lap` calls into a dict."""
 
@@ -362,21 +582,16 @@ class _StageClock:
         self.t = now
 
 
-def _on_straight(track: TrackSpec, lap_distance: np.ndarray) -> np.ndarray:
-    ends = np.cumsum([s.length for s in track.segments])
-    seg = np.minimum(np.searchsorted(ends, lap_distance, side="right"), ends.size - 1)
-    return np.array([s.kind == "straight" for s in track.segments])[seg]
-
-
 def _logged_channels(
     cfg: SimConfig,
     disc: DiscSpec,
     ride: RiderRun,
     eff: Effects,
+    chain: BrakeChain,
     ir: IRSensor,
     t_thermal: np.ndarray,
     spots_face: np.ndarray,
-    p500: np.ndarray,
+    p_line_bar: np.ndarray,
     omega: np.ndarray,
     t_amb500: np.ndarray,
     duration: float,
@@ -409,15 +624,12 @@ def _logged_channels(
         )
     )
     ts = clock(rates.pressure)
-    p_bar = np.interp(ts, t500, p500) / BAR
-    p_bar = np.maximum(
-        noisy(p_bar, 0.01, 0.01, rng) + 0.005 * p_bar * rng.normal(size=ts.size), 0.0
-    )
+    p_bar = chain.logged_pressure_bar(np.interp(ts, t500, p_line_bar), rng)
     out.append(Channel("brake_pressure_front", "bar", ts, np.round(p_bar, 2), 2))
 
-    # IR: the patch-averaged face seen through the sensor's lag and emissivity setting.
+    # IR: the patch-averaged face seen through the sensor's lag, lens and emissivity setting.
     lagged = first_order_lag(spots_face, t_thermal[1] - t_thermal[0], eff.ir_lag_s)
-    shown = pyrometer_reading(lagged, disc.emissivity, eff.emissivity_set)
+    shown = pyrometer_reading(lagged, disc.emissivity * eff.lens_transmission, eff.emissivity_set)
     ts = clock(ir.rate)
     spots = [finish_ir(np.interp(ts, t_thermal, shown[:, i]), ir, rng) for i in range(4)]
     if cfg.sensor == "multi":

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from brakethermo.config import load_toml, resolve_named
+from brakethermo.config import config_file, resolve_named
 from brakethermo.errors import ConfigError
 
 KMH = 1.0 / 3.6  # m/s per km/h
@@ -91,37 +91,27 @@ class TrackSpec:
 def load_track(name_or_path: str | Path) -> TrackSpec:
     """Load and validate a track by shipped name (``mugello-like``) or TOML path."""
     path = resolve_named("tracks", name_or_path)
-    raw = load_toml(path)
-    try:
-        segments = []
-        for i, seg in enumerate(raw["segments"]):
-            kind = str(seg["kind"])
-            if kind not in ("straight", "corner"):
-                raise ConfigError(
-                    f"segment {i + 1}: kind must be 'straight' or 'corner', got {kind!r}",
-                    path=path,
-                )
-            apex = float(seg["apex_kmh"]) * KMH if kind == "corner" else float("inf")
-            segments.append(
-                Segment(
-                    kind=kind,
-                    length=float(seg["length_m"]),
-                    apex_speed=apex,
-                    name=str(seg.get("name", f"{kind}-{i + 1}")),
-                )
+    raw = config_file(path)
+    segments = []
+    for i, seg in enumerate(raw.tables("segments")):
+        kind = seg.string("kind", choices=("straight", "corner"))
+        apex = seg.number("apex_kmh", positive=True) * KMH if kind == "corner" else float("inf")
+        segments.append(
+            Segment(
+                kind=kind,
+                length=seg.number("length_m", positive=True),
+                apex_speed=apex,
+                name=seg.string("name", f"{kind}-{i + 1}"),
             )
-        spec = TrackSpec(
-            name=str(raw.get("name", path.stem)),
-            description=str(raw.get("description", "")),
-            segments=tuple(segments),
-            pit_speed=float(raw["pit_speed_kmh"]) * KMH,
-            pit_lane=float(raw["pit_lane_m"]),
-            ambient_c=float(raw["ambient_c"]),
         )
-    except KeyError as exc:
-        raise ConfigError(f"missing key {exc}", path=path) from None
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"invalid value ({exc})", path=path) from None
+    spec = TrackSpec(
+        name=raw.string("name", path.stem),
+        description=raw.string("description", ""),
+        segments=tuple(segments),
+        pit_speed=raw.number("pit_speed_kmh", positive=True) * KMH,
+        pit_lane=raw.number("pit_lane_m", lo=0.0),
+        ambient_c=raw.number("ambient_c", lo=-40.0, hi=60.0),
+    )
     problems = []
     if not spec.corners or not any(s.kind == "straight" for s in spec.segments):
         problems.append("a track needs at least one straight and one corner")

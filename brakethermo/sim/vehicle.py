@@ -216,9 +216,10 @@ def drive_session(
     ends = track.corner_spans()[:, 1]
     next_corner = np.searchsorted(ends, lap_distance, side="right") % ends.size
     following = np.zeros(laps + 1, dtype=bool)
-    n_follow = round(slip_fraction_laps * laps)
-    if n_follow:
-        following[1 + rng.choice(laps, size=n_follow, replace=False)] = True
+    # The order is drawn whatever the share, so a larger share adds following laps to
+    # those of a smaller one.
+    order = rng.permutation(laps)
+    following[1 + order[: round(slip_fraction_laps * laps)]] = True
     return RiderRun(
         rate=rate,
         v=v_s,

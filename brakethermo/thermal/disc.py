@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from brakethermo.config import load_toml, resolve_named
+from brakethermo.config import config_file, resolve_named
 from brakethermo.errors import ConfigError
 
 BAR = 1.0e5  # Pa
@@ -45,6 +45,9 @@ class DiscSpec:
         Operating window.
     v_ref : float — m/s
         Reference speed of the h(V) normalisation.
+    k_z : float or None — W/(m K)
+        Nominal through-thickness conductivity (normal to the faces; varies between disc
+        batches); ``None`` when the datasheet does not give it.
     """
 
     id: str
@@ -65,6 +68,7 @@ class DiscSpec:
     tyre_rolling_radius: float
     window_c: tuple[float, float]
     v_ref: float
+    k_z: float | None = None
     description: str = field(default="", compare=False)
 
     @property
@@ -88,34 +92,33 @@ class DiscSpec:
 def load_disc(name_or_path: str | Path = "cc-340-8") -> DiscSpec:
     """Load and validate a disc datasheet by shipped id or TOML path."""
     path = resolve_named("discs", name_or_path)
-    raw = load_toml(path)
-    try:
-        geo, mat, brk, op = raw["geometry"], raw["material"], raw["brake"], raw["operation"]
-        spec = DiscSpec(
-            id=str(raw.get("id", path.stem)),
-            description=str(raw.get("description", "")),
-            r_int=float(geo["r_int"]),
-            r_est=float(geo["r_est"]),
-            thickness=float(geo["thickness"]),
-            pad_r1=float(geo["pad_band"][0]),
-            pad_r4=float(geo["pad_band"][1]),
-            spot_radii=tuple(float(r) for r in geo["spot_radii"]),
-            density=float(mat["density"]),
-            emissivity=float(mat["emissivity"]),
-            c_temp_c=tuple(float(v) for v in mat["c_temp_c"]),
-            c_value=tuple(float(v) for v in mat["c_value"]),
-            k_temp_c=tuple(float(v) for v in mat["k_temp_c"]),
-            k_value=tuple(float(v) for v in mat["k_value"]),
-            torque_per_pa=float(brk["torque_per_bar"]) / BAR,
-            heat_share=float(brk["heat_share"]),
-            tyre_rolling_radius=float(brk["tyre_rolling_radius"]),
-            window_c=(float(op["window_c"][0]), float(op["window_c"][1])),
-            v_ref=float(op["v_ref_kmh"]) * KMH,
-        )
-    except KeyError as exc:
-        raise ConfigError(f"missing key {exc}", path=path) from None
-    except (TypeError, ValueError, IndexError) as exc:
-        raise ConfigError(f"invalid value ({exc})", path=path) from None
+    raw = config_file(path)
+    geo, mat, brk, op = (raw.table(k) for k in ("geometry", "material", "brake", "operation"))
+    band = geo.numbers("pad_band", length=2, positive=True)
+    window = op.numbers("window_c", length=2, lo=-50.0, hi=3000.0)
+    op.check(window[0] < window[1], "window_c", "[low, high] with low < high", list(window))
+    spec = DiscSpec(
+        id=raw.string("id", path.stem),
+        description=raw.string("description", ""),
+        r_int=geo.number("r_int", positive=True),
+        r_est=geo.number("r_est", positive=True),
+        thickness=geo.number("thickness", positive=True),
+        pad_r1=band[0],
+        pad_r4=band[1],
+        spot_radii=geo.numbers("spot_radii", length=4, positive=True),
+        density=mat.number("density", positive=True),
+        emissivity=mat.number("emissivity", positive=True, hi=1.0),
+        c_temp_c=mat.numbers("c_temp_c"),
+        c_value=mat.numbers("c_value", positive=True),
+        k_temp_c=mat.numbers("k_temp_c"),
+        k_value=mat.numbers("k_value", positive=True),
+        torque_per_pa=brk.number("torque_per_bar", positive=True) / BAR,
+        heat_share=brk.number("heat_share", positive=True, hi=1.0),
+        tyre_rolling_radius=brk.number("tyre_rolling_radius", positive=True),
+        window_c=(window[0], window[1]),
+        v_ref=op.number("v_ref_kmh", positive=True) * KMH,
+        k_z=mat.number("k_z", positive=True) if mat.has("k_z") else None,
+    )
     _validate(spec, path)
     return spec
 

@@ -24,8 +24,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from brakethermo.config import load_toml
-from brakethermo.errors import ConfigError, DataError
+from brakethermo.config import config_file
+from brakethermo.errors import DataError
 from brakethermo.io.atomic import write_text_atomic
 
 KMH = 1.0 / 3.6  # m/s per km/h
@@ -186,6 +186,7 @@ class HLaw:
         path: str | Path,
         weights: Sequence[float] = (1.0, 1.0, 1.0),
         extra: Mapping[str, Any] | None = None,
+        effects: Mapping[str, Mapping[str, Any]] | None = None,
     ) -> None:
         """Write ``h_law.toml`` (OUTPUTS.md layout) atomically.
 
@@ -197,6 +198,9 @@ class HLaw:
         extra : mapping, optional
             Further identified values (str, bool, int, float, lists of them, or one level
             of nested mappings), stored under ``[extra]``.
+        effects : mapping of str to mapping, optional
+            Fitted effect parameters, one table ``[effects.<name>]`` per effect
+            (OUTPUTS.md); ``estimate --h-law`` uses them.
         """
         w = [float(v) for v in weights]
         if len(w) != 3 or not all(math.isfinite(v) and v >= 0 for v in w):
@@ -232,6 +236,8 @@ class HLaw:
             lines += [f"{k} = {_fmt(v)}" for k, v in extra.items() if k not in tables]
             for name, table in tables.items():
                 lines += ["", f"[extra.{name}]"] + [f"{k} = {_fmt(v)}" for k, v in table.items()]
+        for name, table in (effects or {}).items():
+            lines += ["", f"[effects.{name}]"] + [f"{k} = {_fmt(v)}" for k, v in table.items()]
         write_text_atomic(path, "\n".join(lines) + "\n")
 
     @classmethod
@@ -247,10 +253,11 @@ class HLawRecord:
     law: HLaw
     weights: tuple[float, float, float]
     extra: dict[str, Any] = field(default_factory=dict)
+    effects: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
 def read_h_law(path: str | Path) -> HLawRecord:
-    """Read and validate an ``h_law.toml``.
+    """Read and validate an ``h_law.toml`` (schema layer of :mod:`brakethermo.config`).
 
     Raises
     ------
@@ -259,33 +266,29 @@ def read_h_law(path: str | Path) -> HLawRecord:
         with the power law at the knee.
     """
     path = Path(path)
-    raw = load_toml(path)
-    try:
-        v_ref = float(raw["v_ref_mps"]) if "v_ref_mps" in raw else float(raw["v_ref_kmh"]) * KMH
-        knee = float(raw["knee"])
-        a, b = float(raw["power"]["a"]), float(raw["power"]["b"])
-        c = [float(v) for v in raw["cubic"]["c"]]
-        w = tuple(float(v) for v in raw.get("weights", {}).get("w", (1.0, 1.0, 1.0)))
-    except KeyError as exc:
-        raise ConfigError(f"missing key {exc}; write the file with identify-h", path=path) from None
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"invalid value ({exc})", path=path) from None
-    if len(c) != 4:
-        raise ConfigError("[cubic] c must hold four coefficients c0..c3", path=path)
-    if len(w) != 3 or not all(math.isfinite(v) and v >= 0 for v in w) or sum(w) <= 0:
-        raise ConfigError("[weights] w must be three finite values >= 0, not all 0", path=path)
-    try:
-        law = HLaw(v_ref=v_ref, a=a, b=b, c=(c[1], c[2], c[3]), knee=knee)
-    except ValueError as exc:
-        raise ConfigError(str(exc), path=path) from None
-    if not math.isclose(c[0], law.c0, rel_tol=1e-6, abs_tol=1e-9):
-        raise ConfigError(
-            f"[cubic] c[0] = {c[0]} must equal a * knee^b = {law.c0} (continuity)", path=path
-        )
-    extra = raw.get("extra", {})
-    if not isinstance(extra, dict):
-        raise ConfigError("[extra] must be a table", path=path)
-    return HLawRecord(law=law, weights=(w[0], w[1], w[2]), extra=extra)
+    raw = config_file(path)
+    if raw.has("v_ref_mps"):
+        v_ref = raw.number("v_ref_mps", positive=True)
+    else:
+        v_ref = raw.number("v_ref_kmh", positive=True) * KMH
+    knee = raw.number("knee", positive=True, hi=10.0)
+    power = raw.table("power")
+    a, b = power.number("a", lo=0.0), power.number("b", lo=0.0, hi=10.0)
+    c = raw.table("cubic").numbers("c", length=4)
+    weights = raw.table("weights", {})
+    w = weights.numbers("w", [1.0, 1.0, 1.0], length=3, lo=0.0)
+    weights.check(sum(w) > 0, "w", "three weights >= 0, not all 0", w)
+    law = HLaw(v_ref=v_ref, a=a, b=b, c=(c[1], c[2], c[3]), knee=knee)
+    raw.table("cubic").check(
+        math.isclose(c[0], law.c0, rel_tol=1e-6, abs_tol=1e-9), "c",
+        f"c[0] = a * knee^b = {law.c0} (continuity at the knee)", c[0],
+    )
+    extra = raw.table("extra", {}).raw
+    effects = raw.table("effects", {}).raw
+    for name, table in effects.items():
+        if not isinstance(table, dict):
+            raise raw.error(f"effects.{name}", "a table [effects.<name>] of parameters", table)
+    return HLawRecord(law=law, weights=(w[0], w[1], w[2]), extra=extra, effects=effects)
 
 
 def _fmt(value: Any) -> str:

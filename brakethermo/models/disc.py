@@ -1,11 +1,15 @@
 """The disc as a state-space model for the sigma-point filters.
 
-State ``x = [T_1 .. T_n, theta_1 .. theta_p]``: the node temperatures of a
-:class:`~brakethermo.thermal.model.DiscFEModel` (degC) and augmented parameters that
-follow a Gaussian random walk (paper eq. 48–50). Known parameters so far are the
-convection coefficient ``h`` (identify-h) and the braking-power scale (the friction
-coefficient relative to nominal, which the paper names as the main uncertainty of the
-braking power). Further effects plug in as further parameters.
+State ``x = [T_1 .. T_n, theta_1 .. theta_p, s]``: the node temperatures of a
+:class:`~brakethermo.thermal.model.DiscFEModel` (degC), augmented parameters that
+follow a Gaussian random walk (paper eq. 48–50) and, with a lagging pyrometer, the
+sensor's own temperature ``s``. The parameters: the convection coefficient ``h``
+(identify-h), the braking-power scale (the friction coefficient relative to nominal,
+which the paper names as the main uncertainty of the braking power), and the online
+forms of the registered effects (:mod:`brakethermo.models.effects`): an h multiplier
+that moves only off the brakes (``slipstream``) and a through-thickness conductivity
+factor (``thickness_gradient``). Fixed effects from a test session enter as
+:class:`DiscEffects`: μ(T) on the braking power and the sensor's time constant.
 
 Process noise has two parts: white noise on every node, and the uncertainty of how the
 braking power splits over the three pad crowns (paper §2: the split changes from corner
@@ -23,14 +27,37 @@ from dataclasses import dataclass
 import numpy as np
 
 from brakethermo.errors import DataError
+from brakethermo.models.effects import lag_alpha, mu_ratio
 from brakethermo.thermal.model import DiscFEModel
 from brakethermo.thermal.power import crown_areas, crown_load
 
 H_PARAM = "h"
 SCALE_PARAM = "power_scale"
+H_FACTOR_PARAM = "h_factor"  # slipstream, online: moves off the brakes only
+KZ_PARAM = "kz_factor"  # thickness_gradient, online
+PARAMS = (H_PARAM, SCALE_PARAM, H_FACTOR_PARAM, KZ_PARAM)
 C_TYPICAL_C = 500.0  # degC at which the crown-noise gain is evaluated
 H_TYPICAL = 100.0  # W/(m² K), the same; the gain hardly depends on either
 T_AMB_TYPICAL_C = 25.0
+
+
+@dataclass(frozen=True)
+class DiscEffects:
+    """Effects fixed at their test-session values for a filter run.
+
+    Attributes
+    ----------
+    mu_beta, mu_t_mid_c : float — dimensionless, degC
+        ``friction_temperature``: braking power × μ(T)/μ_ref (:func:`effects.mu_ratio`)
+        at the contact-band face temperature of each sigma point; ``mu_beta = 0`` = off.
+    sensor_tau_s : float — s
+        ``sensor_lag``: first-order pyrometer; the sensor temperature becomes a state and
+        the measurement reads it. 0 = ideal sensor.
+    """
+
+    mu_beta: float = 0.0
+    mu_t_mid_c: float = 400.0
+    sensor_tau_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -46,6 +73,9 @@ class RandomWalkParam:
         Random-walk standard deviation per 0.1 s step.
     lower : float
         The model sees ``max(theta, lower)``, so a sigma point cannot make it unphysical.
+    off_brake_only : bool
+        The walk moves only on steps without braking (``slipstream``: following another
+        bike changes the cooling air on the straights).
     """
 
     name: str
@@ -53,6 +83,7 @@ class RandomWalkParam:
     init_sigma: float
     step_sigma: float
     lower: float = 0.0
+    off_brake_only: bool = False
 
 
 class DiscStateSpace:
@@ -67,11 +98,15 @@ class DiscStateSpace:
     h : ndarray (K,) or None — W/(m² K)
         Convection coefficient per step; ``None`` when ``h`` is a state.
     params : sequence of RandomWalkParam
-        Augmented parameters (names :data:`H_PARAM`, :data:`SCALE_PARAM`).
+        Augmented parameters (names of :data:`PARAMS`).
     sigma_temp : float — degC per step
         White process noise on every node.
     sigma_crown : float — dimensionless
         Relative uncertainty of each crown's share of the braking power.
+    effects : DiscEffects, optional
+        Fixed effects (μ(T), sensor lag).
+    spot_radius : float, optional — m
+        The measured spot, needed when the sensor lags (its state follows that spot).
     """
 
     def __init__(
@@ -84,9 +119,11 @@ class DiscStateSpace:
         *,
         sigma_temp: float,
         sigma_crown: float,
+        effects: DiscEffects | None = None,
+        spot_radius: float | None = None,
     ) -> None:
         names = [p.name for p in params]
-        unknown = set(names) - {H_PARAM, SCALE_PARAM}
+        unknown = set(names) - set(PARAMS)
         if unknown:
             raise ValueError(f"unknown augmented parameters {sorted(unknown)}")
         if h is None and H_PARAM not in names:
@@ -96,16 +133,32 @@ class DiscStateSpace:
         self.t_amb = np.asarray(t_amb, dtype=float)
         self.h = None if h is None else np.asarray(h, dtype=float)
         self.params = tuple(params)
+        self.effects = effects or DiscEffects()
         self.n_temp = model.n_state
-        self.n = self.n_temp + len(self.params)
         self.index = {p.name: self.n_temp + i for i, p in enumerate(self.params)}
         self._lower = np.array([p.lower for p in self.params])
+        self.lagging = self.effects.sensor_tau_s > 0
+        if self.lagging and spot_radius is None:
+            raise ValueError("a lagging sensor needs the measured spot's radius")
+        self.sensor_index = self.n_temp + len(self.params) if self.lagging else None
+        self.n = self.n_temp + len(self.params) + int(self.lagging)
+        if self.lagging:
+            self._sensor_row = model.spot_matrix([spot_radius])[0]
+            self._sensor_alpha = float(lag_alpha(np.array(self.effects.sensor_tau_s), model.dt))
+        edges = model.disc.crown_edges
+        contact = (model.radii >= edges[0] - 1e-9) & (model.radii <= edges[-1] + 1e-9)
+        self._contact_face = model.face_index[contact]
+        on_brake = self.q_brk > 0.01 * max(float(np.max(self.q_brk, initial=0.0)), 1.0)
+        off_only = np.array([p.off_brake_only for p in self.params], dtype=bool)
+        self._moving = ~(on_brake[:, None] & off_only[None, :])
 
         Q = np.zeros((self.n, self.n))
         Q[: self.n_temp, : self.n_temp] = np.eye(self.n_temp) * sigma_temp**2
-        for p in self.params:
-            Q[self.index[p.name], self.index[p.name]] = p.step_sigma**2
+        if self.lagging:
+            # the sensor's own small model error, so its state is never over-trusted
+            Q[self.sensor_index, self.sensor_index] = sigma_temp**2
         self._Q_base = Q
+        self._step_var = np.array([p.step_sigma**2 for p in self.params])
         S = np.zeros((self.n, self.n))
         S[: self.n_temp, : self.n_temp] = self._crown_covariance(model, sigma_crown)
         self._S_crown = S
@@ -141,15 +194,25 @@ class DiscStateSpace:
     def f(self, X: np.ndarray, k: int) -> np.ndarray:
         """Advance every sigma point from step ``k`` to ``k + 1`` (eq. 15, 50)."""
         h = self._param(X, H_PARAM)
+        h = self.h[k] if h is None else h
+        factor = self._param(X, H_FACTOR_PARAM)
+        if factor is not None:
+            h = h * factor
         scale = self._param(X, SCALE_PARAM)
+        scale = np.ones(X.shape[0]) if scale is None else scale
+        if self.effects.mu_beta:
+            T_contact = X[:, self._contact_face].mean(axis=1)
+            scale = scale * mu_ratio(T_contact, self.effects.mu_beta, self.effects.mu_t_mid_c)
+        kz = self._param(X, KZ_PARAM)
         out = np.empty_like(X)
         try:
             out[:, : self.n_temp] = self.model.step(
                 X[:, : self.n_temp],
                 self.q_brk[k],
-                self.h[k] if h is None else h,
+                h,
                 self.t_amb[k],
-                1.0 if scale is None else scale,
+                scale,
+                kz_ratio=None if kz is None else kz * self.model.kz_ratio,
             )
         except (ZeroDivisionError, FloatingPointError):
             raise DataError(
@@ -157,16 +220,32 @@ class DiscStateSpace:
                 " temperatures left any physical range; check the h law and tuning values"
             ) from None
         out[:, self.n_temp :] = X[:, self.n_temp :]
+        if self.lagging:
+            s = X[:, self.sensor_index]
+            face = out[:, : self.n_temp] @ self._sensor_row
+            out[:, self.sensor_index] = s + self._sensor_alpha * (face - s)
         return out
 
     def Q(self, k: int) -> np.ndarray:
         """Process noise of the step ``k -> k + 1``, squared state units."""
-        return self._Q_base + self.q_brk[k] ** 2 * self._S_crown
+        Q = self._Q_base + self.q_brk[k] ** 2 * self._S_crown
+        if self.params:
+            i = self.n_temp + np.arange(len(self.params))
+            Q[i, i] = self._step_var * self._moving[k]
+        return Q
 
     def H(self, radii: Sequence[float] | np.ndarray) -> np.ndarray:
         """Face temperature at ``radii`` (m) by linear interpolation (eq. 53), (m, n)."""
         H = np.zeros((np.size(radii), self.n))
         H[:, : self.n_temp] = self.model.spot_matrix(radii)
+        return H
+
+    def H_measured(self, radius: float) -> np.ndarray:
+        """What the pyrometer at ``radius`` reads, (1, n): its own state when it lags."""
+        if not self.lagging:
+            return self.H([radius])
+        H = np.zeros((1, self.n))
+        H[0, self.sensor_index] = 1.0
         return H
 
     def selector(self, name: str) -> np.ndarray:
@@ -181,10 +260,18 @@ class DiscStateSpace:
         Temperatures get a common offset uncertainty plus an independent part, which
         keeps the prior smooth across the radius.
         """
-        x0 = np.concatenate([np.asarray(t0_nodes, float), [p.init for p in self.params]])
+        t0 = np.asarray(t0_nodes, float)
+        sensor = [float(self._sensor_row @ t0)] if self.lagging else []
+        x0 = np.concatenate([t0, [p.init for p in self.params], sensor])
         P0 = np.zeros((self.n, self.n))
         var = init_sigma_temp**2
-        P0[: self.n_temp, : self.n_temp] = 0.5 * var + 0.5 * var * np.eye(self.n_temp)
+        T = slice(0, self.n_temp)
+        P0[T, T] = 0.5 * var + 0.5 * var * np.eye(self.n_temp)
         for p in self.params:
             P0[self.index[p.name], self.index[p.name]] = p.init_sigma**2
+        if self.lagging:
+            i = self.sensor_index
+            P0[i, T] = P0[T, T] @ self._sensor_row
+            P0[T, i] = P0[i, T]
+            P0[i, i] = float(self._sensor_row @ P0[T, T] @ self._sensor_row)
         return x0, P0

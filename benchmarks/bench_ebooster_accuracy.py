@@ -1,0 +1,61 @@
+"""Accuracy of `brakethermo ebooster` over unseen seeds: UKF vs EKF, mean and spread.
+
+Simulated bench sessions (``brakethermo.sim.ebooster``) the shipped p-V/disk fit (training
+seed 0) and the observer tuning (seeds 1-2) never saw, written with the real session
+writers (MCAP) and observed by the pipeline. Per scenario it prints the paper's Table 1
+(residual RMSE of both observers, the improvement), the pressure RMSE against the
+validation channels and the 95 % band coverage, as mean ± standard deviation over seeds
+with min and max.
+
+Run: ``python benchmarks/bench_ebooster_accuracy.py [--seeds 11 12 13 14 15]
+[--scenarios open closed vehicle]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from brakethermo.pipelines.ebooster import observe
+from brakethermo.sim.ebooster import EboosterSimConfig, simulate_ebooster, write_ebooster_session
+
+
+def _stat(values: list[float], fmt: str) -> str:
+    a = np.array(values, dtype=float)
+    return (f"{a.mean():{fmt}} ± {a.std(ddof=1) if a.size > 1 else 0.0:{fmt}} "
+            f"[{a.min():{fmt}}, {a.max():{fmt}}]")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[11, 12, 13, 14, 15])
+    ap.add_argument("--scenarios", nargs="+", default=["open", "closed", "vehicle"])
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        for scenario in args.scenarios:
+            rows: dict[str, list[float]] = {}
+            for seed in args.seeds:
+                cfg = EboosterSimConfig(scenario, seed=seed)
+                path, _ = write_ebooster_session(simulate_ebooster(cfg),
+                                                 Path(tmp) / f"{scenario}{seed}.mcap")
+                s = observe(path).summary
+                for w in ("ukf", "ekf"):
+                    rows.setdefault(f"residual RMSE {w} mm", []).append(
+                        s["residual_rmse_mm"][w])
+                    for state, v in s["pressure_rmse_mpa"][w].items():
+                        rows.setdefault(f"{state} RMSE {w} MPa", []).append(v)
+                    rows.setdefault(f"95% coverage {w} %", []).append(100 * s["coverage_95"][w])
+                    for state, v in s["outside_1sigma"][w].items():
+                        rows.setdefault(f"{state} outside 1σ {w} %", []).append(100 * v)
+                rows.setdefault("improvement (EKF over UKF) %", []).append(s["improvement_pct"])
+            print(f"\n{scenario}: seeds {args.seeds} (mean ± sd [min, max])")
+            for name, values in rows.items():
+                fmt = ".4f" if "residual" in name else (".3f" if "MPa" in name else ".1f")
+                print(f"  {name:34s} {_stat(values, fmt)}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,269 @@
+"""The disc model extended by registered effects, run open loop for many parameter sets.
+
+:class:`ExtendedDisc` lays out one parameter vector — the reference model's
+``log a, b, log scale, log w_1, log w_2`` (power-law h(V), the constant friction level
+and the mean pad-crown weights, ``w_3`` = 1) followed by
+the parameters of each effect switched on and their latent per-segment values — and
+predicts the four spot readings for a batch of such vectors in one pass of the
+banded FE kernel (each vector a batch member). Output-error fits (diagnose,
+identify-h ``--with-effect``) take their residual and forward-difference Jacobian
+from one such pass, as identify-h's structure fit does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from brakethermo.models.effects import (
+    EFFECTS,
+    EffectParam,
+    knee_factor,
+    lag_alpha,
+    mu_ratio,
+    pyrometer_reading,
+)
+from brakethermo.thermal.hlaw import HLaw
+from brakethermo.thermal.model import DiscFEModel
+from brakethermo.thermal.power import normalise_weights
+
+REFERENCE_PARAMS = (
+    EffectParam("log_a", np.log(100.0), np.log(1.0), np.log(2000.0), unit="log W/(m2 K)"),
+    EffectParam("b", 0.8, 0.0, 3.0),
+    EffectParam("scale", 1.0, 0.3, 3.0, log=True),
+    EffectParam("w1", 1.0, 0.05, 20.0, log=True),
+    EffectParam("w2", 1.0, 0.05, 20.0, log=True),
+)
+N_REFERENCE = len(REFERENCE_PARAMS)
+KNEE = 0.8
+NO_KNEE = 10.0  # x = V/V_ref never reaches it: the power law holds at every speed
+
+
+@dataclass(frozen=True)
+class Segments:
+    """Where each grid step belongs, for effects with per-segment values.
+
+    Attributes
+    ----------
+    zone : ndarray (K,) of int
+        Braking-zone id (the same zone on every lap, by lap distance) at braking steps
+        and through the cycle that follows until the next zone; -1 before the first.
+    n_zones : int
+    straight : ndarray (K,) of int
+        Id of the off-brake stretch (one per straight of every lap); -1 under braking.
+    n_straights : int
+    straight_lap : ndarray (n_straights,) of int
+        Lap of each straight.
+    """
+
+    zone: np.ndarray
+    n_zones: int
+    straight: np.ndarray
+    n_straights: int
+    straight_lap: np.ndarray
+
+
+@dataclass(frozen=True)
+class Slot:
+    """Where one parameter sits in the vector."""
+
+    effect: str  # "reference" or an effect name
+    param: EffectParam
+    index: int
+    segment: int = -1  # latent parameters: the zone or straight id
+
+
+class ExtendedDisc:
+    """Open-loop spot predictions of the disc model with effects, batched over parameters.
+
+    Parameters
+    ----------
+    model : DiscFEModel
+        The reference structure (datasheet k_z, layers); its crown weights are the
+        reference's (uniform pad pressure).
+    speed, q_brk, t_amb : ndarray (K,) — m/s, W, degC
+        Inputs on the grid; step k -> k+1 uses the inputs at k (eq. 15).
+    T0 : ndarray (n_state,) — degC
+        Initial node temperatures.
+    spot_radii : sequence of float — m
+    v_ref : float — m/s
+    effects : sequence of str
+        Registered effect names switched on.
+    segments : Segments
+    """
+
+    def __init__(
+        self,
+        model: DiscFEModel,
+        speed: np.ndarray,
+        q_brk: np.ndarray,
+        t_amb: np.ndarray,
+        T0: np.ndarray,
+        spot_radii: Sequence[float],
+        v_ref: float,
+        effects: Sequence[str],
+        segments: Segments,
+    ) -> None:
+        self.model = model
+        self.speed, self.q, self.t_amb = (np.asarray(a, float)[:-1] for a in (speed, q_brk, t_amb))
+        self.T0 = np.asarray(T0, float)
+        self.H = model.spot_matrix(spot_radii)
+        self.v_ref = float(v_ref)
+        self.effects = tuple(effects)
+        self.segments = segments
+        edges = model.disc.crown_edges
+        contact = (model.radii >= edges[0] - 1e-9) & (model.radii <= edges[-1] + 1e-9)
+        self._contact_face = model.face_index[contact]
+        self._basis = model.crown_basis()
+        self.slots: list[Slot] = []
+        for p in REFERENCE_PARAMS:
+            self._add("reference", p)
+        for name in self.effects:
+            eff = EFFECTS[name]
+            for p in eff.params:
+                self._add(name, p)
+            if eff.latent is not None:
+                count = segments.n_zones if eff.latent == "zone" else segments.n_straights
+                for param in eff.latent_params:
+                    for s in range(count):
+                        self._add(name, param, s)
+        self.index = {(s.effect, s.param.name): s.index for s in self.slots if s.segment < 0}
+
+    def _add(self, effect: str, param: EffectParam, segment: int = -1) -> None:
+        self.slots.append(Slot(effect, param, len(self.slots), segment))
+
+    # -------------------------------------------------------------- the vector
+    @property
+    def size(self) -> int:
+        return len(self.slots)
+
+    def neutral(self) -> np.ndarray:
+        """The vector with every effect absent and the reference at its defaults (fitted)."""
+        return np.array([float(s.param.to_fit(s.param.neutral)) for s in self.slots])
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo, hi = zip(*(s.param.bounds_fit for s in self.slots), strict=True)
+        return np.array(lo), np.array(hi)
+
+    def prior(self) -> tuple[np.ndarray, np.ndarray]:
+        """Prior mean and standard deviation (inf = none) in the fitted space."""
+        mu = np.array([float(s.param.to_fit(s.param.neutral)) for s in self.slots])
+        sd = np.array([s.param.prior_sigma or np.inf for s in self.slots])
+        return mu, sd
+
+    def values(self, p: np.ndarray, effect: str) -> dict[str, float | list[float]]:
+        """Parameter values (in their units) of ``effect`` in vector ``p``."""
+        out: dict[str, float | list[float]] = {}
+        for s in self.slots:
+            if s.effect != effect:
+                continue
+            v = float(s.param.from_fit(p[s.index]))
+            if s.segment < 0:
+                out[s.param.name] = v
+            else:
+                latent = out.setdefault(s.param.name, [])
+                assert isinstance(latent, list)
+                latent.append(v)
+        return out
+
+    def law(self, p: np.ndarray) -> HLaw:
+        """The reference power-law h(V) of vector ``p`` (knee beyond any speed: no knee)."""
+        return HLaw(v_ref=self.v_ref, a=float(np.exp(p[0])), b=float(p[1]), knee=NO_KNEE)
+
+    def weights(self, p: np.ndarray) -> tuple[float, float, float]:
+        """Mean pad-crown weights of vector ``p``, normalised as eq. 8."""
+        w = normalise_weights(np.exp([p[3], p[4], 0.0]), self.model.disc.crown_edges)
+        return float(w[0]), float(w[1]), float(w[2])
+
+    def latent_slots(self, effect: str) -> list[Slot]:
+        return [s for s in self.slots if s.effect == effect and s.segment >= 0]
+
+    # -------------------------------------------------------------- prediction
+    def _col(self, P: np.ndarray, effect: str, name: str) -> np.ndarray | None:
+        i = self.index.get((effect, name))
+        if i is None:
+            return None
+        return np.asarray(self.slots[i].param.from_fit(P[:, i]))
+
+    def _latent(self, P: np.ndarray, effect: str, name: str) -> np.ndarray | None:
+        """Latent values ``name`` of ``effect`` per member and segment (B, segments)."""
+        slots = [s for s in self.latent_slots(effect) if s.param.name == name]
+        if not slots:
+            return None
+        return np.column_stack([s.param.from_fit(P[:, s.index]) for s in slots])
+
+    def _h(self, P: np.ndarray) -> np.ndarray:
+        """h per member and step (B, K) — W/(m² K)."""
+        a, b = np.exp(P[:, 0]), P[:, 1]
+        x = np.abs(self.speed) / self.v_ref
+        h = a[:, None] * np.power(x[None, :], b[:, None])
+        gain = self._col(P, "h_speed_knee", "gain")
+        if gain is not None:
+            h = h * knee_factor(self.speed, self.v_ref, KNEE, gain)
+        factor = self._latent(P, "slipstream", "straight_factor")
+        if factor is not None:
+            seg = self.segments.straight[:-1]
+            on = seg >= 0
+            h[:, on] *= factor[:, seg[on]]
+        return h
+
+    def _loads(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Face loads per zone (Z + 1, B, N), the last row outside any zone; zone per step."""
+        B = P.shape[0]
+        edges = self.model.disc.crown_edges
+        base = np.column_stack([np.exp(P[:, 3]), np.exp(P[:, 4]), np.ones(B)])
+        balance = self._latent(P, "power_distribution", "zone_balance")
+        middle = self._latent(P, "power_distribution", "zone_middle")
+        n_z = 0 if balance is None or middle is None else balance.shape[1]
+        loads = np.empty((n_z + 1, B, self.model.n_nodes))
+        for z in range(n_z + 1):
+            w = base.copy()
+            if z < n_z:
+                w[:, 0] *= np.exp(balance[:, z])
+                w[:, 1] *= np.exp(middle[:, z])
+                w[:, 2] *= np.exp(-balance[:, z])
+            norm = np.stack([normalise_weights(row, edges) for row in w])
+            loads[z] = norm @ self._basis
+        zone = self.segments.zone[:-1] if n_z else np.full(self.q.size, -1)
+        return loads, np.where(zone >= 0, zone, n_z)
+
+    def predict(self, P: np.ndarray) -> np.ndarray:
+        """Spot readings (B, K, 4) of B parameter vectors, degC (row 0 from ``T0``)."""
+        P = np.atleast_2d(np.asarray(P, float))
+        B = P.shape[0]
+        h = self._h(P)
+        loads, zone_of_step = self._loads(P)
+        scale0 = np.exp(P[:, 2])
+        kz = self._col(P, "thickness_gradient", "kz_factor")
+        kz = np.ones(B) if kz is None else kz
+        beta = self._col(P, "friction_temperature", "beta")
+        t_mid = self._col(P, "friction_temperature", "t_mid")
+        T = np.tile(self.T0, (B, 1))
+        K = self.q.size
+        face = np.empty((K + 1, B, 4))
+        face[0] = T @ self.H.T
+        for k in range(K):
+            scale = scale0
+            if beta is not None and t_mid is not None:
+                scale = scale0 * mu_ratio(T[:, self._contact_face].mean(axis=1), beta, t_mid)
+            T = self.model.step(T, self.q[k], h[:, k], self.t_amb[k], scale, kz_ratio=kz,
+                                load=loads[zone_of_step[k]])
+            face[k + 1] = T @ self.H.T
+        return self._measure(P, face).transpose(1, 0, 2)
+
+    def _measure(self, P: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """Pyrometer readings (K + 1, B, 4) of the face temperatures at the spots."""
+        tau = self._col(P, "sensor_lag", "tau_s")
+        y = face
+        if tau is not None:
+            alpha = lag_alpha(tau, self.model.dt)[:, None]
+            y = np.empty_like(face)
+            y[0] = face[0]
+            for k in range(1, face.shape[0]):
+                y[k] = y[k - 1] + alpha * (face[k] - y[k - 1])
+        ratio = self._col(P, "emissivity_error", "ratio")
+        if ratio is not None:
+            y = pyrometer_reading(y, ratio[None, :, None])
+        return y

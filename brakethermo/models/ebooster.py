@@ -1,0 +1,259 @@
+"""E-Booster state space for the UKF and EKF (paper 004, eq. 3-4, 10, 13-14, section 3.4).
+
+State [p_m, p_f, p_r (MPa), zeta1 (mm), zeta2 (mm/s)] plus N pedal-noise components,
+input the screw displacement s2 (mm, one value per step), measurement delta = zeta1 (mm).
+
+* p_m follows the fitted p-V curve of s2 (eq. 13: dp_m = d f_RLS(s2)); a deviation from
+  the curve relaxes with ``pv_relax_s`` (a bounded random walk instead of eq. 13's
+  unbounded one, so the band cannot grow without limit between corrections);
+* p_f, p_r fill through their ports (eq. 13, integrated exactly over the step);
+* the pedal force is the chi-square disturbance F_in = F_scale sum_i w_i^2 with w_i
+  unit Gaussian processes (Ornstein-Uhlenbeck, correlation time ``pedal_tau_s``): the
+  N Gaussian process noises that drive them, with the 5 of the physical states, are the
+  paper's N + 5; a driver's force is correlated over tenths of a second, so the w_i
+  are carried as extra state components rather than redrawn every step;
+* the leverage (eq. 10, quasi-static) gives the net disk force, the three-slope fit
+  (eq. 14) its quasi-static compression, the two-pole one-zero fit its dynamics.
+
+The EKF linearises F_in = F_scale w^2 at the mean w: it misses the term F_scale var(w)
+of the mean force and, near w = 0, the whole spread. The UKF's sigma points keep both.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from brakethermo.errors import ConfigError
+from brakethermo.io.atomic import write_text_atomic
+from brakethermo.rigs.booster import (
+    discretise,
+    disk_quasi_static,
+    disk_transfer,
+    leverage_force,
+    orifice_coefficient,
+    orifice_step,
+    pv_pressure,
+)
+from brakethermo.rigs.booster_datasheet import BoosterSpec
+
+Array = NDArray[np.float64]
+STATE_NAMES = ("p_m", "p_f", "p_r", "zeta1", "zeta2")
+N_PHYS = 5
+V_REF_MM_S = 50.0  # screw speed at which q_pm_speed applies
+
+
+@dataclass(frozen=True)
+class BoosterFit:
+    """What a training session identifies.
+
+    Attributes
+    ----------
+    pv_coeffs : tuple of 4 float — MPa, weights of (s2/stroke)^2 ... ^8 (RLS, eq. 12).
+    stroke_mm : float — mm, regressor scale.
+    disk : tuple of 5 float — eq. 14 on |F|: breakpoints p1, p2 (N), slopes p3-p5 (mm/N).
+    omega_n : float — rad/s, disk dynamics natural frequency.
+    damping : float — disk dynamics damping ratio.
+    tau_z : float — s, disk dynamics zero time constant.
+    pedal_scale_n : float — N, F_scale of the chi-square pedal force (mean / N).
+    train_session : str — the training file.
+    pv_rmse_mpa : float — MPa, p-V fit residual on the training session.
+    disk_rmse_mm : float — mm, disk fit residual on the training session.
+    """
+
+    pv_coeffs: tuple[float, float, float, float]
+    stroke_mm: float
+    disk: tuple[float, float, float, float, float]
+    omega_n: float
+    damping: float
+    tau_z: float
+    pedal_scale_n: float
+    train_session: str
+    pv_rmse_mpa: float
+    disk_rmse_mm: float
+
+    def write(self, path: Path) -> Path:
+        """Save as TOML (round-trips through :func:`load_fit`)."""
+        lines = ["# E-Booster training result (brakethermo ebooster --train)"]
+        for key, value in asdict(self).items():
+            if isinstance(value, str):
+                lines.append(f'{key} = "{value}"')
+            elif isinstance(value, tuple):
+                lines.append(f"{key} = [{', '.join(repr(float(v)) for v in value)}]")
+            else:
+                lines.append(f"{key} = {float(value)!r}")
+        write_text_atomic(Path(path), "\n".join(lines) + "\n")
+        return Path(path)
+
+
+def load_fit(path: str | Path) -> BoosterFit:
+    """Read a training result written by :meth:`BoosterFit.write`."""
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+        return BoosterFit(
+            pv_coeffs=tuple(float(v) for v in raw["pv_coeffs"]),  # type: ignore[arg-type]
+            stroke_mm=float(raw["stroke_mm"]),
+            disk=tuple(float(v) for v in raw["disk"]),  # type: ignore[arg-type]
+            omega_n=float(raw["omega_n"]),
+            damping=float(raw["damping"]),
+            tau_z=float(raw["tau_z"]),
+            pedal_scale_n=float(raw["pedal_scale_n"]),
+            train_session=str(raw["train_session"]),
+            pv_rmse_mpa=float(raw["pv_rmse_mpa"]),
+            disk_rmse_mm=float(raw["disk_rmse_mm"]),
+        )
+    except FileNotFoundError:
+        raise ConfigError("training result not found; check the path", path=path) from None
+    except (KeyError, TypeError, ValueError, tomllib.TOMLDecodeError) as exc:
+        raise ConfigError(f"not a valid training result ({exc})", path=path) from None
+
+
+@numba.njit(cache=True)
+def _transition(
+    X: Array, out: Array, pv0: float, pv1: float, s2: float, c: Array, disk: Array,
+    Ad: Array, Bd: Array, n_pedal: int,
+) -> None:  # pragma: no cover - compiled; equal to EboosterModel.f_reference (tested)
+    decay, k_f, k_r, dt, f_scale, area, k_ret, ratio, a_w = c
+    p1, p2, p3, p4, p5 = disk
+    off2 = (p3 - p4) * p1
+    off3 = (p4 - p5) * p2 + off2
+    for b in range(X.shape[0]):
+        pm, pf, pr = X[b, 0], X[b, 1], X[b, 2]
+        out[b, 0] = pv1 + (pm - pv0) * decay  # eq. 13 + relaxation
+        for j, (p, k) in enumerate(((pf, k_f), (pr, k_r))):
+            e = pm - p  # eq. 13, exact over the step (rigs.booster.orifice_step)
+            root = max(np.sqrt(abs(e)) - 0.5 * k * dt, 0.0)
+            out[b, 1 + j] = pm - np.sign(e) * root * root
+        f_in = 0.0
+        for i in range(n_pedal):
+            w = X[b, 5 + i]
+            f_in += w * w
+            out[b, 5 + i] = a_w * w
+        force = f_scale * f_in - ratio * (pm * area + k_ret * s2)  # eq. 10
+        x = abs(force)
+        u = min(p3 * x, p4 * x + off2, p5 * x + off3)  # eq. 14
+        u = u if force >= 0.0 else -u
+        z1, z2 = X[b, 3], X[b, 4]
+        out[b, 3] = Ad[0, 0] * z1 + Ad[0, 1] * z2 + Bd[0] * u
+        out[b, 4] = Ad[1, 0] * z1 + Ad[1, 1] * z2 + Bd[1] * u
+
+
+class EboosterModel:
+    """Batched transition of the booster observer over a session's input s2.
+
+    Parameters
+    ----------
+    spec : BoosterSpec — bench datasheet and observer settings.
+    fit : BoosterFit — identified p-V and disk.
+    s2_mm : ndarray (K,) — mm, screw displacement per step.
+    dt : float — s, step.
+    """
+
+    def __init__(self, spec: BoosterSpec, fit: BoosterFit, s2_mm: Array, dt: float) -> None:
+        self.spec, self.fit, self.dt = spec, fit, float(dt)
+        self.s2 = np.ascontiguousarray(s2_mm, dtype=np.float64)
+        self.K = self.s2.shape[0]
+        self.N = spec.pedal_dof
+        self.n = N_PHYS + self.N
+        self.pv = pv_pressure(self.s2, np.array(fit.pv_coeffs), fit.stroke_mm)
+        self.decay = float(np.exp(-self.dt / spec.pv_relax_s))
+        self.k_port = tuple(
+            orifice_coefficient(spec.stiffness_mpa_per_cm3[i], spec.discharge_coeff,
+                                spec.orifice_area_mm2[i], spec.fluid_density)
+            for i in range(2)
+        )
+        A, B = disk_transfer(fit.omega_n, fit.damping, fit.tau_z)
+        self.Ad, self.Bd = discretise(A, B, self.dt)
+        self.disk = np.array(fit.disk)
+        self.a_pedal = float(np.exp(-self.dt / spec.pedal_tau_s))
+        self._c = np.array([
+            self.decay, self.k_port[0], self.k_port[1], self.dt, fit.pedal_scale_n,
+            spec.area_mm2, spec.return_spring_n_per_mm, spec.area_ratio, self.a_pedal,
+        ])
+        self.H = np.zeros((1, self.n))
+        self.H[0, 3] = 1.0  # delta = zeta1
+
+    def f(self, X: Array, k: int) -> Array:
+        """Advance B states from step k to k + 1; X (B, n) -> (B, n) (compiled)."""
+        out = np.empty_like(X)
+        k1 = min(k + 1, self.K - 1)
+        _transition(np.ascontiguousarray(X), out, self.pv[k], self.pv[k1], self.s2[k],
+                    self._c, self.disk, self.Ad, self.Bd, self.N)
+        return out
+
+    def f_reference(self, X: Array, k: int) -> Array:
+        """:meth:`f` composed of the numpy physics of :mod:`brakethermo.rigs.booster`."""
+        spec = self.spec
+        pm, pf, pr = X[:, 0], X[:, 1], X[:, 2]
+        out = np.empty_like(X)
+        k1 = min(k + 1, self.K - 1)
+        out[:, 0] = self.pv[k1] + (pm - self.pv[k]) * self.decay  # eq. 13 + relaxation
+        out[:, 1] = orifice_step(pm, pf, self.k_port[0], self.dt)  # eq. 13
+        out[:, 2] = orifice_step(pm, pr, self.k_port[1], self.dt)
+        w = X[:, N_PHYS:]
+        f_in = self.fit.pedal_scale_n * np.sum(w * w, axis=1)  # chi-square, N dof
+        force = leverage_force(pm, self.s2[k], f_in, spec.area_mm2,
+                               spec.return_spring_n_per_mm, spec.area_ratio)  # eq. 10
+        u = disk_quasi_static(force, self.disk)  # eq. 14
+        z = X[:, 3:5]
+        out[:, 3:5] = z @ self.Ad.T + u[:, None] * self.Bd
+        out[:, N_PHYS:] = w * self.a_pedal  # OU decay; Q refills the variance
+        return out
+
+    def Q(self) -> Array:
+        """Process-noise covariance of a step with the screw at rest (n, n).
+
+        The datasheet gives the physical states' noise per millisecond; a white-noise
+        intensity scales with the step, so the bands do not depend on the log rate.
+        """
+        s = self.spec
+        per_ms = self.dt / 1e-3
+        q_w = 1.0 - self.a_pedal**2  # keeps each w_i at unit variance
+        return np.diag(np.r_[np.array([*s.q_pressure_mpa, *s.q_zeta]) * per_ms,
+                             np.full(self.N, q_w)])
+
+    def Q_of_step(self) -> Callable[[int], Array]:
+        """Q(k): the rest value plus a p_m term proportional to the screw speed.
+
+        The static p-V curve misses the flow-dependent pressure drops and the hysteresis
+        of a moving piston, which grow with the displacement rate; the speed is that of
+        the measured input s2 (a 20 ms moving average, which also removes the encoder's
+        quantisation steps).
+        """
+        base = self.Q()
+        width = max(1, round(0.02 / self.dt))
+        s2 = np.convolve(np.pad(self.s2, (width // 2, width - 1 - width // 2), mode="edge"),
+                         np.ones(width) / width, mode="valid")
+        speed = np.abs(np.gradient(s2, self.dt))
+        extra = self.spec.q_pm_speed * (speed / V_REF_MM_S) * (self.dt / 1e-3)
+        stack = base.copy()
+
+        def Q(k: int) -> Array:
+            stack[0, 0] = base[0, 0] + extra[k]
+            return stack
+
+        return Q
+
+    def R(self) -> Array:
+        """Measurement-noise covariance (1, 1), mm^2."""
+        return np.array([[self.spec.delta_noise_mm**2]])
+
+    def prior(self, delta0_mm: float) -> tuple[Array, Array]:
+        """Prior mean and covariance at step 0, at rest on the p-V curve."""
+        s = self.spec
+        p0 = self.pv[0]
+        d0 = float(delta0_mm) if np.isfinite(delta0_mm) else 0.0
+        A, B = disk_transfer(self.fit.omega_n, self.fit.damping, self.fit.tau_z)
+        zeta2 = -A[0, 0] * d0 - B[0] * d0  # rest: zeta2 = (a1 - b1) zeta1
+        # w = 0 is a stationary point of w^2 where no filter can learn the force: start
+        # on the positive branch (the sign of w is immaterial, F_in = F_scale w^2)
+        x0 = np.r_[p0, p0, p0, d0, zeta2, np.ones(self.N)]
+        sd = np.r_[np.full(3, s.p0_pressure_mpa), s.p0_zeta, np.ones(self.N)]
+        return x0, np.diag(sd**2)

@@ -1,0 +1,372 @@
+"""`ebooster` pipeline: p-V and disk identification, UKF vs EKF observation, scoring.
+
+Training (paper 004 section 3.1-3.2) on a session with the master-cylinder pressure and
+pedal-force sensors: RLS with forgetting factor fits the even p-V polynomial, scipy's
+trust-region-reflective least squares fits the three-slope quasi-static disk curve
+(eq. 14) and the second-order disk dynamics. Observation on any session with s2 and
+delta: the UKF and the EKF of the engine on the SAME model, noise and prior, each
+followed by the RTS smoother (offline). Pressure channels, when present, only score.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+from scipy.signal import lfilter, ss2tf
+
+from brakethermo.config import config_dir
+from brakethermo.errors import DataError
+from brakethermo.estimation import ExtendedKalmanFilter, UnscentedKalmanFilter, urts_smooth
+from brakethermo.estimation.results import FilterResult
+from brakethermo.estimation.rls import even_powers, rls_fit
+from brakethermo.io.load import load_session
+from brakethermo.io.session import Session
+from brakethermo.models.ebooster import STATE_NAMES, BoosterFit, EboosterModel, load_fit
+from brakethermo.rigs.booster import (
+    PV_POWERS,
+    discretise,
+    disk_quasi_static,
+    disk_transfer,
+    leverage_force,
+    pv_pressure,
+)
+from brakethermo.rigs.booster_datasheet import BoosterSpec, load_booster
+
+Array = NDArray[np.float64]
+S2, DELTA = "pushrod_displacement", "reaction_disk_delta"
+PRESSURES = {
+    "p_m": "master_cylinder_pressure",
+    "p_f": "front_circuit_pressure",
+    "p_r": "rear_circuit_pressure",
+}
+PEDAL = "pedal_force"
+CHANNELS = (S2, DELTA, *PRESSURES.values(), PEDAL)
+DEFAULT_FIT = "ebooster_fit"  # configs/rigs/ebooster_fit.toml, trained on a simulated bench
+MM, MPA = 1e3, 1e-6  # SI -> model units
+Z95 = 1.959963984540054
+OBSERVERS = ("ukf", "ekf")
+
+
+@dataclass(frozen=True)
+class ObserverTrack:
+    """One observer's output over the session (model units).
+
+    Attributes
+    ----------
+    x, std : ndarray (K, 5) — state and 1 sigma (smoothed when ``smoothed``).
+    residual : ndarray (K,) — mm, measured minus one-step-predicted delta (innovation).
+    filt : FilterResult — the forward pass.
+    smoothed : bool
+    seconds : float — wall time of filter + smoother.
+    """
+
+    x: Array
+    std: Array
+    residual: Array
+    filt: FilterResult
+    smoothed: bool
+    seconds: float
+
+
+@dataclass(frozen=True)
+class EboosterResult:
+    """Everything the writers and the report need."""
+
+    session: Session
+    spec: BoosterSpec
+    fit: BoosterFit
+    time: Array
+    s2: Array
+    delta: Array
+    validation: dict[str, Array]
+    tracks: dict[str, ObserverTrack]
+    summary: dict[str, Any]
+
+
+def _series(session: Session, name: str, scale: float, *, gaps: bool) -> Array:
+    """A channel in model units; NaN inside gaps refused unless ``gaps``."""
+    v = session.values(name) * scale
+    if not gaps and not np.isfinite(v).all():
+        bad = np.flatnonzero(~np.isfinite(v))
+        raise DataError(
+            f"has no samples from t = {session.time[bad[0]]:.3f} s ({bad.size} grid points); "
+            "the observer needs this input at every step: cut the session or fill the gap",
+            path=session.path, channel=name,
+        )
+    return v
+
+
+def load_booster_session(path: str | Path, aliases: str | Path | None = None) -> Session:
+    """Load a booster session on its native grid and check the observer's inputs."""
+    session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases)
+    session.require(S2, DELTA)
+    if len(session.frame) < 10:
+        raise DataError("holds fewer than 10 samples; record a longer session",
+                        path=session.path)
+    return session
+
+
+def train(path: str | Path, spec: BoosterSpec, aliases: str | Path | None = None) -> BoosterFit:
+    """Identify the p-V curve and the reaction disk from a training session.
+
+    Parameters
+    ----------
+    path : str or Path — session with s2, delta, master-cylinder pressure and pedal force.
+    spec : BoosterSpec
+
+    Returns
+    -------
+    BoosterFit
+    """
+    session = load_booster_session(path, aliases)
+    session.require(PRESSURES["p_m"], PEDAL)
+    s2 = _series(session, S2, MM, gaps=False)
+    travel = float(np.max(s2) - np.min(s2))
+    if travel < spec.min_travel_mm:
+        raise DataError(
+            f"the screw moves only {travel:.3f} mm (less than {spec.min_travel_mm:g} mm): a "
+            "training session must sweep the pressure range at constant speed up and down",
+            path=session.path, channel=S2,
+        )
+    p_m = _series(session, PRESSURES["p_m"], MPA, gaps=True)
+    f_in = _series(session, PEDAL, 1.0, gaps=True)
+    delta = _series(session, DELTA, MM, gaps=True)
+    ok = np.isfinite(p_m) & np.isfinite(f_in) & np.isfinite(delta)
+    # p-V: RLS on [u^2, u^4, u^6, u^8], u = s2 / stroke (eq. 12)
+    X = even_powers(s2[ok] / spec.stroke_mm, PV_POWERS)
+    rls = rls_fit(X, p_m[ok], lam=spec.forgetting, delta=spec.rls_delta)
+    pv_res = p_m[ok] - X @ rls.w
+    # disk: net force from the leverage (eq. 10) with the measured pedal force
+    force = leverage_force(p_m, s2, f_in, spec.area_mm2, spec.return_spring_n_per_mm,
+                           spec.area_ratio)
+    disk, omega_n, damping, tau_z, disk_rmse = _fit_disk(force, delta, ok, session.dt)
+    dof = spec.pedal_dof
+    return BoosterFit(
+        pv_coeffs=tuple(float(v) for v in rls.w),  # type: ignore[arg-type]
+        stroke_mm=spec.stroke_mm,
+        disk=disk,
+        omega_n=omega_n,
+        damping=damping,
+        tau_z=tau_z,
+        pedal_scale_n=float(np.mean(np.clip(f_in[ok], 0.0, None)) / dof),
+        train_session=str(session.path),
+        pv_rmse_mpa=float(np.sqrt(np.mean(pv_res**2))),
+        disk_rmse_mm=disk_rmse,
+    )
+
+
+def _disk_response(u: Array, omega_n: float, damping: float, tau_z: float, dt: float) -> Array:
+    """delta from the quasi-static compression u through the discretised disk dynamics."""
+    A, B = disk_transfer(omega_n, damping, tau_z)
+    Ad, Bd = discretise(A, B, dt)
+    b, a = ss2tf(Ad, Bd[:, None], np.array([[1.0, 0.0]]), np.zeros((1, 1)))
+    zi = np.zeros(2)
+    # start at rest on the quasi-static curve: the steady state of the filter at u[0]
+    y, _ = lfilter(b[0], a, u - u[0], zi=zi)
+    return y + u[0]
+
+
+def _fit_disk(
+    force: Array, delta: Array, ok: Array, dt: float
+) -> tuple[tuple[float, float, float, float, float], float, float, float, float]:
+    """Three-slope quasi-static curve (eq. 14), then the two-pole one-zero dynamics."""
+    fabs = np.abs(force[ok])
+    dsign = np.sign(force[ok]) * delta[ok]
+    # quasi-static points: where the net force changes slowly
+    rate = np.abs(np.gradient(force[ok], dt))
+    slow = rate <= np.quantile(rate, 0.3)
+    fmax = float(np.quantile(fabs, 0.99))
+
+    def curve(theta: Array, x: Array) -> Array:
+        p1, gap, p3, p4, p5 = theta
+        return disk_quasi_static(x, np.array([p1, p1 + gap, p3, p4, p5]))
+
+    theta0 = np.array([0.2 * fmax, 0.3 * fmax, 0.005, 0.003, 0.0015])
+    qs = least_squares(
+        lambda th: curve(th, fabs[slow]) - dsign[slow], theta0, method="trf",
+        bounds=([0.0, 1.0, 0.0, 0.0, 0.0], [fmax, fmax, 0.1, 0.1, 0.1]),
+    )
+    p1, gap, p3, p4, p5 = (float(v) for v in qs.x)
+    disk = (p1, p1 + gap, p3, p4, p5)
+    u = np.zeros_like(force)
+    u[ok] = disk_quasi_static(force[ok], np.array(disk))
+    u = np.interp(np.arange(u.size), np.flatnonzero(ok), u[ok])
+    target = np.where(ok, delta, 0.0)
+    skip = min(int(0.5 / dt), u.size // 4)
+
+    def resid(th: Array) -> Array:
+        y = _disk_response(u, th[0], th[1], th[2], dt)
+        return (y - target)[skip:][ok[skip:]]
+
+    dyn = least_squares(resid, np.array([60.0, 0.8, 0.01]), method="trf",
+                        bounds=([1.0, 0.05, 0.0], [2000.0, 5.0, 1.0]), x_scale=[60, 1, 0.01])
+    rmse = float(np.sqrt(np.mean(dyn.fun**2)))
+    return disk, float(dyn.x[0]), float(dyn.x[1]), float(dyn.x[2]), rmse
+
+
+def default_fit_path() -> Path:
+    """The shipped training result."""
+    return config_dir() / "rigs" / f"{DEFAULT_FIT}.toml"
+
+
+def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTrack:
+    s = model.spec
+    Q, R = model.Q_of_step(), model.R()
+    x0, P0 = model.prior(float(y[0]) if np.isfinite(y[0]) else 0.0)
+    t0 = time.perf_counter()
+    if which == "ukf":
+        flt: UnscentedKalmanFilter | ExtendedKalmanFilter = UnscentedKalmanFilter(
+            model.f, Q, R, H=model.H, alpha=s.alpha, beta=s.beta, kappa=s.kappa
+        )
+    else:
+        flt = ExtendedKalmanFilter(model.f, Q, R, H=model.H)
+    res = flt.run(x0, P0, y[:, None], store="smoother" if smooth else "diag")
+    if smooth:
+        sm = urts_smooth(res)
+        x, var = sm.x_smooth, sm.var_smooth
+    else:
+        x, var = res.x_filt, res.var_filt
+    seconds = time.perf_counter() - t0
+    return ObserverTrack(
+        x=x[:, :5], std=np.sqrt(np.clip(var[:, :5], 0.0, None)),
+        residual=res.innovation[:, 0], filt=res, smoothed=smooth, seconds=seconds,
+    )
+
+
+def _rmse(a: Array) -> float | None:
+    a = a[np.isfinite(a)]
+    return float(np.sqrt(np.mean(a * a))) if a.size else None
+
+
+def observe(
+    path: str | Path,
+    *,
+    train_path: str | Path | None = None,
+    fit_path: str | Path | None = None,
+    bench: str | Path = "ebooster",
+    aliases: str | Path | None = None,
+    smooth: bool = True,
+) -> EboosterResult:
+    """Run both observers on a session and score them.
+
+    Parameters
+    ----------
+    path : session to observe (needs s2 and delta).
+    train_path : training session; else ``fit_path``; else the shipped training result.
+    fit_path : a training result TOML written earlier.
+    bench : bench datasheet id or TOML.
+    aliases : channel alias TOML.
+    smooth : run the RTS smoother after each filter (offline use).
+
+    Returns
+    -------
+    EboosterResult
+    """
+    spec = load_booster(bench)
+    t_start = time.perf_counter()
+    if train_path is not None:
+        fit = train(train_path, spec, aliases)
+    else:
+        fit = load_fit(fit_path or default_fit_path())
+    t_train = time.perf_counter() - t_start
+    session = load_booster_session(path, aliases)
+    s2 = _series(session, S2, MM, gaps=False)
+    delta = _series(session, DELTA, MM, gaps=True)
+    if not np.isfinite(delta).any():
+        raise DataError("holds no finite sample", path=session.path, channel=DELTA)
+    model = EboosterModel(spec, fit, s2, session.dt)
+    tracks = {which: _run(model, which, delta, smooth) for which in OBSERVERS}
+    validation = {
+        state: _series(session, ch, MPA, gaps=True)
+        for state, ch in PRESSURES.items() if session.has(ch)
+    }
+    summary = _summary(session, spec, fit, tracks, validation, smooth, t_train)
+    return EboosterResult(session, spec, fit, session.time, s2, delta, validation, tracks,
+                          summary)
+
+
+def _summary(
+    session: Session, spec: BoosterSpec, fit: BoosterFit, tracks: dict[str, ObserverTrack],
+    validation: dict[str, Array], smooth: bool, t_train: float,
+) -> dict[str, Any]:
+    res = {w: _rmse(tracks[w].residual) for w in OBSERVERS}
+    improvement = None
+    if res["ekf"] and res["ukf"] is not None:
+        improvement = 100.0 * (res["ekf"] - res["ukf"]) / res["ekf"]
+    p_rmse: dict[str, dict[str, float | None]] = {}
+    cov95: dict[str, float | None] = {}
+    out1: dict[str, dict[str, float | None]] = {}
+    for w in OBSERVERS:
+        tr = tracks[w]
+        p_rmse[w], out1[w] = {}, {}
+        inside, total = 0, 0
+        for i, state in enumerate(("p_m", "p_f", "p_r")):
+            if state not in validation:
+                p_rmse[w][state] = None
+                out1[w][state] = None
+                continue
+            err = tr.x[:, i] - validation[state]
+            ok = np.isfinite(err)
+            p_rmse[w][state] = _rmse(err)
+            z = np.abs(err[ok]) / np.maximum(tr.std[ok, i], 1e-12)
+            out1[w][state] = float(np.mean(z > 1.0))
+            inside += int(np.sum(z <= Z95))
+            total += int(ok.sum())
+        cov95[w] = inside / total if total else None
+    return {
+        "session": str(session.path),
+        "samples": len(session.frame),
+        "rate_hz": session.rate_hz,
+        "residual_rmse_mm": res,
+        "improvement_pct": improvement,
+        "pressure_rmse_mpa": p_rmse,
+        "coverage_95": cov95,
+        "outside_1sigma": out1,
+        "smoothed": smooth,
+        "pv_fit": {
+            "coefficients_mpa": list(fit.pv_coeffs),
+            "powers": list(PV_POWERS),
+            "stroke_mm": fit.stroke_mm,
+            "training_session": fit.train_session,
+            "rmse_mpa": fit.pv_rmse_mpa,
+        },
+        "disk_fit": {
+            "three_slope": list(fit.disk),
+            "omega_n_rad_s": fit.omega_n,
+            "damping": fit.damping,
+            "tau_z_s": fit.tau_z,
+            "rmse_mm": fit.disk_rmse_mm,
+            "pedal_scale_n": fit.pedal_scale_n,
+            "pedal_dof": spec.pedal_dof,
+        },
+        "bench": spec.id,
+        "seconds": {"train": t_train, **{w: tracks[w].seconds for w in OBSERVERS}},
+        "n_repairs": {w: tracks[w].filt.n_repairs for w in OBSERVERS},
+    }
+
+
+def frame_columns(result: EboosterResult) -> tuple[dict[str, Array], dict[str, str]]:
+    """The ebooster.parquet columns (OUTPUTS.md) and their units."""
+    cols: dict[str, Array] = {"time": result.time}
+    units = {"time": "s"}
+    unit_of = {"p_m": "MPa", "p_f": "MPa", "p_r": "MPa", "zeta1": "mm", "zeta2": "mm/s"}
+    for w in OBSERVERS:
+        tr = result.tracks[w]
+        for i, name in enumerate(STATE_NAMES):
+            cols[f"{w}_{name}"] = tr.x[:, i]
+            cols[f"{w}_{name}_std"] = tr.std[:, i]
+            units[f"{w}_{name}"] = units[f"{w}_{name}_std"] = unit_of[name]
+        cols[f"{w}_residual"] = tr.residual
+        units[f"{w}_residual"] = "mm"
+    return cols, units
+
+
+def static_pressure(result: EboosterResult) -> Array:
+    """MPa, the p-V curve at the session's s2 (what the model predicts without delta)."""
+    return pv_pressure(result.s2, np.array(result.fit.pv_coeffs), result.fit.stroke_mm)

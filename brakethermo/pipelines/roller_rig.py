@@ -1,0 +1,509 @@
+"""Rolling radius of a tram wheel on the roller rig by a joint UKF (Onat, Voltr, Lata).
+
+``run_roller_rig(path, options)`` reads a session, runs the joint UKF of the paper on
+the state [omega_w, omega_r, r_w] once per starting guess (all guesses in one call),
+smooths each run with the unscented RTS smoother (on by default offline), and scores
+the tracks against the session's radius reference when it has one.
+``write_roller_rig(result, out)`` writes ``roller_rig.parquet``, ``summary.json`` and
+the report page (OUTPUTS.md, "roller-rig").
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import brentq
+
+from brakethermo.errors import ConfigError, DataError
+from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
+from brakethermo.io.load import load_session
+from brakethermo.io.session import Session
+from brakethermo.models.roller_rig import CREEP_LAWS, RollerRigModel
+from brakethermo.rigs.motor import motor_torque
+from brakethermo.rigs.roller_rig import RollerRigSpec, load_roller_rig
+
+PIPELINE = "roller_rig"
+CHANNELS = (
+    "wheel_omega", "roller_omega", "wheel_torque", "normal_force", "roller_torque",
+    "rolling_radius_ref",
+)  # fmt: skip
+FREE_FRACTION = 0.02  # |request| below this share of its peak: free rolling
+TRACTION_FRACTION = 0.5  # |request| above this share of its peak: traction
+MIN_TRACTION_NM = 20.0  # a session whose request never exceeds this has no traction
+CONVERGED_MM = 1.0  # the estimate has converged once it stays this close to its end value
+CONVERGENCE_WINDOW_S = 0.25  # moving average of the filter track judged for convergence
+SUPPLY_FACT = "roller_supply_hz"
+TUNINGS = ("measured", "paper")
+
+
+@dataclass(frozen=True)
+class RollerRigOptions:
+    """How to run the estimator.
+
+    Attributes
+    ----------
+    r0_mm : tuple of float — starting guesses of the radius, mm (one filter each).
+    smoother : bool — unscented RTS smoother (offline default); False: the paper's
+        filter-only run.
+    rig : str — datasheet id or TOML path.
+    supply_hz : float or None — roller-motor supply frequency, Hz; default the session
+        fact ``roller_supply_hz``, else inferred from free rolling.
+    aliases : Path or None — channel alias TOML.
+    tuning : {"measured", "paper"} — R from the session's speed noise and the
+        datasheet's ``q_measured``; or the paper's P0/Q/R exactly (eq. 15a-15c).
+    creep_law : {"polach", "fastsim"} — the estimator's creep force: Polach's law, or
+        Kalker's FASTSIM (20 x 20) with Polach's friction.
+    """
+
+    r0_mm: tuple[float, ...] = (320.0, 400.0)
+    smoother: bool = True
+    rig: str = "roller-rig"
+    supply_hz: float | None = None
+    aliases: Path | None = None
+    tuning: str = "measured"
+    creep_law: str = "polach"
+
+    def validated(self) -> RollerRigOptions:
+        """Self after checks (ConfigError naming the option)."""
+        if self.creep_law not in CREEP_LAWS:
+            raise ConfigError(
+                f"--creep must be one of {', '.join(CREEP_LAWS)}, got {self.creep_law!r}"
+            )
+        if self.tuning not in TUNINGS:
+            raise ConfigError(f"--tuning must be one of {', '.join(TUNINGS)}, got {self.tuning!r}")
+        if not self.r0_mm:
+            raise ConfigError("give at least one starting guess --r0 MM")
+        for r in self.r0_mm:
+            if not (math.isfinite(r) and 100.0 <= r <= 1000.0):
+                raise ConfigError(f"--r0 {r:g} mm is not a plausible wheel radius (100-1000 mm)")
+        labels = [guess_label(r) for r in self.r0_mm]
+        if len(set(labels)) != len(labels):
+            raise ConfigError(f"starting guesses repeat: {', '.join(labels)} mm")
+        if self.supply_hz is not None and not (
+            math.isfinite(self.supply_hz) and 0.5 <= self.supply_hz <= 200.0
+        ):
+            raise ConfigError(f"--supply-hz {self.supply_hz:g} is out of range (0.5-200 Hz)")
+        return self
+
+
+@dataclass(frozen=True)
+class GuessRun:
+    """One starting guess: tracks in mm on the session grid and its figures."""
+
+    r0_mm: float
+    radius_mm: np.ndarray  # the output track (smoothed when the smoother is on)
+    radius_std_mm: np.ndarray
+    filter_mm: np.ndarray  # the forward filter's track (the paper's)
+    filter_std_mm: np.ndarray
+    states: np.ndarray  # (K, 3) output means
+    convergence_time_s: float | None
+
+
+@dataclass(frozen=True)
+class RollerRigResult:
+    """Everything a command writes."""
+
+    stem: str
+    session: Session
+    spec: RollerRigSpec
+    options: RollerRigOptions
+    time: np.ndarray
+    omega_w: np.ndarray  # measured, rad/s
+    omega_r: np.ndarray
+    torque: np.ndarray  # request, N m
+    normal_force: np.ndarray  # N
+    creep_force: np.ndarray  # of the first guess's states, N
+    creepage: np.ndarray
+    naive_mm: np.ndarray  # omega_r R_r / omega_w, mm
+    free: np.ndarray  # bool masks
+    traction: np.ndarray
+    runs: tuple[GuessRun, ...]
+    supply_hz: float
+    supply_source: str
+    reference_mm: float | None
+    summary: dict[str, Any]
+
+
+def guess_label(r0_mm: float) -> str:
+    """Column suffix of a guess: its value in mm (``320``, ``347.5``)."""
+    return f"{r0_mm:g}"
+
+
+def _finite_series(session: Session, name: str) -> np.ndarray:
+    v = session.values(name)
+    ok = np.isfinite(v)
+    if not ok.any():
+        raise DataError("has no finite sample; check the logger", path=session.path, channel=name)
+    return v
+
+
+def _fill(v: np.ndarray) -> np.ndarray:
+    """Interpolate NaN inputs between samples, hold them at the ends."""
+    ok = np.isfinite(v)
+    if ok.all():
+        return v
+    idx = np.arange(v.size)
+    return np.interp(idx, idx[ok], v[ok])
+
+
+def _check_speed(session: Session, name: str, v: np.ndarray) -> None:
+    if np.nanmax(np.abs(v)) < 1e-6:
+        raise DataError(
+            "is zero throughout: the encoder or its scaling is not working; check the"
+            " channel and its unit", path=session.path, channel=name,
+        )  # fmt: skip
+    if np.nanmin(v) < -1e-3 and np.nanmax(v) > 1e-3:
+        raise DataError(
+            "changes sign: the rig must roll one way through the session; split the file",
+            path=session.path, channel=name,
+        )  # fmt: skip
+
+
+def speed_noise_var(omega: np.ndarray, mask: np.ndarray, dt: float) -> float:
+    """Variance of a speed channel's sample noise, (rad/s)^2, from free rolling.
+
+    Half the variance of successive differences (white noise doubles in a difference;
+    the slow speed changes of free rolling do not count), the extreme 0.5 % on each side
+    trimmed so that steps and gap edges do not inflate it; floored at 1e-10.
+    """
+    d = np.diff(omega)
+    d = d[mask[1:] & mask[:-1] & np.isfinite(d)]
+    if d.size < 10:
+        return 1e-5
+    lo, hi = np.percentile(d, [0.5, 99.5])
+    d = d[(d >= lo) & (d <= hi)]
+    return max(0.5 * float(np.var(d)), 1e-10)
+
+
+def infer_supply_hz(
+    spec: RollerRigSpec, omega_w: np.ndarray, omega_r: np.ndarray, free: np.ndarray
+) -> float:
+    """Roller-motor supply frequency from free rolling, Hz.
+
+    In free rolling the motor only covers the bearing losses of both shafts (the wheel's
+    through the contact, F r_w = T_bw): solve T_A(omega_r, f) = T_br + T_bw R_r / r_w for f.
+    """
+    w_r = float(np.nanmedian(omega_r[free]))
+    w_w = float(np.nanmedian(omega_w[free]))
+    b = spec.bearings
+    need = (
+        b.roller_coulomb
+        + b.roller_viscous * w_r
+        + (b.wheel_coulomb + b.wheel_viscous * w_w) * spec.roller_radius / spec.nominal_radius
+    )
+    f_rot = w_r * spec.motor.pole_pairs / (2.0 * math.pi)  # zero slip
+    return float(
+        brentq(
+            lambda f: float(motor_torque(spec.motor, w_r, f)) - need,
+            f_rot,
+            f_rot * 1.5 + 1e-3,
+            xtol=1e-10,
+        )
+    )
+
+
+def windowed_mean(x: np.ndarray, dt: float) -> np.ndarray:
+    """Trailing mean over CONVERGENCE_WINDOW_S (NaN until the first window is full)."""
+    w = max(1, round(CONVERGENCE_WINDOW_S / dt))
+    return pd.Series(x).rolling(w, min_periods=w).mean().to_numpy()
+
+
+def convergence_time(
+    t: np.ndarray, track_mm: np.ndarray, target_mm: float, dt: float
+) -> float | None:
+    """Time from which every 0.25 s average of the track is within 1 mm of ``target_mm``.
+
+    ``None`` when the track ends outside. Judged on the forward filter (the online
+    estimate) against its own end value, or against the truth in the tests.
+    """
+    w = max(1, round(CONVERGENCE_WINDOW_S / dt))
+    avg = windowed_mean(track_mm, dt)
+    out = ~(np.abs(avg - target_mm) <= CONVERGED_MM)
+    if out[-1]:
+        return None
+    last = np.flatnonzero(out[w - 1 :])
+    start = 0 if last.size == 0 else int(last[-1]) + 1  # first good window, by its start
+    return float(t[start] - t[0])
+
+
+def _rmse(x: np.ndarray, ref: float) -> float:
+    ok = np.isfinite(x)
+    return float(np.sqrt(np.mean((x[ok] - ref) ** 2)))
+
+
+def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) -> RollerRigResult:
+    """Estimate the rolling radius of the session's wheel from every starting guess.
+
+    Parameters
+    ----------
+    path : str or Path — session file (.mcap, .parquet, .csv) with the channels of
+        CHANNELS.md "Roller rig".
+    options : RollerRigOptions, optional
+
+    Returns
+    -------
+    RollerRigResult
+
+    Raises
+    ------
+    DataError
+        Missing channel, a speed channel that is all zero, no traction at all, an
+        unknown unit (from the reader).
+    ConfigError
+        Bad options or datasheet.
+    """
+    opts = (options or RollerRigOptions()).validated()
+    spec = load_roller_rig(opts.rig)
+    t_start = time.perf_counter()
+    session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=opts.aliases)
+    session.require("wheel_omega", "roller_omega", "wheel_torque")
+    w_w = _finite_series(session, "wheel_omega")
+    w_r = _finite_series(session, "roller_omega")
+    _check_speed(session, "wheel_omega", w_w)
+    _check_speed(session, "roller_omega", w_r)
+    sign = 1.0 if np.nanmedian(w_r) > 0 else -1.0  # the model rolls forward
+    w_w, w_r = sign * w_w, sign * w_r
+    torque = _fill(_finite_series(session, "wheel_torque")) * sign
+    peak = float(np.max(np.abs(torque)))
+    if peak < MIN_TRACTION_NM:
+        raise DataError(
+            f"never exceeds {MIN_TRACTION_NM:g} N m (peak {peak:.1f} N m): no traction at all,"
+            " so creep cannot reveal the radius; use a session with traction phases",
+            path=session.path, channel="wheel_torque",
+        )  # fmt: skip
+    warnings = list(session.warnings)
+    if session.has("normal_force"):
+        normal = _fill(_finite_series(session, "normal_force"))
+        if np.nanmin(normal) <= 0:
+            raise DataError(
+                "holds non-positive loads; check its unit and zero",
+                path=session.path,
+                channel="normal_force",
+            )
+    else:
+        normal = np.full(w_w.size, spec.nominal_load)
+        warnings.append(
+            f"no normal_force channel: the datasheet load {spec.nominal_load:g} N is used"
+        )
+    free = np.abs(torque) <= FREE_FRACTION * peak
+    traction = np.abs(torque) >= TRACTION_FRACTION * peak
+    both = np.isfinite(w_w) & np.isfinite(w_r)
+    if not (free & both).any():
+        raise DataError(
+            "no free-rolling sample (wheel_torque near zero) with both speeds",
+            path=session.path,
+            channel="wheel_torque",
+        )
+
+    supply, source = _supply(session, opts, spec, w_w, w_r, free & both)
+    dt = session.dt
+    t = session.time
+    model = RollerRigModel.from_spec(spec, creep_law=opts.creep_law)
+    f = model.transition(dt, torque, normal, np.full(t.size, supply))
+    y = np.column_stack([w_w, w_r])
+    fd = spec.filter
+    if opts.tuning == "paper":
+        Q, R = np.array(fd.q), np.array(fd.r)
+    else:
+        Q = np.array(fd.q_measured)
+        R = np.array([speed_noise_var(w_w, free & both, dt), speed_noise_var(w_r, free & both, dt)])
+    H = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    ukf = UnscentedKalmanFilter(
+        f, np.diag(Q), np.diag(R), H=H, alpha=fd.alpha, beta=fd.beta, kappa=fd.kappa
+    )
+    first = int(np.flatnonzero(both)[0])
+
+    def one_guess(r0: float) -> GuessRun:
+        x0 = np.array([w_w[first], w_r[first], r0 * 1e-3])
+        res = ukf.run(x0, np.diag(fd.p0), y, store="smoother" if opts.smoother else "diag")
+        filt_mm = res.x_filt[:, 2] * 1e3
+        filt_std = np.sqrt(res.var_filt[:, 2]) * 1e3
+        if opts.smoother:
+            sm = urts_smooth(res)
+            states, var = sm.x_smooth, sm.var_smooth
+        else:
+            states, var = res.x_filt, res.var_filt
+        return GuessRun(
+            r0, states[:, 2] * 1e3, np.sqrt(var[:, 2]) * 1e3, filt_mm, filt_std, states,
+            convergence_time(t, filt_mm, float(filt_mm[-1]), dt),
+        )  # fmt: skip
+
+    # The guesses are independent and the compiled model and filter steps release the
+    # GIL: one thread per guess, at most one per core.
+    workers = max(1, min(len(opts.r0_mm), os.cpu_count() or 1))
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        runs = list(pool.map(one_guess, opts.r0_mm))
+    s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2], normal)
+    naive = w_r * spec.roller_radius / np.where(np.abs(w_w) > 1e-9, w_w, np.nan) * 1e3
+    ref = session.constant("rolling_radius_ref")
+    ref_mm = None if ref is None else ref * 1e3
+    elapsed = time.perf_counter() - t_start
+    result = RollerRigResult(
+        stem=session.path.stem, session=session, spec=spec, options=opts, time=t,
+        omega_w=w_w, omega_r=w_r, torque=torque, normal_force=normal, creep_force=F,
+        creepage=s_x, naive_mm=naive, free=free, traction=traction, runs=tuple(runs),
+        supply_hz=supply, supply_source=source, reference_mm=ref_mm, summary={},
+    )  # fmt: skip
+    result.summary.update(_summary(result, warnings, elapsed))
+    result.summary["filter"].update(
+        {
+            "tuning": opts.tuning,
+            "creep_law": opts.creep_law,
+            "q_used": Q.tolist(),
+            "r_used": R.tolist(),
+        }
+    )
+    return result
+
+
+def _supply(
+    session: Session,
+    opts: RollerRigOptions,
+    spec: RollerRigSpec,
+    w_w: np.ndarray,
+    w_r: np.ndarray,
+    free: np.ndarray,
+) -> tuple[float, str]:
+    if opts.supply_hz is not None:
+        return float(opts.supply_hz), "option --supply-hz"
+    fact = session.metadata.get(SUPPLY_FACT)
+    if fact is not None:
+        try:
+            value = float(fact)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value > 0):
+            raise DataError(
+                f"session fact {SUPPLY_FACT}={fact!r} is not a frequency in Hz;"
+                " fix it or pass --supply-hz",
+                path=session.path,
+            )
+        return value, f"session fact {SUPPLY_FACT}"
+    return infer_supply_hz(spec, w_w, w_r, free), "inferred from free rolling"
+
+
+def _phase_mean(x_mm: np.ndarray, mask: np.ndarray) -> float | None:
+    v = x_mm[mask & np.isfinite(x_mm)]
+    return float(np.mean(v)) if v.size else None
+
+
+def naive_radius_mm(result: RollerRigResult, mask: np.ndarray) -> float | None:
+    """Speed-ratio radius sum(omega_r) R_r / sum(omega_w) over a phase, mm.
+
+    A ratio of sums, not a median or mean of per-sample ratios: the encoders' speeds
+    are quantised to a few counts per sample, and a statistic of the quantised ratio
+    is biased by the quantisation grid.
+    """
+    ok = mask & np.isfinite(result.omega_w) & np.isfinite(result.omega_r)
+    if not ok.any():
+        return None
+    return float(
+        np.sum(result.omega_r[ok]) * result.spec.roller_radius / np.sum(result.omega_w[ok]) * 1e3
+    )
+
+
+def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> dict[str, Any]:
+    ref = result.reference_mm
+    runs = []
+    for run in result.runs:
+        rmse = None if ref is None else _rmse(run.radius_mm, ref)
+        rmse_f = None if ref is None else _rmse(run.filter_mm, ref)
+        after = None
+        if ref is not None and run.convergence_time_s is not None:
+            tail = result.time - result.time[0] >= run.convergence_time_s
+            after = float(np.max(np.abs(run.radius_mm[tail] - ref)))
+        runs.append(
+            {
+                "r0_mm": run.r0_mm,
+                "radius_mm": float(run.radius_mm[-1]),
+                "radius_std_mm": float(run.radius_std_mm[-1]),
+                "convergence_time_s": run.convergence_time_s,
+                "rmse_vs_ref_mm": rmse,
+                "rmse_vs_ref_pct": None if ref is None else 100.0 * rmse / ref,
+                "filter_rmse_vs_ref_mm": rmse_f,
+                "filter_rmse_vs_ref_pct": None if ref is None else 100.0 * rmse_f / ref,
+                "max_error_after_convergence_mm": after,
+                "traction_radius_mm": _phase_mean(run.radius_mm, result.traction),
+            }
+        )
+    naive_free = naive_radius_mm(result, result.free)
+    naive_trac = naive_radius_mm(result, result.traction)
+    ukf_trac = runs[0]["traction_radius_mm"]
+    comparison: dict[str, Any] = {
+        "naive_free_mm": naive_free, "naive_traction_mm": naive_trac,
+        "ukf_traction_mm": ukf_trac,
+        "naive_traction_drop_mm": (None if naive_free is None or naive_trac is None
+                                   else naive_free - naive_trac),
+    }  # fmt: skip
+    if ref is not None:
+        comparison["naive_traction_error_mm"] = None if naive_trac is None else naive_trac - ref
+        comparison["ukf_traction_error_mm"] = None if ukf_trac is None else ukf_trac - ref
+        comparison["naive_free_error_mm"] = None if naive_free is None else naive_free - ref
+    return {
+        "session": str(result.session.path),
+        "rig": result.spec.id,
+        "rate_hz": result.session.rate_hz,
+        "duration_s": float(result.time[-1] - result.time[0]),
+        "smoother": result.options.smoother,
+        "supply_hz": result.supply_hz,
+        "supply_source": result.supply_source,
+        "runs": runs,
+        "naive_ratio_radius_mm": naive_free,
+        "reference_radius_mm": ref,
+        "naive_vs_ukf": comparison,
+        "traction_share": float(np.mean(result.traction)),
+        "filter": {
+            "alpha": result.spec.filter.alpha,
+            "beta": result.spec.filter.beta,
+            "kappa": result.spec.filter.kappa,
+            "p0": list(result.spec.filter.p0),
+            "q": list(result.spec.filter.q),
+            "r": list(result.spec.filter.r),
+            "rk4_substep_s": result.spec.filter.substep,
+        },
+        "warnings": warnings,
+        "wall_time_s": elapsed,
+    }
+
+
+UNITS = {"wheel_omega": "rad/s", "roller_omega": "rad/s", "creep_force": "N", "creepage": "-",
+         "naive_radius_mm": "mm", "time": "s"}  # fmt: skip
+
+
+def roller_rig_frame(result: RollerRigResult) -> tuple[pd.DataFrame, dict[str, str]]:
+    """The ``roller_rig.parquet`` table (OUTPUTS.md) and its units."""
+    cols: dict[str, np.ndarray] = {"time": result.time - result.time[0]}
+    units = dict(UNITS)
+    for run in result.runs:
+        g = guess_label(run.r0_mm)
+        cols[f"radius_mm_{g}"] = run.radius_mm
+        cols[f"radius_std_mm_{g}"] = run.radius_std_mm
+        cols[f"radius_filter_mm_{g}"] = run.filter_mm
+        for name in (f"radius_mm_{g}", f"radius_std_mm_{g}", f"radius_filter_mm_{g}"):
+            units[name] = "mm"
+    st = result.runs[0].states
+    cols["wheel_omega"] = st[:, 0]
+    cols["roller_omega"] = st[:, 1]
+    cols["creep_force"] = result.creep_force
+    cols["creepage"] = result.creepage
+    cols["naive_radius_mm"] = result.naive_mm
+    return pd.DataFrame(cols), units
+
+
+def write_roller_rig(result: RollerRigResult, out: str | Path) -> Path:
+    """Write ``DIR/<stem>/roller_rig.parquet``, ``summary.json`` and the report page."""
+    from brakethermo.pipelines.rig_outputs import write_rig_outputs
+    from brakethermo.report.roller_rig_page import roller_rig_page
+
+    frame, units = roller_rig_frame(result)
+    return write_rig_outputs(
+        Path(out), result.stem, PIPELINE, frame, result.summary, roller_rig_page(result), units
+    )

@@ -1,0 +1,216 @@
+"""The diagnosis page: consistency, where the gap lies, which effect, how far it shrinks."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np
+from matplotlib.colors import TwoSlopeNorm
+from matplotlib.figure import Figure
+from scipy.stats import chi2
+
+from brakethermo.report.page import Card, Page, Section, TableBlock
+
+SPOT_COLOURS = ("#1f77b4", "#2ca02c", "#ff7f0e", "#d62728")
+DIST_BIN_M = 25.0
+
+
+def _f(x: Any, fmt: str = "{:.1f}") -> str:
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return "–"
+    return fmt.format(v) if np.isfinite(v) else "–"
+
+
+def residual_map(dist: np.ndarray, lap: np.ndarray, res: np.ndarray) -> Figure:
+    """Mean reference residual (measured − model) by lap distance and spot, flying laps."""
+    fig = Figure(figsize=(11.0, 3.4), dpi=110)
+    ax = fig.add_subplot()
+    flying = lap >= 1
+    edges = np.arange(0.0, float(np.nanmax(dist[flying])) + DIST_BIN_M, DIST_BIN_M)
+    idx = np.clip(np.digitize(dist, edges) - 1, 0, edges.size - 2)
+    grid = np.full((4, edges.size - 1), np.nan)
+    for i in range(4):
+        ok = flying & np.isfinite(res[:, i])
+        s = np.bincount(idx[ok], weights=res[ok, i], minlength=edges.size - 1)
+        n = np.bincount(idx[ok], minlength=edges.size - 1)
+        grid[i, n > 0] = s[n > 0] / n[n > 0]
+    lim = max(float(np.nanpercentile(np.abs(grid), 98)), 1.0)
+    im = ax.imshow(grid, aspect="auto", cmap="RdBu_r", norm=TwoSlopeNorm(0.0, -lim, lim),
+                   extent=(edges[0], edges[-1], 4.5, 0.5), interpolation="nearest")
+    ax.set_yticks([1, 2, 3, 4], ["spot 1", "spot 2", "spot 3", "spot 4"])
+    ax.set_xlabel("lap distance [m]")
+    ax.set_title("Reference model residual, measured − model [°C] (mean over flying laps)",
+                 loc="left", fontsize=11)
+    fig.colorbar(im, ax=ax, pad=0.01, label="°C")
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.17, top=0.88)
+    return fig
+
+
+def nis_figure(time: np.ndarray, nis: np.ndarray, window_s: float = 10.0) -> Figure:
+    """Moving mean of the per-step NIS of the reference filter, with the χ² band of such a
+    mean for white innovations of a consistent filter."""
+    fig = Figure(figsize=(11.0, 2.8), dpi=110)
+    ax = fig.add_subplot()
+    dt = float(np.median(np.diff(time))) if time.size > 1 else 0.1
+    n = max(round(window_s / dt), 1)
+    ok = np.isfinite(nis)
+    kernel = np.ones(n)
+    total = np.convolve(np.where(ok, nis, 0.0), kernel, mode="same")
+    count = np.convolve(ok.astype(float), kernel, mode="same")
+    mean = np.where(count > n / 2, total / np.maximum(count, 1), np.nan)
+    lo, hi = chi2.ppf([0.025, 0.975], n) / n
+    ax.axhspan(lo, hi, color="#2ca02c", alpha=0.18, label=f"χ² 95 % band of a {window_s:g} s mean")
+    ax.axhline(1.0, color="#2ca02c", lw=0.8)
+    ax.plot(time, mean, lw=1.2, color="#1d2330", label=f"NIS, {window_s:g} s moving mean")
+    top = float(np.nanpercentile(mean, 99)) if np.isfinite(mean).any() else 2.0
+    ax.set_ylim(0.0, max(2.0, 1.15 * top))
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("NIS per spot")
+    ax.set_title("Filter consistency: normalised innovation squared (1 = consistent)",
+                 loc="left", fontsize=11)
+    ax.legend(loc="upper right", fontsize=9)
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.2, top=0.86)
+    return fig
+
+
+def effects_figure(effects: list[dict[str, Any]], verdict: str) -> Figure:
+    """Held-out RMSE before and after each effect, with the shrink and its interval."""
+    fig = Figure(figsize=(11.0, 3.6), dpi=110)
+    ax = fig.add_subplot()
+    names = [e["name"] for e in effects]
+    x = np.arange(len(names))
+    before = [e["rmse_before"] for e in effects]
+    after = [e["rmse_after"] for e in effects]
+    ax.bar(x - 0.2, before, 0.4, color="#c9cfdb", label="reference")
+    colours = ["#d62728" if n == verdict else "#1f77b4" for n in names]
+    ax.bar(x + 0.2, after, 0.4, color=colours, label="with the effect")
+    for xi, e in zip(x, effects, strict=True):
+        lo, hi = e["shrink_ci95_pct"]
+        ax.annotate(f"{_f(e['shrink_pct'], '{:+.0f}')} %\n[{_f(lo, '{:.0f}')}, {_f(hi, '{:.0f}')}]",
+                    (xi + 0.2, e["rmse_after"]), ha="center", va="bottom", fontsize=8)
+    ax.set_xticks(x, [n.replace("_", "\n") for n in names], fontsize=9)
+    ax.set_ylabel("held-out RMSE [°C]")
+    ax.set_title("Which effect: held-out RMSE and shrink [95 % bootstrap interval]", loc="left",
+                 fontsize=11)
+    ax.legend(loc="upper right", fontsize=9)
+    ax.set_ylim(0, max([*before, *after, 1.0]) * 1.35)
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.2, top=0.88)
+    return fig
+
+
+def heldout_trace(time: np.ndarray, lap: np.ndarray, y: np.ndarray, ref: np.ndarray,
+                  best: np.ndarray | None, held_lap: int, label: str) -> Figure:
+    """Measured spots, the reference and the best effect's model on one held-out lap."""
+    fig = Figure(figsize=(11.0, 3.8), dpi=110)
+    ax = fig.add_subplot()
+    m = lap == held_lap
+    for i in (1, 2, 3):
+        ax.plot(time[m], y[m, i], color=SPOT_COLOURS[i], lw=1.0, label=f"spot {i + 1} measured")
+        ax.plot(time[m], ref[m, i], color=SPOT_COLOURS[i], lw=0.9, ls=":")
+        if best is not None:
+            ax.plot(time[m], best[m, i], color=SPOT_COLOURS[i], lw=0.9, ls="--")
+    ax.plot([], [], color="k", ls=":", label="reference model")
+    if best is not None:
+        ax.plot([], [], color="k", ls="--", label=f"with {label}")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("°C")
+    ax.set_title(f"Held-out lap {held_lap}: open-loop model vs measurement", loc="left",
+                 fontsize=11)
+    ax.legend(loc="upper right", fontsize=8, ncol=2)
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.15, top=0.88)
+    return fig
+
+
+def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
+                   y: np.ndarray, ref: np.ndarray, best: np.ndarray | None,
+                   dist: np.ndarray, nis: np.ndarray, title: str) -> Page:
+    """The whole diagnosis page from the summary and the residual series."""
+    effects = summary["effects"]
+    verdict = summary["verdict"]
+    top = next((e for e in effects if e["name"] == verdict), None)
+    cons = summary["consistency"]
+    cards = [
+        Card("Gap (held-out RMSE)", _f(summary["gap"]["rmse_c"]), "°C"),
+        Card("Verdict", verdict.replace("_", " ")),
+        Card("Shrink", _f(top["shrink_pct"], "{:.0f}") if top else "–", "%" if top else ""),
+        Card("Held-out laps", ", ".join(map(str, summary["heldout_laps"]))),
+    ]
+    ref_section = Section(
+        "The reference model",
+        [f"Fitted on laps {', '.join(map(str, summary['train_laps']))}; every 'after' figure"
+         f" below is measured on laps {', '.join(map(str, summary['heldout_laps']))}, which"
+         " no fit saw (the out-lap is used by neither)."],
+        [TableBlock(["contains"], [[c] for c in summary["reference"]["contains"]])],
+        notes=["Fitted: " + ", ".join(
+            f"{k} = {_f(v, '{:.3g}') if not isinstance(v, list) else [round(x, 3) for x in v]}"
+            for k, v in summary["reference"]["fitted"].items())],
+    )
+    cons_section = Section(
+        "Consistency first",
+        [cons["summary"]],
+        [TableBlock(["spot", "mean NIS", "χ² band", "lag-1 autocorrelation", "state"],
+                    [[k, _f(v["mean_nis"], "{:.2f}"),
+                      f"{_f(v['chi2_band'][0], '{:.2f}')}–{_f(v['chi2_band'][1], '{:.2f}')}",
+                      _f(v["lag1_autocorrelation"], "{:.2f}"), v["state"]]
+                     for k, v in cons["per_spot"].items()])],
+        {"nis": nis_figure(time, nis)},
+    )
+    gap = summary["gap"]["per_spot_phase"]
+    where_rows = [[c["spot"], c["phase"], c["zone"] if c["zone"] >= 0 else "–",
+                   c["speed_band_kmh"], c["temp_band_c"], _f(c["rmse_c"]), _f(c["bias_c"]),
+                   _f(c["share_pct"])] for c in summary["where"]["ranked_cells"]]
+    where_section = Section(
+        "Where the model parts from the disc",
+        ["Held-out RMSE of the reference model per spot and phase (°C):"],
+        [TableBlock(["spot", "braking", "cooling"],
+                    [[k, _f(v["braking"]), _f(v["cooling"])] for k, v in gap.items()]),
+         TableBlock(["spot", "phase", "zone", "speed km/h", "temperature °C", "RMSE °C",
+                     "bias °C", "share of squared error %"], where_rows,
+                    caption="Cells ranked by their share of the squared error (all flying"
+                            " laps; bias = measured − model)")],
+        {"residual_map": residual_map(dist, lap, y - ref)},
+    )
+    which_rows = [[e["rank"], e["name"], _f(e["rmse_before"]), _f(e["rmse_after"]),
+                   _f(e["shrink_pct"], "{:+.1f}"),
+                   f"{_f(e['shrink_ci95_pct'][0])} … {_f(e['shrink_ci95_pct'][1])}",
+                   _f(e["heldout_loglik_gain"], "{:+.3f}"), "yes" if e["significant"] else "no",
+                   e["evidence"]] for e in effects]
+    combined = summary["combined"]
+    which_section = Section(
+        "Which effect, and how far the gap shrinks",
+        [f"Verdict: {verdict}. Rule: {summary['verdict_rule']}.",
+         "Combined model by forward selection: "
+         + (" + ".join(combined["effects"]) if combined["effects"] else "none") + "."],
+        [TableBlock(["rank", "effect", "before °C", "after °C", "shrink %", "95 % interval %",
+                     "Δ log-lik", "significant", "evidence (reference residuals)"],
+                    which_rows)],
+        {"effects": effects_figure(effects, verdict)} if effects else {},
+        list(summary.get("warnings", [])),
+    )
+    blind = summary.get("not_identifiable_from_one_spot")
+    if blind:
+        which_section.tables.append(TableBlock(
+            ["effect", "why it is not diagnosed here"], [[e["name"], e["reason"]] for e in blind],
+            caption="A single race pyrometer cannot tell these apart"))
+        which_section.paragraphs.insert(0, summary["mode"] + ".")
+    held = summary["heldout_laps"][0]
+    trace_section = Section(
+        "A held-out lap",
+        [],
+        figures={"heldout_lap": heldout_trace(time, lap, y, ref, best, held,
+                                              effects[0]["name"] if effects else "")},
+    )
+    return Page(
+        title=f"{title} · diagnosis",
+        subtitle=f"disc {summary['run']['disc']}, brakethermo {summary['run']['brakethermo']}",
+        cards=cards,
+        sections=[ref_section, cons_section, where_section, which_section, trace_section],
+        footer="Effects are fitted on the training laps only; 'after' figures are held-out.",
+        back_href="../index.html",
+    )

@@ -1,0 +1,134 @@
+"""Export an estimate as ASAM MDF4, to open in WinTAX / ATLAS / asammdf beside the source log.
+
+One channel group on the estimate's 10 Hz time base, every channel with its unit:
+
+- ``BT_spot1`` … ``BT_spot4``, ``BT_contact_avg`` — estimate, degC; ``<name>_std``
+  (1-sigma), ``<name>_lower`` / ``<name>_upper`` (the ±1σ band edges), degC; the spot
+  radius in the channel comment;
+- ``BT_node_<k>`` — node temperatures inner to outer radius, degC, the radius (m) in
+  the comment; other families ``<family>_<k>`` likewise (``BT_mid_<k>``);
+- ``BT_lap`` — lap number;
+- any other numeric column of the frame (``braking_power`` W, ``h`` W/(m2 K),
+  ``power_scale``...) with its ``_std`` when present.
+
+The ``BT_`` prefix keeps the estimate's channels apart from the logger's when both
+files are open together. Time: the header start time is the session's epoch start when
+the source log carried absolute time (so both files line up), else the Unix epoch and
+the header comment says the time base is the session start.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import re
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+from xml.sax.saxutils import escape as xml_escape
+
+import numpy as np
+import pandas as pd
+
+from brakethermo import __version__
+from brakethermo.io.atomic import atomic_path
+from brakethermo.report.mcap_export import ARRAY_UNITS, SCALAR_UNITS, SPOT_RADII_DEFAULT
+
+PREFIX = "BT_"
+BANDED = ("spot1", "spot2", "spot3", "spot4", "contact_avg")
+_ARRAY_COLUMN = re.compile(r"^([A-Za-z]+)_(\d+)$")
+
+
+def _header_comment(source: str, start_epoch_s: float | None) -> str:
+    base = "epoch" if start_epoch_s is not None else "session start"
+    props = {"source": source, "time_base": base, "writer": f"brakethermo {__version__}"}
+    entries = "".join(
+        f'<e name="{k}">{xml_escape(str(v))}</e>' for k, v in props.items()
+    )
+    text = xml_escape(f"brakethermo {__version__} disc temperature estimate of {source}")
+    return f"<HDcomment><TX>{text}</TX><common_properties>{entries}</common_properties></HDcomment>"
+
+
+def write_estimate_mdf(
+    frame: pd.DataFrame,
+    path: str | Path,
+    *,
+    node_radii: Sequence[float] | np.ndarray | None = None,
+    spot_radii: Sequence[float] = SPOT_RADII_DEFAULT,
+    start_epoch_s: float | None = None,
+    source: str = "",
+) -> Path:
+    """Write an estimate frame to ``path`` as MDF 4.10, atomically.
+
+    Parameters
+    ----------
+    frame : DataFrame
+        Estimate frame of OUTPUTS.md (``time`` s, ``lap``, ``spot<i>``, ``spot<i>_std``,
+        ``contact_avg``, ``node_<k>``... degC).
+    path : path
+        Target ``.mf4`` file.
+    node_radii : array — m, optional
+        Radius of each ``node_<k>``; written in the channel comments.
+    spot_radii : sequence of float — m
+        Radii of spot 1..4, written in the spot channels' comments.
+    start_epoch_s : float — s, optional
+        Epoch time of grid point 0 when the source log carried absolute time.
+    source : str
+        Name of the source log, recorded in the header.
+    """
+    from asammdf import MDF, Signal
+
+    path = Path(path)
+    t = frame["time"].to_numpy(dtype=np.float64)
+    signals: list[Signal] = []
+
+    def add(name: str, values: np.ndarray, unit: str, comment: str) -> None:
+        signals.append(Signal(np.asarray(values), t, name=PREFIX + name, unit=unit,
+                              comment=comment))
+
+    for col in (c for c in BANDED if c in frame):
+        value = frame[col].to_numpy(dtype=np.float64)
+        where = (f" at r = {float(spot_radii[int(col[4:]) - 1]):.3f} m"
+                 if col.startswith("spot") else " (pad contact band average)")
+        add(col, value, "degC", f"estimated disc temperature{where}")
+        std_col = f"{col}_std"
+        if std_col in frame:
+            std = frame[std_col].to_numpy(dtype=np.float64)
+            add(std_col, std, "degC", f"1-sigma of {PREFIX}{col}")
+            add(f"{col}_lower", value - std, "degC", f"{PREFIX}{col} - 1 sigma")
+            add(f"{col}_upper", value + std, "degC", f"{PREFIX}{col} + 1 sigma")
+    families: dict[str, list[tuple[int, str]]] = {}
+    for col in frame.columns:
+        match = _ARRAY_COLUMN.match(str(col))
+        if match:
+            families.setdefault(match.group(1), []).append((int(match.group(2)), str(col)))
+    in_family = {c for cols in families.values() for _, c in cols}
+    for family, cols in families.items():
+        for k, col in sorted(cols):
+            radius = (f" at r = {float(node_radii[k]):.4f} m"
+                      if node_radii is not None and k < len(node_radii) else "")
+            add(col, frame[col].to_numpy(dtype=np.float64), ARRAY_UNITS.get(family, ""),
+                f"{family} temperature {k} (inner to outer){radius}")
+    if "lap" in frame:
+        add("lap", frame["lap"].to_numpy(dtype=np.int64), "", "lap number (0 = out-lap)")
+    done = {"time", "lap", *in_family, *BANDED, *(f"{c}_std" for c in BANDED)}
+    for col in frame.columns:
+        if col in done or str(col).endswith("_std"):
+            continue
+        if not pd.api.types.is_numeric_dtype(frame[col]):
+            continue
+        unit = SCALAR_UNITS.get(str(col), "")
+        add(str(col), frame[col].to_numpy(dtype=np.float64), unit, f"estimated {col}")
+        if f"{col}_std" in frame:
+            add(f"{col}_std", frame[f"{col}_std"].to_numpy(dtype=np.float64), unit,
+                f"1-sigma of {PREFIX}{col}")
+
+    mdf = MDF(version="4.10")
+    epoch = 0.0 if start_epoch_s is None else float(start_epoch_s)
+    mdf.header.start_time = dt.datetime.fromtimestamp(epoch, tz=dt.UTC)
+    mdf.header.comment = _header_comment(source, start_epoch_s)
+    mdf.append(signals, comment="brakethermo estimate, 10 Hz")
+    with atomic_path(path) as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mdf.save(tmp, overwrite=True, compression=2)
+        mdf.close()
+    return path

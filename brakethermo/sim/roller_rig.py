@@ -1,0 +1,401 @@
+"""A roller-rig session simulator, deliberately richer than the estimator's model.
+
+What the estimator (:mod:`brakethermo.models.roller_rig`) does not know about, and this
+simulator has:
+
+- the creep law: FASTSIM (Kalker) on the Kik-Piotrowski virtually corrected ellipse
+  (paper eq. 4), Hertz's elliptic traction bound, friction falling with the slip
+  velocity by a law with other parameters than the datasheet's;
+- an out-of-round roller (its radius varies once per revolution) and an eccentric
+  roller encoder: periodic noise at the roller's rotation frequency, as the paper saw;
+- incremental encoders (16384 counts per revolution after X4) read every sample, the
+  speed being the difference of counts over the sample interval: quantisation and
+  the noise of differentiating angle;
+- the PMSM torque delivered is not the logged request: a dead time, a first-order lag
+  and a gain error;
+- the induction motor's torque lags its steady-state value (rotor flux) and its rotor
+  resistance is warmer than the datasheet's;
+- bearing losses and inertias off the datasheet's values; a normal load that wanders
+  (air spring) and a noisy load transmitter.
+
+The truth is integrated by RK4 at 0.2 ms (not the estimator's 0.25 ms) in compiled
+code; the session is written with the real writers of :mod:`brakethermo.io.writers`.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+from numba import njit
+
+from brakethermo.errors import ConfigError
+from brakethermo.io.writers import Channel, SessionData, write_session, write_table_parquet
+from brakethermo.rigs.fastsim import ELLIPTIC, fastsim_scalar
+from brakethermo.rigs.hertz import curvature_sums, hertz_contact
+from brakethermo.rigs.kalker import flexibilities, kalker_coefficients
+from brakethermo.rigs.roller_rig import RollerRigSpec, load_roller_rig
+
+ENCODER_COUNTS = 16384  # per revolution, 4096 PPR in X4 evaluation (paper)
+SIM_STEP = 2.0e-4  # s, the truth's RK4 step
+WARMUP_S = 3.0  # s of free rolling integrated before the log starts
+VIRTUAL_PENETRATION = 0.55  # Kik-Piotrowski factor (paper eq. 4)
+
+
+@dataclass(frozen=True)
+class RollerRigSimConfig:
+    """What to simulate.
+
+    Attributes
+    ----------
+    speed_kmh : float — nominal speed; the roller motor's supply is 7.5 Hz per 15 km/h
+        (paper).
+    duration_s : float — logged length, s.
+    rate_hz : float — logging rate, Hz.
+    radius_m : float — true wheel rolling radius, m (a re-profiled wheel: not nominal).
+    torque_max : float or None — peak torque request, N m (default: the paper's 500 N m
+        at 15 km/h, 852 N m above).
+    free_s : float — free rolling at the start and at the end, s.
+    reference : bool — log ``rolling_radius_ref`` (one sample, mm).
+    traction : bool — False: the PMSM never pulls (a session without traction).
+    seed : int
+    rig : str — datasheet of the nominal machine.
+    """
+
+    speed_kmh: float = 15.0
+    duration_s: float = 260.0
+    rate_hz: float = 200.0
+    radius_m: float = 0.3482
+    torque_max: float | None = None
+    free_s: float = 30.0
+    reference: bool = True
+    traction: bool = True
+    seed: int = 0
+    rig: str = "roller-rig"
+
+    def validated(self) -> RollerRigSimConfig:
+        """Self, after range checks (ConfigError naming the field)."""
+        checks = {
+            "speed_kmh": 1.0 <= self.speed_kmh <= 80.0,
+            "duration_s": 5.0 <= self.duration_s <= 3600.0,
+            "rate_hz": 20.0 <= self.rate_hz <= 5000.0,
+            "radius_m": 0.2 <= self.radius_m <= 0.5,
+            "free_s": 0.0 <= 2.0 * self.free_s < self.duration_s,
+        }
+        for key, ok in checks.items():
+            if not ok:
+                raise ConfigError(
+                    f"roller-rig simulation: {key}={getattr(self, key)!r} out of range"
+                )
+        if self.torque_max is not None and not 0.0 < self.torque_max <= 2000.0:
+            raise ConfigError(
+                f"roller-rig simulation: torque_max={self.torque_max!r} out of range (0, 2000] N m"
+            )
+        return self
+
+    @property
+    def supply_hz(self) -> float:
+        """Roller-motor supply frequency, Hz (7.5 Hz at 15 km/h, paper)."""
+        return 7.5 * self.speed_kmh / 15.0
+
+    @property
+    def peak_torque(self) -> float:
+        """Peak torque request, N m."""
+        if self.torque_max is not None:
+            return self.torque_max
+        return 500.0 if self.speed_kmh <= 20.0 else 852.0
+
+
+@dataclass(frozen=True)
+class RollerRigSimResult:
+    """A simulated session and its truth."""
+
+    session: SessionData
+    truth: pa.Table
+    config: RollerRigSimConfig
+
+
+def torque_request(cfg: RollerRigSimConfig, t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Traction request profile: free rolling, then ramps and plateaus, free rolling, N m."""
+    T = np.zeros_like(t)
+    if not cfg.traction:
+        return T
+    t0, t1 = cfg.free_s, cfg.duration_s - cfg.free_s
+    n_blocks = max(1, int((t1 - t0) // 40.0))
+    edges = np.linspace(t0, t1, n_blocks + 1)
+    for lo, hi in itertools.pairwise(edges):
+        span = hi - lo
+        level = cfg.peak_torque * rng.uniform(0.45, 1.0)
+        ramp = rng.uniform(0.12, 0.25) * span
+        hold = rng.uniform(0.3, 0.45) * span
+        knots_t = [lo, lo + ramp, lo + ramp + hold, lo + 2 * ramp + hold, hi]
+        knots_v = [0.0, level, level, 0.0, 0.0]
+        T = np.maximum(T, np.interp(t, knots_t, knots_v, left=0.0, right=0.0))
+    T[t >= t1] = 0.0
+    return T
+
+
+def _ou(rng: np.random.Generator, n: int, dt: float, tau: float, sigma: float) -> np.ndarray:
+    """Ornstein-Uhlenbeck path with correlation time tau and stationary std sigma."""
+    phi = math.exp(-dt / tau)
+    e = rng.normal(0.0, sigma * math.sqrt(1.0 - phi * phi), n)
+    x = np.empty(n)
+    x[0] = rng.normal(0.0, sigma)
+    for i in range(1, n):
+        x[i] = phi * x[i - 1] + e[i]
+    return x
+
+
+# Layout of the truth parameter vector.
+(P_JW, P_JR, P_RW, P_RR, P_ECC, P_NREF, P_PHI, P_MU0, P_FA, P_FB, P_GAIN, P_TAUP, P_MV, P_MRTH,
+ P_MX, P_MR2, P_MF, P_MP, P_TAUM, P_FSYN, P_BW0, P_BW1, P_BR0, P_BR1, P_U_MAX, P_V_LO,
+ P_V_HI) = range(27)  # fmt: skip
+N_U, N_V = 801, 7  # FASTSIM table: normalised creepage x normalised spin
+
+
+@njit(cache=True, nogil=True)
+def _fastsim_table(a, b, L1, L2, L3, u_max, v_lo, v_hi, nx):  # pragma: no cover - compiled
+    """F/(mu N) of FASTSIM at N_ref, mu = 1 over u = xi/(mu s) in [0, u_max], v = phi/mu.
+
+    With a, b, L ~ s = (N/N_ref)^(1/3) FASTSIM's F/(mu N) depends on xi and phi only
+    through xi/(mu s) and phi/mu, so one table serves every load and friction. The
+    flexibilities come in multiplied by N_ref and FASTSIM runs at N = 1 N: the same
+    traction-to-bound ratios as at N_ref, and the force it returns is F/(mu N).
+    """
+    tab = np.empty((N_V, N_U))
+    for iv in range(N_V):
+        v = v_lo + (v_hi - v_lo) * iv / (N_V - 1)
+        for iu in range(N_U):
+            u = u_max * iu / (N_U - 1)
+            fx, _ = fastsim_scalar(u, 0.0, v, 1.0, 1.0, a, b, L1, L2, L3, nx, nx, ELLIPTIC)
+            tab[iv, iu] = fx
+    return tab
+
+
+@njit(cache=True, nogil=True)
+def _creep_force(xi, mu, N, p, tab):  # pragma: no cover - compiled
+    """FASTSIM force from the table, bilinear, N (the sign of xi)."""
+    s = (N / p[P_NREF]) ** (1.0 / 3.0)
+    u = abs(xi) / (mu * s) * (N_U - 1) / p[P_U_MAX]
+    v = (p[P_PHI] / mu - p[P_V_LO]) / (p[P_V_HI] - p[P_V_LO]) * (N_V - 1)
+    v = min(max(v, 0.0), N_V - 1.000001)
+    jv = int(v)
+    fv = v - jv
+    if u >= N_U - 1:
+        g = (1.0 - fv) * tab[jv, N_U - 1] + fv * tab[jv + 1, N_U - 1]
+    else:
+        ju = int(u)
+        fu = u - ju
+        g = (1.0 - fv) * ((1.0 - fu) * tab[jv, ju] + fu * tab[jv, ju + 1]) + fv * (
+            (1.0 - fu) * tab[jv + 1, ju] + fu * tab[jv + 1, ju + 1]
+        )
+    return math.copysign(g * mu * N, xi)
+
+
+@njit(cache=True, nogil=True)
+def _truth_rhs(th_r, w_w, w_r, t_del, t_a, tq, N, p, tab):  # pragma: no cover - compiled
+    r_r = p[P_RR] * (1.0 + p[P_ECC] * math.cos(th_r))  # out-of-round roller
+    v_w = w_w * p[P_RW]
+    v_r = w_r * r_r
+    V = max(0.5 * (abs(v_w) + abs(v_r)), 0.05)
+    mu = p[P_MU0] * ((1.0 - p[P_FA]) * math.exp(-p[P_FB] * abs(v_w - v_r)) + p[P_FA])
+    xi = (v_w - v_r) / V
+    F = _creep_force(xi, mu, N, p, tab)
+    ratio = p[P_FSYN] / p[P_MF]
+    w_syn = 2.0 * math.pi * p[P_FSYN] / p[P_MP]
+    slip = (w_syn - w_r) / w_syn
+    v = p[P_MV] * ratio
+    x = p[P_MX] * ratio
+    t_static = (
+        3.0
+        * v
+        * v
+        * p[P_MR2]
+        * slip
+        / (w_syn * ((p[P_MRTH] * slip + p[P_MR2]) ** 2 + (x * slip) ** 2))
+    )
+    t_bw = p[P_BW0] * math.tanh(w_w / 0.01) + p[P_BW1] * w_w
+    t_br = p[P_BR0] * math.tanh(w_r / 0.01) + p[P_BR1] * w_r
+    return (
+        w_w,
+        w_r,
+        (t_del - F * p[P_RW] - t_bw) / p[P_JW],
+        (F * r_r + t_a - t_br) / p[P_JR],
+        (p[P_GAIN] * tq - t_del) / p[P_TAUP],
+        (t_static - t_a) / p[P_TAUM],
+        F,
+        xi,
+    )
+
+
+@njit(cache=True, nogil=True)
+def _integrate(y0, tq, nf, dt, n_sub, p, tab, out, force, creep):  # pragma: no cover
+    """RK4 of the truth over len(tq) - 1 samples; inputs linear inside an interval."""
+    h = dt / n_sub
+    y = y0.copy()
+    k1 = np.empty(6)
+    k2 = np.empty(6)
+    k3 = np.empty(6)
+    k4 = np.empty(6)
+    z = np.empty(6)
+    for k in range(tq.shape[0]):
+        r = _truth_rhs(y[1], y[2], y[3], y[4], y[5], tq[k], nf[k], p, tab)
+        out[k] = y
+        force[k] = r[6]
+        creep[k] = r[7]
+        if k == tq.shape[0] - 1:
+            break
+        for j in range(n_sub):
+            ca, cm, cb = j / n_sub, (j + 0.5) / n_sub, (j + 1.0) / n_sub
+            dq, dn = tq[k + 1] - tq[k], nf[k + 1] - nf[k]
+            r = _truth_rhs(y[1], y[2], y[3], y[4], y[5], tq[k] + dq * ca, nf[k] + dn * ca, p, tab)
+            for i in range(6):
+                k1[i] = r[i]
+                z[i] = y[i] + 0.5 * h * r[i]
+            r = _truth_rhs(z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cm, nf[k] + dn * cm, p, tab)
+            for i in range(6):
+                k2[i] = r[i]
+                z[i] = y[i] + 0.5 * h * r[i]
+            r = _truth_rhs(z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cm, nf[k] + dn * cm, p, tab)
+            for i in range(6):
+                k3[i] = r[i]
+                z[i] = y[i] + h * r[i]
+            r = _truth_rhs(z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cb, nf[k] + dn * cb, p, tab)
+            for i in range(6):
+                k4[i] = r[i]
+                y[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+
+
+def _truth_params(
+    spec: RollerRigSpec, cfg: RollerRigSimConfig, rng: np.random.Generator, nx: int = 20
+) -> tuple[np.ndarray, np.ndarray]:
+    """The machine as it really is (datasheet values perturbed) and its FASTSIM table."""
+    A, B = curvature_sums(
+        cfg.radius_m,
+        spec.roller_radius,
+        spec.wheel_lateral_curvature,
+        spec.roller_lateral_curvature,
+    )
+    hz = hertz_contact(spec.nominal_load, A, B, spec.young, spec.poisson)
+    a = math.sqrt(VIRTUAL_PENETRATION * hz.delta / A)  # eq. 4, Kik-Piotrowski
+    b = math.sqrt(VIRTUAL_PENETRATION * hz.delta / B)
+    c = kalker_coefficients(b / a, spec.poisson)
+    L1, L2, L3 = flexibilities(a, b, spec.shear_modulus, c)
+    spin = math.sin(spec.contact_angle) * (1.0 / cfg.radius_m + 1.0 / spec.roller_radius)
+    m, br = spec.motor, spec.bearings
+    u = rng.uniform
+    mu0, fa = spec.friction.mu0 * u(0.9, 1.1), u(0.35, 0.5)
+    # full sliding of pure creepage is reached near xi = 3 mu N/(G a b c11); table to 3x that
+    u_max = 9.0 * spec.nominal_load / (spec.shear_modulus * a * b * c.c11)
+    v_lo, v_hi = spin / mu0, spin / (mu0 * fa)
+    p = np.array([
+        spec.wheel_inertia * u(0.98, 1.03), spec.roller_inertia * u(0.98, 1.03), cfg.radius_m,
+        spec.roller_radius, u(1.0e-4, 2.5e-4), spec.nominal_load, spin, mu0, fa, u(0.4, 0.9),
+        u(0.95, 0.99), u(0.008, 0.015), m.v_th, m.r_th, m.x_th + m.x2, m.r2 * u(1.02, 1.08),
+        m.f_rated, m.pole_pairs, u(0.015, 0.03), cfg.supply_hz,
+        br.wheel_coulomb * u(0.8, 1.3), br.wheel_viscous * u(0.8, 1.3),
+        br.roller_coulomb * u(0.8, 1.3), br.roller_viscous * u(0.8, 1.3), u_max, v_lo, v_hi,
+    ])  # fmt: skip
+    n_ref = spec.nominal_load
+    tab = _fastsim_table(a, b, L1 * n_ref, L2 * n_ref, L3 * n_ref, u_max, v_lo, v_hi, nx)
+    return p, tab
+
+
+def _encoder_speed(theta: np.ndarray, dt: float, ecc: float, phase: float) -> np.ndarray:
+    """Speed from an incremental encoder: counts of an eccentric disc, differenced, rad/s."""
+    seen = theta + ecc * np.sin(theta + phase)  # mounting eccentricity: once-per-rev error
+    counts = np.floor(seen * ENCODER_COUNTS / (2.0 * np.pi))
+    w = np.empty_like(theta)
+    w[1:] = np.diff(counts) * (2.0 * np.pi / ENCODER_COUNTS) / dt
+    w[0] = w[1]
+    return w
+
+
+def simulate_roller_rig(cfg: RollerRigSimConfig) -> RollerRigSimResult:
+    """Simulate one roller-rig session (same config and seed, same result).
+
+    Returns
+    -------
+    RollerRigSimResult
+        The channels of CHANNELS.md "Roller rig" and a truth table (``time``,
+        ``wheel_omega``, ``roller_omega``, ``radius_m``, ``creep_force``, ``creepage``,
+        ``torque_delivered``).
+    """
+    cfg = cfg.validated()
+    spec = load_roller_rig(cfg.rig)
+    rng = np.random.default_rng(cfg.seed)
+    p, tab = _truth_params(spec, cfg, rng)
+    dt = 1.0 / cfg.rate_hz
+    n_sub = max(1, math.ceil(dt / SIM_STEP - 1e-9))
+    n_warm = round(WARMUP_S / dt)
+    n_log = round(cfg.duration_s * cfg.rate_hz) + 1
+    n = n_warm + n_log
+    t_all = (np.arange(n) - n_warm) * dt
+    t_log = t_all[n_warm:]
+    request = np.zeros(n)
+    request[n_warm:] = torque_request(cfg, t_log, rng)
+    # the PMSM acts on the request after its dead time (one to three samples)
+    dead = int(rng.integers(1, 4))
+    acting = np.concatenate([np.zeros(dead), request[:-dead]])
+    load = spec.nominal_load * (1.0 + _ou(rng, n, dt, 2.0, 0.015))
+    w_syn = 2.0 * math.pi * cfg.supply_hz / spec.motor.pole_pairs
+    w_r0 = w_syn * (1.0 - 0.005)
+    y0 = np.array(
+        [0.0, rng.uniform(0, 2 * np.pi), w_r0 * spec.roller_radius / cfg.radius_m, w_r0, 0.0, 0.0]
+    )
+    states = np.empty((n, 6))
+    force, creep = np.empty(n), np.empty(n)
+    _integrate(y0, acting, load, dt, n_sub, p, tab, states, force, creep)
+    states, force, creep, load = states[n_warm:], force[n_warm:], creep[n_warm:], load[n_warm:]
+    th_w, th_r, w_w, w_r, t_del = (states[:, i] for i in range(5))
+
+    meas_w = _encoder_speed(th_w, dt, rng.uniform(5e-4, 1.5e-3), rng.uniform(0, 2 * np.pi))
+    meas_r = _encoder_speed(th_r, dt, rng.uniform(1e-3, 2.5e-3), rng.uniform(0, 2 * np.pi))
+    load_meas = load + rng.normal(0.0, 0.004 * spec.nominal_load, load.size)
+    shaft = force * spec.roller_radius + rng.normal(0.0, 8.0, load.size)  # transducer
+    channels = [
+        Channel("wheel_omega", "rad/s", t_log, meas_w, decimals=5),
+        Channel("roller_omega", "rad/s", t_log, meas_r, decimals=5),
+        Channel("wheel_torque", "N m", t_log, request[n_warm:], decimals=2),
+        Channel("normal_force", "N", t_log, load_meas, decimals=1),
+        Channel("roller_torque", "N m", t_log, shaft, decimals=2),
+    ]
+    if cfg.reference:
+        channels.append(
+            Channel(
+                "rolling_radius_ref",
+                "mm",
+                np.zeros(1),
+                np.array([round(cfg.radius_m * 1e3, 2)]),
+                decimals=2,
+            )
+        )
+    facts = {
+        "rig": "roller-rig",
+        "rig_datasheet": spec.id,
+        "roller_supply_hz": f"{cfg.supply_hz:g}",
+        "speed_kmh": f"{cfg.speed_kmh:g}",
+        "simulated": "true",
+        "seed": str(cfg.seed),
+    }
+    truth = pa.table({
+        "time": t_log, "wheel_omega": w_w, "roller_omega": w_r,
+        "radius_m": np.full(t_log.size, cfg.radius_m), "creep_force": force,
+        "creepage": creep, "torque_delivered": t_del, "normal_force": load,
+    })  # fmt: skip
+    return RollerRigSimResult(SessionData(tuple(channels), facts), truth, cfg)
+
+
+def write_roller_rig_simulation(
+    result: RollerRigSimResult, out: str | Path, fmt: str | None = None
+) -> tuple[Path, Path]:
+    """Write the session and ``<stem>.truth.parquet`` beside it; returns both paths."""
+    out = Path(out)
+    session_path = write_session(out, result.session, fmt)
+    truth_path = out.with_name(f"{out.stem}.truth.parquet")
+    write_table_parquet(truth_path, result.truth)
+    return session_path, truth_path

@@ -1,0 +1,162 @@
+"""Issue 12 items 9, 10, 12: batch chooses the h law deliberately, records it, shows progress."""
+
+from __future__ import annotations
+
+import functools
+import json
+import time
+from pathlib import Path
+
+import pytest
+from _synth_race import estimate_frame, write_estimate_parquet, write_session_parquet
+
+from brakethermo.io.atomic import write_text_atomic
+from brakethermo.io.load import load_session
+from brakethermo.io.session import Session
+from brakethermo.pipelines import batch as batch_mod
+from brakethermo.pipelines.batch import (
+    DEFAULT_LAW,
+    BatchOptions,
+    Phase,
+    RunOutput,
+    SessionOutcome,
+    choose_law,
+    process_session,
+    run_batch,
+)
+
+
+class LawRunner:
+    """Real reader; synthetic estimate; multi-spot sessions write a law and a summary."""
+
+    def load(self, path: Path, options: BatchOptions) -> Session:
+        return load_session(path, aliases=options.aliases)
+
+    def run(self, session: Session, stage: Path, options: BatchOptions,
+            h_law: Path | None) -> RunOutput:
+        t = time.perf_counter()
+        est, radii = estimate_frame(session.frame, n_nodes=11)
+        write_estimate_parquet(est, radii, stage / "estimate.parquet")
+        law = None
+        if batch_mod.is_multi_spot(session):
+            law = stage / "h_law.toml"
+            write_text_atomic(law, f'source = "{session.path.name}"\n')
+            h_law = law
+        write_text_atomic(stage / "summary.json",
+                          json.dumps({"run": {"h_law": str(h_law) if h_law else "shipped"}}))
+        return RunOutput(est, radii, law, {"estimate_s": time.perf_counter() - t})
+
+
+JOB = functools.partial(process_session, runner=LawRunner())
+
+
+def _outcome(name: str, date: str, **facts: str) -> SessionOutcome:
+    return SessionOutcome(Path(f"/nowhere/{name}.mcap"), name, "ok", kind="multi",
+                          h_law_file=f"/out/{name}/h_law.toml", session_date=date,
+                          facts={"date": date, **facts})
+
+
+def test_same_disc_first_then_track_and_vehicle_then_newest():
+    laws = [
+        _outcome("other_disc_newest", "2026-09-01", disc="cc-380", track="A", vehicle="X"),
+        _outcome("same_disc_other_track", "2026-08-01", disc="cc-340-8", track="B",
+                 vehicle="X"),
+        _outcome("same_disc_same_track_old", "2026-01-01", disc="cc-340-8", track="A",
+                 vehicle="Y"),
+        _outcome("same_disc_same_track_new", "2026-02-01", disc="cc-340-8", track="A",
+                 vehicle="Y"),
+    ]
+    choice = choose_law({"disc": "cc-340-8", "track": "A", "vehicle": "Y"}, laws)
+    assert choice.source == "identified: same_disc_same_track_new"
+    assert "same disc cc-340-8" in choice.reason and "same track A" in choice.reason
+    assert "same vehicle Y" in choice.reason and "newest of 3" in choice.reason
+    other = choose_law({"disc": "cc-340-8", "track": "C"}, laws)
+    assert other.source == "identified: same_disc_other_track"  # newest of the same disc
+
+
+def test_never_another_discs_law_and_it_says_so():
+    laws = [_outcome("foreign", "2026-09-01", disc="cc-380", track="A")]
+    choice = choose_law({"disc": "cc-340-8", "track": "A"}, laws)
+    assert choice.path is None and choice.source == DEFAULT_LAW
+    assert "no law identified in this batch for disc cc-340-8" in choice.reason
+    assert "foreign (cc-380)" in choice.reason
+
+
+@pytest.fixture
+def folder(tmp_path: Path) -> Path:
+    src = tmp_path / "in"
+    src.mkdir()
+    # Processing order would pick 'z_other_disc' as the most recent law.
+    write_session_parquet(src / "a_mugello.parquet", 1, seed=1, multi=True, date="2026-05-01",
+                          facts={"track": "mugello"})
+    write_session_parquet(src / "b_misano.parquet", 1, seed=2, multi=True, date="2026-05-03",
+                          facts={"track": "misano"})
+    write_session_parquet(src / "z_other_disc.parquet", 1, seed=3, multi=True,
+                          date="2026-06-01", facts={"disc": "cc-380-9", "track": "mugello"})
+    write_session_parquet(src / "race_mugello.parquet", 1, seed=4, date="2026-05-04",
+                          facts={"track": "mugello"})
+    return src
+
+
+def test_batch_uses_records_and_prints_the_choice(folder, tmp_path):
+    out = tmp_path / "out"
+    events: list[tuple[str, object]] = []
+    result = run_batch(folder, BatchOptions(out=out, reports=False), job=JOB,
+                       on_event=lambda k, p: events.append((k, p)))
+    race = {o.name: o for o in result.outcomes}["race_mugello"]
+    assert race.status == "ok", race.reason
+    assert race.h_law_source == "identified: a_mugello"
+    assert race.h_law_used == str(out / "a_mugello" / "h_law.toml")
+    assert "same track mugello" in race.h_law_reason
+    record = json.loads((out / "race_mugello" / batch_mod.MANIFEST).read_text())
+    assert record["h_law_used"] == race.h_law_used and record["h_law_reason"] == race.h_law_reason
+    summary = json.loads((out / "race_mugello" / "summary.json").read_text())
+    assert summary["run"]["h_law"] == race.h_law_used
+    assert summary["run"]["h_law_choice"] == race.h_law_reason
+    # item 10: a four-spot session's summary names the final law, not the staging folder
+    multi = json.loads((out / "a_mugello" / "summary.json").read_text())
+    assert multi["run"]["h_law"] == str(out / "a_mugello" / "h_law.toml")
+    assert Path(multi["run"]["h_law"]).is_file()
+    records = {r["name"]: r for r in result.to_json()["sessions"]}
+    assert records["race_mugello"]["h_law_reason"] == race.h_law_reason
+    assert records["race_mugello"]["h_law_file"] == race.h_law_used
+    # A re-run with nothing changed skips the race (same law chosen again).
+    again = run_batch(folder, BatchOptions(out=out, reports=False), job=JOB)
+    assert {o.name: o.status for o in again.outcomes}["race_mugello"] == "skipped"
+
+
+def test_progress_names_session_phase_and_laps(folder, tmp_path, monkeypatch):
+    monkeypatch.setattr(batch_mod, "PipelineRunner", LawRunner)
+    for name in ("b_misano", "z_other_disc"):
+        (folder / f"{name}.parquet").unlink()
+    phases: list[Phase] = []
+
+    def keep(kind: str, payload: object) -> None:
+        if kind == "phase":
+            phases.append(payload)  # type: ignore[arg-type]
+
+    # Reports only for the race (rendering is the slow part), then the test session alone.
+    (folder / "a_mugello.parquet").rename(tmp_path / "a_mugello.parquet")
+    run_batch(folder, BatchOptions(out=tmp_path / "out"), on_event=keep)
+    (tmp_path / "a_mugello.parquet").rename(folder / "a_mugello.parquet")
+    (folder / "race_mugello.parquet").unlink()
+    run_batch(folder, BatchOptions(out=tmp_path / "out", reports=False), on_event=keep)
+    race = [p for p in phases if p.name == "race_mugello"]
+    assert [p.phase for p in race][:2] == ["reading", "estimating"]
+    reports = [(p.done, p.total) for p in race if p.phase == "reports"]
+    assert reports and reports[-1][0] == reports[-1][1] >= 1
+    assert any(p.phase == "identifying h(V)" for p in phases if p.name == "a_mugello")
+
+
+def test_cli_progress_and_choice_lines(folder, tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from brakethermo.cli import app
+
+    monkeypatch.setattr(batch_mod, "PipelineRunner", LawRunner)
+    res = CliRunner().invoke(app, ["batch", str(folder), "--out", str(tmp_path / "o"),
+                                   "--no-reports"], env={"COLUMNS": "80"})
+    assert res.exit_code == 0, res.output
+    text = " ".join(res.output.split())
+    assert "race_mugello: h law batch — identified from a_mugello (same disc cc-340-8" in text
+    assert max(len(line) for line in res.output.splitlines()) <= 80

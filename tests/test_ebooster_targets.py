@@ -1,0 +1,48 @@
+"""Issue 10 targets on bench sessions the p-V fit and the tuning never saw.
+
+The shipped training result comes from training seed 0; the observer settings were tuned
+on seeds 1-2. Here: seeds 21-22, closed loop and vehicle-like, written with the real
+session writers and read back through the CLI's pipeline.
+
+Measured and asserted: pressures within 0.1 MPa RMS of the validation channels and a
+95 % band covering 85-99 % of the validation points, for both observers. The paper's
+residual advantage of the UKF is NOT asserted: on this bench the EKF's residual is
+lower (see README section and ``benchmarks/bench_ebooster_accuracy.py``); the test
+records the comparison so that a change in it shows up.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from brakethermo.pipelines.ebooster import observe
+from brakethermo.sim.ebooster import EboosterSimConfig, simulate_ebooster, write_ebooster_session
+
+CASES = [("closed", 21), ("vehicle", 22)]
+
+
+@pytest.fixture(scope="module", params=CASES, ids=[f"{s}-{n}" for s, n in CASES])
+def summary(request, tmp_path_factory):
+    scenario, seed = request.param
+    cfg = EboosterSimConfig(scenario, seed=seed, rate_hz=500.0, duration_s=12.0)
+    path, _ = write_ebooster_session(simulate_ebooster(cfg),
+                                     tmp_path_factory.mktemp("t") / f"{scenario}{seed}.mcap")
+    return observe(path).summary
+
+
+def test_pressures_within_0_1_mpa_rms(summary):
+    for observer in ("ukf", "ekf"):
+        for state, rmse in summary["pressure_rmse_mpa"][observer].items():
+            assert rmse < 0.1, (observer, state, rmse)
+
+
+def test_95_percent_band_is_honest(summary):
+    for observer in ("ukf", "ekf"):
+        assert 0.85 <= summary["coverage_95"][observer] <= 0.99, summary["coverage_95"]
+
+
+def test_residual_comparison_is_recorded(summary):
+    res = summary["residual_rmse_mm"]
+    assert 0.0 < res["ekf"] < 0.05 and 0.0 < res["ukf"] < 0.2
+    expected = 100.0 * (res["ekf"] - res["ukf"]) / res["ekf"]
+    assert summary["improvement_pct"] == pytest.approx(expected)

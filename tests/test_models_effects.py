@@ -1,0 +1,97 @@
+"""The effect registry and the extended disc model: identities, inverses, conservation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from brakethermo.errors import ConfigError
+from brakethermo.models.disc_effects import ExtendedDisc, Segments
+from brakethermo.models.effects import (
+    EFFECT_NAMES,
+    EFFECTS,
+    knee_factor,
+    mu_ratio,
+    parse_effects,
+    pyrometer_reading,
+    true_from_reading,
+)
+from brakethermo.thermal.disc import load_disc
+from brakethermo.thermal.model import DiscFEModel
+
+
+def test_registry_matches_outputs_names() -> None:
+    assert tuple(EFFECTS) == EFFECT_NAMES
+    for e in EFFECTS.values():
+        for p in e.params:
+            assert p.lower <= p.neutral <= p.upper
+        assert (e.latent is None) == (not e.latent_params)
+    assert parse_effects("all") == EFFECT_NAMES
+    assert parse_effects("sensor_lag, slipstream") == ("sensor_lag", "slipstream")
+    with pytest.raises(ConfigError, match="unknown effect"):
+        parse_effects("sensor_lag,warp_drive")
+
+
+@given(st.floats(0.0, 1200.0), st.floats(0.6, 1.5))
+def test_pyrometer_inverse(t_c: float, ratio: float) -> None:
+    y = pyrometer_reading(np.array(t_c), ratio)
+    assert float(true_from_reading(y, ratio)) == pytest.approx(t_c, abs=1e-9)
+    # Reading follows the radiance ratio: hotter disc, larger error in kelvin.
+    assert float(y) + 273.15 == pytest.approx((t_c + 273.15) * ratio**0.25)
+
+
+def test_mu_and_knee_laws() -> None:
+    t = np.linspace(0.0, 1000.0, 101)
+    mu = mu_ratio(t, 0.2, 400.0)
+    assert mu.min() == pytest.approx(0.8) and mu.max() == pytest.approx(1.2)
+    assert np.all(np.diff(mu) >= 0)
+    v_ref = 350 / 3.6
+    v = np.array([0.5, 0.8, 0.9, 1.0]) * v_ref
+    f = knee_factor(v, v_ref, 0.8, np.array([0.4]))[0]
+    np.testing.assert_allclose(f, [1.0, 1.0, 1.1, 1.4])
+
+
+def _toy(effects: tuple[str, ...], K: int = 400) -> tuple[ExtendedDisc, DiscFEModel]:
+    disc = load_disc("cc-340-8")
+    model = DiscFEModel(disc, 8, 3, layer_growth=2.0, k_z=disc.k_z)
+    t = np.arange(K) * 0.1
+    braking = (t % 20.0) < 3.0
+    speed = np.where(braking, 40.0, 70.0)
+    q = np.where(braking, 60e3, 0.0)
+    straight = np.where(braking, -1, (t // 20.0).astype(int))
+    zone = np.where(t >= 0, (t // 20.0).astype(int) % 2, -1)
+    seg = Segments(zone=zone, n_zones=2, straight=straight, n_straights=int(straight.max()) + 1,
+                   straight_lap=np.arange(int(straight.max()) + 1))
+    ext = ExtendedDisc(model, speed, q, np.full(K, 25.0), model.initial_state(200.0),
+                       disc.spot_radii, disc.v_ref, effects, seg)
+    return ext, model
+
+
+def test_neutral_effects_equal_the_reference_model() -> None:
+    ref, model = _toy(())
+    full, _ = _toy(EFFECT_NAMES)
+    p_ref = ref.neutral()
+    p_full = full.neutral()
+    a = ref.predict(p_ref)[0]
+    b = full.predict(p_full)[0]
+    np.testing.assert_allclose(b, a, atol=1e-9)
+    # and the reference equals the plain FE model run open loop with the same inputs
+    h = ref.law(p_ref)(ref.speed)
+    T = model.open_loop(ref.T0, ref.q, h, ref.t_amb)
+    np.testing.assert_allclose(a, T @ model.spot_matrix(model.disc.spot_radii).T, atol=1e-9)
+
+
+def test_effects_move_the_prediction_the_physical_way() -> None:
+    ext, _ = _toy(("friction_temperature", "emissivity_error", "thickness_gradient"))
+    p = ext.neutral()
+    base = ext.predict(p)[0]
+    hot = p.copy()
+    hot[ext.index[("friction_temperature", "beta")]] = 0.3  # more friction when hot
+    assert ext.predict(hot)[0][-1].mean() > base[-1].mean()
+    low = p.copy()
+    low[ext.index[("emissivity_error", "ratio")]] = np.log(0.85)
+    assert np.all(ext.predict(low)[0] < base)
+    batch = ext.predict(np.vstack([p, hot, low]))
+    np.testing.assert_allclose(batch[0], base)  # batch members are independent
