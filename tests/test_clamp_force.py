@@ -202,7 +202,7 @@ def test_bad_inputs_exit_1(tmp_path: Path) -> None:
         tmp_path / "odd.csv",
         SessionData(
             (
-                Channel("motor_angle", "parsec", ch["motor_angle"].time, ch["motor_angle"].value),
+                Channel("motor_angle", "wibble", ch["motor_angle"].time, ch["motor_angle"].value),
                 ch["motor_current"],
             ),
             {},
@@ -224,25 +224,19 @@ def test_ml_fusion_lies_between_and_favours_the_better_model(
     assert w == pytest.approx(sd**2 / (sd**2 + stb**2), abs=1e-9)
 
 
-def test_simulate_emb_command_writes_a_readable_session(tmp_path: Path) -> None:
+def test_simulate_rig_emb_writes_a_readable_session(tmp_path: Path) -> None:
     from brakethermo.io.load import load_session
 
     out = tmp_path / "e.mcap"
-    res = CliRunner().invoke(
-        app,
-        [
-            "simulate-emb",
-            "--out",
-            str(out),
-            "--duration",
-            "2",
-            "--scenario",
-            "heating",
-            "--no-sensor",
-        ],
-    )
+    args = ["simulate", "--rig", "emb", "--set", "duration_s=2", "--set", "scenario=heating"]
+    res = CliRunner().invoke(app, [*args, "--set", "sensor=false", "--out", str(out), "--json"])
     assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["config"]["scenario"] == "heating"
     s = load_session(out, rate_hz=None, channels=("motor_angle", "motor_current", "clamp_force"))
     assert s.rate_hz == pytest.approx(1000.0) and not s.has("clamp_force")
-    bad = CliRunner().invoke(app, ["simulate-emb", "--out", str(out), "--scenario", "rusty"])
-    assert bad.exit_code == 1 and "unknown EMB scenario" in bad.output
+    assert (tmp_path / "e.truth.parquet").exists()
+    bad = CliRunner().invoke(
+        app, ["simulate", "--rig", "emb", "--set", "scenario=rusty", "--out", str(out)]
+    )
+    assert bad.exit_code == 1 and "scenario='rusty'" in bad.output
+    assert "Traceback" not in bad.output

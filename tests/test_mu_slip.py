@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from brakethermo.cli import app
+from brakethermo.io.load import load_session
 from brakethermo.io.writers import Channel, SessionData, write_session
 from brakethermo.models.mu_slip import rudd_ekf
 from brakethermo.pipelines.mu_slip import MuSlipOptions, mu_slip, summary
@@ -142,7 +143,7 @@ def test_bad_inputs_exit_1(tmp_path: Path) -> None:
     no_radius = {k: v for k, v in facts.items() if k != "wheel_radius_m"}
     assert "radius" in _bad(tmp_path, tuple(ch.values()), no_radius)
     odd = tuple(
-        Channel(c.name, "furlong/s" if c.name == "vehicle_speed" else c.unit, c.time, c.value)
+        Channel(c.name, "wibble/s" if c.name == "vehicle_speed" else c.unit, c.time, c.value)
         for c in ch.values()
     )
     assert "unknown unit" in _bad(tmp_path, odd, facts)
@@ -179,16 +180,22 @@ def test_rudd_curve_peaks_at_its_parameters(mu_p: float, s_p: float) -> None:
     assert rudd_mu(grid, mu_p, s_p).max() <= mu_p * (1 + 1e-12)
 
 
-def test_simulate_tyre_command_writes_a_readable_session(tmp_path: Path) -> None:
+def test_simulate_rig_tyre_writes_a_readable_session_and_its_true_peak(tmp_path: Path) -> None:
     out = tmp_path / "t.parquet"
-    res = CliRunner().invoke(
-        app, ["simulate-tyre", "--out", str(out), "--tyre", "rudd", "--log-slip", "--json"]
-    )
+    args = ["simulate", "--rig", "tyre", "--set", "tyre=rudd", "--set", "log_slip=true"]
+    res = CliRunner().invoke(app, [*args, "--seed", "3", "--out", str(out), "--json"])
     assert res.exit_code == 0, res.output
-    assert json.loads(res.output)["peak_mu"] == pytest.approx(0.35)
+    info = json.loads(res.output)
+    assert info["rig"] == "tyre" and info["config"]["log_slip"] is True
+    assert (info["peak_mu"], info["peak_slip"]) == pytest.approx((0.35, 0.15))
     assert (tmp_path / "t.truth.parquet").exists()
-    bad = CliRunner().invoke(app, ["simulate-tyre", "--out", str(out), "--tyre", "slick"])
-    assert bad.exit_code == 1 and "unknown tyre" in bad.output
+    s = load_session(out, rate_hz=None)
+    assert s.has("slip_ratio") and s.has("drag_force")
+    bad = CliRunner().invoke(
+        app, ["simulate", "--rig", "tyre", "--set", "tyre=slick", "--out", str(out)]
+    )
+    assert bad.exit_code == 1 and "tyre='slick'" in bad.output
+    assert "Traceback" not in bad.output
 
 
 def test_rudd_ekf_matches_filterpy_with_the_same_pseudo_noise() -> None:

@@ -238,6 +238,42 @@ def simulate_emb(
     return EmbSimResult(SessionData(tuple(channels), facts), truth)
 
 
+@dataclass(frozen=True)
+class EmbSimConfig:
+    """What ``simulate --rig emb`` simulates (its fields are the ``--set`` keys).
+
+    Attributes
+    ----------
+    scenario : str — ``nominal`` (new pads), ``worn`` (worn pads and gearing) or
+        ``heating`` (pads heating from 40 to 390 °C).
+    duration_s : float — session length, s.
+    sensor : bool — log the clamp-force sensor channel (needed for ``--train`` sessions).
+    seed : int
+    """
+
+    scenario: str = "nominal"
+    duration_s: float = 60.0
+    sensor: bool = True
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.scenario not in SCENARIOS:
+            raise ConfigError(
+                f"emb simulation: scenario={self.scenario!r}; use one of {', '.join(SCENARIOS)}"
+            )
+        if not 0.1 <= self.duration_s <= 3600.0:
+            raise ConfigError(
+                f"emb simulation: duration_s={self.duration_s!r} out of range (0.1 to 3600 s)"
+            )
+
+
+def simulate_emb_config(cfg: EmbSimConfig) -> EmbSimResult:
+    """:func:`simulate_emb` for a :class:`EmbSimConfig`."""
+    return simulate_emb(
+        cfg.scenario, duration_s=cfg.duration_s, seed=cfg.seed, with_sensor=cfg.sensor
+    )
+
+
 def write_emb_simulation(
     result: EmbSimResult, out: str | Path, fmt: str | None = None
 ) -> tuple[Path, Path]:

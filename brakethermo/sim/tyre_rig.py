@@ -195,6 +195,41 @@ def simulate_tyre_rig(
     return TyreSimResult(SessionData(tuple(channels), facts), truth, peak)
 
 
+@dataclass(frozen=True)
+class TyreRigSimConfig:
+    """What ``simulate --rig tyre`` simulates (its fields are the ``--set`` keys).
+
+    Attributes
+    ----------
+    tyre : str — ``burckhardt`` (dry asphalt), ``magic-formula`` (book defaults) or ``rudd``
+        (the paper's curve).
+    duration_s : float or None — pad the session with free rolling to this length, s
+        (default: free rolling, ramp to lock, release and a short tail).
+    log_slip : bool — also log the rig's own ``slip_ratio`` channel.
+    seed : int
+    """
+
+    tyre: str = "burckhardt"
+    duration_s: float | None = None
+    log_slip: bool = False
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.tyre not in TYRES:
+            raise ConfigError(f"tyre simulation: tyre={self.tyre!r}; use one of {', '.join(TYRES)}")
+        if self.duration_s is not None and not 0.0 < self.duration_s <= 3600.0:
+            raise ConfigError(
+                f"tyre simulation: duration_s={self.duration_s!r} out of range (0 to 3600 s)"
+            )
+
+
+def simulate_tyre_config(cfg: TyreRigSimConfig) -> TyreSimResult:
+    """:func:`simulate_tyre_rig` for a :class:`TyreRigSimConfig`."""
+    return simulate_tyre_rig(
+        cfg.tyre, seed=cfg.seed, duration_s=cfg.duration_s, log_slip=cfg.log_slip
+    )
+
+
 def write_tyre_simulation(
     result: TyreSimResult, out: str | Path, fmt: str | None = None
 ) -> tuple[Path, Path]:
