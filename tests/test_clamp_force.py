@@ -160,6 +160,17 @@ def test_cli_outputs_and_json(tmp_path: Path) -> None:
     for col in ("time", "kf", "kf_std", "ml_fusion", "stiffness", "torque_balance"):
         assert col in tab.column_names
     assert (tmp_path / "o" / "e" / "index.html").stat().st_size > 0
+    on_disk = json.loads((tmp_path / "o" / "e" / "summary.json").read_text())
+    assert on_disk["training_session"] == str(tr)
+    assert {"dynamic_stiffness", "torque_balance_per_amp"} <= set(on_disk["fitted"])
+    ns, _ = write_emb_simulation(
+        simulate_emb("nominal", seed=6204, duration_s=3, with_sensor=False), tmp_path / "n.mcap"
+    )
+    res = CliRunner().invoke(
+        app, ["clamp-force", str(ns), "--train", str(tr), "--out", str(tmp_path / "o"), "--json"]
+    )
+    assert res.exit_code == 0, res.output
+    assert set(json.loads(res.output)["rmse_kn"].values()) == {None}  # no sensor: no RMSE
 
 
 def _run_bad(tmp_path: Path, *args: str) -> str:

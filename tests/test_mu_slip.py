@@ -105,7 +105,18 @@ def test_cli_writes_all_outputs(tmp_path: Path) -> None:
     assert res.exit_code == 0, res.output
     summ = json.loads(res.output)
     assert {"ekf", "lm_one_pass", "lm_converged", "peak", "shape_mismatch"} <= set(summ)
+    for key in ("ekf", "lm_one_pass", "lm_converged"):  # OUTPUTS.md "mu-slip"
+        assert {"mu_peak", "slip_peak"} <= set(summ[key])
+    assert {"mu", "slip", "model"} <= set(summ["peak"])
+    assert "two-parameter" in summ["shape_mismatch"]["words"]
     folder = tmp_path / "o" / "rig"
+    on_disk = json.loads((folder / "summary.json").read_text())
+    assert on_disk["peak"] == summ["peak"]
+    import pyarrow.parquet as pq
+
+    cols = pq.read_table(folder / "mu_slip.parquet").column_names
+    for col in ("time", "slip", "mu", "ekf_mu_peak", "ekf_slip_peak"):
+        assert col in cols and (col in ("time", "slip", "mu") or f"{col}_std" in cols)
     for name in (
         "mu_slip.parquet",
         "summary.json",

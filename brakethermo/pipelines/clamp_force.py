@@ -198,8 +198,8 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
     r = _rmse_kn(res.est, force)
     out: dict[str, Any] = {
         "session": str(res.data.session.path),
-        "rate_hz": res.data.session.rate_hz,
-        "duration_s": float(res.data.session.time[-1]),
+        "rate_hz": round(res.data.session.rate_hz, 6),
+        "duration_s": round(float(res.data.session.time[-1]), 6),
         "has_sensor": force is not None,
         "rmse_kn": {k: r[k] for k in ("kf", "ml_fusion", "stiffness", "torque_balance")},
         "rmse_kn_adaptive": r["kf_adaptive"],
@@ -212,7 +212,7 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         rr = _rmse_kn(res.est_retrained, force)
         out["wear"] = {
             "retraining_session": str(res.retrain.session.path),
-            "retraining_duration_s": float(res.retrain.session.time[-1]),
+            "retraining_duration_s": round(float(res.retrain.session.time[-1]), 6),
             "rmse_kn_retrained": rr,
             "rmse_kn_not_retrained": r,
             "fitted_retrained": _model_dict(res.models_retrained, res.retrain.session.path),

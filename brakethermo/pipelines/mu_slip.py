@@ -259,8 +259,8 @@ def summary(res: MuSlipResult) -> dict[str, Any]:
     """The ``summary.json`` of OUTPUTS.md "mu-slip"."""
     return {
         "session": str(res.session.path),
-        "rate_hz": res.session.rate_hz,
-        "ramp_s": list(res.ramp_s),
+        "rate_hz": round(res.session.rate_hz, 6),
+        "ramp_s": [round(float(t), 6) for t in res.ramp_s],
         "points": int(res.slip.size),
         "noise_std_mu": res.sigma,
         "wheel_radius_m": res.radius_m,
