@@ -130,6 +130,8 @@ def _simulate_rig(
     """``simulate --rig``: one rig session and its truth file."""
     t0 = time.perf_counter()
     cfg, session_path, truth_path = simulate_rig(rig, settings, seed, out, fmt)
+    facts = RIG_SIMULATORS[rig].truth_facts
+    truth_facts = facts(cfg) if facts else {}
     summary = {
         "rig": rig,
         "session": str(session_path),
@@ -137,6 +139,7 @@ def _simulate_rig(
         "format": fmt,
         "seed": seed,
         "config": dataclasses.asdict(cfg),
+        **truth_facts,
         "simulate_s": round(time.perf_counter() - t0, 3),
     }
     if as_json:
@@ -149,5 +152,7 @@ def _simulate_rig(
     tab.add_row("truth", summary["truth"])
     for key, value in summary["config"].items():
         tab.add_row(key, str(value))
+    for key, value in truth_facts.items():
+        tab.add_row(f"{key} (truth)", f"{value:.4f}")
     tab.add_row("time", f"{summary['simulate_s']:.1f} s")
     console.print(tab)

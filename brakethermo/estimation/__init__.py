@@ -14,7 +14,12 @@ Random-walk parameters are extra state components (:func:`augment_random_walk`).
 from brakethermo.estimation.augment import augment_random_walk
 from brakethermo.estimation.covariance import CovarianceGuard, symmetrise
 from brakethermo.estimation.ekf import ExtendedKalmanFilter, batched_jacobian
-from brakethermo.estimation.kf import LinearFilterResult, kalman_filter, rts_smoother
+from brakethermo.estimation.kf import (
+    LinearFilterResult,
+    kalman_filter,
+    kalman_filter_tv,
+    rts_smoother,
+)
 from brakethermo.estimation.results import FilterResult, SmootherResult
 from brakethermo.estimation.rls import RLSResult, even_powers, rls_fit
 from brakethermo.estimation.sigma_points import MerweWeights, merwe_weights, sigma_points
@@ -34,6 +39,7 @@ __all__ = [
     "batched_jacobian",
     "even_powers",
     "kalman_filter",
+    "kalman_filter_tv",
     "merwe_weights",
     "rls_fit",
     "rts_smoother",

@@ -63,6 +63,9 @@ class ExtendedKalmanFilter:
         call of ``f`` on n + 1 states.
     gate : float, optional — chi-square gate probability for outlier rejection.
     eig_floor : float — absolute eigenvalue floor of covariance repairs.
+    pseudo_noise : callable ``pseudo_noise(x (n,), P (n, n), k) -> (m, m)``, optional —
+        measurement covariance added to R at step k as a function of the prior, e.g. the
+        second-order terms of the linearisation of ``h`` (with ``h`` only).
     """
 
     def __init__(
@@ -76,14 +79,18 @@ class ExtendedKalmanFilter:
         F_jac: Jacobian | None = None,
         gate: float | None = None,
         eig_floor: float = 1e-12,
+        pseudo_noise: Callable[[Array, Array, int], Array] | None = None,
     ) -> None:
         if (H is None) == (h is None):
             raise ConfigError("give exactly one measurement model: a matrix H or a function h")
+        if pseudo_noise is not None and h is None:
+            raise ConfigError("pseudo_noise needs a nonlinear measurement function h")
         if gate is not None and not 0.0 < gate < 1.0:
             raise ConfigError(f"gate is a probability in (0, 1), got {gate}")
         self.f, self.Q, self.R, self.H, self.h, self.F_jac = f, Q, R, H, h, F_jac
         self.gate = gate
         self.eig_floor = eig_floor
+        self.pseudo_noise = pseudo_noise
 
     def run(
         self,
@@ -101,7 +108,7 @@ class ExtendedKalmanFilter:
         Q_of = as_provider(self.Q, (n, n), "Q")
         R_of = as_provider(self.R, (m, m), "R")
         H_of = None if self.H is None else as_provider(self.H, (m, n), "H")
-        f, h, F_jac = self.f, self.h, self.F_jac
+        f, h, F_jac, pseudo = self.f, self.h, self.F_jac, self.pseudo_noise
 
         def predict(x: Array, P: Array, L: Array, k: int) -> tuple[Array, Array, Array]:
             if F_jac is None:
@@ -114,7 +121,10 @@ class ExtendedKalmanFilter:
         def moments(x: Array, P: Array, L: Array, k: int) -> tuple[Array, Array, Array]:
             mu, Hj = batched_jacobian(h, x, k)
             Cxy = P @ Hj.T
-            return mu, Hj @ Cxy, Cxy
+            S0 = Hj @ Cxy
+            if pseudo is not None:
+                S0 = S0 + pseudo(x, P, k)
+            return mu, S0, Cxy
 
         return run_forward(
             predict,

@@ -1,7 +1,8 @@
 """Linear Kalman filter and exact RTS smoother, written out plainly (paper eq. 26-31).
 
 A reference for the sigma-point machinery: it shares no code with it, so agreement
-between the two on linear models is an independent check.
+between the two on linear models is an independent check. :func:`kalman_filter_tv` is
+the same recursion compiled, with a time-varying transition, for long rig logs.
 """
 
 from __future__ import annotations
@@ -9,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from brakethermo.errors import ConfigError
@@ -106,3 +108,78 @@ def rts_smoother(A: Array, result: LinearFilterResult) -> tuple[Array, Array]:
         P_s[k] = result.P_filt[k] + G @ (P_s[k + 1] - Pp) @ G.T
         P_s[k] = 0.5 * (P_s[k] + P_s[k].T)
     return x_s, P_s
+
+
+@njit(cache=True, nogil=True)
+def _kf_tv_kernel(A, Q, H, R, x0, P0, y, b, x_pred, x_filt, P_pred, P_filt, loglik):
+    K = x_pred.shape[0]
+    x, P = x0.copy(), P0.copy()
+    for k in range(K):
+        if k > 0:
+            Ak = A[k - 1] if A.shape[0] > 1 else A[0]
+            x = Ak @ x + b[k - 1]  # eq. 26
+            P = Ak @ P @ Ak.T + Q  # eq. 27
+        x_pred[k], P_pred[k] = x, P
+        if np.isfinite(y[k]).all():
+            S = H @ P @ H.T + R  # eq. 28
+            Kg = np.linalg.solve(S, H @ P).T  # eq. 29
+            nu = y[k] - H @ x
+            x = x + Kg @ nu  # eq. 30
+            P = P - Kg @ S @ Kg.T  # eq. 31
+            P = 0.5 * (P + P.T)
+            loglik[k] = -0.5 * (
+                nu @ np.linalg.solve(S, nu) + np.log(np.linalg.det(2.0 * np.pi * S))
+            )
+        x_filt[k], P_filt[k] = x, P
+
+
+def kalman_filter_tv(
+    A: Array,
+    Q: Array,
+    H: Array,
+    R: Array,
+    x0: Array,
+    P0: Array,
+    y: Array,
+    b: Array | None = None,
+) -> LinearFilterResult:
+    """Compiled linear KF with an optional time-varying transition, for long small-state runs.
+
+    The equations of :func:`kalman_filter` (eq. 26-31) in one numba loop: a scalar or
+    two-state filter over a 60 s kHz log costs milliseconds instead of seconds. A step
+    whose measurement has any NaN component is predict-only.
+
+    Parameters
+    ----------
+    A : ndarray (n, n) or (K, n, n) — transition; ``A[k]`` maps step k to k + 1.
+    Q, H, R, x0, P0, y, b
+        As :func:`kalman_filter`.
+
+    Returns
+    -------
+    LinearFilterResult
+    """
+    y = np.asarray(y, dtype=np.float64)
+    if y.ndim == 1:
+        y = y[:, None]
+    K = y.shape[0]
+    A = np.asarray(A, dtype=np.float64)
+    n = A.shape[-1]
+    if A.ndim == 2:
+        A = A[None]
+    if A.ndim != 3 or A.shape[0] not in (1, K) or A.shape[1:] != (n, n):
+        raise ConfigError(f"A must have shape ({n}, {n}) or ({K}, {n}, {n}), got {A.shape}")
+    if b is None:
+        b = np.zeros((K, n))
+    elif b.shape != (K, n):
+        raise ConfigError(f"input b must have shape ({K}, {n}), got {b.shape}")
+    x_pred, x_filt = np.empty((K, n)), np.empty((K, n))
+    P_pred, P_filt = np.empty((K, n, n)), np.empty((K, n, n))
+    loglik = np.zeros(K)
+    f64 = np.float64
+    _kf_tv_kernel(
+        np.ascontiguousarray(A), np.asarray(Q, f64), np.asarray(H, f64), np.asarray(R, f64),
+        np.asarray(x0, f64), np.asarray(P0, f64), y, np.asarray(b, f64),
+        x_pred, x_filt, P_pred, P_filt, loglik,
+    )
+    return LinearFilterResult(x_pred, x_filt, P_pred, P_filt, loglik)

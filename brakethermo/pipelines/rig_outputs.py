@@ -15,7 +15,7 @@ from typing import Any
 
 import pandas as pd
 
-from brakethermo.io.atomic import atomic_dir
+from brakethermo.io.atomic import atomic_dir, write_bytes_atomic
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.report.page import Page, write_page
 
@@ -28,6 +28,7 @@ def write_rig_outputs(
     summary: Mapping[str, Any],
     page: Page,
     units: Mapping[str, str] | None = None,
+    attachments: Mapping[str, bytes] | None = None,
 ) -> Path:
     """Write the parquet, the summary and the report page of one rig run.
 
@@ -47,6 +48,8 @@ def write_rig_outputs(
         The report page.
     units : mapping of str to str, optional
         Unit string per column, stored in the field metadata under ``unit``.
+    attachments : mapping of str to bytes, optional
+        Further files of the run (an animation, ...) by file name, written in the folder.
 
     Returns
     -------
@@ -59,4 +62,6 @@ def write_rig_outputs(
         write_parquet(tmp / f"{pipeline}.parquet", frame, field_meta=meta)
         write_json(tmp / "summary.json", dict(summary))
         write_page(page, tmp)
+        for name, data in (attachments or {}).items():
+            write_bytes_atomic(tmp / name, data)
     return folder

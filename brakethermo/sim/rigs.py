@@ -14,27 +14,54 @@ from pathlib import Path
 from typing import Any
 
 from brakethermo.errors import ConfigError
+from brakethermo.sim.emb import EmbSimConfig, simulate_emb_config, write_emb_simulation
 from brakethermo.sim.roller_rig import (
     RollerRigSimConfig,
     simulate_roller_rig,
     write_roller_rig_simulation,
 )
+from brakethermo.sim.tyre_rig import (
+    TyreRigSimConfig,
+    simulate_tyre_config,
+    tyre_curve,
+    write_tyre_simulation,
+)
 
 
 @dataclass(frozen=True)
 class RigSimulator:
-    """A rig's simulator: its config class and ``run(config, out, fmt) -> (session, truth)``."""
+    """A rig's simulator: its config class and ``run(config, out, fmt) -> (session, truth)``.
+
+    ``truth_facts(config)``, when given, adds the truth a user compares the pipeline with
+    (e.g. a tyre's true peak) to the command's summary.
+    """
 
     config: type
     run: Callable[[Any, Path, str | None], tuple[Path, Path]]
+    truth_facts: Callable[[Any], dict[str, Any]] | None = None
 
 
 def _roller_rig(cfg: RollerRigSimConfig, out: Path, fmt: str | None) -> tuple[Path, Path]:
     return write_roller_rig_simulation(simulate_roller_rig(cfg), out, fmt)
 
 
+def _emb(cfg: EmbSimConfig, out: Path, fmt: str | None) -> tuple[Path, Path]:
+    return write_emb_simulation(simulate_emb_config(cfg), out, fmt)
+
+
+def _tyre(cfg: TyreRigSimConfig, out: Path, fmt: str | None) -> tuple[Path, Path]:
+    return write_tyre_simulation(simulate_tyre_config(cfg), out, fmt)
+
+
+def _tyre_peak(cfg: TyreRigSimConfig) -> dict[str, Any]:
+    mu_p, s_p = tyre_curve(cfg.tyre)[1]
+    return {"peak_mu": float(mu_p), "peak_slip": float(s_p)}
+
+
 RIG_SIMULATORS: dict[str, RigSimulator] = {
+    "emb": RigSimulator(EmbSimConfig, _emb),
     "roller-rig": RigSimulator(RollerRigSimConfig, _roller_rig),
+    "tyre": RigSimulator(TyreRigSimConfig, _tyre, _tyre_peak),
 }
 
 

@@ -1,0 +1,63 @@
+"""`brakethermo clamp-force`: EMB clamp force from resolver and current, by Kalman fusion."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from brakethermo.cli._app import app, console, run_with_status
+from brakethermo.cli._options import AliasesOpt, JsonOpt, OutDir
+from brakethermo.errors import ConfigError
+from brakethermo.pipelines.clamp_force import UNITS, clamp_force, page, result_frame, summary
+from brakethermo.pipelines.outputs import to_json
+from brakethermo.pipelines.rig_outputs import write_rig_outputs
+
+
+@app.command("clamp-force")
+def clamp_force_cmd(
+    session: Annotated[Path, typer.Argument(help="Caliper session to estimate.")],
+    train: Annotated[
+        Path, typer.Option("--train", help="Session with the clamp-force sensor to train on.")
+    ],
+    out: OutDir = Path("out"),
+    retrain: Annotated[
+        Path | None,
+        typer.Option("--retrain", help="Short worn-pad session with the sensor to re-train on."),
+    ] = None,
+    factor_walk: Annotated[
+        float,
+        typer.Option("--factor-walk", help="Random walk of the adaptive stiffness factor, 1/√s."),
+    ] = 0.02,
+    aliases: AliasesOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Clamp force without a force sensor: paper's KF, ML fusion, each model, adaptive KF."""
+    if not factor_walk > 0:
+        raise ConfigError(f"--factor-walk must be positive, got {factor_walk}")
+    res = run_with_status(
+        as_json,
+        "clamp-force…",
+        lambda: clamp_force(
+            session, train, retrain_path=retrain, factor_walk=factor_walk, aliases=aliases
+        ),
+    )
+    summ = summary(res)
+    folder = write_rig_outputs(
+        out, Path(session).stem, "clamp_force", result_frame(res), summ, page(res, summ), UNITS
+    )
+    summ["output"] = str(folder)
+    if as_json:
+        typer.echo(to_json(summ))
+        return
+    tab = Table(title=f"clamp-force — {Path(session).name}")
+    tab.add_column("estimator")
+    tab.add_column("RMSE (kN)", justify="right")
+    for k, v in summ["rmse_kn"].items():
+        tab.add_row(k, "–" if v is None else f"{v:.3f}")
+    a = summ["rmse_kn_adaptive"]
+    tab.add_row("kf_adaptive", "–" if a is None else f"{a:.3f}")
+    console.print(tab)
+    console.print(f"written: {folder}")

@@ -1,0 +1,233 @@
+"""μ–slip curve estimators: Rudd's EKF on [μp, sp], batch Levenberg–Marquardt, curve families.
+
+The EKF (Rudd 2011) treats the two parameters of μ(s) = 2 μp sp s / (sp² + s²) as a
+constant state observed through the curve one point at a time, in slip order as the
+ramp logs them. Its measurement noise is the logged noise inflated by a constant factor
+plus the pseudo-noise of the second-order terms of the linearisation, evaluated with
+the prior covariance (paper: squares of ½ h_ii P_ii and of h_ij √(P_ii P_jj), the
+correlation taken as 1 so a negative one cannot shrink the noise). It starts at the
+high end of the expected range with a covariance covering the range, and runs once.
+
+Beyond the paper, :func:`fit_families` fits the two-parameter curve, Burckhardt's
+three parameters and the Magic Formula's B, C, D by least squares, scores each by
+cross-validated (held-out) RMSE, and reports the peak of the best one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+
+from brakethermo.estimation.ekf import ExtendedKalmanFilter
+from brakethermo.estimation.results import FilterResult
+from brakethermo.rigs.tyre import (
+    burckhardt_mu,
+    burckhardt_peak,
+    magic_formula_mu,
+    magic_formula_peak,
+    rudd_hessian,
+    rudd_jacobian,
+    rudd_mu,
+)
+
+Array = NDArray[np.float64]
+
+
+def rudd_ekf(
+    s: Array,
+    mu: Array,
+    sigma: float,
+    x0: Array,
+    P0: Array,
+    *,
+    inflation: float = 3.0,
+) -> FilterResult:
+    """One pass of Rudd's EKF over the points (s_i, μ_i).
+
+    Parameters
+    ----------
+    s, mu : ndarray (K,) — slip, –, and friction coefficient, –, in logged order.
+    sigma : float — measurement noise std of μ, –.
+    x0 : ndarray (2,) — initial [μp, sp].
+    P0 : ndarray (2, 2) — initial covariance.
+    inflation : float — constant factor on the noise std (paper: 3).
+
+    Returns
+    -------
+    FilterResult
+        ``x_filt[k]`` = [μp, sp] after point k, ``P_filt`` the covariances (store "full").
+    """
+    s = np.asarray(s, float)
+
+    def f(X: Array, k: int) -> Array:
+        return X  # constant parameters
+
+    def h(X: Array, k: int) -> Array:
+        return rudd_mu(s[k], X[:, 0], X[:, 1])[:, None]
+
+    def pseudo(x: Array, P: Array, k: int) -> Array:
+        h_mm, h_ss, h_ms = rudd_hessian(float(s[k]), float(x[0]), float(x[1]))
+        p_m, p_s = max(P[0, 0], 0.0), max(P[1, 1], 0.0)
+        var = (0.5 * h_mm * p_m) ** 2 + (0.5 * h_ss * p_s) ** 2 + (h_ms * np.sqrt(p_m * p_s)) ** 2
+        return np.array([[var]])
+
+    ekf = ExtendedKalmanFilter(
+        f,
+        np.zeros((2, 2)),
+        np.array([[(inflation * sigma) ** 2]]),
+        h=h,
+        pseudo_noise=pseudo,
+        F_jac=lambda x, k: np.eye(2),
+    )
+    return ekf.run(
+        np.asarray(x0, float), np.asarray(P0, float), np.asarray(mu, float)[:, None], store="full"
+    )
+
+
+def rudd_lm(s: Array, mu: Array, x0: Array, iterations: int | None) -> tuple[Array, Array]:
+    """Levenberg–Marquardt fit of Rudd's curve: ``iterations`` Jacobian evaluations, or converged.
+
+    Returns
+    -------
+    x : ndarray (2,) — [μp, sp].
+    std : ndarray (2,) — standard errors from the final Jacobian and residual variance.
+    """
+    s, mu = np.asarray(s, float), np.asarray(mu, float)
+
+    def res(p: Array) -> Array:
+        return rudd_mu(s, p[0], p[1]) - mu
+
+    def jac(p: Array) -> Array:
+        return rudd_jacobian(s, p[0], p[1])
+
+    x = np.asarray(x0, float).copy()
+    if iterations is None:
+        x = least_squares(res, x, jac=jac, method="lm").x
+    else:
+        lam = 1e-3
+        for _ in range(iterations):  # Marquardt steps, one Jacobian (one pass) each
+            r, J = res(x), jac(x)
+            A, g = J.T @ J, J.T @ r
+            while True:
+                step = np.linalg.solve(A + lam * np.diag(np.diag(A)), -g)
+                if np.sum(res(x + step) ** 2) < np.sum(r * r) or lam > 1e8:
+                    x = x + step
+                    lam *= 0.1
+                    break
+                lam *= 10.0
+    J, r = jac(x), res(x)
+    dof = max(s.size - 2, 1)
+    cov = np.linalg.pinv(J.T @ J) * float(r @ r) / dof
+    return x, np.sqrt(np.diag(cov))
+
+
+@dataclass(frozen=True)
+class Family:
+    """A μ(s) curve family: ``curve(s, *p)``, ``peak(*p) -> (μ, s)``, start and bounds."""
+
+    name: str
+    params: tuple[str, ...]
+    curve: Callable[..., Array]
+    peak: Callable[..., tuple[float, float]]
+    start: Callable[[float, float], Array]  # from a rough (μ peak, slip peak)
+    lower: tuple[float, ...]
+    upper: tuple[float, ...]
+
+
+def _rudd_peak(mu_p: float, s_p: float) -> tuple[float, float]:
+    return float(mu_p), float(s_p)
+
+
+FAMILIES: tuple[Family, ...] = (
+    Family(
+        "rudd",
+        ("mu_p", "s_p"),
+        rudd_mu,
+        _rudd_peak,
+        lambda m, sp: np.array([m, sp]),
+        (0.0, 1e-3),
+        (5.0, 1.0),
+    ),
+    Family(
+        "burckhardt",
+        ("c1", "c2", "c3"),
+        burckhardt_mu,
+        burckhardt_peak,
+        lambda m, sp: np.array([1.1 * m, 3.0 / sp, 0.3 * m]),
+        (0.0, 0.1, 0.0),
+        (5.0, 500.0, 5.0),
+    ),
+    Family(
+        "magic-formula",
+        ("B", "C", "D"),
+        magic_formula_mu,
+        magic_formula_peak,
+        lambda m, sp: np.array([np.tan(np.pi / 3.2) / sp, 1.6, m]),
+        (0.1, 1.0, 0.0),
+        (500.0, 2.0, 5.0),
+    ),
+)
+
+
+@dataclass(frozen=True)
+class FamilyFit:
+    """One family fitted to all points, with its cross-validated error and peak."""
+
+    name: str
+    params: dict[str, float]
+    rmse: float
+    heldout_rmse: float
+    mu_peak: float
+    slip_peak: float
+
+
+def _fit(fam: Family, s: Array, mu: Array, p0: Array) -> Array:
+    p0 = np.clip(p0, np.array(fam.lower) + 1e-9, np.array(fam.upper) - 1e-9)
+    return least_squares(
+        lambda p: fam.curve(s, *p) - mu, p0, bounds=(fam.lower, fam.upper), method="trf"
+    ).x
+
+
+def fit_families(s: Array, mu: Array, *, folds: int = 5, seed: int = 0) -> list[FamilyFit]:
+    """Fit every family of :data:`FAMILIES`; held-out RMSE by ``folds``-fold cross-validation.
+
+    Parameters
+    ----------
+    s, mu : ndarray (K,) — slip, –, and friction coefficient, –.
+    folds : int — cross-validation folds (random, fixed ``seed``).
+    """
+    s, mu = np.asarray(s, float), np.asarray(mu, float)
+    i = int(np.argmax(np.convolve(mu, np.ones(25) / 25, mode="same")))
+    m0, sp0 = float(mu[max(i - 12, 0) : i + 13].mean()), max(float(s[i]), 0.02)
+    fold = np.random.default_rng(seed).permutation(s.size) % folds
+    out = []
+    for fam in FAMILIES:
+        p = _fit(fam, s, mu, fam.start(m0, sp0))
+        err = []
+        for j in range(folds):
+            tr, te = fold != j, fold == j
+            pj = _fit(fam, s[tr], mu[tr], p)
+            err.append(fam.curve(s[te], *pj) - mu[te])
+        held = float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+        mu_pk, s_pk = fam.peak(*(float(v) for v in p))
+        out.append(
+            FamilyFit(
+                fam.name,
+                dict(zip(fam.params, (float(v) for v in p), strict=True)),
+                float(np.sqrt(np.mean((fam.curve(s, *p) - mu) ** 2))),
+                held,
+                mu_pk,
+                s_pk,
+            )
+        )
+    return out
+
+
+def noise_std(mu: Array) -> float:
+    """Noise std of a smooth signal sampled densely: MAD of first differences / √2."""
+    d = np.diff(np.asarray(mu, float))
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))

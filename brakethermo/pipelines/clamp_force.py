@@ -1,0 +1,312 @@
+"""``clamp-force``: EMB clamp force without a force sensor (Saric & Bab-Hadiashar 2007, and beyond).
+
+Train the dynamic stiffness (eq. 6) and torque-balance (eq. 7) models on a session with
+the clamp-force sensor; estimate on any session with the paper's Kalman filter, the ML
+fusion (eq. 8), each model alone, and the adaptive filter with a random-walk stiffness
+factor (pads that heat up); optionally re-train on a short worn-pad session and report
+the error of not re-training.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from brakethermo.errors import DataError
+from brakethermo.io.load import load_session
+from brakethermo.io.session import Session
+from brakethermo.models.clamp_force import ClampForceEstimates, ClampForceModels, estimate, train
+from brakethermo.report.page import Card, Page, Section, TableBlock
+from brakethermo.rigs.emb import rmse
+
+CHANNELS = ("motor_angle", "motor_current", "clamp_force")
+ESTIMATORS = ("kf", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
+
+
+@dataclass(frozen=True)
+class EmbData:
+    """The arrays of one caliper session: angle rad, current A, sensor N (or None), step s."""
+
+    session: Session
+    theta: np.ndarray
+    current: np.ndarray
+    force: np.ndarray | None
+    ts: float
+
+
+def load_emb(
+    path: str | Path, *, need_sensor: bool, role: str, aliases: Path | None = None
+) -> EmbData:
+    """Load a caliper session at its own rate and check it can be used.
+
+    Raises
+    ------
+    DataError
+        Missing channels, gaps, a motor that never moves (no braking), or no sensor
+        where one is needed (``role`` names the session in the message).
+    """
+    session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases)
+    session.require("motor_angle", "motor_current")
+    if need_sensor and not session.has("clamp_force"):
+        raise DataError(
+            f"the {role} session has no clamp-force sensor channel; training needs a session"
+            " logged with the sensor (give another --train / --retrain file)",
+            path=session.path,
+            channel="clamp_force",
+        )
+    names = ("motor_angle", "motor_current") + (("clamp_force",) if need_sensor else ())
+    for name in names:
+        if not np.isfinite(session.values(name)).all():
+            raise DataError(
+                "has gaps or non-numeric samples; the filter needs a continuous log (cut the"
+                " session around the gap)",
+                path=session.path,
+                channel=name,
+            )
+    theta = session.values("motor_angle")
+    if np.ptp(theta) < 1e-3 or session.frame.shape[0] < 50:
+        raise DataError(
+            "the motor barely moves: no braking in this session",
+            path=session.path,
+            channel="motor_angle",
+        )
+    force = session.values("clamp_force") if session.has("clamp_force") else None
+    if force is not None and not np.isfinite(force).all():
+        force = None
+    return EmbData(session, theta, session.values("motor_current"), force, session.dt)
+
+
+@dataclass(frozen=True)
+class ClampForceResult:
+    """Everything ``clamp-force`` computed."""
+
+    data: EmbData
+    train: EmbData
+    models: ClampForceModels
+    est: ClampForceEstimates
+    retrain: EmbData | None
+    models_retrained: ClampForceModels | None
+    est_retrained: ClampForceEstimates | None
+
+
+def clamp_force(
+    path: str | Path,
+    train_path: str | Path,
+    *,
+    retrain_path: str | Path | None = None,
+    factor_walk: float = 0.02,
+    aliases: Path | None = None,
+) -> ClampForceResult:
+    """Train on ``train_path`` (and ``retrain_path``), estimate on ``path``."""
+    tr = load_emb(train_path, need_sensor=True, role="training", aliases=aliases)
+    data = load_emb(path, need_sensor=False, role="estimation", aliases=aliases)
+    models = train(tr.theta, tr.current, tr.force, tr.ts)
+    est = estimate(models, data.theta, data.current, data.ts, factor_walk=factor_walk)
+    rt = mr = er = None
+    if retrain_path is not None:
+        rt = load_emb(retrain_path, need_sensor=True, role="re-training", aliases=aliases)
+        mr = train(rt.theta, rt.current, rt.force, rt.ts, structure=models)
+        er = estimate(mr, data.theta, data.current, data.ts, factor_walk=factor_walk)
+    return ClampForceResult(data, tr, models, est, rt, mr, er)
+
+
+def estimator_series(est: ClampForceEstimates) -> dict[str, np.ndarray]:
+    """Each estimator's clamp force by output column name, N."""
+    return {
+        "kf": est.kf,
+        "ml_fusion": est.ml_fusion,
+        "stiffness": est.stiffness,
+        "torque_balance": est.torque_balance,
+        "kf_adaptive": est.adaptive,
+    }
+
+
+def _rmse_kn(est: ClampForceEstimates, force: np.ndarray | None) -> dict[str, float | None]:
+    return {
+        k: (None if force is None else rmse(v, force) / 1e3)
+        for k, v in estimator_series(est).items()
+    }
+
+
+def result_frame(res: ClampForceResult) -> pd.DataFrame:
+    """The ``clamp_force.parquet`` table, kN (``stiffness_factor`` –)."""
+    e = res.est
+    cols: dict[str, np.ndarray] = {"time": res.data.session.time}
+    cols |= {k: v / 1e3 for k, v in estimator_series(e).items()}
+    cols["kf_std"] = e.kf_std / 1e3
+    cols["kf_adaptive_std"] = e.adaptive_std / 1e3
+    cols["stiffness_factor"] = e.stiffness_factor
+    cols["stiffness_factor_std"] = e.stiffness_factor_std
+    if res.est_retrained is not None:
+        cols |= {f"{k}_retrained": v / 1e3 for k, v in estimator_series(res.est_retrained).items()}
+    if res.data.force is not None:
+        cols["sensor"] = res.data.force / 1e3
+    order = ["time", "kf", "kf_std", "ml_fusion", "stiffness", "torque_balance"]
+    return pd.DataFrame(cols)[order + [c for c in cols if c not in order]]
+
+
+UNITS = {
+    c: "kN"
+    for c in (
+        "kf",
+        "kf_std",
+        "ml_fusion",
+        "stiffness",
+        "torque_balance",
+        "kf_adaptive",
+        "kf_adaptive_std",
+        "sensor",
+    )
+} | {"time": "s"}
+
+
+def _model_dict(m: ClampForceModels, path: Path) -> dict[str, Any]:
+    return {
+        "training_session": str(path),
+        "dynamic_stiffness": {
+            "alpha0": m.stiffness.alpha0,
+            "alpha3_n_per_rad3": m.stiffness.beta[0],
+            "alpha2_n_per_rad2": m.stiffness.beta[1],
+            "alpha1_n_per_rad": m.stiffness.beta[2],
+            "alpha4_n": m.stiffness.beta[3],
+        },
+        "torque_balance_per_amp": {
+            "gamma_a_per_kn": m.torque.gamma * 1e3,
+            "inertia_a_s2_per_rad": m.torque.inertia,
+            "mu_a_per_kn": m.torque.mu * 1e3,
+            "offset_a": m.torque.offset,
+            "current_offset_a": m.torque.bias,
+            "friction_sign_band_rad_s": m.torque.omega_s,
+        },
+        "derivative_window": m.window,
+        "training_rmse_kn": {"stiffness": m.sigma_ds / 1e3, "torque_balance": m.sigma_tb / 1e3},
+    }
+
+
+def summary(res: ClampForceResult) -> dict[str, Any]:
+    """The ``summary.json`` of OUTPUTS.md "clamp-force" (plus wear and adaptive figures)."""
+    force = res.data.force
+    r = _rmse_kn(res.est, force)
+    out: dict[str, Any] = {
+        "session": str(res.data.session.path),
+        "rate_hz": round(res.data.session.rate_hz, 6),
+        "duration_s": round(float(res.data.session.time[-1]), 6),
+        "has_sensor": force is not None,
+        "rmse_kn": {k: r[k] for k in ("kf", "ml_fusion", "stiffness", "torque_balance")},
+        "rmse_kn_adaptive": r["kf_adaptive"],
+        "kf_vs_stiffness_pct": None if force is None else 100.0 * (1 - r["kf"] / r["stiffness"]),
+        "stiffness_factor_final": float(res.est.stiffness_factor[-1]),
+        "fitted": _model_dict(res.models, res.train.session.path),
+        "training_session": str(res.train.session.path),
+    }
+    if res.est_retrained is not None and res.models_retrained is not None and res.retrain:
+        rr = _rmse_kn(res.est_retrained, force)
+        out["wear"] = {
+            "retraining_session": str(res.retrain.session.path),
+            "retraining_duration_s": round(float(res.retrain.session.time[-1]), 6),
+            "rmse_kn_retrained": rr,
+            "rmse_kn_not_retrained": r,
+            "fitted_retrained": _model_dict(res.models_retrained, res.retrain.session.path),
+        }
+    return out
+
+
+def _fmt(v: float | None) -> str:
+    return "–" if v is None else f"{v:.3f}"
+
+
+def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
+    """The report page: RMSE table, traces, stiffness factor, wear."""
+    t = res.data.session.time
+    force = res.data.force
+    r = summ["rmse_kn"]
+    cards = [
+        Card("KF RMSE", _fmt(r["kf"]), "kN"),
+        Card("ML fusion RMSE", _fmt(r["ml_fusion"]), "kN"),
+        Card("adaptive KF RMSE", _fmt(summ["rmse_kn_adaptive"]), "kN"),
+        Card("final stiffness factor", f"{summ['stiffness_factor_final']:.3f}"),
+    ]
+    rows = [
+        ["Kalman filter (eq. 9-13)", _fmt(r["kf"]), "0.29"],
+        ["ML fusion (eq. 8)", _fmt(r["ml_fusion"]), "0.32"],
+        ["dynamic stiffness (eq. 6)", _fmt(r["stiffness"]), "0.35"],
+        ["torque balance (eq. 7)", _fmt(r["torque_balance"]), "0.61"],
+        ["adaptive KF (stiffness factor)", _fmt(summ["rmse_kn_adaptive"]), "–"],
+    ]
+    main = Section(
+        "Clamp-force estimators",
+        paragraphs=[
+            f"Trained on {res.train.session.path.name} ({res.train.session.time[-1]:.0f} s at"
+            f" {res.train.session.rate_hz:.0f} Hz); estimated on {res.data.session.path.name}."
+            + ("" if force is not None else " The session has no clamp-force sensor: no RMSE."),
+        ],
+        tables=[
+            TableBlock(
+                ["estimator", "RMSE here (kN)", "paper (kN)"],
+                rows,
+                caption="RMSE against the clamp-force sensor",
+            )
+        ],
+    )
+    fig, ax = plt.subplots(figsize=(10, 3.6))
+    # 2 s after the filters settled (or the whole of a short session)
+    t0 = t[0] + 1.0 if t[-1] - t[0] > 3.0 else t[0]
+    win = (t >= t0) & (t <= t0 + 2.0)
+    if force is not None:
+        ax.plot(t[win], force[win] / 1e3, "k", lw=1.6, label="sensor")
+    for name, v in estimator_series(res.est).items():
+        ax.plot(t[win], v[win] / 1e3, lw=0.8, label=name)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("clamp force (kN)")
+    ax.legend(ncol=6, fontsize=8)
+    fig.tight_layout()
+    main.figures["traces"] = fig
+    fig2, ax2 = plt.subplots(figsize=(10, 2.8))
+    sf, sd = res.est.stiffness_factor, res.est.stiffness_factor_std
+    ax2.fill_between(t, sf - sd, sf + sd, alpha=0.3)
+    ax2.plot(t, sf)
+    ax2.set_xlabel("time (s)")
+    ax2.set_ylabel("stiffness factor (–)")
+    fig2.tight_layout()
+    adapt = Section(
+        "Pad heating: adaptive filter",
+        paragraphs=[
+            "The paper held the pad temperature constant. Pads soften as they heat; the adaptive"
+            " filter carries a random-walk factor on the stiffness model's input, observed"
+            " through the torque balance, which the pads do not affect. A factor drifting away"
+            " from 1 shows the pads changed since training."
+        ],
+        figures={"stiffness_factor": fig2},
+    )
+    sections = [main, adapt]
+    if "wear" in summ:
+        w = summ["wear"]
+        rows = [
+            [k, _fmt(w["rmse_kn_not_retrained"][k]), _fmt(w["rmse_kn_retrained"][k])]
+            for k in ESTIMATORS
+        ]
+        sections.append(
+            Section(
+                "Wear: re-training",
+                paragraphs=[
+                    f"Re-trained on {Path(w['retraining_session']).name}"
+                    f" ({w['retraining_duration_s']:.0f} s with the sensor)."
+                ],
+                tables=[TableBlock(["estimator", "not re-trained (kN)", "re-trained (kN)"], rows)],
+            )
+        )
+    return Page(
+        title=f"clamp-force — {res.data.session.path.name}",
+        subtitle="EMB clamp force from resolver and motor current",
+        cards=cards,
+        sections=sections,
+    )

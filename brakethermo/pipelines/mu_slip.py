@@ -1,0 +1,436 @@
+"""``mu-slip``: the tyre μ–slip peak of a braking-to-lock rig session (Rudd 2011, and beyond).
+
+Slip from the speeds (or the rig's ``slip_ratio``), μ = drag / normal force; the ramp
+from free rolling up to wheel lock is found in the log; the EKF and Levenberg–Marquardt
+fits of the two-parameter curve run on its points, then the curve families that can
+fit a real tyre, the best chosen by held-out error.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from scipy.ndimage import median_filter
+
+from brakethermo.errors import ConfigError, DataError
+from brakethermo.estimation.results import FilterResult
+from brakethermo.io.load import load_session
+from brakethermo.io.session import Session
+from brakethermo.models.mu_slip import (
+    FAMILIES,
+    FamilyFit,
+    fit_families,
+    noise_std,
+    rudd_ekf,
+    rudd_lm,
+)
+from brakethermo.report.page import Card, Page, Section, TableBlock
+from brakethermo.rigs.tyre import rudd_mu
+
+CHANNELS = ("vehicle_speed", "wheel_speed", "drag_force", "normal_force", "slip_ratio")
+RADIUS_FACTS = ("wheel_radius_m", "rolling_radius_m")
+LOCK_SLIP = 0.95  # slip at which the wheel counts as locked
+
+
+@dataclass(frozen=True)
+class MuSlipOptions:
+    """Options of the EKF start and the ramp search.
+
+    Attributes
+    ----------
+    mu_range : (float, float) — expected range of the peak μ, – (paper: 0.1–1.0 for cars).
+    slip_range : (float, float) — expected range of the peak slip, – (paper: 0.1–0.2).
+    inflation : float — constant factor on the noise std (paper: 3).
+    radius_m : float or None — wheel radius, m, when the session does not give it.
+    """
+
+    mu_range: tuple[float, float] = (0.1, 1.5)
+    slip_range: tuple[float, float] = (0.05, 0.3)
+    inflation: float = 3.0
+    radius_m: float | None = None
+
+    def __post_init__(self) -> None:
+        for name, (lo, hi) in (("mu_range", self.mu_range), ("slip_range", self.slip_range)):
+            if not 0.0 < lo < hi:
+                raise ConfigError(f"{name} must be 0 < low < high, got {lo}, {hi}")
+        if self.inflation < 1.0:
+            raise ConfigError(f"inflation must be at least 1, got {self.inflation}")
+        if self.radius_m is not None and not self.radius_m > 0.0:
+            raise ConfigError(f"wheel radius must be positive, got {self.radius_m} m")
+
+
+@dataclass(frozen=True)
+class MuSlipResult:
+    """Everything ``mu-slip`` computed on one session."""
+
+    session: Session
+    time: np.ndarray
+    slip: np.ndarray
+    mu: np.ndarray
+    sigma: float
+    ekf: FilterResult
+    lm_one_pass: tuple[np.ndarray, np.ndarray]
+    lm_converged: tuple[np.ndarray, np.ndarray]
+    families: list[FamilyFit]
+    best: FamilyFit
+    radius_m: float | None
+    ramp_s: tuple[float, float]
+
+
+def slip_and_mu(
+    session: Session, radius_m: float | None
+) -> tuple[np.ndarray, np.ndarray, float | None]:
+    """Slip (–) and μ (–) on the session grid; the radius used (None with ``slip_ratio``)."""
+    session.require("drag_force", "normal_force")
+    Fz = session.values("normal_force")
+    if np.nanmax(np.abs(Fz)) <= 0.0:
+        raise DataError(
+            "normal force is zero throughout", path=session.path, channel="normal_force"
+        )
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mu = session.values("drag_force") / Fz
+    mu[np.abs(Fz) < 0.05 * np.nanmax(np.abs(Fz))] = np.nan
+    if session.has("slip_ratio"):
+        return session.values("slip_ratio"), mu, None
+    session.require("vehicle_speed", "wheel_speed")
+    if radius_m is None:
+        for key in RADIUS_FACTS:
+            if key in session.metadata:
+                try:
+                    radius_m = float(session.metadata[key])
+                except ValueError:
+                    raise DataError(
+                        f"session fact {key}={session.metadata[key]!r} is not a number; fix it"
+                        " or pass --radius",
+                        path=session.path,
+                    ) from None
+                break
+    if radius_m is None:
+        raise DataError(
+            "no wheel radius: the session has no slip_ratio channel and no fact"
+            f" {' or '.join(RADIUS_FACTS)}; pass --radius METRES",
+            path=session.path,
+        )
+    V = session.values("vehicle_speed")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slip = (V - session.values("wheel_speed") * radius_m) / V
+    slip[V < 1.0] = np.nan  # slip is undefined near standstill
+    return slip, mu, radius_m
+
+
+def find_ramp(session: Session, slip: np.ndarray) -> tuple[int, int]:
+    """Index range [start, lock) of the first braking ramp from free rolling to wheel lock.
+
+    Raises
+    ------
+    DataError
+        No sample reaches wheel lock (a session without braking to lock).
+    """
+    w = max(3, round(0.01 / session.dt) | 1)
+    smooth = median_filter(np.nan_to_num(slip, nan=0.0), size=w, mode="nearest")
+    locked = np.flatnonzero(smooth >= LOCK_SLIP)
+    if locked.size == 0:
+        raise DataError(
+            f"no braking ramp to wheel lock found (slip never reaches {LOCK_SLIP:g}); give a"
+            " session of a brake ramp to lock",
+            path=session.path,
+        )
+    lock = int(locked[0])
+    before = smooth[:lock]
+    free = float(np.percentile(before, 5)) if before.size else 0.0
+    rolling = np.flatnonzero(before <= free + 0.01)
+    start = int(rolling[-1]) + 1 if rolling.size else 0
+    if lock - start < 20:
+        raise DataError(
+            f"the braking ramp to lock holds only {lock - start} samples; log faster or brake"
+            " more slowly",
+            path=session.path,
+        )
+    return start, lock
+
+
+def mu_slip(
+    path: str | Path, options: MuSlipOptions | None = None, *, aliases: Path | None = None
+) -> MuSlipResult:
+    """Run the whole ``mu-slip`` pipeline on one session file."""
+    options = options or MuSlipOptions()
+    session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases)
+    slip, mu, radius = slip_and_mu(session, options.radius_m)
+    start, lock = find_ramp(session, slip)
+    sl = slice(start, lock)
+    ok = np.isfinite(slip[sl]) & np.isfinite(mu[sl]) & (slip[sl] > 0.0)
+    t, s, m = session.time[sl][ok], slip[sl][ok], mu[sl][ok]
+    sigma = noise_std(m)
+    (m_lo, m_hi), (s_lo, s_hi) = options.mu_range, options.slip_range
+    x0 = np.array([m_hi, s_hi])  # paper: start at the high end, covariance covering the range
+    P0 = np.diag([(m_hi - m_lo) ** 2, (s_hi - s_lo) ** 2])
+    ekf = rudd_ekf(s, m, sigma, x0, P0, inflation=options.inflation)
+    fams = fit_families(s, m)
+    best = min(fams, key=lambda f: f.heldout_rmse)
+    return MuSlipResult(
+        session=session,
+        time=t,
+        slip=s,
+        mu=m,
+        sigma=sigma,
+        ekf=ekf,
+        lm_one_pass=rudd_lm(s, m, x0, 1),
+        lm_converged=rudd_lm(s, m, x0, None),
+        families=fams,
+        best=best,
+        radius_m=radius,
+        ramp_s=(float(session.time[start]), float(session.time[lock])),
+    )
+
+
+def shape_mismatch(result: MuSlipResult) -> dict[str, object]:
+    """How far the two-parameter curve is from the best family, in words and figures."""
+    rudd = next(f for f in result.families if f.name == "rudd")
+    best = result.best
+    d_mu = 100.0 * (rudd.mu_peak / best.mu_peak - 1.0) if best.mu_peak else float("nan")
+    d_s = rudd.slip_peak - best.slip_peak
+    if best.name == "rudd":
+        words = (
+            "the two-parameter curve fits as well as any family on held-out points;"
+            " its peak is the answer"
+        )
+    else:
+        words = (
+            f"the two-parameter curve has the wrong shape for this tyre: its held-out RMSE is"
+            f" {rudd.heldout_rmse:.4f} against {best.heldout_rmse:.4f} for {best.name}, and its"
+            f" peak μ is {abs(d_mu):.1f} % {'above' if d_mu > 0 else 'below'} and its peak slip"
+            f" {abs(d_s):.3f} {'above' if d_s > 0 else 'below'} the {best.name} peak"
+        )
+    return {
+        "best_family": best.name,
+        "rudd_mu_peak_minus_best_pct": d_mu,
+        "rudd_slip_peak_minus_best": d_s,
+        "rudd_heldout_rmse": rudd.heldout_rmse,
+        "best_heldout_rmse": best.heldout_rmse,
+        "words": words,
+    }
+
+
+def result_frame(res: MuSlipResult) -> pd.DataFrame:
+    """The ``mu_slip.parquet`` table: the points used and the EKF track."""
+    x, v = res.ekf.x_filt, res.ekf.var_filt
+    return pd.DataFrame(
+        {
+            "time": res.time,
+            "slip": res.slip,
+            "mu": res.mu,
+            "ekf_mu_peak": x[:, 0],
+            "ekf_mu_peak_std": np.sqrt(v[:, 0]),
+            "ekf_slip_peak": x[:, 1],
+            "ekf_slip_peak_std": np.sqrt(v[:, 1]),
+        }
+    )
+
+
+UNITS = {
+    "time": "s",
+    "slip": "-",
+    "mu": "-",
+    "ekf_mu_peak": "-",
+    "ekf_mu_peak_std": "-",
+    "ekf_slip_peak": "-",
+    "ekf_slip_peak_std": "-",
+}
+
+
+def _peak(x: np.ndarray, sd: np.ndarray | None = None) -> dict[str, float]:
+    out = {"mu_peak": float(x[0]), "slip_peak": float(x[1])}
+    if sd is not None:
+        out |= {"mu_peak_std": float(sd[0]), "slip_peak_std": float(sd[1])}
+    return out
+
+
+def summary(res: MuSlipResult) -> dict[str, Any]:
+    """The ``summary.json`` of OUTPUTS.md "mu-slip"."""
+    return {
+        "session": str(res.session.path),
+        "rate_hz": round(res.session.rate_hz, 6),
+        "ramp_s": [round(float(t), 6) for t in res.ramp_s],
+        "points": int(res.slip.size),
+        "noise_std_mu": res.sigma,
+        "wheel_radius_m": res.radius_m,
+        "ekf": _peak(res.ekf.x_filt[-1], np.sqrt(res.ekf.var_filt[-1])),
+        "lm_one_pass": _peak(*res.lm_one_pass),
+        "lm_converged": _peak(*res.lm_converged),
+        "families": [
+            {
+                "model": f.name,
+                "params": f.params,
+                "rmse": f.rmse,
+                "heldout_rmse": f.heldout_rmse,
+                "mu_peak": f.mu_peak,
+                "slip_peak": f.slip_peak,
+            }
+            for f in res.families
+        ],
+        "peak": {"mu": res.best.mu_peak, "slip": res.best.slip_peak, "model": res.best.name},
+        "shape_mismatch": shape_mismatch(res),
+    }
+
+
+def _ellipse(P: np.ndarray, n: int = 60) -> np.ndarray:
+    """1σ contour of a 2-D Gaussian around 0: points (n, 2)."""
+    w, V = np.linalg.eigh(P)
+    a = np.linspace(0.0, 2.0 * np.pi, n)
+    return (V @ (np.sqrt(np.maximum(w, 0.0))[:, None] * np.stack([np.cos(a), np.sin(a)]))).T
+
+
+def animation_gif(res: MuSlipResult, frames: int = 30, max_points: int = 300) -> bytes:
+    """GIF of the EKF: data so far, estimated curve, peak and its 1σ ellipse, per frame.
+
+    The axes, ticks and the thinned cloud of all points are drawn once; each frame
+    restores that background and draws only its own artists (blitting), so a frame
+    costs milliseconds rather than a full figure draw. At most ``max_points`` points
+    are drawn (evenly thinned).
+    """
+    from PIL import Image
+
+    K = res.slip.size
+    idx = np.unique(np.linspace(0, K - 1, frames).astype(int))
+    x, P = res.ekf.x_filt, res.ekf.P_filt
+    fig, ax = plt.subplots(figsize=(6, 4), dpi=72)
+    s_grid = np.linspace(0.0, max(1.0, float(res.slip.max())), 200)
+    thin = np.unique(np.linspace(0, K - 1, min(K, max_points)).astype(int))
+    ax.plot(res.slip[thin], res.mu[thin], ".", color="0.8", ms=2)
+    ax.set_xlim(0, s_grid[-1])
+    ax.set_ylim(0, 1.4 * max(float(np.nanmax(res.mu)), 0.1))
+    ax.set_xlabel("slip (–)")
+    ax.set_ylabel("μ (–)")
+    ax.set_title("EKF on the two-parameter curve: estimate and 1σ ellipse")
+    fig.tight_layout()
+    pts, curve, ell, pk = (
+        ax.plot([], [], ".", color="tab:green", ms=2, animated=True)[0],
+        ax.plot([], [], color="tab:red", animated=True)[0],
+        ax.plot([], [], color="tab:blue", animated=True)[0],
+        ax.plot([], [], "o", color="tab:red", animated=True)[0],
+    )
+    label = ax.text(0.02, 0.95, "", transform=ax.transAxes, va="top", animated=True)
+    canvas = fig.canvas
+    canvas.draw()
+    background = canvas.copy_from_bbox(fig.bbox)
+    images = []
+    for k in idx:
+        shown = thin[thin <= k]
+        pts.set_data(res.slip[shown], res.mu[shown])
+        curve.set_data(s_grid, rudd_mu(s_grid, x[k, 0], x[k, 1]))
+        e = _ellipse(P[k])
+        ell.set_data(x[k, 1] + e[:, 1], x[k, 0] + e[:, 0])
+        pk.set_data([x[k, 1]], [x[k, 0]])
+        label.set_text(f"point {k + 1}/{K}: μp {x[k, 0]:.3f}, sp {x[k, 1]:.3f}")
+        canvas.restore_region(background)
+        for artist in (pts, curve, ell, pk, label):
+            ax.draw_artist(artist)
+        canvas.blit(fig.bbox)
+        rgba = np.asarray(canvas.buffer_rgba())
+        images.append(Image.fromarray(rgba[..., :3].copy()).quantize(colors=64))
+    plt.close(fig)
+    buf = io.BytesIO()
+    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=150,
+                   loop=0)
+    return buf.getvalue()
+
+
+def page(res: MuSlipResult, summ: dict[str, Any]) -> Page:
+    """The report page: convergence, curve fits, the families and the shape mismatch."""
+    x, P = res.ekf.x_filt, res.ekf.P_filt
+    k = np.arange(1, res.slip.size + 1)
+    fig, axs = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    for j, (name, ax) in enumerate(zip(("μ peak", "slip peak"), axs[:2], strict=True)):
+        sd = np.sqrt(P[:, j, j])
+        ax.fill_between(k, x[:, j] - sd, x[:, j] + sd, alpha=0.3)
+        ax.plot(k, x[:, j])
+        ax.set_ylabel(f"{name} (–)")
+    axs[2].plot(k, P[:, 0, 0] / P[0, 0, 0], label="var μp / initial")
+    axs[2].plot(k, P[:, 1, 1] / P[0, 1, 1], label="var sp / initial")
+    axs[2].plot(k, P[:, 0, 1] / np.sqrt(P[:, 0, 0] * P[:, 1, 1]), label="correlation")
+    axs[2].set_xlabel("point")
+    axs[2].legend(fontsize=8)
+    fig.tight_layout()
+    fig2, ax2 = plt.subplots(figsize=(9, 4))
+    ax2.plot(res.slip, res.mu, ".", color="0.7", ms=2, label="points")
+    sg = np.linspace(1e-4, float(res.slip.max()), 400)
+    fams = {f.name: f for f in FAMILIES}
+    for f in res.families:
+        ax2.plot(
+            sg,
+            fams[f.name].curve(sg, *f.params.values()),
+            label=f"{f.name} (held-out {f.heldout_rmse:.4f})",
+        )
+    ax2.plot(sg, rudd_mu(sg, *x[-1]), "--", label="EKF (one pass)")
+    ax2.set_xlabel("slip (–)")
+    ax2.set_ylabel("μ (–)")
+    ax2.legend(fontsize=8)
+    fig2.tight_layout()
+    rows = [
+        [
+            "EKF (one pass)",
+            f"{summ['ekf']['mu_peak']:.3f} ± {summ['ekf']['mu_peak_std']:.3f}",
+            f"{summ['ekf']['slip_peak']:.3f} ± {summ['ekf']['slip_peak_std']:.3f}",
+        ]
+    ]
+    for key, lab in (("lm_one_pass", "LM, one pass"), ("lm_converged", "LM, converged")):
+        rows.append(
+            [
+                lab,
+                f"{summ[key]['mu_peak']:.3f} ± {summ[key]['mu_peak_std']:.3f}",
+                f"{summ[key]['slip_peak']:.3f} ± {summ[key]['slip_peak_std']:.3f}",
+            ]
+        )
+    fam_rows = [
+        [f.name, f"{f.rmse:.4f}", f"{f.heldout_rmse:.4f}", f"{f.mu_peak:.3f}", f"{f.slip_peak:.3f}"]
+        for f in res.families
+    ]
+    mm = summ["shape_mismatch"]
+    return Page(
+        title=f"mu-slip — {res.session.path.name}",
+        subtitle="tyre μ–slip peak: EKF, Levenberg–Marquardt and curve families",
+        cards=[
+            Card("peak μ", f"{res.best.mu_peak:.3f}"),
+            Card("peak slip", f"{res.best.slip_peak:.3f}"),
+            Card("from", res.best.name),
+            Card("points", str(res.slip.size)),
+        ],
+        sections=[
+            Section(
+                "Two-parameter curve (Rudd)",
+                paragraphs=[
+                    f"Ramp {res.ramp_s[0]:.2f}–{res.ramp_s[1]:.2f} s up to wheel lock;"
+                    f" noise std of μ {res.sigma:.4f} (from point-to-point differences), inflated"
+                    " ×3 plus second-order pseudo-noise in the EKF."
+                ],
+                tables=[TableBlock(["estimator", "μ peak", "slip peak"], rows)],
+                figures={"ekf_convergence": fig},
+                notes=[
+                    "Animation of the EKF (curve and 1σ ellipse after each point):"
+                    " ekf_animation.gif beside this page."
+                ],
+            ),
+            Section(
+                "Curve families",
+                paragraphs=[mm["words"] + "."],
+                tables=[
+                    TableBlock(
+                        ["family", "RMSE", "held-out RMSE", "μ peak", "slip peak"],
+                        fam_rows,
+                        caption="5-fold cross-validation",
+                    )
+                ],
+                figures={"curve_fits": fig2},
+            ),
+        ],
+    )

@@ -1,0 +1,241 @@
+"""Tyre μ–slip rig simulator: a braked wheel on a constant-speed carriage, and its truth.
+
+Richer than the estimator's two-parameter curve on purpose: the tyre is Burckhardt's
+(dry asphalt, the reference figures), the Magic Formula (Pacejka book defaults) or
+Rudd's curve; its force builds up over a relaxation length; the wheel has inertia and
+is braked by a torque ramp until it locks; the normal load oscillates; the drag and
+load cells, the speed sensors and the wheel encoder are noisy. The session runs free
+rolling, then the ramp to lock, a short locked slide and the release back to rolling.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+from scipy.optimize import brentq
+
+from brakethermo.errors import ConfigError
+from brakethermo.io.writers import Channel, SessionData, write_session, write_table_parquet
+from brakethermo.rigs.tyre import (
+    burckhardt_mu,
+    burckhardt_peak,
+    magic_formula_mu,
+    magic_formula_peak,
+    rudd_mu,
+)
+
+TYRES = ("burckhardt", "magic-formula", "rudd")
+# reference parameters (shared/reference/README.md): Burckhardt dry asphalt, MF book defaults
+BURCKHARDT_DRY = (1.2801, 23.99, 0.52)
+MF_BOOK = (10.0, 1.6, 1.0)
+RUDD_PAPER = (0.35, 0.15)
+
+
+def tyre_curve(tyre: str):
+    """μ(s) and its true peak (μ, slip) for a named tyre."""
+    if tyre == "burckhardt":
+        return (lambda s: burckhardt_mu(s, *BURCKHARDT_DRY)), burckhardt_peak(*BURCKHARDT_DRY)
+    if tyre == "magic-formula":
+        return (lambda s: magic_formula_mu(s, *MF_BOOK)), magic_formula_peak(*MF_BOOK)
+    if tyre == "rudd":
+        return (lambda s: rudd_mu(s, *RUDD_PAPER)), RUDD_PAPER
+    raise ConfigError(f"unknown tyre '{tyre}'; use one of {', '.join(TYRES)}")
+
+
+@dataclass(frozen=True)
+class TyreRig:
+    """Rig and sensor parameters.
+
+    Attributes
+    ----------
+    rate_hz : float — logging rate, Hz.
+    substeps : int — integration steps per logged sample.
+    speed : float — carriage speed, m/s.
+    radius : float — wheel rolling radius, m.
+    inertia : float — wheel and brake inertia, kg m².
+    load : float — mean normal force, N.
+    load_ripple, load_freq_hz : float — relative normal-load oscillation, –, and its frequency.
+    relaxation_m : float — longitudinal relaxation length, m.
+    rolling_resistance : float — rolling-resistance coefficient, –.
+    free_s, hold_s, tail_s : float — free rolling before, locked slide, rolling after, s.
+    torque_rate : float — brake-torque ramp rate, N m/s.
+    drag_noise, load_noise : float — force-cell noise std, N.
+    speed_noise : float — carriage speed noise std, m/s.
+    wheel_noise : float — wheel speed noise std, rad/s.
+    """
+
+    rate_hz: float = 1000.0
+    substeps: int = 10
+    speed: float = 20.0
+    radius: float = 0.30
+    inertia: float = 1.2
+    load: float = 4000.0
+    load_ripple: float = 0.02
+    load_freq_hz: float = 3.0
+    relaxation_m: float = 0.15
+    rolling_resistance: float = 0.012
+    free_s: float = 2.0
+    hold_s: float = 0.5
+    tail_s: float = 2.0
+    torque_rate: float = 700.0
+    drag_noise: float = 120.0
+    load_noise: float = 20.0
+    speed_noise: float = 0.02
+    wheel_noise: float = 0.05
+
+
+@dataclass(frozen=True)
+class TyreSimResult:
+    """A simulated session, its truth table and the true peak (μ, slip) of the tyre."""
+
+    session: SessionData
+    truth: pa.Table
+    peak: tuple[float, float]
+
+
+def simulate_tyre_rig(
+    tyre: str = "burckhardt",
+    *,
+    seed: int = 0,
+    rig: TyreRig | None = None,
+    duration_s: float | None = None,
+    log_slip: bool = False,
+) -> TyreSimResult:
+    """Simulate a braking ramp to wheel lock on a μ–slip rig.
+
+    Parameters
+    ----------
+    tyre : str — ``burckhardt``, ``magic-formula`` or ``rudd``.
+    seed : int — random seed.
+    rig : TyreRig, optional
+    duration_s : float, optional — pad the session with free rolling to this length, s.
+    log_slip : bool — also log the rig's own ``slip_ratio`` channel.
+    """
+    rig = rig or TyreRig()
+    mu_of, peak = tyre_curve(tyre)
+    rng = np.random.default_rng(seed)
+    dt = 1.0 / rig.rate_hz
+    h = dt / rig.substeps
+    V, R, J = rig.speed, rig.radius, rig.inertia
+    # free rolling: the slip at which the tyre force balances the rolling resistance
+    s_free = brentq(lambda x: float(mu_of(x)) - rig.rolling_resistance, 0.0, peak[1])
+    omega0 = V * (1.0 - s_free) / R
+    phase = rng.uniform(0.0, 2.0 * math.pi)
+    # ramp, slide and spin-up integrated; free rolling before and after is steady
+    w, Fx, Tb = omega0, rig.rolling_resistance * rig.load, 0.0
+    t_lock: float | None = None
+    rows: list[tuple[float, float, float, float]] = []
+    t = rig.free_s
+    k = 0
+    released = False
+    while True:
+        Fz = rig.load * (
+            1.0 + rig.load_ripple * math.sin(2 * math.pi * rig.load_freq_hz * t + phase)
+        )
+        for _ in range(rig.substeps):
+            s = min((V - w * R) / V, 1.0)
+            mu = float(mu_of(abs(s))) * math.copysign(1.0, s)  # driving slip: odd extension
+            Fx += (mu * Fz - Fx) * V / rig.relaxation_m * h  # builds over the relaxation length
+            Tb = 0.0 if released else Tb + rig.torque_rate * h
+            # rolling resistance is a moment at the axle; the brake cannot turn the wheel back
+            resist = Tb + R * rig.rolling_resistance * Fz
+            if w <= 0.0:
+                resist = min(resist, R * Fx)
+            w = max(w + (R * Fx - resist) * h / J, 0.0)
+        rows.append((t, w, Fx, Fz))
+        k += 1
+        t += dt
+        if t_lock is None and w <= 1e-9:
+            t_lock = t
+        if t_lock is not None and not released and t >= t_lock + rig.hold_s:
+            released = True
+        if released and abs(w - omega0) < 1e-3 * omega0:
+            break
+        if k > 60 * rig.rate_hz:
+            raise ConfigError("the brake ramp never locked the wheel; raise torque_rate")
+    core = np.array(rows)
+    n_free = round(rig.free_s * rig.rate_hz)
+    n_tail = round(rig.tail_s * rig.rate_hz)
+    if duration_s is not None:
+        n_tail = max(n_tail, round(duration_s * rig.rate_hz) - n_free - core.shape[0])
+    n = n_free + core.shape[0] + n_tail
+    time = np.arange(n) * dt
+    omega = np.full(n, omega0)
+    Fz_t = rig.load * (1.0 + rig.load_ripple * np.sin(2 * np.pi * rig.load_freq_hz * time + phase))
+    Fx_t = rig.rolling_resistance * Fz_t
+    sl = slice(n_free, n_free + core.shape[0])
+    omega[sl], Fx_t[sl], Fz_t[sl] = core[:, 1], core[:, 2], core[:, 3]
+    slip = np.clip((V - omega * R) / V, 0.0, 1.0)
+
+    v_meas = V + rng.normal(0.0, rig.speed_noise, n)
+    w_meas = omega + rng.normal(0.0, rig.wheel_noise, n)
+    channels = [
+        Channel("vehicle_speed", "m/s", time, v_meas, decimals=4),
+        Channel("wheel_speed", "rad/s", time, w_meas, decimals=4),
+        Channel("drag_force", "N", time, Fx_t + rng.normal(0.0, rig.drag_noise, n), decimals=2),
+        Channel("normal_force", "N", time, Fz_t + rng.normal(0.0, rig.load_noise, n), decimals=2),
+    ]
+    if log_slip:
+        channels.append(Channel("slip_ratio", "-", time, slip, decimals=6))
+    facts = {
+        "rig": "tyre",
+        "tyre": tyre,
+        "seed": str(seed),
+        "wheel_radius_m": f"{R:g}",
+        "date": "2026-01-01",
+    }
+    truth = pa.table(
+        {"time": time, "slip": slip, "mu": Fx_t / Fz_t, "omega": omega},
+        metadata={"peak_mu": f"{peak[0]:.6f}", "peak_slip": f"{peak[1]:.6f}", "tyre": tyre},
+    )
+    return TyreSimResult(SessionData(tuple(channels), facts), truth, peak)
+
+
+@dataclass(frozen=True)
+class TyreRigSimConfig:
+    """What ``simulate --rig tyre`` simulates (its fields are the ``--set`` keys).
+
+    Attributes
+    ----------
+    tyre : str — ``burckhardt`` (dry asphalt), ``magic-formula`` (book defaults) or ``rudd``
+        (the paper's curve).
+    duration_s : float or None — pad the session with free rolling to this length, s
+        (default: free rolling, ramp to lock, release and a short tail).
+    log_slip : bool — also log the rig's own ``slip_ratio`` channel.
+    seed : int
+    """
+
+    tyre: str = "burckhardt"
+    duration_s: float | None = None
+    log_slip: bool = False
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.tyre not in TYRES:
+            raise ConfigError(f"tyre simulation: tyre={self.tyre!r}; use one of {', '.join(TYRES)}")
+        if self.duration_s is not None and not 0.0 < self.duration_s <= 3600.0:
+            raise ConfigError(
+                f"tyre simulation: duration_s={self.duration_s!r} out of range (0 to 3600 s)"
+            )
+
+
+def simulate_tyre_config(cfg: TyreRigSimConfig) -> TyreSimResult:
+    """:func:`simulate_tyre_rig` for a :class:`TyreRigSimConfig`."""
+    return simulate_tyre_rig(
+        cfg.tyre, seed=cfg.seed, duration_s=cfg.duration_s, log_slip=cfg.log_slip
+    )
+
+
+def write_tyre_simulation(
+    result: TyreSimResult, out: str | Path, fmt: str | None = None
+) -> tuple[Path, Path]:
+    """Write the session through the session writers and ``<stem>.truth.parquet`` beside it."""
+    out = Path(out)
+    session_path = write_session(out, result.session, fmt)
+    truth_path = out.with_name(f"{out.stem}.truth.parquet")
+    write_table_parquet(truth_path, result.truth)
+    return session_path, truth_path

@@ -1,0 +1,253 @@
+"""clamp-force: eq. 6-8 against exact data, the filters, targets on unseen sessions, the CLI."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from brakethermo.cli import app
+from brakethermo.estimation.kf import kalman_filter, kalman_filter_tv
+from brakethermo.io.writers import Channel, SessionData, write_session
+from brakethermo.models.clamp_force import estimate, train
+from brakethermo.rigs.emb import (
+    TorqueBalance,
+    dynamic_stiffness,
+    fit_dynamic_stiffness,
+    fit_torque_balance,
+    ml_fusion,
+    rmse,
+    torque_balance_force,
+)
+from brakethermo.sim.emb import simulate_emb, write_emb_simulation
+
+TS = 1e-3
+
+
+def _arrays(sim):
+    ch = {c.name: c.value for c in sim.session.channels}
+    return ch["motor_angle"], ch["motor_current"], ch.get("clamp_force", np.nan) * 1e3
+
+
+def test_fits_recover_exact_models() -> None:
+    rng = np.random.default_rng(1)
+    theta = np.cumsum(rng.normal(0, 0.02, 5000)) + 4.0
+    beta = np.array([30.0, 20.0, 600.0, -100.0])
+    F = dynamic_stiffness(theta, 0.6, beta)
+    ds = fit_dynamic_stiffness(theta, F, TS)
+    assert ds.alpha0 == pytest.approx(0.6, rel=1e-3)
+    np.testing.assert_allclose(ds.beta, beta, rtol=2e-3, atol=1e-3)
+    p = TorqueBalance(gamma=1.6e-3, inertia=6e-4, mu=2.4e-4, offset=1.0, bias=0.4)
+    from brakethermo.rigs.emb import motor_rates
+
+    omega, acc = motor_rates(theta, TS)
+    sg = np.sign(omega)
+    current = (p.gamma + p.mu * sg) * F + p.inertia * acc + p.offset * sg + p.bias
+    q = fit_torque_balance(current, theta, TS, F)
+    np.testing.assert_allclose(
+        [q.gamma, q.inertia, q.mu, q.offset, q.bias],
+        [p.gamma, p.inertia, p.mu, p.offset, p.bias],
+        rtol=1e-6,
+    )
+    np.testing.assert_allclose(torque_balance_force(current, theta, TS, q), F, rtol=1e-6)
+
+
+def test_ml_fusion_weights() -> None:
+    assert ml_fusion(np.array([1.0]), np.array([3.0]), 1.0, 1.0)[0] == pytest.approx(2.0)
+    assert ml_fusion(np.array([1.0]), np.array([3.0]), 0.0, 1.0)[0] == pytest.approx(1.0)
+
+
+def test_compiled_kf_matches_reference_and_explicit_time_varying_loop() -> None:
+    rng = np.random.default_rng(3)
+    K, n = 200, 2
+    A = np.eye(n) + rng.normal(0, 0.2, (K, n, n))
+    Q, H, R = np.eye(n) * 0.1, np.array([[1.0, 0.3]]), np.array([[0.5]])
+    y, b = rng.normal(size=(K, 1)), rng.normal(size=(K, n))
+    y[17] = np.nan
+    ref = kalman_filter(A[0], Q, H, R, np.zeros(n), np.eye(n), y, b)
+    got = kalman_filter_tv(A[0], Q, H, R, np.zeros(n), np.eye(n), y, b)
+    np.testing.assert_allclose(got.x_filt, ref.x_filt, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(got.loglik, ref.loglik, rtol=1e-10, atol=1e-12)
+    tv = kalman_filter_tv(A, Q, H, R, np.zeros(n), np.eye(n), y, b)
+    x, P = np.zeros(n), np.eye(n)
+    for k in range(K):
+        if k:
+            x, P = A[k - 1] @ x + b[k - 1], A[k - 1] @ P @ A[k - 1].T + Q
+        if np.isfinite(y[k]).all():
+            S = H @ P @ H.T + R
+            G = P @ H.T / S[0, 0]
+            x, P = x + (G @ (y[k] - H @ x)), P - G @ S @ G.T
+    np.testing.assert_allclose(tv.x_filt[-1], x, rtol=1e-10)
+
+
+@pytest.fixture(scope="module")
+def trained():
+    th, cur, F = _arrays(simulate_emb("nominal", seed=6001, duration_s=40.0))
+    return train(th, cur, F, TS)
+
+
+def _truth(sim) -> np.ndarray:
+    return sim.truth.column("clamp_force").to_numpy() * 1e3
+
+
+def test_targets_on_unseen_sessions(trained) -> None:
+    """KF ≥ 15 % below stiffness and below ML; worn error after re-training on 20 s within
+    1.3x nominal on average over the seeds (the worn gearing's extra friction makes single
+    sessions scatter up to ~1.4x, see the README figures); heating held by the adaptive KF."""
+    ratios = []
+    for seed in (6101, 6102, 6103):
+        nominal = simulate_emb("nominal", seed=seed, duration_s=20.0)
+        th, cur, _ = _arrays(nominal)
+        e = estimate(trained, th, cur, TS)
+        truth = _truth(nominal)
+        kf, ml, ds = rmse(e.kf, truth), rmse(e.ml_fusion, truth), rmse(e.stiffness, truth)
+        assert kf <= 0.85 * ds
+        assert kf < ml
+        thw, cw, Fw = _arrays(simulate_emb("worn", seed=seed + 50, duration_s=20.0))
+        worn = simulate_emb("worn", seed=seed + 60, duration_s=30.0)
+        thv, cv, _ = _arrays(worn)
+        stale = rmse(estimate(trained, thv, cv, TS).kf, _truth(worn))
+        fresh = rmse(
+            estimate(train(thw, cw, Fw, TS, structure=trained), thv, cv, TS).kf, _truth(worn)
+        )
+        assert fresh < 0.3 * stale
+        ratios.append(fresh / kf)
+    assert np.mean(ratios) <= 1.3
+    assert max(ratios) <= 1.45
+    # heating pads: the adaptive filter holds the error down without a sensor
+    hot = simulate_emb("heating", seed=6171, duration_s=40.0)
+    th_h, c_h, _ = _arrays(hot)
+    eh = estimate(trained, th_h, c_h, TS)
+    assert rmse(eh.adaptive, _truth(hot)) < 0.5 * rmse(eh.kf, _truth(hot))
+    assert rmse(eh.adaptive, _truth(hot)) < 1.3 * kf
+
+
+def test_cli_outputs_and_json(tmp_path: Path) -> None:
+    tr, _ = write_emb_simulation(
+        simulate_emb("nominal", seed=6201, duration_s=15), tmp_path / "t.mcap"
+    )
+    ev, _ = write_emb_simulation(
+        simulate_emb("nominal", seed=6202, duration_s=10), tmp_path / "e.parquet"
+    )
+    rt, _ = write_emb_simulation(simulate_emb("worn", seed=6203, duration_s=10), tmp_path / "w.csv")
+    res = CliRunner().invoke(
+        app,
+        [
+            "clamp-force",
+            str(ev),
+            "--train",
+            str(tr),
+            "--retrain",
+            str(rt),
+            "--out",
+            str(tmp_path / "o"),
+            "--json",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    summ = json.loads(res.output)
+    assert set(summ["rmse_kn"]) == {"kf", "ml_fusion", "stiffness", "torque_balance"}
+    assert all(v > 0 for v in summ["rmse_kn"].values())
+    assert "wear" in summ
+    import pyarrow.parquet as pq
+
+    tab = pq.read_table(tmp_path / "o" / "e" / "clamp_force.parquet")
+    for col in ("time", "kf", "kf_std", "ml_fusion", "stiffness", "torque_balance"):
+        assert col in tab.column_names
+    assert (tmp_path / "o" / "e" / "index.html").stat().st_size > 0
+    on_disk = json.loads((tmp_path / "o" / "e" / "summary.json").read_text())
+    assert on_disk["training_session"] == str(tr)
+    assert {"dynamic_stiffness", "torque_balance_per_amp"} <= set(on_disk["fitted"])
+    ns, _ = write_emb_simulation(
+        simulate_emb("nominal", seed=6204, duration_s=3, with_sensor=False), tmp_path / "n.mcap"
+    )
+    res = CliRunner().invoke(
+        app, ["clamp-force", str(ns), "--train", str(tr), "--out", str(tmp_path / "o"), "--json"]
+    )
+    assert res.exit_code == 0, res.output
+    assert set(json.loads(res.output)["rmse_kn"].values()) == {None}  # no sensor: no RMSE
+
+
+def _run_bad(tmp_path: Path, *args: str) -> str:
+    res = CliRunner().invoke(app, ["clamp-force", *args, "--out", str(tmp_path / "o")])
+    assert res.exit_code == 1, res.output
+    assert "Traceback" not in res.output
+    return res.output
+
+
+def test_bad_inputs_exit_1(tmp_path: Path) -> None:
+    sim = simulate_emb("nominal", seed=6301, duration_s=3)
+    good, _ = write_emb_simulation(sim, tmp_path / "good.mcap")
+    nosensor, _ = write_emb_simulation(
+        simulate_emb("nominal", seed=6302, duration_s=3, with_sensor=False), tmp_path / "ns.mcap"
+    )
+    assert "sensor" in _run_bad(tmp_path, str(good), "--train", str(nosensor))
+    ch = {c.name: c for c in sim.session.channels}
+    no_current = write_session(
+        tmp_path / "nc.csv", SessionData((ch["motor_angle"], ch["clamp_force"]), {})
+    )
+    assert "motor_current" in _run_bad(tmp_path, str(no_current), "--train", str(good))
+    still = write_session(
+        tmp_path / "still.csv",
+        SessionData(
+            (
+                Channel(
+                    "motor_angle",
+                    "rad",
+                    ch["motor_angle"].time,
+                    np.full(ch["motor_angle"].time.size, 2.0),
+                ),
+                ch["motor_current"],
+                ch["clamp_force"],
+            ),
+            {},
+        ),
+    )
+    assert "no braking" in _run_bad(tmp_path, str(still), "--train", str(good))
+    odd = write_session(
+        tmp_path / "odd.csv",
+        SessionData(
+            (
+                Channel("motor_angle", "wibble", ch["motor_angle"].time, ch["motor_angle"].value),
+                ch["motor_current"],
+            ),
+            {},
+        ),
+    )
+    assert "unknown unit" in _run_bad(tmp_path, str(odd), "--train", str(good))
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    a=st.floats(-1e4, 1e4), gap=st.floats(1.0, 1e4), sd=st.floats(1.0, 1e3), stb=st.floats(1.0, 1e3)
+)
+def test_ml_fusion_lies_between_and_favours_the_better_model(
+    a: float, gap: float, sd: float, stb: float
+) -> None:
+    b = a + gap
+    w = (ml_fusion(np.array([a]), np.array([b]), sd, stb)[0] - a) / gap  # weight on F_tb
+    assert -1e-9 <= w <= 1.0 + 1e-9
+    assert w == pytest.approx(sd**2 / (sd**2 + stb**2), abs=1e-9)
+
+
+def test_simulate_rig_emb_writes_a_readable_session(tmp_path: Path) -> None:
+    from brakethermo.io.load import load_session
+
+    out = tmp_path / "e.mcap"
+    args = ["simulate", "--rig", "emb", "--set", "duration_s=2", "--set", "scenario=heating"]
+    res = CliRunner().invoke(app, [*args, "--set", "sensor=false", "--out", str(out), "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["config"]["scenario"] == "heating"
+    s = load_session(out, rate_hz=None, channels=("motor_angle", "motor_current", "clamp_force"))
+    assert s.rate_hz == pytest.approx(1000.0) and not s.has("clamp_force")
+    assert (tmp_path / "e.truth.parquet").exists()
+    bad = CliRunner().invoke(
+        app, ["simulate", "--rig", "emb", "--set", "scenario=rusty", "--out", str(out)]
+    )
+    assert bad.exit_code == 1 and "scenario='rusty'" in bad.output
+    assert "Traceback" not in bad.output

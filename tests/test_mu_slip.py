@@ -1,0 +1,233 @@
+"""mu-slip: oracle tyre figures, the paper's EKF case, rig sessions of our simulator, the CLI."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from brakethermo.cli import app
+from brakethermo.io.load import load_session
+from brakethermo.io.writers import Channel, SessionData, write_session
+from brakethermo.models.mu_slip import rudd_ekf
+from brakethermo.pipelines.mu_slip import MuSlipOptions, mu_slip, summary
+from brakethermo.rigs.tyre import (
+    burckhardt_mu,
+    burckhardt_peak,
+    magic_formula_mu,
+    magic_formula_peak,
+    rudd_hessian,
+    rudd_jacobian,
+    rudd_mu,
+)
+from brakethermo.sim.tyre_rig import simulate_tyre_rig, write_tyre_simulation
+
+
+def test_magic_formula_oracle() -> None:
+    # MFeval PacejkaBook_Defaults: Fx0 = 4000 sin(1.6 atan(10 κ))
+    fx = 4000.0 * magic_formula_mu(np.array([0.05, 0.10]), 10.0, 1.6, 1.0)
+    np.testing.assert_allclose(fx, [2702.57, 3804.23], atol=0.005)
+    mu, s = magic_formula_peak(10.0, 1.6, 1.0)
+    assert 4000.0 * mu == pytest.approx(4000.0)
+    assert s == pytest.approx(0.1497, abs=5e-5)
+
+
+def test_burckhardt_oracle() -> None:
+    mu, s = burckhardt_peak(1.2801, 23.99, 0.52)
+    assert mu == pytest.approx(1.17, abs=0.005)
+    assert s == pytest.approx(0.17, abs=0.005)
+    grid = np.linspace(0, 1, 100001)
+    assert burckhardt_mu(grid, 1.2801, 23.99, 0.52).max() == pytest.approx(mu, abs=1e-8)
+
+
+def test_rudd_derivatives_match_finite_differences() -> None:
+    s, m, p, e = 0.08, 0.4, 0.15, 1e-6
+    J = rudd_jacobian(s, m, p)
+    np.testing.assert_allclose(
+        J,
+        [
+            (rudd_mu(s, m + e, p) - rudd_mu(s, m - e, p)) / (2 * e),
+            (rudd_mu(s, m, p + e) - rudd_mu(s, m, p - e)) / (2 * e),
+        ],
+        rtol=1e-6,
+    )
+    h_mm, h_ss, h_ms = rudd_hessian(s, m, p)
+    d_sp = lambda pp: rudd_jacobian(s, m, pp)  # noqa: E731
+    np.testing.assert_allclose(h_ss, (d_sp(p + e)[1] - d_sp(p - e)[1]) / (2 * e), rtol=1e-5)
+    np.testing.assert_allclose(h_ms, (d_sp(p + e)[0] - d_sp(p - e)[0]) / (2 * e), rtol=1e-5)
+    assert h_mm == 0.0
+
+
+def test_paper_case_ekf_within_one_sigma() -> None:
+    """μp 0.35, sp 0.15, σ 0.04, 40 points, square-biased slips; seeds never looked at."""
+    inside = 0
+    seeds = range(7000, 7020)
+    for seed in seeds:
+        rng = np.random.default_rng(seed)
+        s = (np.arange(1, 41) / 40.0) ** 2
+        mu = rudd_mu(s, 0.35, 0.15) + rng.normal(0.0, 0.04, 40)
+        r = rudd_ekf(s, mu, 0.04, np.array([0.6, 0.2]), np.diag([0.5**2, 0.1**2]))
+        err = np.abs(r.x_filt[-1] - [0.35, 0.15]) / np.sqrt(r.var_filt[-1])
+        inside += bool((err < 1.0).all())
+    assert inside >= 0.9 * len(seeds)
+
+
+@pytest.mark.parametrize(
+    ("tyre", "seed", "ext"),
+    [
+        ("burckhardt", 8101, "mcap"),
+        ("magic-formula", 8103, "csv"),
+        ("magic-formula", 8104, "parquet"),
+    ],
+)
+def test_rig_sessions_peak_targets(tmp_path: Path, tyre: str, seed: int, ext: str) -> None:
+    sim = simulate_tyre_rig(tyre, seed=seed)
+    path, _ = write_tyre_simulation(sim, tmp_path / f"rig.{ext}")
+    radius = 0.3 if ext == "csv" else None  # CSV carries no session facts
+    summ = summary(mu_slip(path, MuSlipOptions(radius_m=radius)))
+    mu_true, s_true = sim.peak
+    assert abs(summ["peak"]["mu"] / mu_true - 1.0) < 0.05
+    assert abs(summ["peak"]["slip"] - s_true) < 0.02
+    # the two-parameter curve overshoots and says so
+    assert summ["shape_mismatch"]["rudd_mu_peak_minus_best_pct"] > 5.0
+
+
+def test_cli_writes_all_outputs(tmp_path: Path) -> None:
+    path, _ = write_tyre_simulation(
+        simulate_tyre_rig("burckhardt", seed=8102), tmp_path / "rig.mcap"
+    )
+    res = CliRunner().invoke(app, ["mu-slip", str(path), "--out", str(tmp_path / "o"), "--json"])
+    assert res.exit_code == 0, res.output
+    summ = json.loads(res.output)
+    assert {"ekf", "lm_one_pass", "lm_converged", "peak", "shape_mismatch"} <= set(summ)
+    for key in ("ekf", "lm_one_pass", "lm_converged"):  # OUTPUTS.md "mu-slip"
+        assert {"mu_peak", "slip_peak"} <= set(summ[key])
+    assert {"mu", "slip", "model"} <= set(summ["peak"])
+    assert "two-parameter" in summ["shape_mismatch"]["words"]
+    folder = tmp_path / "o" / "rig"
+    on_disk = json.loads((folder / "summary.json").read_text())
+    assert on_disk["peak"] == summ["peak"]
+    import pyarrow.parquet as pq
+
+    cols = pq.read_table(folder / "mu_slip.parquet").column_names
+    for col in ("time", "slip", "mu", "ekf_mu_peak", "ekf_slip_peak"):
+        assert col in cols and (col in ("time", "slip", "mu") or f"{col}_std" in cols)
+    for name in (
+        "mu_slip.parquet",
+        "summary.json",
+        "index.html",
+        "ekf_animation.gif",
+        "ekf_convergence.png",
+        "curve_fits.png",
+    ):
+        assert (folder / name).stat().st_size > 0
+
+
+def test_slip_ratio_channel_used(tmp_path: Path) -> None:
+    sim = simulate_tyre_rig("magic-formula", seed=8105, log_slip=True)
+    chans = tuple(c for c in sim.session.channels if c.name != "wheel_speed")
+    path = write_session(tmp_path / "s.parquet", SessionData(chans, {"rig": "tyre"}))
+    assert summary(mu_slip(path))["wheel_radius_m"] is None
+
+
+def _bad(tmp_path: Path, channels: tuple[Channel, ...], facts: dict[str, str], *args: str) -> str:
+    path = write_session(tmp_path / "bad.parquet", SessionData(channels, facts))
+    res = CliRunner().invoke(app, ["mu-slip", str(path), "--out", str(tmp_path / "o"), *args])
+    assert res.exit_code == 1, res.output
+    assert "Traceback" not in res.output
+    return res.output
+
+
+def test_bad_inputs_exit_1(tmp_path: Path) -> None:
+    sim = simulate_tyre_rig("burckhardt", seed=8106)
+    ch = {c.name: c for c in sim.session.channels}
+    facts = dict(sim.session.facts)
+    no_drag = tuple(c for n, c in ch.items() if n != "drag_force")
+    assert "drag_force" in _bad(tmp_path, no_drag, facts)
+    rolling = tuple(Channel(c.name, c.unit, c.time[:1500], c.value[:1500]) for c in ch.values())
+    assert "no braking" in _bad(tmp_path, rolling, facts)
+    no_radius = {k: v for k, v in facts.items() if k != "wheel_radius_m"}
+    assert "radius" in _bad(tmp_path, tuple(ch.values()), no_radius)
+    odd = tuple(
+        Channel(c.name, "wibble/s" if c.name == "vehicle_speed" else c.unit, c.time, c.value)
+        for c in ch.values()
+    )
+    assert "unknown unit" in _bad(tmp_path, odd, facts)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    c1=st.floats(0.3, 2.0),
+    c2=st.floats(5.0, 60.0),
+    c3=st.floats(0.05, 0.8),
+)
+def test_burckhardt_peak_is_the_maximum(c1: float, c2: float, c3: float) -> None:
+    mu, _ = burckhardt_peak(c1, c2, c3)
+    grid = np.linspace(0.0, 1.0, 20001)
+    assert mu == pytest.approx(burckhardt_mu(grid, c1, c2, c3).max(), abs=1e-6)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    B=st.floats(3.0, 40.0), C=st.floats(1.05, 1.95), D=st.floats(0.2, 1.5), E=st.floats(-1.0, 0.9)
+)
+def test_magic_formula_peak_is_the_maximum(B: float, C: float, D: float, E: float) -> None:
+    mu, s = magic_formula_peak(B, C, D, E)
+    grid = np.linspace(0.0, max(1.0, 2 * s), 40001)
+    assert mu == pytest.approx(magic_formula_mu(grid, B, C, D, E).max(), abs=1e-6)
+    assert magic_formula_mu(s, B, C, D, E) == pytest.approx(mu, abs=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(mu_p=st.floats(0.05, 2.0), s_p=st.floats(0.02, 0.5))
+def test_rudd_curve_peaks_at_its_parameters(mu_p: float, s_p: float) -> None:
+    assert rudd_mu(s_p, mu_p, s_p) == pytest.approx(mu_p)
+    grid = np.linspace(0.0, 1.0, 20001)
+    assert rudd_mu(grid, mu_p, s_p).max() <= mu_p * (1 + 1e-12)
+
+
+def test_simulate_rig_tyre_writes_a_readable_session_and_its_true_peak(tmp_path: Path) -> None:
+    out = tmp_path / "t.parquet"
+    args = ["simulate", "--rig", "tyre", "--set", "tyre=rudd", "--set", "log_slip=true"]
+    res = CliRunner().invoke(app, [*args, "--seed", "3", "--out", str(out), "--json"])
+    assert res.exit_code == 0, res.output
+    info = json.loads(res.output)
+    assert info["rig"] == "tyre" and info["config"]["log_slip"] is True
+    assert (info["peak_mu"], info["peak_slip"]) == pytest.approx((0.35, 0.15))
+    assert (tmp_path / "t.truth.parquet").exists()
+    s = load_session(out, rate_hz=None)
+    assert s.has("slip_ratio") and s.has("drag_force")
+    bad = CliRunner().invoke(
+        app, ["simulate", "--rig", "tyre", "--set", "tyre=slick", "--out", str(out)]
+    )
+    assert bad.exit_code == 1 and "tyre='slick'" in bad.output
+    assert "Traceback" not in bad.output
+
+
+def test_rudd_ekf_matches_filterpy_with_the_same_pseudo_noise() -> None:
+    from filterpy.kalman import ExtendedKalmanFilter as FpEKF
+
+    rng = np.random.default_rng(7100)
+    s = (np.arange(1, 41) / 40.0) ** 2
+    mu = rudd_mu(s, 0.35, 0.15) + rng.normal(0.0, 0.04, 40)
+    x0, P0 = np.array([0.6, 0.2]), np.diag([0.5**2, 0.1**2])
+    ours = rudd_ekf(s, mu, 0.04, x0, P0)
+    fp = FpEKF(dim_x=2, dim_z=1)
+    fp.x, fp.P, fp.Q = x0.copy()[:, None], P0.copy(), np.zeros((2, 2))
+    for k in range(s.size):
+        h_mm, h_ss, h_ms = rudd_hessian(s[k], fp.x[0, 0], fp.x[1, 0])
+        p_m, p_s = fp.P[0, 0], fp.P[1, 1]
+        pseudo = (0.5 * h_mm * p_m) ** 2 + (0.5 * h_ss * p_s) ** 2 + h_ms**2 * p_m * p_s
+        fp.update(
+            np.array([[mu[k]]]),
+            lambda x, k=k: rudd_jacobian(s[k], x[0, 0], x[1, 0])[None, :],
+            lambda x, k=k: np.array([[rudd_mu(s[k], x[0, 0], x[1, 0])]]),
+            R=np.array([[(3 * 0.04) ** 2 + pseudo]]),
+        )
+        np.testing.assert_allclose(ours.x_filt[k], fp.x[:, 0], rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(ours.P_filt[-1], fp.P, rtol=1e-4, atol=1e-9)
