@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from brakethermo.errors import ConfigError
+from brakethermo.sim.ebooster import EboosterRigConfig, write_ebooster_simulation
 from brakethermo.sim.roller_rig import (
     RollerRigSimConfig,
     simulate_roller_rig,
@@ -35,6 +36,7 @@ def _roller_rig(cfg: RollerRigSimConfig, out: Path, fmt: str | None) -> tuple[Pa
 
 RIG_SIMULATORS: dict[str, RigSimulator] = {
     "roller-rig": RigSimulator(RollerRigSimConfig, _roller_rig),
+    "ebooster": RigSimulator(EboosterRigConfig, write_ebooster_simulation),
 }
 
 
