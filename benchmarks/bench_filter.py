@@ -12,12 +12,21 @@ large N, so it is timed on ``--fp-steps`` steps and scaled to 1000 (said in the
 output). filterpy has no smoother that takes inputs, so the ratio compares filters
 only; our smoother time is shown next to it. BLAS is pinned to one thread.
 
-Run: ``python benchmarks/bench_filter.py [--steps 1000] [--fp-steps 200] [--repeat 3]``
+With ``--race`` it times instead the default model's whole race, file to estimate
+(read, filter, smoother, scores, ``estimate.parquet`` + ``summary.json``; no HTML
+report): a ``--laps``-lap race is simulated first (not timed), a 1-lap run warms the
+compiled kernels, then ``--repeat`` runs with ``--workers`` and ``--threads`` BLAS
+threads.
+
+Run: ``python benchmarks/bench_filter.py [--steps 1000] [--fp-steps 200] [--repeat 3]
+[--threads 1] [--nodes 10,150]`` or ``python benchmarks/bench_filter.py --race [--laps 25]
+[--workers 2] [--threads 2]``
 """
 
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
 from collections.abc import Callable
 
@@ -156,13 +165,52 @@ def row(
     )
 
 
+def race(laps: int, workers: int, threads: int, repeat: int) -> None:
+    """Time the default model's estimate of a simulated race, file to outputs."""
+    from pathlib import Path
+
+    from brakethermo.pipelines.estimate import EstimateOptions, estimate_session, write_estimate
+    from brakethermo.sim.session import SimConfig, simulate, write_simulation
+
+    with tempfile.TemporaryDirectory(prefix="bench-race-") as tmp:
+        work = Path(tmp)
+        path = write_simulation(simulate(SimConfig(laps=laps - 1, sensor="single", seed=9100)),
+                                work / "race.mcap")[0]
+        warm = write_simulation(simulate(SimConfig(laps=1, sensor="single", seed=9101)),
+                                work / "warm.mcap")[0]
+        options = EstimateOptions(workers=workers)
+        with threadpool_limits(threads):
+            write_estimate(estimate_session(warm, options), work / "out")
+            best, res = np.inf, None
+            for _ in range(repeat):
+                t = time.perf_counter()
+                res = estimate_session(path, options)
+                write_estimate(res, work / "out")
+                best = min(best, time.perf_counter() - t)
+    run = res.summary["run"]
+    print(f"estimate, default model ({run['nodes']} nodes x {run['layers']} layers), {laps}-lap "
+          f"race ({run['steps']} steps), file to parquet + summary: {best:.2f} s best of "
+          f"{repeat} (workers {workers}, BLAS threads {threads}); stages of that run: "
+          + ", ".join(f"{k} {v:.2f}" for k, v in run["timings_s"].items()))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=STEPS_PER_LAP, help="steps timed for ours")
     ap.add_argument("--fp-steps", type=int, default=200, help="steps timed for filterpy")
     ap.add_argument("--repeat", type=int, default=3, help="best of this many runs")
+    ap.add_argument("--threads", type=int, default=1, help="BLAS threads")
+    ap.add_argument("--nodes", default=",".join(map(str, ESTIMATE_NODES)),
+                    help="estimate cases, comma separated")
+    ap.add_argument("--race", action="store_true", help="time the whole-race estimate instead")
+    ap.add_argument("--laps", type=int, default=25, help="--race: laps incl. the out-lap")
+    ap.add_argument("--workers", type=int, default=1, help="--race: estimate --workers")
     args = ap.parse_args()
-    print("s/lap = seconds per 1000 steps; BLAS pinned to 1 thread; model = DiscFEModel, L = 1")
+    if args.race:
+        race(args.laps, args.workers, args.threads, args.repeat)
+        return
+    print(f"s/lap = seconds per 1000 steps; BLAS threads: {args.threads}; model = DiscFEModel,"
+          " L = 1")
     print(f"filterpy timed on min(--fp-steps={args.fp_steps}, --steps) steps, scaled to 1000")
     print(f"each time is the best of {args.repeat} runs (the machine is shared)")
     print(
@@ -173,8 +221,8 @@ def main() -> None:
         f"{'case':>10} {'N':>4} {'n':>4} {'ours_filt':>9} {'ours_smth':>9} {'ours_tot':>9}"
         f" {'filterpy':>9} {'fp_stp':>6} {'ratio':>7} {'|dx|':>9} target"
     )
-    with threadpool_limits(1):
-        for N in ESTIMATE_NODES:
+    with threadpool_limits(args.threads):
+        for N in map(int, args.nodes.split(",")):
             row("estimate", N, args.steps, args.fp_steps, args.repeat, print)
         row("identify-h", 51, args.steps, args.fp_steps, args.repeat, print)
     print("estimate: ours_tot = filter + unscented RTS smoother; identify-h: filter only")

@@ -27,7 +27,7 @@ def test_registry_matches_outputs_names() -> None:
     for e in EFFECTS.values():
         for p in e.params:
             assert p.lower <= p.neutral <= p.upper
-        assert (e.latent is None) == (e.latent_param is None)
+        assert (e.latent is None) == (not e.latent_params)
     assert parse_effects("all") == EFFECT_NAMES
     assert parse_effects("sensor_lag, slipstream") == ("sensor_lag", "slipstream")
     with pytest.raises(ConfigError, match="unknown effect"):

@@ -48,10 +48,16 @@ def test_beats_single_spot_baseline_against_truth(estimated, sim_race_session):
     measured = estimated.session.values("disc_temp_spot3")
     sc = score_against_truth(estimated.frame, truth, measured, estimated.open_loop)
     rows = {r["method"]: r for r in sc["table"]}
-    assert sc["contact_ratio"]["smoother"] < 0.6
+    # README: 0.2x over the reporting seeds' 4-lap races with mild effects; this 2-lap
+    # race (seed 4243) reaches 0.40x
+    assert sc["contact_ratio"]["smoother"] < 0.45
     assert rows["smoother"]["spot4"] < rows["single-spot"]["spot4"]
-    assert abs(sc["peak_spot3"]["mean_abs_pct"]) < 5.0
-    assert sc["coverage95"]["spot4"] > 0.6
+    assert abs(sc["peak_spot3"]["mean_abs_pct"]) < 1.5  # README: 0.3-1.1 % on model effects
+    # README: the 95 % band covers the truth at the unmeasured spots (85-99 % is the
+    # accuracy benchmark's target over seeds; this 2-lap session sits near its low end)
+    cov = [sc["coverage95"][s] for s in ("spot1", "spot2", "spot4")]
+    assert 0.85 <= np.mean(cov) <= 0.99
+    assert min(cov) >= 0.75
 
 
 def test_scores_itself_on_a_multi_spot_session(estimated):
@@ -68,6 +74,21 @@ def test_layered_model_beats_one_layer(estimated, sim_race_session, identified):
     r3 = score_against_truth(estimated.frame, truth, measured)["contact_ratio"]["smoother"]
     r1 = score_against_truth(one.frame, truth, measured)["contact_ratio"]["smoother"]
     assert r3 < r1
+
+
+def test_smoother_in_windows_gives_the_same_estimate(estimated, sim_race_session, identified,
+                                                    monkeypatch):
+    """A mesh whose gains do not fit is smoothed in windows, in parallel: same answer."""
+    from brakethermo.estimation import urts
+
+    assert estimated.summary["run"]["smoother_windows"] == 1
+    monkeypatch.setattr(urts, "DEFAULT_MAX_STORE_BYTES", 2**20)  # ~20 windows
+    res = estimate_session(sim_race_session[0], EstimateOptions(h_law=identified[1], workers=2))
+    assert res.summary["run"]["smoother_windows"] > 10
+    assert res.summary["run"]["workers"] == 2
+    cols = [c for c in estimated.frame.columns if c.startswith(("spot", "contact", "node_"))]
+    diff = (res.frame[cols] - estimated.frame[cols]).abs().to_numpy().max()
+    assert diff < 1e-6  # degC, against a 95 % band tens of degC wide
 
 
 def test_filter_only_has_no_smoother_row(sim_race_session, identified):
@@ -96,7 +117,8 @@ def test_dropout_spike_and_bad_start_do_not_derail(sim_race_session, identified)
     late = slice(mid + 600, n)
     err = est[late] - truth["spot3"].to_numpy()[late]
     assert np.sqrt(np.mean(err**2)) < 25.0
-    assert res.summary["run"]["covariance_repairs"] >= 0
+    # the bad start, dropout and spike are absorbed without one covariance repair
+    assert res.summary["run"]["covariance_repairs"] == 0
 
 
 def test_spot_not_logged_is_a_clear_error(sim_race_session, identified, tmp_path):

@@ -162,6 +162,10 @@ def estimate_command(
                      "for WinTAX / ATLAS / asammdf beside the source log)."),
     ] = False,
     as_json: JsonOpt = False,
+    workers: Annotated[
+        int,
+        typer.Option(min=1, max=64, help="Threads smoothing windows in parallel (fine meshes)."),
+    ] = 1,
 ) -> None:
     """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
     from brakethermo.pipelines.inputs import load_timed
@@ -177,6 +181,7 @@ def estimate_command(
     options = EstimateOptions(
         spot=spot, h_law=law, disc=disc, tuning=tuning, nodes=nodes, layers=layers,
         smoother=smoother, adapt_power=adapt_power, aliases=aliases, ambient_c=ambient,
+        workers=workers,
     )  # fmt: skip
     result = run_with_status(as_json, f"estimating {session.name} ...",
                              lambda: estimate_from_session(loaded, options))

@@ -18,6 +18,7 @@ from typing import Literal, Protocol
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg.blas import dtrsm
 from scipy.stats import chi2
 
 from brakethermo.errors import ConfigError, DataError
@@ -35,6 +36,14 @@ _LOG_2PI = math.log(2.0 * math.pi)
 # on this class of machine; float32 halves both at ~1e-7 relative precision, far below
 # the temperature uncertainty.
 FLOAT32_STORE_N = 24
+# From this state size on, the posterior's Cholesky factor comes from a compiled rank-1
+# downdate of the prior's (O(n^2)) instead of a fresh factorisation (O(n^3)); below it
+# the call overhead is larger than the saving.
+DOWNDATE_MIN_N = 32
+try:
+    from brakethermo.estimation._kernels import chol_downdate
+except ImportError:  # numba missing: always factor afresh
+    chol_downdate = None
 MAX_STORE_BYTES = 4 * 2**30
 
 
@@ -171,6 +180,16 @@ def readout_matrix(readout: Array | None, n: int) -> Array:
     return M
 
 
+def gain_dtype(n: int, store_dtype: type[np.floating] | np.dtype | None) -> np.dtype:
+    """The dtype the smoother's gains are stored in for state size ``n``."""
+    if store_dtype is None:
+        store_dtype = np.float64 if n < FLOAT32_STORE_N else np.float32
+    dtype = np.dtype(store_dtype)
+    if dtype not in (np.dtype(np.float64), np.dtype(np.float32)):
+        raise ConfigError(f"store_dtype must be float64 or float32, got {store_dtype}")
+    return dtype
+
+
 def allocate(
     K: int,
     n: int,
@@ -182,10 +201,7 @@ def allocate(
     """Allocate the outputs for K steps; covariance stacks only as ``store`` needs."""
     if store not in STORES:
         raise ConfigError(f"store must be one of {STORES}, got {store!r}")
-    if store_dtype is None:
-        store_dtype = np.float64 if n < FLOAT32_STORE_N else np.float32
-    if np.dtype(store_dtype) not in (np.dtype(np.float64), np.dtype(np.float32)):
-        raise ConfigError(f"store_dtype must be float64 or float32, got {store_dtype}")
+    store_dtype = gain_dtype(n, store_dtype)
     full = store == "full"
     gains = store in ("full", "smoother")
     stacks = (3 * 8 if full else 0) + (2 * np.dtype(store_dtype).itemsize if gains else 0)
@@ -194,7 +210,7 @@ def allocate(
         raise ConfigError(
             f"store={store!r} would hold {need / 2**30:.1f} GiB of covariances for {K} steps "
             f"at state size {n} (limit {MAX_STORE_BYTES / 2**30:.0f} GiB); use store='diag' "
-            "(filter only) or split the run"
+            "(filter only) or smooth in windows (urts.urts_smooth_windowed)"
         )
     nf = K if full else 0
     ngain = max(K - 1, 0) if gains else 0
@@ -278,12 +294,18 @@ def run_forward(
     x, P, L = x0, P0, None
     if needs_prior_factor:
         L, P = guard.cholesky(P0, 0)
+    # the prior's factor, when the previous step computed it; lets a rank-1 update
+    # downdate it into the posterior's (see chol_downdate)
+    L_prior = L
+    downdate = chol_downdate is not None and moments is None and n >= DOWNDATE_MIN_N
 
     for k in range(K):
         out.x_pred[k] = x
         out.var_pred[k] = np.diagonal(P)
         if full:
             out.P_pred[k] = P
+        v_down = None  # P_post = P_prior - v v' when the update is rank 1
+        updated = False
         if any_obs[k]:
             R = R_of(k)
             if moments is None:
@@ -329,12 +351,27 @@ def run_forward(
                 out.rejected[k] = True
             else:
                 x = x + Kg @ nu  # eq. 46
-                P = symmetrise(P - Kg @ Cxy.T)  # eq. 47, K S K' = K C_xy'
+                updated = True
+                if mk == 1:
+                    # eq. 47 as P - v v', v = C_xy / sqrt(S): symmetric as it stands
+                    v_down = Cxy[:, 0] / math.sqrt(s)
+                    P = P - np.outer(v_down, v_down)
+                else:
+                    P = symmetrise(P - Kg @ Cxy.T)  # eq. 47, K S K' = K C_xy'
                 out.n_obs[k] = mk
                 out.nis[k] = nis_k
                 out.loglik[k] = -0.5 * (nis_k + logdet + mk * _LOG_2PI)
         if k < K - 1:
-            L, P = guard.cholesky(P, k)  # the posterior as factored is the one stored
+            L = None
+            if downdate and L_prior is not None:
+                if not updated:
+                    L = L_prior
+                elif v_down is not None:
+                    L = L_prior.copy()
+                    if not chol_downdate(L, v_down):
+                        L = None
+            if L is None:
+                L, P = guard.cholesky(P, k)  # the posterior as factored is the one stored
         out.x_filt[k] = x
         out.var_filt[k] = np.diagonal(P)
         if full:
@@ -351,10 +388,14 @@ def run_forward(
         if gains or needs_prior_factor:
             L_next, P_next = guard.cholesky(P_next, k + 1)
         if gains:
-            G = cho_solve((L_next, True), C.T, check_finite=False).T  # G_k = C_k (P_{k+1}^-)^-1
-            out.G[k] = G
-            out.Sigma[k] = symmetrise(P - G @ C.T)  # P_k - G_k P_{k+1}^- G_k'
+            # G_k = C_k (P_{k+1}^-)^-1 = Z' L^-1 with Z = L^-1 C_k' (P_{k+1}^- = L L'), and
+            # G_k P_{k+1}^- G_k' = Z'Z: two triangular solves and a symmetric product
+            Z = dtrsm(1.0, L_next, C.T, lower=1)
+            out.G[k] = dtrsm(1.0, L_next, Z, lower=1, trans_a=1).T
+            # P_k - G_k P_{k+1}^- G_k'; symmetric as it stands (Z'Z is a SYRK)
+            out.Sigma[k] = P - Z.T @ Z
         L = L_next if (gains or needs_prior_factor) else None
+        L_prior = L
         x, P = x_next, P_next
 
     return out.result(P, guard.repair_steps)

@@ -54,6 +54,32 @@ def _chol(P, L):
 
 
 @njit(cache=True, nogil=True)
+def chol_downdate(L, v):
+    """Lower factor of L L' - v v' in place, O(n^2); False (L spoilt) if not SPD.
+
+    The exact linear update with one measurement (eq. 47) is the rank-1 downdate
+    P - K S K' = P - v v', v = C_xy / sqrt(S): the posterior's factor follows from the
+    prior's (already computed for the smoother's gain) without an O(n^3) Cholesky.
+    """
+    n = v.shape[0]
+    w = v.copy()
+    for k in range(n):
+        lkk = L[k, k]
+        r2 = lkk * lkk - w[k] * w[k]
+        if not r2 > 0.0:
+            return False
+        r = math.sqrt(r2)
+        c = r / lkk
+        s = w[k] / lkk
+        L[k, k] = r
+        for i in range(k + 1, n):
+            lik = (L[i, k] - s * w[i]) / c
+            L[i, k] = lik
+            w[i] = c * w[i] - s * lik
+    return True
+
+
+@njit(cache=True, nogil=True)
 def _repair(P, abs_floor):
     """Eigenvalue clipping in place, as CovarianceGuard.repair."""
     n = P.shape[0]
@@ -306,37 +332,6 @@ def ukf_step(k, Xf, work, W, par, gate_thr, Q, H, R, y, M, st, cov, gs, iv, sc, 
 
 
 @njit(cache=True, nogil=True)
-def rts_backward(x_filt, x_pred, G_all, Sigma_all, P_last, x_s, var_s, P_all, full, M, ro, ro_var):
-    """Backward RTS recursion with stored gains (see urts.py), in place into the outputs."""
-    K, n = x_filt.shape
-    xs = x_filt[K - 1].copy()
-    Ps = P_last.copy()
-    d = np.empty(n)
-    for k in range(K - 1, -1, -1):
-        if k < K - 1:
-            for i in range(n):
-                d[i] = xs[i] - x_pred[k + 1, i]
-            for i in range(n):
-                t = x_filt[k, i]
-                for j in range(n):
-                    t += G_all[k, i, j] * d[j]
-                xs[i] = t
-            G = G_all[k].astype(np.float64)
-            GPG = (G @ Ps) @ G.T
-            for i in range(n):
-                for j in range(i, n):
-                    v = 0.5 * (Sigma_all[k, i, j] + Sigma_all[k, j, i] + GPG[i, j] + GPG[j, i])
-                    Ps[i, j] = v
-                    Ps[j, i] = v
-        for i in range(n):
-            x_s[k, i] = xs[i]
-            var_s[k, i] = Ps[i, i]
-        if full:
-            P_all[k] = Ps
-        _record_posterior(k, xs, Ps, x_s, var_s, P_all, False, M, ro, ro_var)
-
-
-@njit(cache=True, nogil=True)
 def _advance(k, xp, Pp, C, P, L, x, abs_floor, gate_thr, H, R, y, M, st, cov, gs, iv, sc, ic,
              rej, ro):
     """Shared by both filters from the prior of step k+1 (xp, Pp) and C_k = cov(x_k, x_k+1).
@@ -489,3 +484,42 @@ def ekf_step(k, GX, Fj, work, par, gate_thr, Q, H, R, y, M, st, cov, gs, iv, sc,
     if _advance(k, xp, Pp, C, P, L, x, abs_floor, gate_thr, H, R, y, M, st, cov, gs, iv, sc,
                 ic, rej, ro):
         _fd_points(x, X, eps, rel_step)
+
+
+@njit(cache=True, nogil=True)
+def rts_backward(
+    x_filt, x_pred, G_all, Sigma_all, x_last, P_last, x_s, var_s, P_all, full, M, ro, ro_var,
+    P_first,
+):
+    """Backward RTS recursion with stored gains (see urts.py), in place into the outputs.
+
+    The recursion starts from the smoothed (x_last, P_last) of the last step and leaves
+    the smoothed covariance of step 0 in ``P_first`` (a window's hand-over).
+    """
+    K, n = x_filt.shape
+    xs = x_last.copy()
+    Ps = P_last.copy()
+    d = np.empty(n)
+    for k in range(K - 1, -1, -1):
+        if k < K - 1:
+            for i in range(n):
+                d[i] = xs[i] - x_pred[k + 1, i]
+            for i in range(n):
+                t = x_filt[k, i]
+                for j in range(n):
+                    t += G_all[k, i, j] * d[j]
+                xs[i] = t
+            G = G_all[k].astype(np.float64)
+            GPG = (G @ Ps) @ G.T
+            for i in range(n):
+                for j in range(i, n):
+                    v = 0.5 * (Sigma_all[k, i, j] + Sigma_all[k, j, i] + GPG[i, j] + GPG[j, i])
+                    Ps[i, j] = v
+                    Ps[j, i] = v
+        for i in range(n):
+            x_s[k, i] = xs[i]
+            var_s[k, i] = Ps[i, i]
+        if full:
+            P_all[k] = Ps
+        _record_posterior(k, xs, Ps, x_s, var_s, P_all, False, M, ro, ro_var)
+    P_first[:, :] = Ps

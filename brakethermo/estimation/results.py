@@ -86,6 +86,8 @@ class SmootherResult:
     var_smooth : ndarray (K, n) — diagonal of the smoothed covariances.
     P_smooth : ndarray (K, n, n) or None — full smoothed covariances (``store="full"``).
     readout, readout_var : ndarray (K, p) or None — M x_smooth and diag(M P_smooth M').
+    P_first : ndarray (n, n) or None — smoothed covariance of step 0 (where a window
+        hands over to the one before it).
     """
 
     x_smooth: Array
@@ -93,3 +95,51 @@ class SmootherResult:
     P_smooth: Array | None
     readout: Array | None
     readout_var: Array | None
+    P_first: Array | None = None
+
+
+@dataclass(frozen=True)
+class ForwardTrace:
+    """The per-step record of a forward pass that stays small whatever the state size.
+
+    Attributes are those of :class:`FilterResult` with the same names; the (K, n)
+    state stacks are left out so a windowed run holds no more than its output.
+    """
+
+    innovation: Array
+    innovation_var: Array
+    nis: Array
+    loglik: Array
+    n_obs: NDArray[np.int64]
+    rejected: NDArray[np.bool_]
+    readout: Array | None
+    readout_var: Array | None
+    n_repairs: int
+    repair_steps: tuple[int, ...]
+
+    @property
+    def log_likelihood(self) -> float:
+        """Total log-likelihood of the used measurements."""
+        return float(np.sum(self.loglik))
+
+
+@dataclass(frozen=True)
+class WindowedSmootherResult:
+    """Forward pass and unscented RTS smoother run window by window.
+
+    Attributes
+    ----------
+    forward : ForwardTrace — the filter's per-step record (readouts of the filtered state).
+    smoothed : SmootherResult — the smoothed means, variances and readouts.
+    windows : tuple of (start, stop) — the step ranges the run was cut into.
+    peak_store_bytes : int — largest memory held by gains at one time, bytes.
+    forward_s, backward_s : float — s, wall time of the first forward pass and of the
+        backward pass with the windows' re-runs.
+    """
+
+    forward: ForwardTrace
+    smoothed: SmootherResult
+    windows: tuple[tuple[int, int], ...]
+    peak_store_bytes: int
+    forward_s: float
+    backward_s: float

@@ -7,6 +7,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.linalg.blas import dtrmm
 
 from brakethermo.errors import ConfigError
 from brakethermo.estimation._forward import (
@@ -163,8 +164,9 @@ class UnscentedKalmanFilter:
             P_p *= Wc[1]
             P_p += Wc[0] * np.outer(D[0], D[0])
             P_p += Q_of(k)
-            # C_k = sum_i Wc_i (X_i - x)(Xf_i - x_p)'; X_i - x = +-c L_j and Wc_i = 1/(2c^2)
-            C = L @ (D[1 : n + 1] - D[n + 1 :]) * half_over_c
+            # C_k = sum_i Wc_i (X_i - x)(Xf_i - x_p)'; X_i - x = +-c L_j and Wc_i = 1/(2c^2);
+            # L is triangular: TRMM, half the flops of a general product
+            C = dtrmm(half_over_c, L, D[1 : n + 1] - D[n + 1 :], lower=1)
             return x_p, P_p, C
 
         Xm = np.empty((B, n))

@@ -124,10 +124,11 @@ class ExtendedDisc:
             eff = EFFECTS[name]
             for p in eff.params:
                 self._add(name, p)
-            if eff.latent is not None and eff.latent_param is not None:
+            if eff.latent is not None:
                 count = segments.n_zones if eff.latent == "zone" else segments.n_straights
-                for s in range(count):
-                    self._add(name, eff.latent_param, s)
+                for param in eff.latent_params:
+                    for s in range(count):
+                        self._add(name, param, s)
         self.index = {(s.effect, s.param.name): s.index for s in self.slots if s.segment < 0}
 
     def _add(self, effect: str, param: EffectParam, segment: int = -1) -> None:
@@ -186,8 +187,9 @@ class ExtendedDisc:
             return None
         return np.asarray(self.slots[i].param.from_fit(P[:, i]))
 
-    def _latent(self, P: np.ndarray, effect: str) -> np.ndarray | None:
-        slots = self.latent_slots(effect)
+    def _latent(self, P: np.ndarray, effect: str, name: str) -> np.ndarray | None:
+        """Latent values ``name`` of ``effect`` per member and segment (B, segments)."""
+        slots = [s for s in self.latent_slots(effect) if s.param.name == name]
         if not slots:
             return None
         return np.column_stack([s.param.from_fit(P[:, s.index]) for s in slots])
@@ -200,7 +202,7 @@ class ExtendedDisc:
         gain = self._col(P, "h_speed_knee", "gain")
         if gain is not None:
             h = h * knee_factor(self.speed, self.v_ref, KNEE, gain)
-        factor = self._latent(P, "slipstream")
+        factor = self._latent(P, "slipstream", "straight_factor")
         if factor is not None:
             seg = self.segments.straight[:-1]
             on = seg >= 0
@@ -212,13 +214,15 @@ class ExtendedDisc:
         B = P.shape[0]
         edges = self.model.disc.crown_edges
         base = np.column_stack([np.exp(P[:, 3]), np.exp(P[:, 4]), np.ones(B)])
-        balance = self._latent(P, "power_distribution")
-        n_z = 0 if balance is None else balance.shape[1]
+        balance = self._latent(P, "power_distribution", "zone_balance")
+        middle = self._latent(P, "power_distribution", "zone_middle")
+        n_z = 0 if balance is None or middle is None else balance.shape[1]
         loads = np.empty((n_z + 1, B, self.model.n_nodes))
         for z in range(n_z + 1):
             w = base.copy()
             if z < n_z:
                 w[:, 0] *= np.exp(balance[:, z])
+                w[:, 1] *= np.exp(middle[:, z])
                 w[:, 2] *= np.exp(-balance[:, z])
             norm = np.stack([normalise_weights(row, edges) for row in w])
             loads[z] = norm @ self._basis

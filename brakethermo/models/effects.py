@@ -11,8 +11,9 @@ job: the extended model evaluates every registered effect from one parameter vec
 
 The laws are deliberately few-parameter and physical, not shaped after our simulator:
 
-- ``power_distribution``: a per-braking-zone inner/outer balance of the pad-crown
-  weights (``w_1 e^b, w_2, w_3 e^-b``, normalised to conserve power, eq. 6–8), zones
+- ``power_distribution``: per braking zone, an inner/outer balance ``b`` and a middle
+  share ``m`` of the pad-crown weights (``w_1 e^b, w_2 e^m, w_3 e^-b``, normalised to
+  conserve power, eq. 6–8): any split of the power over the three crowns; zones
   identified by lap distance. The mean weights are part of every model (the
   reference fits them), as identify-h does.
 - ``h_speed_knee``: ``h · (1 + g u²)``, ``u = (V/V_ref − x_k)/(1 − x_k)`` above the knee
@@ -115,10 +116,10 @@ class Effect:
     params : tuple of EffectParam
         Session-independent parameters.
     latent : str or None
-        Per-segment latent parameters on top of ``params``: ``"zone"`` (one per braking
-        zone of the lap) or ``"straight"`` (one per straight of every lap); their prior
-        and bounds are those of :attr:`latent_param`.
-    latent_param : EffectParam or None
+        Per-segment latent parameters on top of ``params``: ``"zone"`` (one set per
+        braking zone of the lap) or ``"straight"`` (one set per straight of every lap);
+        their priors and bounds are those of :attr:`latent_params`.
+    latent_params : tuple of EffectParam
     extension : str
         What the model gains, for the report.
     signature : str
@@ -135,7 +136,7 @@ class Effect:
     signature: str
     single_spot: Observability
     latent: Literal["zone", "straight"] | None = None
-    latent_param: EffectParam | None = None
+    latent_params: tuple[EffectParam, ...] = ()
 
 
 EFFECTS: dict[str, Effect] = {
@@ -144,12 +145,14 @@ EFFECTS: dict[str, Effect] = {
         Effect(
             "power_distribution", "power",
             (),
-            "a per-braking-zone inner/outer balance of the pad-crown weights (the mean"
-            " weights belong to the reference: every disc needs them)",
+            "per braking zone, the split of the power over the three pad crowns (inner/outer"
+            " balance and middle share; the mean weights belong to the reference: every"
+            " disc needs them)",
             "inner and outer spots of opposite sign under braking, repeating by braking zone",
             "test-session",
             latent="zone",
-            latent_param=EffectParam("zone_balance", 0.0, -1.5, 1.5, prior_sigma=0.4),
+            latent_params=(EffectParam("zone_balance", 0.0, -1.5, 1.5, prior_sigma=0.8),
+                           EffectParam("zone_middle", 0.0, -1.5, 1.5, prior_sigma=0.8)),
         ),
         Effect(
             "h_speed_knee", "h",
@@ -167,8 +170,8 @@ EFFECTS: dict[str, Effect] = {
             " others, all spots alike",
             "online",
             latent="straight",
-            latent_param=EffectParam("straight_factor", 1.0, 0.4, 1.6, log=True,
-                                     prior_sigma=0.2, online_step=0.01),
+            latent_params=(EffectParam("straight_factor", 1.0, 0.4, 1.6, log=True,
+                                       prior_sigma=0.2, online_step=0.01),),
         ),
         Effect(
             "friction_temperature", "power",

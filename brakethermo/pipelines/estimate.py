@@ -18,7 +18,8 @@ import pandas as pd
 
 from brakethermo import __version__
 from brakethermo.errors import ConfigError, DataError
-from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
+from brakethermo.estimation import UnscentedKalmanFilter
+from brakethermo.estimation.urts import urts_smooth_windowed
 from brakethermo.io.session import Session
 from brakethermo.models.disc import (
     H_FACTOR_PARAM,
@@ -72,6 +73,9 @@ class EstimateOptions:
     ambient_c : float, optional — degC
     score : bool
         Score against the unmeasured spots when the session has them.
+    workers : int
+        Threads re-running smoother windows in parallel (a fine mesh's smoother runs in
+        windows to bound its memory; see ``estimation.urts``).
     """
 
     spot: int = 3
@@ -88,6 +92,7 @@ class EstimateOptions:
     aliases: str | Path | None = None
     ambient_c: float | None = None
     score: bool = True
+    workers: int = 1
 
     def __post_init__(self) -> None:
         check_overrides(self.overrides())
@@ -344,15 +349,19 @@ def estimate_from_session(
         alpha=tuning.alpha, beta=tuning.beta, kappa=tuning.kappa,
     )  # fmt: skip
     t_filter = time.perf_counter()
-    forward = ukf.run(
-        x0, P0, y[:, None], store="smoother" if tuning.smoother else "diag", readout=readout
-    )
-    t_smooth = time.perf_counter()
+    windows = 1
     if tuning.smoother:
-        smoothed = urts_smooth(forward, store="diag", readout=readout)
+        # windows bound the gains' memory whatever the mesh and session length; the
+        # answer is the whole-session smoother's (estimation.urts)
+        run = urts_smooth_windowed(ukf, x0, P0, y[:, None], readout=readout,
+                                   workers=options.workers)
+        forward, smoothed, windows = run.forward, run.smoothed, len(run.windows)
         states, out, out_var = smoothed.x_smooth, smoothed.readout, smoothed.readout_var
+        t_smooth = t_filter + run.forward_s
     else:
+        forward = ukf.run(x0, P0, y[:, None], store="diag", readout=readout)
         states, out, out_var = forward.x_filt, forward.readout, forward.readout_var
+        t_smooth = time.perf_counter()
     t_done = time.perf_counter()
 
     std = np.sqrt(np.maximum(out_var, 0.0))
@@ -398,6 +407,8 @@ def estimate_from_session(
             "crown_weights": [float(w) for w in model.weights],
             "filter": "UKF (Merwe scaled sigma points)",
             "smoother": tuning.smoother,
+            "smoother_windows": windows,
+            "workers": options.workers,
             "adapt_power": tuning.adapt_power,
             "measured_spot": options.spot,
             "effects": plan.facts,

@@ -110,14 +110,14 @@ def _checked_effects(tables: dict[str, Any], path: str | Path) -> dict[str, dict
     for name, raw in tables.items():
         effect = EFFECTS[name]
         table = ConfigTable(raw, path, f"effects.{name}")
-        latent = effect.latent_param
-        known = {p.name: p for p in (*effect.params, *((latent,) if latent else ()))}
+        latent = effect.latent_params
+        known = {p.name: p for p in (*effect.params, *latent)}
         table.only(known, f"a parameter of {name}")
         checked: dict[str, Any] = {}
         for key, param in known.items():
             if not table.has(key):
                 continue
-            if param is latent:
+            if param in latent:
                 checked[key] = list(table.numbers(key, lo=param.lower, hi=param.upper))
             else:
                 checked[key] = table.number(key, lo=param.lower, hi=param.upper)

@@ -21,15 +21,10 @@ import numpy as np
 
 from brakethermo.errors import ConfigError
 
-EFFECT_NAMES = (
-    "power_distribution",
-    "h_speed_knee",
-    "slipstream",
-    "friction_temperature",
-    "thickness_gradient",
-    "sensor_lag",
-    "emissivity_error",
-)
+# The names are the output contract's (OUTPUTS.md), shared with the estimator's registry;
+# nothing else of the estimator's models reaches the truth model.
+from brakethermo.models.effects import EFFECT_NAMES
+
 STRENGTH_MAX = 1.5
 
 EffectsSpec = Mapping[str, float] | Iterable[str] | str
