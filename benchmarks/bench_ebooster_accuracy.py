@@ -61,7 +61,7 @@ def main() -> None:
                     rows.setdefault(f"95% coverage {w} %", []).append(100 * s["coverage_95"][w])
                     for state, v in s["outside_1sigma"][w].items():
                         rows.setdefault(f"{state} outside 1σ {w} %", []).append(100 * v)
-                rows.setdefault("improvement (EKF over UKF) %", []).append(s["improvement_pct"])
+                rows.setdefault("UKF improvement over EKF %", []).append(s["improvement_pct"])
             print(f"\n{scenario}: seeds {args.seeds} (mean ± sd [min, max])")
             for name, values in rows.items():
                 fmt = ".4f" if "residual" in name else (".3f" if "MPa" in name else ".1f")

@@ -73,7 +73,7 @@ def ebooster_command(
                     *("–" if pr[k] is None else f"{pr[k]:.3f}" for k in PRESSURES),
                     "–" if cov is None else f"{100 * cov:.1f} %")
     console.print(tab)
-    console.print(f"improvement (EKF over UKF): {s['improvement_pct']:.1f} %")
+    console.print(f"UKF improvement over EKF (residual RMSE): {s['improvement_pct']:.1f} %")
     for warning in result.session.warnings:
         console.print(f"[yellow]warning:[/] {warning}")
     console.print(f"wrote {folder}")
