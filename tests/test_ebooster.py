@@ -233,6 +233,9 @@ def test_simulate_rig_ebooster_production_session_and_bad_settings(tmp_path):
                               str(tmp_path / "c.csv")])
     assert bad.exit_code == 1 and "unknown scenario 'race'" in bad.output
     assert "Traceback" not in bad.output
+    for setting in ("duration_s=-1", "duration_s=0.001"):
+        short = runner.invoke(app, [*args[:3], "--set", setting, "--out", str(tmp_path / "e.csv")])
+        assert short.exit_code == 1 and "duration must give" in short.output, short.output
     assert runner.invoke(app, ["simulate-ebooster", "--out", str(tmp_path / "d.csv")]).exit_code
 
 

@@ -346,6 +346,9 @@ def simulate_ebooster(cfg: EboosterSimConfig) -> EboosterSim:
         raise ConfigError(f"unknown scenario '{cfg.scenario}'; use one of {', '.join(SCENARIOS)}")
     if not cfg.rate_hz > 0:
         raise ConfigError(f"rate must be positive, got {cfg.rate_hz} Hz")
+    if cfg.duration_s is not None and not cfg.duration_s * cfg.rate_hz >= 10:
+        raise ConfigError(f"duration must give at least 10 samples at {cfg.rate_hz:g} Hz, got "
+                          f"{cfg.duration_s} s; set duration_s to a positive number of seconds")
     tr = cfg.truth
     dt = 1.0 / cfg.rate_hz
     duration = cfg.duration_s or DEFAULT_DURATION_S[cfg.scenario]
