@@ -66,6 +66,9 @@ def main() -> None:
             for name, values in rows.items():
                 fmt = ".4f" if "residual" in name else (".3f" if "MPa" in name else ".1f")
                 print(f"  {name:34s} {_stat(values, fmt)}")
+            print("  per seed:")
+            for name in ("UKF improvement over EKF %", "95% coverage ukf %", "95% coverage ekf %"):
+                print(f"    {name:32s} " + " ".join(f"{v:6.1f}" for v in rows[name]))
 
 
 if __name__ == "__main__":
