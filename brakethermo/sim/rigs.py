@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from brakethermo.errors import ConfigError
+from brakethermo.sim.ebooster import EboosterRigConfig, write_ebooster_simulation
 from brakethermo.sim.emb import EmbSimConfig, simulate_emb_config, write_emb_simulation
 from brakethermo.sim.roller_rig import (
     RollerRigSimConfig,
@@ -59,6 +60,7 @@ def _tyre_peak(cfg: TyreRigSimConfig) -> dict[str, Any]:
 
 
 RIG_SIMULATORS: dict[str, RigSimulator] = {
+    "ebooster": RigSimulator(EboosterRigConfig, write_ebooster_simulation),
     "emb": RigSimulator(EmbSimConfig, _emb),
     "roller-rig": RigSimulator(RollerRigSimConfig, _roller_rig),
     "tyre": RigSimulator(TyreRigSimConfig, _tyre, _tyre_peak),
