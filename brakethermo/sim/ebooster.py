@@ -36,7 +36,8 @@ from numpy.typing import NDArray
 from scipy.signal import lfilter
 
 from brakethermo.errors import ConfigError
-from brakethermo.io.writers import Channel, SessionData, write_session, write_table_parquet
+from brakethermo.io.writers import Channel, SessionData
+from brakethermo.sim.writer import write_session_and_truth
 
 Array = NDArray[np.float64]
 SCENARIOS = ("train", "open", "closed", "vehicle")
@@ -445,14 +446,11 @@ def write_ebooster_session(
             "seed": str(sim.config.seed),
         },
     )
-    write_session(path, data, fmt)
     truth = pa.table({
         "time": sim.time, "s2": sim.s2, "delta": sim.delta, "p_m": sim.p_m, "p_f": sim.p_f,
         "p_r": sim.p_r, "pedal_force": sim.f_in, "d10": sim.d10,
     })
-    truth_path = path.with_name(path.stem + ".truth.parquet")
-    write_table_parquet(truth_path, truth)
-    return path, truth_path
+    return write_session_and_truth(path, data, truth, fmt)
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,8 @@ import pyarrow as pa
 from scipy.signal import cont2discrete, lfilter
 
 from brakethermo.errors import ConfigError
-from brakethermo.io.writers import Channel, SessionData, write_session, write_table_parquet
+from brakethermo.io.writers import Channel, SessionData
+from brakethermo.sim.writer import write_session_and_truth
 
 SCENARIOS = ("nominal", "worn", "heating")
 
@@ -278,8 +279,4 @@ def write_emb_simulation(
     result: EmbSimResult, out: str | Path, fmt: str | None = None
 ) -> tuple[Path, Path]:
     """Write the session through the session writers and ``<stem>.truth.parquet`` beside it."""
-    out = Path(out)
-    session_path = write_session(out, result.session, fmt)
-    truth_path = out.with_name(f"{out.stem}.truth.parquet")
-    write_table_parquet(truth_path, result.truth)
-    return session_path, truth_path
+    return write_session_and_truth(out, result.session, result.truth, fmt)

@@ -34,11 +34,12 @@ import pyarrow as pa
 from numba import njit
 
 from brakethermo.errors import ConfigError
-from brakethermo.io.writers import Channel, SessionData, write_session, write_table_parquet
+from brakethermo.io.writers import Channel, SessionData
 from brakethermo.rigs.fastsim import ELLIPTIC, fastsim_scalar
 from brakethermo.rigs.hertz import curvature_sums, hertz_contact
 from brakethermo.rigs.kalker import flexibilities, kalker_coefficients
 from brakethermo.rigs.roller_rig import RollerRigSpec, load_roller_rig
+from brakethermo.sim.writer import write_session_and_truth
 
 ENCODER_COUNTS = 16384  # per revolution, 4096 PPR in X4 evaluation (paper)
 SIM_STEP = 2.0e-4  # s, the truth's RK4 step
@@ -394,8 +395,4 @@ def write_roller_rig_simulation(
     result: RollerRigSimResult, out: str | Path, fmt: str | None = None
 ) -> tuple[Path, Path]:
     """Write the session and ``<stem>.truth.parquet`` beside it; returns both paths."""
-    out = Path(out)
-    session_path = write_session(out, result.session, fmt)
-    truth_path = out.with_name(f"{out.stem}.truth.parquet")
-    write_table_parquet(truth_path, result.truth)
-    return session_path, truth_path
+    return write_session_and_truth(out, result.session, result.truth, fmt)

@@ -15,7 +15,7 @@ import pyarrow as pa
 from numba import njit
 
 from brakethermo.errors import ConfigError
-from brakethermo.io.writers import Channel, SessionData, write_session, write_table_parquet
+from brakethermo.io.writers import Channel, SessionData
 from brakethermo.sim.brake_chain import (
     OUT_FORCE,
     OUT_P,
@@ -44,6 +44,7 @@ from brakethermo.sim.sensors import (
 from brakethermo.sim.track import TrackSpec, load_track
 from brakethermo.sim.truth_disc import Boundary, TruthDisc, make_grid
 from brakethermo.sim.vehicle import G, RiderRun, VehicleSpec, drive_session
+from brakethermo.sim.writer import write_session_and_truth
 from brakethermo.thermal.disc import BAR, DiscSpec, load_disc
 
 KMH = 3.6  # km/h per m/s
@@ -656,9 +657,5 @@ def write_simulation(
     ``grouped`` writes the IR spots of a multi-spot MCAP session as one grouped topic
     ``disc_temp`` with fields ``spot1..spot4`` instead of one topic per spot.
     """
-    out = Path(out)
     groups = result.groups if grouped else None
-    session_path = write_session(out, result.session, fmt, groups=groups or None)
-    truth_path = out.with_name(f"{out.stem}.truth.parquet")
-    write_table_parquet(truth_path, result.truth)
-    return session_path, truth_path
+    return write_session_and_truth(out, result.session, result.truth, fmt, groups=groups or None)

@@ -19,7 +19,7 @@ import pyarrow as pa
 from scipy.optimize import brentq
 
 from brakethermo.errors import ConfigError
-from brakethermo.io.writers import Channel, SessionData, write_session, write_table_parquet
+from brakethermo.io.writers import Channel, SessionData
 from brakethermo.rigs.tyre import (
     burckhardt_mu,
     burckhardt_peak,
@@ -27,6 +27,7 @@ from brakethermo.rigs.tyre import (
     magic_formula_peak,
     rudd_mu,
 )
+from brakethermo.sim.writer import write_session_and_truth
 
 TYRES = ("burckhardt", "magic-formula", "rudd")
 # reference parameters (shared/reference/README.md): Burckhardt dry asphalt, MF book defaults
@@ -234,8 +235,4 @@ def write_tyre_simulation(
     result: TyreSimResult, out: str | Path, fmt: str | None = None
 ) -> tuple[Path, Path]:
     """Write the session through the session writers and ``<stem>.truth.parquet`` beside it."""
-    out = Path(out)
-    session_path = write_session(out, result.session, fmt)
-    truth_path = out.with_name(f"{out.stem}.truth.parquet")
-    write_table_parquet(truth_path, result.truth)
-    return session_path, truth_path
+    return write_session_and_truth(out, result.session, result.truth, fmt)
