@@ -264,6 +264,77 @@ def gate_thresholds(gate: float | None, m: int) -> Array:
     return thr
 
 
+def as_kernel_array(A: Array) -> Array:
+    """C-contiguous writable float64 array for the kernels (one compiled signature)."""
+    return np.require(A, dtype=np.float64, requirements=("C", "W"))
+
+
+@dataclass(frozen=True)
+class KernelSetup:
+    """What the compiled forward passes of the UKF and the EKF set up alike.
+
+    Constant Q, H and R are converted to kernel arrays once (``Qc``, ``Hc``, ``Rc``); for a
+    callable one that field is None and ``Q_of(k)`` etc. are asked every step.
+    """
+
+    out: Buffers
+    thr: Array
+    Q_of: Callable[[int], Array]
+    H_of: Callable[[int], Array]
+    R_of: Callable[[int], Array]
+    Qc: Array | None
+    Hc: Array | None
+    Rc: Array | None
+
+    @property
+    def tail(self) -> tuple[Array, ...]:
+        """The output stacks every kernel step takes last."""
+        o = self.out
+        return (o.st, o.cov, o.gs, o.iv, o.sc, o.ic, o.rejected, o.ro)
+
+    def first(self, kernel: Callable[..., None], work: Array, par: Array, y: Array) -> None:
+        """Step 0 (record the prior, update with y[0]) with ``kernel``: ukf_first or ekf_first."""
+        o = self.out
+        kernel(work, par, self.thr, as_kernel_array(self.H_of(0)),
+               as_kernel_array(self.R_of(0)), y, o.M, o.st, o.cov, o.iv, o.sc, o.ic,
+               o.rejected, o.ro)  # fmt: skip
+
+    def result(self, P_last: Array) -> FilterResult:
+        """The result, with the steps at which the kernels repaired a covariance."""
+        repairs = self.out.ic[1]
+        return self.out.result(P_last, np.repeat(np.arange(repairs.shape[0]), repairs).tolist())
+
+
+def kernel_setup(
+    Q: MatrixOrCallable,
+    H: MatrixOrCallable,
+    R: MatrixOrCallable,
+    gate: float | None,
+    y: Array,
+    n: int,
+    readout: Array | None,
+    store: Store,
+    store_dtype: type[np.floating] | None,
+) -> KernelSetup:
+    """Buffers, gate thresholds and Q, H, R for a compiled forward pass over ``y`` (K, m)."""
+    K, m = y.shape
+    out = allocate(K, n, m, readout, store, store_dtype)
+    Q_of = as_provider(Q, (n, n), "Q")
+    R_of = as_provider(R, (m, m), "R")
+    H_of = as_provider(H, (m, n), "H")
+    # constant matrices are converted once; callables are asked every step
+    return KernelSetup(
+        out,
+        gate_thresholds(gate, m),
+        Q_of,
+        H_of,
+        R_of,
+        None if callable(Q) else as_kernel_array(Q_of(0)),
+        None if callable(H) else as_kernel_array(H_of(0)),
+        None if callable(R) else as_kernel_array(R_of(0)),
+    )
+
+
 def run_forward(
     predict: Predictor,
     moments: Moments | None,

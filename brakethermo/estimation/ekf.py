@@ -11,15 +11,17 @@ from brakethermo.errors import ConfigError
 from brakethermo.estimation._forward import (
     MatrixOrCallable,
     Store,
-    allocate,
     as_provider,
     check_prior,
-    gate_thresholds,
+    kernel_setup,
     run_forward,
+)
+from brakethermo.estimation._forward import (
+    as_kernel_array as _c,
 )
 from brakethermo.estimation.covariance import CovarianceGuard
 from brakethermo.estimation.results import FilterResult
-from brakethermo.estimation.ukf import BACKENDS, HAVE_NUMBA, NUMBA_MAX_N, Backend
+from brakethermo.estimation.ukf import BACKENDS, HAVE_NUMBA, Backend, use_numba
 
 Array = NDArray[np.float64]
 BatchedFunction = Callable[[Array, int], Array]
@@ -120,9 +122,7 @@ class ExtendedKalmanFilter:
         """Filter ``y``; arguments and result as :meth:`UnscentedKalmanFilter.run`."""
         x0, P0, y = check_prior(x0, P0, y)
         n, m = x0.shape[0], y.shape[1]
-        if self.h is None and self.backend != "numpy" and (
-            self.backend == "numba" or (HAVE_NUMBA and n <= NUMBA_MAX_N)
-        ):
+        if use_numba(self.backend, self.h, n):
             return self._run_numba(x0, P0, y, store, store_dtype, readout)
         Q_of = as_provider(self.Q, (n, n), "Q")
         R_of = as_provider(self.R, (m, m), "R")
@@ -173,27 +173,21 @@ class ExtendedKalmanFilter:
         """The forward pass with the compiled per-step kernels (same results as numpy)."""
         from brakethermo.estimation import _kernels
 
-        K, m = y.shape
+        K = y.shape[0]
         n = x0.shape[0]
-        out = allocate(K, n, m, readout, store, store_dtype)
-        Q_of = as_provider(self.Q, (n, n), "Q")
-        R_of = as_provider(self.R, (m, m), "R")
-        H_of = as_provider(self.H, (m, n), "H")  # type: ignore[arg-type]
-        thr = gate_thresholds(self.gate, m)
+        ks = kernel_setup(
+            self.Q, self.H, self.R, self.gate, y, n, readout, store, store_dtype  # type: ignore[arg-type]
+        )
         work = np.zeros((3 * n + 3, n))  # [X (n + 1); P; L; x; eps], see _kernels._ekf_views
         X, P, x = work[: n + 1], work[n + 1 : 2 * n + 1], work[3 * n + 1]
         P[:] = P0
         x[:] = x0
         par = np.array([_FD_REL_STEP, self.eig_floor])
-        f, F_jac, M = self.f, self.F_jac, out.M
-        tail = (out.st, out.cov, out.gs, out.iv, out.sc, out.ic, out.rejected, out.ro)
-        _kernels.ekf_first(work, par, thr, _c(H_of(0)), _c(R_of(0)), y, M, out.st, out.cov,
-                           out.iv, out.sc, out.ic, out.rejected, out.ro)  # fmt: skip
+        f, F_jac, M, thr, tail = self.f, self.F_jac, ks.out.M, ks.thr, ks.tail
+        ks.first(_kernels.ekf_first, work, par, y)
         step = _kernels.ekf_step
         no_jac = np.empty((0, n))
-        Qc = None if callable(self.Q) else _c(Q_of(0))
-        Hc = None if callable(self.H) else _c(H_of(0))
-        Rc = None if callable(self.R) else _c(R_of(0))
+        Q_of, H_of, R_of, Qc, Hc, Rc = ks.Q_of, ks.H_of, ks.R_of, ks.Qc, ks.Hc, ks.Rc
         for k in range(K - 1):
             # the n + 1 points x, x + eps_j e_j in ONE call, or f(x) and the analytic F
             Xk = X if F_jac is None else X[:1]
@@ -206,10 +200,4 @@ class ExtendedKalmanFilter:
                 _c(H_of(k + 1)) if Hc is None else Hc, _c(R_of(k + 1)) if Rc is None else Rc,
                 y, M, *tail,
             )  # fmt: skip
-        repairs = out.ic[1]
-        return out.result(P, np.repeat(np.arange(K), repairs).tolist())
-
-
-def _c(A: Array) -> Array:
-    """C-contiguous writable float64 array for the kernels (one compiled signature)."""
-    return np.require(A, dtype=np.float64, requirements=("C", "W"))
+        return ks.result(P)

@@ -13,11 +13,13 @@ from brakethermo.errors import ConfigError
 from brakethermo.estimation._forward import (
     MatrixOrCallable,
     Store,
-    allocate,
     as_provider,
     check_prior,
-    gate_thresholds,
+    kernel_setup,
     run_forward,
+)
+from brakethermo.estimation._forward import (
+    as_kernel_array as _c,
 )
 from brakethermo.estimation.covariance import CovarianceGuard
 from brakethermo.estimation.results import FilterResult
@@ -35,6 +37,13 @@ Backend = Literal["auto", "numba", "numpy"]
 BACKENDS = ("auto", "numba", "numpy")
 NUMBA_MAX_N = 64
 BatchedTransition = Callable[[Array, int], Array]
+
+
+def use_numba(backend: Backend, h: object | None, n: int) -> bool:
+    """Whether a filter with this backend, measurement function and state size compiles."""
+    if h is not None or backend == "numpy":
+        return False
+    return backend == "numba" or (HAVE_NUMBA and n <= NUMBA_MAX_N)
 
 
 class UnscentedKalmanFilter:
@@ -197,9 +206,7 @@ class UnscentedKalmanFilter:
         )
 
     def _use_numba(self, n: int) -> bool:
-        if self.h is not None or self.backend == "numpy":
-            return False
-        return self.backend == "numba" or (HAVE_NUMBA and n <= NUMBA_MAX_N)
+        return use_numba(self.backend, self.h, n)
 
     def _run_numba(
         self,
@@ -213,14 +220,10 @@ class UnscentedKalmanFilter:
         """The forward pass with the compiled per-step kernels (same results as numpy)."""
         from brakethermo.estimation import _kernels
 
-        K, m = y.shape
+        K = y.shape[0]
         n = x0.shape[0]
         w = self.weights(n)
-        out = allocate(K, n, m, readout, store, store_dtype)
-        Q_of = as_provider(self.Q, (n, n), "Q")
-        R_of = as_provider(self.R, (m, m), "R")
-        H_of = as_provider(self.H, (m, n), "H")
-        thr = gate_thresholds(self.gate, m)
+        ks = kernel_setup(self.Q, self.H, self.R, self.gate, y, n, readout, store, store_dtype)
         B = 2 * n + 1
         work = np.zeros((B + 2 * n + 1, n))  # [X; P; L; x], see _kernels._views
         X, P = work[:B], work[B : B + n]
@@ -228,15 +231,10 @@ class UnscentedKalmanFilter:
         work[B + 2 * n] = x0
         W = np.stack([w.Wm, w.Wc])
         par = np.array([w.c, self.eig_floor])
-        f, M = self.f, out.M
-        tail = (out.st, out.cov, out.gs, out.iv, out.sc, out.ic, out.rejected, out.ro)
-        _kernels.ukf_first(work, par, thr, _c(H_of(0)), _c(R_of(0)), y, M, out.st, out.cov,
-                           out.iv, out.sc, out.ic, out.rejected, out.ro)  # fmt: skip
+        f, M, thr, tail = self.f, ks.out.M, ks.thr, ks.tail
+        ks.first(_kernels.ukf_first, work, par, y)
         step = _kernels.ukf_step
-        # constant matrices are converted once; callables are asked every step
-        Qc = None if callable(self.Q) else _c(Q_of(0))
-        Hc = None if callable(self.H) else _c(H_of(0))
-        Rc = None if callable(self.R) else _c(R_of(0))
+        Q_of, H_of, R_of, Qc, Hc, Rc = ks.Q_of, ks.H_of, ks.R_of, ks.Qc, ks.Hc, ks.Rc
         for k in range(K - 1):
             Xf = f(X, k)  # eq. 35, all sigma points in one call
             if Xf.shape != X.shape:
@@ -248,10 +246,4 @@ class UnscentedKalmanFilter:
                 _c(H_of(k + 1)) if Hc is None else Hc, _c(R_of(k + 1)) if Rc is None else Rc,
                 y, M, *tail,
             )  # fmt: skip
-        repairs = out.ic[1]
-        return out.result(P, np.repeat(np.arange(K), repairs).tolist())
-
-
-def _c(A: Array) -> Array:
-    """C-contiguous writable float64 array for the kernels (one compiled signature)."""
-    return np.require(A, dtype=np.float64, requirements=("C", "W"))
+        return ks.result(P)
