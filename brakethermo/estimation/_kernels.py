@@ -275,21 +275,8 @@ def ukf_first(work, par, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
     """
     X, P, L, x = _views(work)
     c, abs_floor = par[0], par[1]
-    n = x.shape[0]
-    K = st.shape[1]
-    full = cov.shape[1] > 0
-    for i in range(n):
-        st[0, 0, i] = x[i]
-        st[1, 0, i] = P[i, i]
-    if full:
-        cov[0, 0] = P
-    _update(
-        0, x, P, H, R, y[0], gate_thr, abs_floor, ic[1], iv[0], iv[1], sc[0], sc[1], ic[0], rej
-    )  # fmt: skip
-    if K > 1:
-        _factor(P, L, 0, abs_floor, ic[1])
+    if _update_step(0, x, P, L, abs_floor, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
         _sigma(x, L, c, X)
-    _record_posterior(0, x, P, st[2], st[3], cov[1], full, M, ro[0], ro[1])
 
 
 @njit(cache=True, nogil=True)
@@ -382,20 +369,29 @@ def _advance(k, xp, Pp, C, P, L, x, abs_floor, gate_thr, H, R, y, M, st, cov, gs
                 gs[1, k, i, j] = v
                 gs[1, k, j, i] = v
         gs[0, k] = Gt.T
-    for i in range(n):
-        x[i] = xp[i]
-        st[0, kp, i] = xp[i]
-        st[1, kp, i] = Pp[i, i]
+    x[:] = xp
     P[:, :] = Pp
-    if full:
-        cov[0, kp] = P
+    return _update_step(kp, x, P, L, abs_floor, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro)
+
+
+@njit(cache=True, nogil=True)
+def _update_step(k, x, P, L, abs_floor, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
+    """Both filters at step k from its prior (x, P): record it, update with y[k] in place,
+    factor the posterior into L when another step follows, record it; True if one does.
+    """
+    n = x.shape[0]
+    for i in range(n):
+        st[0, k, i] = x[i]
+        st[1, k, i] = P[i, i]
+    if cov.shape[1] > 0:
+        cov[0, k] = P
     _update(
-        kp, x, P, H, R, y[kp], gate_thr, abs_floor, ic[1], iv[0], iv[1], sc[0], sc[1], ic[0], rej
+        k, x, P, H, R, y[k], gate_thr, abs_floor, ic[1], iv[0], iv[1], sc[0], sc[1], ic[0], rej
     )  # fmt: skip
-    more = kp < st.shape[1] - 1
+    more = k < st.shape[1] - 1
     if more:
-        _factor(P, L, kp, abs_floor, ic[1])  # the posterior as factored is the one stored
-    _record_posterior(kp, x, P, st[2], st[3], cov[1], full, M, ro[0], ro[1])
+        _factor(P, L, k, abs_floor, ic[1])  # the posterior as factored is the one stored
+    _record_posterior(k, x, P, st[2], st[3], cov[1], cov.shape[1] > 0, M, ro[0], ro[1])
     return more
 
 
@@ -429,20 +425,8 @@ def ekf_first(work, par, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
     """
     X, P, L, x, eps = _ekf_views(work)
     rel_step, abs_floor = par[0], par[1]
-    n = x.shape[0]
-    full = cov.shape[1] > 0
-    for i in range(n):
-        st[0, 0, i] = x[i]
-        st[1, 0, i] = P[i, i]
-    if full:
-        cov[0, 0] = P
-    _update(
-        0, x, P, H, R, y[0], gate_thr, abs_floor, ic[1], iv[0], iv[1], sc[0], sc[1], ic[0], rej
-    )  # fmt: skip
-    if st.shape[1] > 1:
-        _factor(P, L, 0, abs_floor, ic[1])
+    if _update_step(0, x, P, L, abs_floor, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
         _fd_points(x, X, eps, rel_step)
-    _record_posterior(0, x, P, st[2], st[3], cov[1], full, M, ro[0], ro[1])
 
 
 @njit(cache=True, nogil=True)
