@@ -34,6 +34,7 @@ PREFIX = "/brakethermo/"
 ARRAY_TOPICS = {"node": "disc_nodes", "mid": "disc_mid"}
 ARRAY_UNITS = {"node": "degC", "mid": "degC"}
 SCALAR_UNITS = {"braking_power": "W", "h": "W/(m2 K)", "power_scale": ""}
+BANDED = ("spot1", "spot2", "spot3", "spot4", "contact_avg")  # estimate with a +-1 sigma band
 _ARRAY_COLUMN = re.compile(r"^([A-Za-z]+)_(\d+)$")
 SPOT_RADII_DEFAULT = (0.111, 0.130, 0.146, 0.162)  # m, cc-340-8 (CHANNELS.md §5)
 
@@ -71,14 +72,34 @@ def _fmt(values: np.ndarray, decimals: int = 3) -> list[str]:
     return text.tolist()
 
 
-def _array_families(columns: Iterable[str]) -> dict[str, list[str]]:
-    """Columns ``<family>_<k>`` (``node_0``, ``mid_3``...) grouped by family, in k order."""
+def array_families(columns: Iterable[str]) -> dict[str, list[tuple[int, str]]]:
+    """Columns ``<family>_<k>`` (``node_0``, ``mid_3``...) as ``{family: [(k, column)]}``.
+
+    Families in the order they first appear, each in k order.
+    """
     families: dict[str, list[tuple[int, str]]] = {}
     for col in columns:
         match = _ARRAY_COLUMN.match(str(col))
         if match:
             families.setdefault(match.group(1), []).append((int(match.group(2)), str(col)))
-    return {f: [c for _, c in sorted(cols)] for f, cols in families.items()}
+    return {f: sorted(cols) for f, cols in families.items()}
+
+
+def scalar_columns(frame: pd.DataFrame, families: dict[str, list[tuple[int, str]]]) -> list[str]:
+    """The numeric columns an export writes as scalars, in frame order.
+
+    Everything but ``time``, ``lap``, the banded estimates, the array families and any
+    ``*_std`` column (written beside its estimate).
+    """
+    in_family = {c for cols in families.values() for _, c in cols}
+    skip = {"time", "lap", *in_family, *BANDED, *(f"{c}_std" for c in BANDED)}
+    return [
+        str(c)
+        for c in frame.columns
+        if c not in skip
+        and not str(c).endswith("_std")
+        and pd.api.types.is_numeric_dtype(frame[c])
+    ]
 
 
 def log_times_ns(time_s: np.ndarray, start_epoch_s: float | None) -> np.ndarray:
@@ -115,16 +136,11 @@ def write_estimate_mcap(
     """
     path = Path(path)
     t_ns = log_times_ns(frame["time"].to_numpy(), start_epoch_s)
-    families = _array_families(frame.columns)
+    indexed = array_families(frame.columns)
+    extra = scalar_columns(frame, indexed)
+    families = {f: [c for _, c in cols] for f, cols in indexed.items()}
     nodes = families.pop("node", [])
-    banded = [c for c in ("spot1", "spot2", "spot3", "spot4", "contact_avg") if c in frame]
-    in_arrays = {c for cols in families.values() for c in cols}
-    skip = {"time", "lap", *banded, *(f"{c}_std" for c in banded), *nodes, *in_arrays}
-    extra = [
-        c
-        for c in frame.columns
-        if c not in skip and not c.endswith("_std") and pd.api.types.is_numeric_dtype(frame[c])
-    ]
+    banded = [c for c in BANDED if c in frame]
 
     with atomic_path(path) as tmp, tmp.open("wb") as fh:
         writer = Writer(fh, compression=CompressionType.ZSTD)

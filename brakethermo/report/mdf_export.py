@@ -20,7 +20,6 @@ the header comment says the time base is the session start.
 from __future__ import annotations
 
 import datetime as dt
-import re
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -31,11 +30,16 @@ import pandas as pd
 
 from brakethermo import __version__
 from brakethermo.io.atomic import atomic_path
-from brakethermo.report.mcap_export import ARRAY_UNITS, SCALAR_UNITS, SPOT_RADII_DEFAULT
+from brakethermo.report.mcap_export import (
+    ARRAY_UNITS,
+    BANDED,
+    SCALAR_UNITS,
+    SPOT_RADII_DEFAULT,
+    array_families,
+    scalar_columns,
+)
 
 PREFIX = "BT_"
-BANDED = ("spot1", "spot2", "spot3", "spot4", "contact_avg")
-_ARRAY_COLUMN = re.compile(r"^([A-Za-z]+)_(\d+)$")
 
 
 def _header_comment(source: str, start_epoch_s: float | None) -> str:
@@ -96,28 +100,18 @@ def write_estimate_mdf(
             add(std_col, std, "degC", f"1-sigma of {PREFIX}{col}")
             add(f"{col}_lower", value - std, "degC", f"{PREFIX}{col} - 1 sigma")
             add(f"{col}_upper", value + std, "degC", f"{PREFIX}{col} + 1 sigma")
-    families: dict[str, list[tuple[int, str]]] = {}
-    for col in frame.columns:
-        match = _ARRAY_COLUMN.match(str(col))
-        if match:
-            families.setdefault(match.group(1), []).append((int(match.group(2)), str(col)))
-    in_family = {c for cols in families.values() for _, c in cols}
+    families = array_families(frame.columns)
     for family, cols in families.items():
-        for k, col in sorted(cols):
+        for k, col in cols:
             radius = (f" at r = {float(node_radii[k]):.4f} m"
                       if node_radii is not None and k < len(node_radii) else "")
             add(col, frame[col].to_numpy(dtype=np.float64), ARRAY_UNITS.get(family, ""),
                 f"{family} temperature {k} (inner to outer){radius}")
     if "lap" in frame:
         add("lap", frame["lap"].to_numpy(dtype=np.int64), "", "lap number (0 = out-lap)")
-    done = {"time", "lap", *in_family, *BANDED, *(f"{c}_std" for c in BANDED)}
-    for col in frame.columns:
-        if col in done or str(col).endswith("_std"):
-            continue
-        if not pd.api.types.is_numeric_dtype(frame[col]):
-            continue
-        unit = SCALAR_UNITS.get(str(col), "")
-        add(str(col), frame[col].to_numpy(dtype=np.float64), unit, f"estimated {col}")
+    for col in scalar_columns(frame, families):
+        unit = SCALAR_UNITS.get(col, "")
+        add(col, frame[col].to_numpy(dtype=np.float64), unit, f"estimated {col}")
         if f"{col}_std" in frame:
             add(f"{col}_std", frame[f"{col}_std"].to_numpy(dtype=np.float64), unit,
                 f"1-sigma of {PREFIX}{col}")
