@@ -8,6 +8,7 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from test_io_hardening import one_line_error
 from test_io_roundtrip import CHANNELS, FACTS, write_csv, write_mcap
 from typer.testing import CliRunner
 
@@ -32,15 +33,7 @@ def run(*args: str) -> tuple[int, str]:
 
 
 def assert_user_error(args: list[str], *phrases: str) -> str:
-    code, output = run(*args)
-    assert code == 1, output
-    lines = [line for line in output.splitlines() if line.strip()]
-    assert len(lines) == 1, output
-    assert "Traceback" not in output
-    assert lines[0].startswith("error:")
-    for phrase in phrases:
-        assert phrase in lines[0], (phrase, lines[0])
-    return lines[0]
+    return one_line_error(["inspect", *args], *phrases)
 
 
 def test_inspect_json(tmp_path: Path) -> None:

@@ -17,6 +17,7 @@ import pyarrow as pa
 import pytest
 from asammdf import MDF, Signal
 from asammdf.blocks.source_utils import Source
+from test_io_hardening import one_line_error
 from test_io_roundtrip import (  # noqa: F401  (reference is a fixture)
     BEACONS,
     CHANNELS,
@@ -211,15 +212,7 @@ def write_any(fmt: str, path_stem: Path, chans: Spec, monkeypatch: pytest.Monkey
 
 
 def cli_error(args: list[str], *phrases: str) -> str:
-    result = CliRunner().invoke(app, ["inspect", *args])
-    if result.exception is not None and not isinstance(result.exception, SystemExit):
-        raise result.exception
-    lines = [ln for ln in result.output.splitlines() if ln.strip()]
-    assert result.exit_code == 1, result.output
-    assert len(lines) == 1 and lines[0].startswith("error:"), result.output
-    for phrase in phrases:
-        assert phrase in lines[0], (phrase, lines[0])
-    return lines[0]
+    return one_line_error(["inspect", *args], *phrases)
 
 
 def formats(*names: str) -> list:
