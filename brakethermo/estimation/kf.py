@@ -36,6 +36,18 @@ class LinearFilterResult:
     loglik: Array
 
 
+def _measurements(y: Array) -> Array:
+    """y as float64 (K, m); a 1-D y is one measurement per step."""
+    y = np.asarray(y, dtype=np.float64)
+    return y[:, None] if y.ndim == 1 else y
+
+
+def _outputs(K: int, n: int) -> tuple[Array, Array, Array, Array, Array]:
+    """Empty x_pred, x_filt (K, n), P_pred, P_filt (K, n, n) and a zero loglik (K,)."""
+    return (np.empty((K, n)), np.empty((K, n)), np.empty((K, n, n)), np.empty((K, n, n)),
+            np.zeros(K))  # fmt: skip
+
+
 def kalman_filter(
     A: Array,
     Q: Array,
@@ -62,15 +74,11 @@ def kalman_filter(
     -------
     LinearFilterResult
     """
-    y = np.asarray(y, dtype=np.float64)
-    if y.ndim == 1:
-        y = y[:, None]
+    y = _measurements(y)
     K, n = y.shape[0], A.shape[0]
     if b is not None and b.shape != (K, n):
         raise ConfigError(f"input b must have shape ({K}, {n}), got {b.shape}")
-    x_pred, x_filt = np.empty((K, n)), np.empty((K, n))
-    P_pred, P_filt = np.empty((K, n, n)), np.empty((K, n, n))
-    loglik = np.zeros(K)
+    x_pred, x_filt, P_pred, P_filt, loglik = _outputs(K, n)
     x, P = np.array(x0, dtype=np.float64), np.array(P0, dtype=np.float64)
     for k in range(K):
         if k > 0:
@@ -159,9 +167,7 @@ def kalman_filter_tv(
     -------
     LinearFilterResult
     """
-    y = np.asarray(y, dtype=np.float64)
-    if y.ndim == 1:
-        y = y[:, None]
+    y = _measurements(y)
     K = y.shape[0]
     A = np.asarray(A, dtype=np.float64)
     n = A.shape[-1]
@@ -173,9 +179,7 @@ def kalman_filter_tv(
         b = np.zeros((K, n))
     elif b.shape != (K, n):
         raise ConfigError(f"input b must have shape ({K}, {n}), got {b.shape}")
-    x_pred, x_filt = np.empty((K, n)), np.empty((K, n))
-    P_pred, P_filt = np.empty((K, n, n)), np.empty((K, n, n))
-    loglik = np.zeros(K)
+    x_pred, x_filt, P_pred, P_filt, loglik = _outputs(K, n)
     f64 = np.float64
     _kf_tv_kernel(
         np.ascontiguousarray(A), np.asarray(Q, f64), np.asarray(H, f64), np.asarray(R, f64),
