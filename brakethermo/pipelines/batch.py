@@ -539,30 +539,23 @@ def _write_outputs(
                 back_href="../index.html",
             )  # fmt: skip
             outcome.timings["report_s"] = time.perf_counter() - t
+        # what both estimate exports (MCAP, MDF) record beside the frame
+        export_kw: dict[str, Any] = {
+            "node_radii": run.node_radii,
+            **({"spot_radii": run.disc.spot_radii} if run.disc is not None else {}),
+            "start_epoch_s": session.start_epoch_s,
+            "source": task.path.name,
+        }
         if task.options.mcap_out:
             report("mcap")
             t = time.perf_counter()
-            write_estimate_mcap(
-                run.frame,
-                stage / "estimate.mcap",
-                node_radii=run.node_radii,
-                **({"spot_radii": run.disc.spot_radii} if run.disc is not None else {}),
-                start_epoch_s=session.start_epoch_s,
-                source=task.path.name,
-            )
+            write_estimate_mcap(run.frame, stage / "estimate.mcap", **export_kw)
             outcome.timings["mcap_s"] = time.perf_counter() - t
         if task.options.mdf_out:
             from brakethermo.report.mdf_export import write_estimate_mdf
 
             t = time.perf_counter()
-            write_estimate_mdf(
-                run.frame,
-                stage / "estimate.mf4",
-                node_radii=run.node_radii,
-                **({"spot_radii": run.disc.spot_radii} if run.disc is not None else {}),
-                start_epoch_s=session.start_epoch_s,
-                source=task.path.name,
-            )
+            write_estimate_mdf(run.frame, stage / "estimate.mf4", **export_kw)
             outcome.timings["mdf_s"] = time.perf_counter() - t
         outcome.laps = flying_laps(laps)
         outcome.peaks = _peaks(run.frame)
