@@ -23,8 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from filterpy.kalman import MerweScaledSigmaPoints
-from filterpy.kalman import UnscentedKalmanFilter as FilterpyUKF
+from filterpy_reference import run_filterpy_ukf
 from threadpoolctl import threadpool_limits
 
 from brakethermo.estimation import UnscentedKalmanFilter
@@ -101,21 +100,10 @@ def main() -> None:
         res = ours.run(x0, P0, y, store="diag")
         t_ours = time.perf_counter() - t0
 
-        n = model.n
-        pts = MerweScaledSigmaPoints(n, alpha=spec.alpha, beta=spec.beta, kappa=spec.kappa)
-        fp = FilterpyUKF(dim_x=n, dim_z=1, dt=1.0, hx=lambda x: model.H @ x,
-                         fx=lambda x, dt, k: model.f(x[None], k)[0], points=pts)
-        fp.x, fp.P, fp.Q, fp.R = x0.copy(), P0.copy(), Q, R
-        fp.sigmas_f = pts.sigma_points(x0, P0)
         steps = min(args.fp_steps, K)
-        xs = np.empty((steps, n))
-        t0 = time.perf_counter()
-        for k in range(steps):
-            if k > 0:
-                fp.predict(k=k - 1)
-            fp.update(y[k])
-            xs[k] = fp.x
-        t_fp = (time.perf_counter() - t0) * K / steps
+        t_fp, xs = run_filterpy_ukf(model.f, model.H, Q, R, x0, P0, y, steps, spec.alpha,
+                                    spec.beta, spec.kappa)
+        t_fp *= K / steps
         diff = np.abs(xs - res.x_filt[:steps])
         apart = np.flatnonzero(np.max(diff / np.maximum(np.abs(xs), 1.0), axis=1) > 1e-9)
         print(f"\nforward UKF on the same model ({K} steps):")

@@ -21,8 +21,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from filterpy.kalman import MerweScaledSigmaPoints
-from filterpy.kalman import UnscentedKalmanFilter as FilterpyUKF
+from filterpy_reference import run_filterpy_ukf
 from threadpoolctl import threadpool_limits
 
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
@@ -92,19 +91,8 @@ def main() -> None:
             urts_smooth(out)
             t_s = min(t_s, time.perf_counter() - t)
         k_fp = min(args.fp_steps, K)
-        pts = MerweScaledSigmaPoints(3, alpha=fd.alpha, beta=fd.beta, kappa=fd.kappa)
-        fp = FilterpyUKF(dim_x=3, dim_z=2, dt=s.dt, hx=lambda x: H @ x,
-                         fx=lambda x, dt, k: f(x[None], k)[0], points=pts)  # fmt: skip
-        fp.x, fp.P, fp.Q, fp.R = x0.copy(), P0.copy(), Q, R
-        fp.sigmas_f = pts.sigma_points(fp.x, fp.P)
-        xs = np.empty((k_fp, 3))
-        t = time.perf_counter()
-        for k in range(k_fp):
-            if k > 0:
-                fp.predict(k=k - 1)
-            fp.update(y[k])
-            xs[k] = fp.x
-        t_fp = (time.perf_counter() - t) * K / k_fp
+        t_fp, xs = run_filterpy_ukf(f, H, Q, R, x0, P0, y, k_fp, fd.alpha, fd.beta, fd.kappa)
+        t_fp *= K / k_fp
         dx = np.max(np.abs(out.x_filt[:k_fp] - xs), axis=0)
 
     ref = res.reference_mm
