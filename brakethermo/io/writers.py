@@ -236,6 +236,9 @@ def csv_bytes(data: SessionData) -> bytes:
     return ("\n".join(lines) + "\n").encode("utf-8")
 
 
+TRUTH_SUFFIX = ".truth.parquet"  # simulator truth beside a session: for scoring, never an input
+
+
 def write_table_parquet(path: str | Path, table: pa.Table, compression: str = "zstd") -> Path:
     """Write any Arrow table atomically as Parquet (used for truth files)."""
     path = Path(path)

@@ -37,12 +37,12 @@ from brakethermo.errors import EXIT_BATCH_PARTIAL, EXIT_OK, BrakethermoError, Co
 from brakethermo.io.atomic import atomic_dir, write_text_atomic
 from brakethermo.io.formats import SUFFIXES as FORMAT_SUFFIXES
 from brakethermo.io.session import Session
+from brakethermo.io.writers import TRUTH_SUFFIX
 from brakethermo.pipelines.outputs import write_json
 from brakethermo.pipelines.summary import flying_laps, round_temp
 from brakethermo.thermal.disc import DiscSpec
 
 SESSION_SUFFIXES = FORMAT_SUFFIXES  # every registered reader (brakethermo.io.formats)
-TRUTH_SUFFIX = ".truth.parquet"  # simulator truth: for scoring only, never an input
 MANIFEST = "batch_manifest.json"
 MULTI_SPOT = tuple(f"disc_temp_spot{i}" for i in range(1, 5))
 DEFAULT_LAW = "default (shipped)"

@@ -12,9 +12,7 @@ from pathlib import Path
 
 import pyarrow as pa
 
-from brakethermo.io.writers import SessionData, write_session, write_table_parquet
-
-TRUTH_SUFFIX = ".truth.parquet"
+from brakethermo.io.writers import TRUTH_SUFFIX, SessionData, write_session, write_table_parquet
 
 
 def truth_path_for(session_path: str | Path) -> Path:
