@@ -11,7 +11,8 @@ One run, side by side:
   is timed on ``--fp-steps`` steps and scaled to the session (said in the output); its
   states are checked against ours on those steps.
 
-Run: ``python benchmarks/bench_ebooster.py [--seconds 60] [--fp-steps 5000] [--repeat 2]``
+Run: ``python benchmarks/bench_ebooster.py [--seconds 60] [--fp-steps 5000] [--repeat 2]
+[--seeds 99]`` (filterpy runs on the last seed's session)
 """
 
 from __future__ import annotations
@@ -66,21 +67,27 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--fp-steps", type=int, default=5000)
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--seeds", type=int, nargs="+", default=[99])
     args = ap.parse_args()
     spec, fit = load_booster(), load_fit(default_fit_path())
     with tempfile.TemporaryDirectory() as tmp, threadpool_limits(1):
-        cfg = EboosterSimConfig("vehicle", seed=99, duration_s=args.seconds)
-        path, _ = write_ebooster_session(simulate_ebooster(cfg), Path(tmp) / "bench.mcap")
-        whole_command(path, Path(tmp) / "warm")  # compile and cache the kernels
-        runs = [whole_command(path, Path(tmp) / f"out{i}") for i in range(args.repeat)]
-        best = min(runs, key=lambda r: r["total"])
         K = int(args.seconds * 1000) + 1
-        print(f"whole command, {args.seconds:.0f} s at 1 kHz ({K} steps), best of "
-              f"{args.repeat}:")
-        for k, v in best.items():
-            print(f"  {k:14s} {v:6.2f} s")
-        verdict = "OK" if best["total"] < TARGET_S else "OVER"
-        print(f"  target < {TARGET_S:.0f} s: {verdict}")
+        bests = []
+        for seed in args.seeds:
+            cfg = EboosterSimConfig("vehicle", seed=seed, duration_s=args.seconds)
+            path, _ = write_ebooster_session(simulate_ebooster(cfg), Path(tmp) / f"b{seed}.mcap")
+            if not bests:
+                whole_command(path, Path(tmp) / "warm")  # compile and cache the kernels
+            runs = [whole_command(path, Path(tmp) / f"out{seed}_{i}") for i in range(args.repeat)]
+            bests.append(min(runs, key=lambda r: r["total"]))
+            print(f"whole command, seed {seed}, {args.seconds:.0f} s at 1 kHz ({K} steps), "
+                  f"best of {args.repeat}: " + ", ".join(
+                      f"{k} {v:.2f} s" for k, v in bests[-1].items()))
+        totals = np.array([b["total"] for b in bests])
+        sd = totals.std(ddof=1) if totals.size > 1 else 0.0
+        verdict = "OK" if totals.max() < TARGET_S else "OVER"
+        print(f"  total over {totals.size} seed(s): {totals.mean():.2f} ± {sd:.2f} s "
+              f"[{totals.min():.2f}, {totals.max():.2f}]; target < {TARGET_S:.0f} s: {verdict}")
 
         session = load_booster_session(path)
         s2 = _series(session, S2, MM, gaps=False)
@@ -109,12 +116,22 @@ def main() -> None:
             fp.update(y[k])
             xs[k] = fp.x
         t_fp = (time.perf_counter() - t0) * K / steps
-        dev = float(np.max(np.abs(xs - res.x_filt[:steps])))
+        diff = np.abs(xs - res.x_filt[:steps])
+        apart = np.flatnonzero(np.max(diff / np.maximum(np.abs(xs), 1.0), axis=1) > 1e-9)
         print(f"\nforward UKF on the same model ({K} steps):")
         print(f"  ours      {t_ours:7.2f} s")
         print(f"  filterpy  {t_fp:7.2f} s (timed on {steps} steps, scaled)")
-        print(f"  ratio filterpy / ours: {t_fp / t_ours:.1f}x; max state difference on the "
-              f"timed steps {dev:.1e}")
+        print(f"  ratio filterpy / ours: {t_fp / t_ours:.1f}x")
+        if apart.size == 0:
+            print(f"  states agree to 1e-9 (relative) on all {steps} timed steps")
+        else:
+            # the clip max(F_in, 0) of eq. 10: with every sigma point's force below zero the
+            # force is unobservable and the paths follow round-off (see models/ebooster.py)
+            k0 = int(apart[0])
+            print(f"  states agree to 1e-9 (relative) up to step {k0} (force estimate there "
+                  f"{xs[k0, 5]:.0f} N); max difference after: pressures "
+                  f"{diff[:, :3].max():.1e} MPa, zeta1 {diff[:, 3].max():.1e} mm, "
+                  f"force {diff[:, 5].max():.0f} N")
 
 
 if __name__ == "__main__":

@@ -7,8 +7,11 @@ writers (MCAP) and observed by the pipeline. Per scenario it prints the paper's 
 validation channels and the 95 % band coverage, as mean ± standard deviation over seeds
 with min and max.
 
+``--pedal-state chi_square`` runs both observers on the literal chi-square pedal model
+(F = F_scale w^2 with w a state) instead of the shipped Gaussian force state.
+
 Run: ``python benchmarks/bench_ebooster_accuracy.py [--seeds 11 12 13 14 15]
-[--scenarios open closed vehicle]``
+[--scenarios open closed vehicle] [--pedal-state force|chi_square]``
 """
 
 from __future__ import annotations
@@ -19,7 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+from brakethermo.config import config_dir
 from brakethermo.pipelines.ebooster import observe
+from brakethermo.rigs.booster_datasheet import PEDAL_STATES
 from brakethermo.sim.ebooster import EboosterSimConfig, simulate_ebooster, write_ebooster_session
 
 
@@ -33,15 +38,21 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[11, 12, 13, 14, 15])
     ap.add_argument("--scenarios", nargs="+", default=["open", "closed", "vehicle"])
+    ap.add_argument("--pedal-state", choices=PEDAL_STATES, default="force")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
+        text = (config_dir() / "rigs" / "ebooster.toml").read_text()
+        bench = Path(tmp) / "bench.toml"
+        bench.write_text(text.replace('pedal_state = "force"',
+                                      f'pedal_state = "{args.pedal_state}"'))
+        print(f"pedal state: {args.pedal_state}")
         for scenario in args.scenarios:
             rows: dict[str, list[float]] = {}
             for seed in args.seeds:
                 cfg = EboosterSimConfig(scenario, seed=seed)
                 path, _ = write_ebooster_session(simulate_ebooster(cfg),
                                                  Path(tmp) / f"{scenario}{seed}.mcap")
-                s = observe(path).summary
+                s = observe(path, bench=bench).summary
                 for w in ("ukf", "ekf"):
                     rows.setdefault(f"residual RMSE {w} mm", []).append(
                         s["residual_rmse_mm"][w])
@@ -50,11 +61,14 @@ def main() -> None:
                     rows.setdefault(f"95% coverage {w} %", []).append(100 * s["coverage_95"][w])
                     for state, v in s["outside_1sigma"][w].items():
                         rows.setdefault(f"{state} outside 1σ {w} %", []).append(100 * v)
-                rows.setdefault("improvement (EKF over UKF) %", []).append(s["improvement_pct"])
+                rows.setdefault("UKF improvement over EKF %", []).append(s["improvement_pct"])
             print(f"\n{scenario}: seeds {args.seeds} (mean ± sd [min, max])")
             for name, values in rows.items():
                 fmt = ".4f" if "residual" in name else (".3f" if "MPa" in name else ".1f")
                 print(f"  {name:34s} {_stat(values, fmt)}")
+            print("  per seed:")
+            for name in ("UKF improvement over EKF %", "95% coverage ukf %", "95% coverage ekf %"):
+                print(f"    {name:32s} " + " ".join(f"{v:6.1f}" for v in rows[name]))
 
 
 if __name__ == "__main__":

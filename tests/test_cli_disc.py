@@ -33,6 +33,19 @@ def test_estimate_rich_output_prints_tables(sim_race_session, identified, tmp_pa
     assert "h law: " in res.output and "given with --h-law" in res.output
 
 
+def test_online_effects_can_be_switched_off(sim_race_session, identified, tmp_path):
+    import pyarrow.parquet as pq
+
+    res = runner.invoke(app, ["estimate", str(sim_race_session[0]), "--h-law",
+                              str(identified[1]), "--out", str(tmp_path), "--no-smoother",
+                              "--no-report", "--no-adapt-kz", "--json"])
+    assert res.exit_code == 0, res.output
+    effects = json.loads(res.stdout)["run"]["effects"]
+    assert "thickness_gradient" not in effects and "slipstream" in effects
+    columns = pq.read_schema(tmp_path / "race_multi" / "estimate.parquet").names
+    assert "h_factor" in columns and "kz_factor" not in columns
+
+
 def test_bad_h_law_file_is_one_line_exit_1(sim_race_session, tmp_path):
     bad = tmp_path / "h_law.toml"
     bad.write_text("knee = 'x'\n")

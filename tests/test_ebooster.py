@@ -44,14 +44,19 @@ FIT = load_fit(default_fit_path())
 
 @pytest.fixture(scope="module")
 def sessions(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """A training session (seed 0's sibling 7) and a short closed-loop session, 500 Hz."""
+    """A training session (seed 0's sibling 7) and a short closed-loop session, 500 Hz.
+
+    The closed-loop one through ``brakethermo simulate --rig ebooster``.
+    """
     d = tmp_path_factory.mktemp("eb")
-    out = {}
-    for name, cfg in {
-        "train": EboosterSimConfig("train", seed=7, rate_hz=500.0),
-        "closed": EboosterSimConfig("closed", seed=31, rate_hz=500.0, duration_s=6.0),
-    }.items():
-        out[name], _ = write_ebooster_session(simulate_ebooster(cfg), d / f"{name}.parquet")
+    cfg = EboosterSimConfig("train", seed=7, rate_hz=500.0)
+    out = {"train": write_ebooster_session(simulate_ebooster(cfg), d / "train.parquet")[0]}
+    res = runner.invoke(app, ["simulate", "--rig", "ebooster", "--set", "scenario=closed",
+                              "--set", "duration_s=6", "--set", "rate_hz=500", "--seed", "31",
+                              "--json", "--out", str(d / "closed.parquet")])
+    assert res.exit_code == 0, res.output
+    out["closed"] = Path(json.loads(res.stdout)["session"])
+    assert out["closed"].with_name("closed.truth.parquet").is_file()
     return out
 
 
@@ -85,12 +90,32 @@ def test_disk_curves_continuous_odd_and_unit_gain():
 
 
 @settings(max_examples=25, deadline=None)
-@given(seed=st.integers(0, 2**16), k=st.integers(0, 98))
-def test_compiled_transition_equals_the_numpy_physics(seed, k):
+@given(seed=st.integers(0, 2**16), k=st.integers(0, 98), chi=st.booleans())
+def test_compiled_transition_equals_the_numpy_physics(seed, k, chi):
     rng = np.random.default_rng(seed)
-    model = EboosterModel(SPEC, FIT, np.linspace(0.0, 20.0, 100), 1e-3)
-    X = rng.normal(size=(13, model.n)) * [3, 3, 3, 0.5, 50, 1.5] + [5, 5, 5, 0.2, 0, 0]
+    spec = dataclasses.replace(SPEC, pedal_state="chi_square" if chi else "force")
+    model = EboosterModel(spec, FIT, np.linspace(0.0, 20.0, 100), 1e-3)
+    pedal = [1.5, 0.0] if chi else [150.0, 50.0]  # w (1) or a force either side of 0 (N)
+    X = rng.normal(size=(13, model.n)) * [3, 3, 3, 0.5, 50, pedal[0]] + [5, 5, 5, 0.2, 0,
+                                                                          pedal[1]]
     np.testing.assert_allclose(model.f(X, k), model.f_reference(X, k), rtol=0, atol=1e-12)
+
+
+def test_force_state_keeps_the_chi_square_moments_and_is_linear_when_pushed():
+    model = EboosterModel(SPEC, FIT, np.full(10, 5.0), 1e-3)
+    dof, scale = SPEC.pedal_dof, FIT.pedal_scale_n
+    x0, P0 = model.prior(0.2)
+    assert x0[5] == pytest.approx(dof * scale) and P0[5, 5] == pytest.approx(2 * dof * scale**2)
+    # the linear OU recursion holds mean and variance stationary at the chi-square's
+    a, q = model.a_pedal, model.Q()[5, 5]
+    assert a * a * P0[5, 5] + q == pytest.approx(P0[5, 5])
+    assert a == pytest.approx(np.exp(-2e-3 / SPEC.pedal_tau_s))  # w^2 decorrelates twice as fast
+    X = np.tile(x0, (3, 1))
+    X[:, 5] = [-30.0, 0.0, 30.0]
+    out = model.f(X, 0)
+    np.testing.assert_allclose(out[:, 5], x0[5] + a * (X[:, 5] - x0[5]))
+    np.testing.assert_allclose(out[0, 3:5], out[1, 3:5])  # a driver cannot pull
+    assert out[2, 3] > out[1, 3]
 
 
 def test_datasheet_validation_names_file_key_expected_found(tmp_path):
@@ -190,6 +215,28 @@ def test_cli_writes_outputs_of_the_contract(sessions, tmp_path):
     assert set(summary["pressure_rmse_mpa"]["ukf"]) == {"p_m", "p_f", "p_r"}
     assert summary["pv_fit"]["training_session"].endswith("train.parquet")
     assert (folder / "index.html").is_file() and (folder / "states.png").is_file()
+
+
+def test_simulate_rig_ebooster_production_session_and_bad_settings(tmp_path):
+    args = ["simulate", "--rig", "ebooster", "--set", "scenario=vehicle", "--set",
+            "duration_s=2", "--set", "rate_hz=200", "--set", "production=true", "--seed", "4",
+            "--json", "--out"]  # fmt: skip
+    a = runner.invoke(app, [*args, str(tmp_path / "a.csv")])
+    b = runner.invoke(app, [*args, str(tmp_path / "b.csv")])
+    assert a.exit_code == 0 and b.exit_code == 0, a.output + b.output
+    assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+    header = (tmp_path / "a.csv").read_text().splitlines()[0]
+    assert "reaction_disk_delta" in header and "pressure" not in header
+    truth = pd.read_parquet(tmp_path / "a.truth.parquet")
+    assert {"p_m", "pedal_force", "delta"} <= set(truth.columns) and len(truth) == 401
+    bad = runner.invoke(app, [*args[:3], "--set", "scenario=race", "--out",
+                              str(tmp_path / "c.csv")])
+    assert bad.exit_code == 1 and "unknown scenario 'race'" in bad.output
+    assert "Traceback" not in bad.output
+    for setting in ("duration_s=-1", "duration_s=0.001"):
+        short = runner.invoke(app, [*args[:3], "--set", setting, "--out", str(tmp_path / "e.csv")])
+        assert short.exit_code == 1 and "duration must give" in short.output, short.output
+    assert runner.invoke(app, ["simulate-ebooster", "--out", str(tmp_path / "d.csv")]).exit_code
 
 
 def test_bad_input_exits_1_with_one_clear_line(tmp_path):

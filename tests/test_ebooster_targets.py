@@ -5,10 +5,15 @@ on seeds 1-2. Here: seeds 21-22, closed loop and vehicle-like, written with the 
 session writers and read back through the CLI's pipeline.
 
 Measured and asserted: pressures within 0.1 MPa RMS of the validation channels and a
-95 % band covering 85-99 % of the validation points, for both observers. The paper's
-residual advantage of the UKF is NOT asserted: on this bench the EKF's residual is
-lower (see README section and ``benchmarks/bench_ebooster_accuracy.py``); the test
-records the comparison so that a change in it shows up.
+95 % band covering 85-99 % of the validation points, for both observers, and the UKF's
+residual no higher than the EKF's (the pedal force as one Gaussian state: with the
+literal chi-square w^2 state the UKF's residual was 2-8 times the EKF's). The issue's
+target of a UKF residual at least 10 % below the EKF's is NOT met and NOT asserted: on
+seeds 11-15 the UKF is 1-6 % better (see README section and
+``benchmarks/bench_ebooster_accuracy.py``). The residual check guards against the
+chi-square state's bias, not a UKF advantage: on short vehicle sessions of other seeds
+(3 and 4, 12 s at 500 Hz) the UKF is 8-11 % worse after brake releases (the force mean
+sits deep below zero, see ``brakethermo/models/ebooster.py``).
 """
 
 from __future__ import annotations
@@ -41,8 +46,8 @@ def test_95_percent_band_is_honest(summary):
         assert 0.85 <= summary["coverage_95"][observer] <= 0.99, summary["coverage_95"]
 
 
-def test_residual_comparison_is_recorded(summary):
+def test_ukf_residual_is_not_above_the_ekfs(summary):
     res = summary["residual_rmse_mm"]
-    assert 0.0 < res["ekf"] < 0.05 and 0.0 < res["ukf"] < 0.2
+    assert 0.0 < res["ukf"] <= res["ekf"] < 0.05, res
     expected = 100.0 * (res["ekf"] - res["ukf"]) / res["ekf"]
     assert summary["improvement_pct"] == pytest.approx(expected)

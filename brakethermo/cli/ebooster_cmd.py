@@ -1,9 +1,9 @@
-"""``brakethermo ebooster SESSION``: full-state UKF vs EKF observation of an E-Booster,
-and ``brakethermo simulate-ebooster``: bench sessions from the booster simulator."""
+"""``brakethermo ebooster SESSION``: full-state UKF vs EKF observation of an E-Booster.
+
+Bench sessions come from ``brakethermo simulate --rig ebooster --set scenario=...``."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
@@ -75,53 +75,7 @@ def ebooster_command(
                     *("–" if pr[k] is None else f"{pr[k]:.3f}" for k in PRESSURES),
                     "–" if cov is None else f"{100 * cov:.1f} %")
     console.print(tab)
-    console.print(f"improvement (EKF over UKF): {s['improvement_pct']:.1f} %")
+    console.print(f"UKF improvement over EKF (residual RMSE): {s['improvement_pct']:.1f} %")
     for warning in result.session.warnings:
         console.print(f"[yellow]warning:[/] {warning}")
     console.print(f"wrote {folder}")
-
-
-@app.command("simulate-ebooster")
-def simulate_ebooster_command(
-    out: Annotated[
-        Path, typer.Option("--out", help="Session file to write (.mcap, .parquet, .csv).")
-    ],
-    scenario: Annotated[
-        str, typer.Option("--scenario", help="train, open, closed or vehicle.")
-    ] = "vehicle",
-    seed: Annotated[int, typer.Option("--seed", help="Random seed; same seed, same bytes.")] = 0,
-    duration: Annotated[
-        float | None, typer.Option("--duration", help="Seconds (default per scenario).")
-    ] = None,
-    rate: Annotated[float, typer.Option("--rate", help="Sample rate, Hz.")] = 1000.0,
-    production: Annotated[
-        bool,
-        typer.Option("--production", help="Only s2 and delta (no pressure or force sensors)."),
-    ] = False,
-    fmt: Annotated[
-        str | None, typer.Option("--format", help="mcap, parquet or csv (default: extension).")
-    ] = None,
-    as_json: JsonOpt = False,
-) -> None:
-    """Simulate an E-Booster bench session; write it and <stem>.truth.parquet beside it."""
-    from brakethermo.io.writers import infer_format
-    from brakethermo.sim.ebooster import (
-        UNITS,
-        EboosterSimConfig,
-        simulate_ebooster,
-        write_ebooster_session,
-    )
-
-    fmt = infer_format(out, fmt)
-    cfg = EboosterSimConfig(scenario=scenario, seed=seed, rate_hz=rate, duration_s=duration)
-    sim = simulate_ebooster(cfg)
-    channels = ("pushrod_displacement", "reaction_disk_delta") if production else tuple(UNITS)
-    path, truth = write_ebooster_session(sim, out, fmt, channels=channels)
-    summary = {"session": str(path), "truth": str(truth), "scenario": scenario, "seed": seed,
-               "duration_s": float(sim.time[-1]), "channels": list(channels),
-               "peak_p_m_mpa": float(sim.p_m.max())}
-    if as_json:
-        print(json.dumps(summary))
-        return
-    console.print(f"wrote {path} ({scenario}, seed {seed}, {summary['duration_s']:.1f} s, "
-                  f"peak p_m {summary['peak_p_m_mpa']:.2f} MPa) and {truth}")

@@ -146,6 +146,17 @@ def estimate_command(
         bool | None,
         typer.Option("--adapt-power/--no-adapt-power", help="Braking-power scale as a state."),
     ] = None,
+    adapt_kz: Annotated[
+        bool | None,
+        typer.Option("--adapt-kz/--no-adapt-kz",
+                     help="Through-thickness conductivity factor as a state (a race disc "
+                     "that differs from the test session's)."),
+    ] = None,
+    adapt_slipstream: Annotated[
+        bool | None,
+        typer.Option("--adapt-slipstream/--no-adapt-slipstream",
+                     help="An off-brake h factor as a state (slipstream, traffic)."),
+    ] = None,
     disc: DiscOpt = None,
     tuning: TuningOpt = None,
     aliases: AliasesOpt = None,
@@ -183,8 +194,8 @@ def estimate_command(
     law, law_reason = choose_h_law(h_law, out / session.stem, loaded, disc_for(loaded, disc))
     options = EstimateOptions(
         spot=spot, h_law=law, disc=disc, tuning=tuning, nodes=nodes, layers=layers,
-        smoother=smoother, adapt_power=adapt_power, aliases=aliases, ambient_c=ambient,
-        workers=workers,
+        smoother=smoother, adapt_power=adapt_power, adapt_kz=adapt_kz,
+        adapt_slipstream=adapt_slipstream, aliases=aliases, ambient_c=ambient, workers=workers,
     )  # fmt: skip
     result = run_with_status(as_json, f"estimating {session.name} ...",
                              lambda: estimate_from_session(loaded, options))

@@ -1,4 +1,4 @@
-"""Numba kernels running everything of a UKF step except the model call.
+"""Numba kernels running everything of a UKF or EKF step except the model call.
 
 For small states (n up to a few tens) the per-step cost of a numpy UKF is Python and
 dispatch overhead, not arithmetic. These kernels do one whole step — unscented moments
@@ -302,9 +302,6 @@ def ukf_step(k, Xf, work, W, par, gate_thr, Q, H, R, y, M, st, cov, gs, iv, sc, 
     Wm, Wc = W[0], W[1]
     c, abs_floor = par[0], par[1]
     n = x.shape[0]
-    kp = k + 1
-    full = cov.shape[1] > 0
-    gains = gs.shape[1] > 0
     B = Xf.shape[0]
     xp = np.zeros(n)
     for b in range(B):
@@ -329,6 +326,23 @@ def ukf_step(k, Xf, work, W, par, gate_thr, Q, H, R, y, M, st, cov, gs, iv, sc, 
     else:
         Pp = (D.T * Wc) @ D + Q  # eq. 37
         C = L @ Dd
+    if _advance(k, xp, Pp, C, P, L, x, abs_floor, gate_thr, H, R, y, M, st, cov, gs, iv, sc,
+                ic, rej, ro):
+        _sigma(x, L, c, X)
+
+
+@njit(cache=True, nogil=True)
+def _advance(k, xp, Pp, C, P, L, x, abs_floor, gate_thr, H, R, y, M, st, cov, gs, iv, sc, ic,
+             rej, ro):
+    """Shared by both filters from the prior of step k+1 (xp, Pp) and C_k = cov(x_k, x_k+1).
+
+    The smoother's gain and Sigma, the measurement update of step k+1, the factor of its
+    posterior and the records; True if another step follows.
+    """
+    n = x.shape[0]
+    kp = k + 1
+    full = cov.shape[1] > 0
+    gains = gs.shape[1] > 0
     _symmetrise(Pp)
     if full:
         cov[2, k] = C
@@ -378,10 +392,98 @@ def ukf_step(k, Xf, work, W, par, gate_thr, Q, H, R, y, M, st, cov, gs, iv, sc, 
     _update(
         kp, x, P, H, R, y[kp], gate_thr, abs_floor, ic[1], iv[0], iv[1], sc[0], sc[1], ic[0], rej
     )  # fmt: skip
-    if kp < st.shape[1] - 1:
-        _factor(P, L, kp, abs_floor, ic[1])
-        _sigma(x, L, c, X)
+    more = kp < st.shape[1] - 1
+    if more:
+        _factor(P, L, kp, abs_floor, ic[1])  # the posterior as factored is the one stored
     _record_posterior(kp, x, P, st[2], st[3], cov[1], full, M, ro[0], ro[1])
+    return more
+
+
+@njit(cache=True, nogil=True)
+def _ekf_views(work):
+    """Linearisation points X (n + 1), posterior P, its factor L, mean x, steps eps."""
+    n = work.shape[1]
+    return (work[: n + 1], work[n + 1 : 2 * n + 1], work[2 * n + 1 : 3 * n + 1],
+            work[3 * n + 1], work[3 * n + 2])
+
+
+@njit(cache=True, nogil=True)
+def _fd_points(x, X, eps, rel_step):
+    """x and x + eps_j e_j, eps_j = rel_step max(|x_j|, 1) (as ekf.batched_jacobian)."""
+    n = x.shape[0]
+    for j in range(n):
+        eps[j] = rel_step * max(abs(x[j]), 1.0)
+    for b in range(n + 1):
+        for i in range(n):
+            X[b, i] = x[i]
+    for j in range(n):
+        X[1 + j, j] += eps[j]
+
+
+@njit(cache=True, nogil=True)
+def ekf_first(work, par, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
+    """Step 0 of the EKF: record the prior, update with y[0], factor, linearisation points.
+
+    ``work`` holds [X; P; L; x; eps] (see ``_ekf_views``), ``par`` = [forward-difference
+    relative step, eigenvalue floor].
+    """
+    X, P, L, x, eps = _ekf_views(work)
+    rel_step, abs_floor = par[0], par[1]
+    n = x.shape[0]
+    full = cov.shape[1] > 0
+    for i in range(n):
+        st[0, 0, i] = x[i]
+        st[1, 0, i] = P[i, i]
+    if full:
+        cov[0, 0] = P
+    _update(
+        0, x, P, H, R, y[0], gate_thr, abs_floor, ic[1], iv[0], iv[1], sc[0], sc[1], ic[0], rej
+    )  # fmt: skip
+    if st.shape[1] > 1:
+        _factor(P, L, 0, abs_floor, ic[1])
+        _fd_points(x, X, eps, rel_step)
+    _record_posterior(0, x, P, st[2], st[3], cov[1], full, M, ro[0], ro[1])
+
+
+@njit(cache=True, nogil=True)
+def ekf_step(k, GX, Fj, work, par, gate_thr, Q, H, R, y, M, st, cov, gs, iv, sc, ic, rej, ro):
+    """From GX = f(X, k): prior of step k+1 (eq. 26-27 linearised), gains, update, next X.
+
+    ``Fj`` is the analytic Jacobian at x (then GX holds f(x) only), or an empty (0, n)
+    array: then the Jacobian is the forward difference of GX over the points X.
+    """
+    X, P, L, x, eps = _ekf_views(work)
+    rel_step, abs_floor = par[0], par[1]
+    n = x.shape[0]
+    xp = GX[0].copy()
+    if Fj.shape[0] == 0:
+        F = np.empty((n, n))
+        for j in range(n):
+            for i in range(n):
+                F[i, j] = (GX[1 + j, i] - xp[i]) / eps[j]
+    else:
+        F = Fj
+    if n <= SMALL_N:
+        C = np.zeros((n, n))  # C_k = P F'
+        for i in range(n):
+            for j in range(n):
+                t = 0.0
+                for a in range(n):
+                    t += P[i, a] * F[j, a]
+                C[i, j] = t
+        Pp = Q.copy()  # F C + Q
+        for i in range(n):
+            for j in range(n):
+                t = 0.0
+                for a in range(n):
+                    t += F[i, a] * C[a, j]
+                Pp[i, j] += t
+    else:
+        C = P @ F.T
+        Pp = F @ C + Q
+    if _advance(k, xp, Pp, C, P, L, x, abs_floor, gate_thr, H, R, y, M, st, cov, gs, iv, sc,
+                ic, rej, ro):
+        _fd_points(x, X, eps, rel_step)
 
 
 @njit(cache=True, nogil=True)

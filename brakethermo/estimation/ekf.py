@@ -11,12 +11,15 @@ from brakethermo.errors import ConfigError
 from brakethermo.estimation._forward import (
     MatrixOrCallable,
     Store,
+    allocate,
     as_provider,
     check_prior,
+    gate_thresholds,
     run_forward,
 )
 from brakethermo.estimation.covariance import CovarianceGuard
 from brakethermo.estimation.results import FilterResult
+from brakethermo.estimation.ukf import BACKENDS, HAVE_NUMBA, NUMBA_MAX_N, Backend
 
 Array = NDArray[np.float64]
 BatchedFunction = Callable[[Array, int], Array]
@@ -66,6 +69,10 @@ class ExtendedKalmanFilter:
     pseudo_noise : callable ``pseudo_noise(x (n,), P (n, n), k) -> (m, m)``, optional —
         measurement covariance added to R at step k as a function of the prior, e.g. the
         second-order terms of the linearisation of ``h`` (with ``h`` only).
+    backend : {"auto", "numba", "numpy"} — as the UKF's: "numba" runs all per-step
+        filter arithmetic (Jacobian from the batched call, eq. 26-31, the smoother's
+        gains) in one compiled kernel around the model call (linear H only); "auto"
+        takes it for a linear H and n <= 64.
     """
 
     def __init__(
@@ -80,11 +87,19 @@ class ExtendedKalmanFilter:
         gate: float | None = None,
         eig_floor: float = 1e-12,
         pseudo_noise: Callable[[Array, Array, int], Array] | None = None,
+        backend: Backend = "auto",
     ) -> None:
         if (H is None) == (h is None):
             raise ConfigError("give exactly one measurement model: a matrix H or a function h")
         if pseudo_noise is not None and h is None:
             raise ConfigError("pseudo_noise needs a nonlinear measurement function h")
+        if backend not in BACKENDS:
+            raise ConfigError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        if backend == "numba" and h is not None:
+            raise ConfigError("the numba backend needs a linear measurement matrix H")
+        if backend == "numba" and not HAVE_NUMBA:
+            raise ConfigError("backend='numba' asked for but numba is not installed")
+        self.backend = backend
         if gate is not None and not 0.0 < gate < 1.0:
             raise ConfigError(f"gate is a probability in (0, 1), got {gate}")
         self.f, self.Q, self.R, self.H, self.h, self.F_jac = f, Q, R, H, h, F_jac
@@ -105,6 +120,10 @@ class ExtendedKalmanFilter:
         """Filter ``y``; arguments and result as :meth:`UnscentedKalmanFilter.run`."""
         x0, P0, y = check_prior(x0, P0, y)
         n, m = x0.shape[0], y.shape[1]
+        if self.h is None and self.backend != "numpy" and (
+            self.backend == "numba" or (HAVE_NUMBA and n <= NUMBA_MAX_N)
+        ):
+            return self._run_numba(x0, P0, y, store, store_dtype, readout)
         Q_of = as_provider(self.Q, (n, n), "Q")
         R_of = as_provider(self.R, (m, m), "R")
         H_of = None if self.H is None else as_provider(self.H, (m, n), "H")
@@ -141,3 +160,56 @@ class ExtendedKalmanFilter:
             guard=CovarianceGuard(abs_floor=self.eig_floor),
             needs_prior_factor=False,
         )
+
+    def _run_numba(
+        self,
+        x0: Array,
+        P0: Array,
+        y: Array,
+        store: Store,
+        store_dtype: type[np.floating] | None,
+        readout: Array | None,
+    ) -> FilterResult:
+        """The forward pass with the compiled per-step kernels (same results as numpy)."""
+        from brakethermo.estimation import _kernels
+
+        K, m = y.shape
+        n = x0.shape[0]
+        out = allocate(K, n, m, readout, store, store_dtype)
+        Q_of = as_provider(self.Q, (n, n), "Q")
+        R_of = as_provider(self.R, (m, m), "R")
+        H_of = as_provider(self.H, (m, n), "H")  # type: ignore[arg-type]
+        thr = gate_thresholds(self.gate, m)
+        work = np.zeros((3 * n + 3, n))  # [X (n + 1); P; L; x; eps], see _kernels._ekf_views
+        X, P, x = work[: n + 1], work[n + 1 : 2 * n + 1], work[3 * n + 1]
+        P[:] = P0
+        x[:] = x0
+        par = np.array([_FD_REL_STEP, self.eig_floor])
+        f, F_jac, M = self.f, self.F_jac, out.M
+        tail = (out.st, out.cov, out.gs, out.iv, out.sc, out.ic, out.rejected, out.ro)
+        _kernels.ekf_first(work, par, thr, _c(H_of(0)), _c(R_of(0)), y, M, out.st, out.cov,
+                           out.iv, out.sc, out.ic, out.rejected, out.ro)  # fmt: skip
+        step = _kernels.ekf_step
+        no_jac = np.empty((0, n))
+        Qc = None if callable(self.Q) else _c(Q_of(0))
+        Hc = None if callable(self.H) else _c(H_of(0))
+        Rc = None if callable(self.R) else _c(R_of(0))
+        for k in range(K - 1):
+            # the n + 1 points x, x + eps_j e_j in ONE call, or f(x) and the analytic F
+            Xk = X if F_jac is None else X[:1]
+            GX = f(Xk, k)
+            if GX.shape != Xk.shape:
+                raise ConfigError(f"model f returned shape {GX.shape}, expected {Xk.shape}")
+            Fj = no_jac if F_jac is None else _c(F_jac(x.copy(), k))
+            step(
+                k, _c(GX), Fj, work, par, thr, _c(Q_of(k)) if Qc is None else Qc,
+                _c(H_of(k + 1)) if Hc is None else Hc, _c(R_of(k + 1)) if Rc is None else Rc,
+                y, M, *tail,
+            )  # fmt: skip
+        repairs = out.ic[1]
+        return out.result(P, np.repeat(np.arange(K), repairs).tolist())
+
+
+def _c(A: Array) -> Array:
+    """C-contiguous writable float64 array for the kernels (one compiled signature)."""
+    return np.require(A, dtype=np.float64, requirements=("C", "W"))

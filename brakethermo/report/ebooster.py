@@ -99,7 +99,7 @@ def booster_page(r: EboosterResult) -> Page:
     cards = [
         Card("δ residual RMSE UKF", _fmt(res["ukf"], 4), "mm"),
         Card("δ residual RMSE EKF", _fmt(res["ekf"], 4), "mm"),
-        Card("improvement (EKF over UKF)", _fmt(s["improvement_pct"], 1), "%"),
+        Card("UKF improvement over EKF (residual RMSE)", _fmt(s["improvement_pct"], 1), "%"),
     ]
     if s["pressure_rmse_mpa"]["ukf"]["p_m"] is not None:
         cards.append(Card("p_m RMSE UKF", _fmt(s["pressure_rmse_mpa"]["ukf"]["p_m"]), "MPa"))

@@ -30,6 +30,9 @@ class BoosterSpec:
     delta_noise_mm : float — mm, 1 sigma of the delta sensor.
     pedal_dof : int — N, degrees of freedom of the chi-square pedal force.
     pedal_tau_s : float — s, correlation time of the Gaussian processes behind it.
+    pedal_state : str — how the observer carries the pedal force: ``"force"`` (one
+        Gaussian state with the chi-square's mean, variance and correlation time) or
+        ``"chi_square"`` (N unit Gaussian states w_i, F = F_scale sum w_i^2).
     q_pressure_mpa : tuple of float — MPa^2 per ms, process noise of p_m, p_f, p_r.
     q_zeta : tuple of float — mm^2 and (mm/s)^2 per ms, process noise of zeta1, zeta2.
     q_pm_speed : float — MPa^2 per ms, extra p_m noise at a screw speed of 50 mm/s
@@ -56,6 +59,7 @@ class BoosterSpec:
     delta_noise_mm: float
     pedal_dof: int
     pedal_tau_s: float
+    pedal_state: str
     q_pressure_mpa: tuple[float, float, float]
     q_zeta: tuple[float, float]
     q_pm_speed: float
@@ -103,6 +107,19 @@ def _get(raw: dict[str, Any], table: str, key: str, path: Path, n: int = 0) -> A
         ) from None
 
 
+PEDAL_STATES = ("force", "chi_square")
+
+
+def _pedal_state(raw: dict[str, Any], table: str, path: Path) -> str:
+    value = raw.get(table, {}).get("pedal_state")
+    if value not in PEDAL_STATES:
+        raise ConfigError(
+            f"key '{table}.pedal_state' must be one of {', '.join(PEDAL_STATES)}, "
+            f"found {value!r}", path=path,
+        )
+    return str(value)
+
+
 def load_booster(name_or_path: str | Path = DEFAULT_BENCH) -> BoosterSpec:
     """Load and validate a bench datasheet by shipped name (``ebooster``) or TOML path.
 
@@ -138,6 +155,7 @@ def load_booster(name_or_path: str | Path = DEFAULT_BENCH) -> BoosterSpec:
         delta_noise_mm=_get(raw, se, "delta_noise_mm", path),
         pedal_dof=int(dof),
         pedal_tau_s=_get(raw, ob, "pedal_tau_s", path),
+        pedal_state=_pedal_state(raw, ob, path),
         q_pressure_mpa=_get(raw, ob, "q_pressure_mpa", path, 3),
         q_zeta=_get(raw, ob, "q_zeta", path, 2),
         q_pm_speed=_get(raw, ob, "q_pm_speed", path),

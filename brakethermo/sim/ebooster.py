@@ -346,6 +346,9 @@ def simulate_ebooster(cfg: EboosterSimConfig) -> EboosterSim:
         raise ConfigError(f"unknown scenario '{cfg.scenario}'; use one of {', '.join(SCENARIOS)}")
     if not cfg.rate_hz > 0:
         raise ConfigError(f"rate must be positive, got {cfg.rate_hz} Hz")
+    if cfg.duration_s is not None and not cfg.duration_s * cfg.rate_hz >= 10:
+        raise ConfigError(f"duration must give at least 10 samples at {cfg.rate_hz:g} Hz, got "
+                          f"{cfg.duration_s} s; set duration_s to a positive number of seconds")
     tr = cfg.truth
     dt = 1.0 / cfg.rate_hz
     duration = cfg.duration_s or DEFAULT_DURATION_S[cfg.scenario]
@@ -450,3 +453,41 @@ def write_ebooster_session(
     truth_path = path.with_name(path.stem + ".truth.parquet")
     write_table_parquet(truth_path, truth)
     return path, truth_path
+
+
+@dataclass(frozen=True)
+class EboosterRigConfig:
+    """``brakethermo simulate --rig ebooster --set KEY=VALUE``: what to simulate and log.
+
+    Attributes
+    ----------
+    scenario : str — train, open, closed or vehicle.
+    seed : int
+    rate_hz : float — Hz, logging rate.
+    duration_s : float or None — s (default per scenario).
+    production : bool — log only s2 and delta (no pressure or pedal-force sensors).
+    """
+
+    scenario: str = "vehicle"
+    seed: int = 0
+    rate_hz: float = 1000.0
+    duration_s: float | None = None
+    production: bool = False
+
+
+PRODUCTION_CHANNELS = ("pushrod_displacement", "reaction_disk_delta")
+
+
+def write_ebooster_simulation(
+    cfg: EboosterRigConfig, path: str | Path, fmt: str | None = None
+) -> tuple[Path, Path]:
+    """Simulate one bench session and write it with its truth file (the rig registry's run).
+
+    Returns
+    -------
+    (session path, truth path) — the truth is ``<stem>.truth.parquet`` beside it.
+    """
+    sim = simulate_ebooster(EboosterSimConfig(
+        scenario=cfg.scenario, seed=cfg.seed, rate_hz=cfg.rate_hz, duration_s=cfg.duration_s))
+    channels = PRODUCTION_CHANNELS if cfg.production else tuple(UNITS)
+    return write_ebooster_session(sim, path, fmt, channels=channels)

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from brakethermo.errors import ConfigError
 
 if TYPE_CHECKING:
+    from brakethermo.sim.ebooster import EboosterRigConfig
     from brakethermo.sim.emb import EmbSimConfig
     from brakethermo.sim.roller_rig import RollerRigSimConfig
     from brakethermo.sim.tyre_rig import TyreRigSimConfig
@@ -50,6 +51,12 @@ def _roller_rig(cfg: RollerRigSimConfig, out: Path, fmt: str | None) -> tuple[Pa
     return write_roller_rig_simulation(simulate_roller_rig(cfg), out, fmt)
 
 
+def _ebooster(cfg: EboosterRigConfig, out: Path, fmt: str | None) -> tuple[Path, Path]:
+    from brakethermo.sim.ebooster import write_ebooster_simulation
+
+    return write_ebooster_simulation(cfg, out, fmt)
+
+
 def _emb(cfg: EmbSimConfig, out: Path, fmt: str | None) -> tuple[Path, Path]:
     from brakethermo.sim.emb import simulate_emb_config, write_emb_simulation
 
@@ -70,6 +77,7 @@ def _tyre_peak(cfg: TyreRigSimConfig) -> dict[str, Any]:
 
 
 RIG_SIMULATORS: dict[str, RigSimulator] = {
+    "ebooster": RigSimulator("brakethermo.sim.ebooster", "EboosterRigConfig", _ebooster),
     "emb": RigSimulator("brakethermo.sim.emb", "EmbSimConfig", _emb),
     "roller-rig": RigSimulator("brakethermo.sim.roller_rig", "RollerRigSimConfig", _roller_rig),
     "tyre": RigSimulator("brakethermo.sim.tyre_rig", "TyreRigSimConfig", _tyre, _tyre_peak),
