@@ -64,8 +64,9 @@ def test_estimate_mdf_out_option_writes_beside_the_estimate(
     """The CLI hook only (the estimate itself is tested in test_pipelines_estimate)."""
     from typer.testing import CliRunner
 
-    from brakethermo.cli import app, estimate_cmd
+    from brakethermo.cli import app
     from brakethermo.io import load_session
+    from brakethermo.pipelines import estimate as estimate_mod
     from brakethermo.pipelines.estimate import EstimateResult
     from brakethermo.thermal.disc import load_disc
 
@@ -78,7 +79,8 @@ def test_estimate_mdf_out_option_writes_beside_the_estimate(
                  "laps": []},
         scores=None, open_loop=None, disc=load_disc(), timings={"total_s": 0.0},
     )
-    monkeypatch.setattr(estimate_cmd, "estimate_from_session", lambda *_a, **_k: result)
+    # The command imports the pipeline when it runs (a light CLI start): patch it there.
+    monkeypatch.setattr(estimate_mod, "estimate_from_session", lambda *_a, **_k: result)
     out = tmp_path / "out"
     run = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out), "--no-report",
                                    "--mdf-out", "--json"])

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich import box
@@ -14,15 +14,9 @@ from rich.table import Table
 
 from brakethermo.cli._app import app, console
 from brakethermo.cli._options import AliasesOpt, JsonOpt, LegacyReportOpt, NodesOpt, NoReportsOpt
-from brakethermo.pipelines.batch import (
-    DEFAULT_LAW,
-    SESSION_SUFFIXES,
-    BatchOptions,
-    BatchResult,
-    Phase,
-    SessionOutcome,
-    run_batch,
-)
+
+if TYPE_CHECKING:
+    from brakethermo.pipelines.batch import BatchOptions, BatchResult
 
 STATUS_STYLE = {"ok": "green", "skipped": "cyan", "failed": "bold red"}
 SPOTS = ("spot1", "spot2", "spot3", "spot4")
@@ -30,6 +24,8 @@ SPOTS = ("spot1", "spot2", "spot3", "spot4")
 
 def _law_tag(source: str) -> str:
     """Short h-law tag for the table; the full source is printed under it."""
+    from brakethermo.pipelines.batch import DEFAULT_LAW
+
     if source.startswith("identified:"):
         return "batch"
     return {"identified": "own", "given": "given", DEFAULT_LAW: "default"}.get(source, "-")
@@ -119,6 +115,8 @@ def batch(
     as_json: JsonOpt = False,
 ) -> None:
     """Estimate every session in FOLDER and write per-lap reports; failures are isolated."""
+    from brakethermo.pipelines.batch import SESSION_SUFFIXES, BatchOptions, run_batch
+
     options = BatchOptions(
         out=out,
         h_law=h_law,
@@ -163,6 +161,8 @@ def batch(
 
 def _run_with_progress(folder: Path, options: BatchOptions) -> BatchResult:
     """Run the batch behind two bars: sessions done, and the current session's phase/laps."""
+    from brakethermo.pipelines.batch import Phase, SessionOutcome, run_batch
+
     progress = Progress(
         TextColumn("[bold]{task.description}"),
         BarColumn(bar_width=20),

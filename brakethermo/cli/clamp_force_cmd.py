@@ -11,9 +11,6 @@ from rich.table import Table
 from brakethermo.cli._app import app, console, run_with_status
 from brakethermo.cli._options import AliasesOpt, JsonOpt, OutDir
 from brakethermo.errors import ConfigError
-from brakethermo.pipelines.clamp_force import UNITS, clamp_force, page, result_frame, summary
-from brakethermo.pipelines.outputs import to_json
-from brakethermo.pipelines.rig_outputs import write_rig_outputs
 
 
 @app.command("clamp-force")
@@ -35,6 +32,16 @@ def clamp_force_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Clamp force without a force sensor: paper's KF, ML fusion, each model, adaptive KF."""
+    from brakethermo.pipelines.clamp_force import (
+        UNITS,
+        clamp_force,
+        page,
+        result_frame,
+        summary,
+    )
+    from brakethermo.pipelines.outputs import to_json
+    from brakethermo.pipelines.rig_outputs import write_rig_outputs
+
     if not factor_walk > 0:
         raise ConfigError(f"--factor-walk must be positive, got {factor_walk}")
     res = run_with_status(

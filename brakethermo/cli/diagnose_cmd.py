@@ -14,8 +14,6 @@ from brakethermo.cli._app import app, console
 from brakethermo.cli._options import AliasesOpt, AmbientOpt, DiscOpt, JsonOpt, OutDir, TuningOpt
 from brakethermo.errors import ConfigError
 from brakethermo.models.effects import EFFECT_NAMES
-from brakethermo.pipelines.diagnose import DiagnoseOptions, diagnose, write_diagnosis
-from brakethermo.pipelines.outputs import to_json
 
 
 def _laps(text: str | None) -> tuple[int, ...] | None:
@@ -48,6 +46,9 @@ def diagnose_command(
     as_json: JsonOpt = False,
 ) -> None:
     """Where the model parts from the disc, which effect causes it, how far the gap shrinks."""
+    from brakethermo.pipelines.diagnose import DiagnoseOptions, diagnose, write_diagnosis
+    from brakethermo.pipelines.outputs import to_json
+
     options = DiagnoseOptions(effects=effects, holdout_laps=_laps(holdout_laps), h_law=h_law,
                               disc=disc, tuning=tuning, aliases=aliases, ambient_c=ambient)
     if as_json:

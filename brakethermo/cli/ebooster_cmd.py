@@ -7,16 +7,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-import pandas as pd
 import typer
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
 from brakethermo.cli._options import AliasesOpt, JsonOpt, OutDir
-from brakethermo.pipelines.ebooster import OBSERVERS, PRESSURES, frame_columns, observe
-from brakethermo.pipelines.outputs import to_json
-from brakethermo.pipelines.rig_outputs import write_rig_outputs
-from brakethermo.report.ebooster import booster_page
 
 
 @app.command("ebooster")
@@ -45,6 +40,13 @@ def ebooster_command(
     as_json: JsonOpt = False,
 ) -> None:
     """Observe p_m, p_f, p_r and the reaction-disk state with a UKF and an EKF (paper 004)."""
+    import pandas as pd
+
+    from brakethermo.pipelines.ebooster import OBSERVERS, PRESSURES, frame_columns, observe
+    from brakethermo.pipelines.outputs import to_json
+    from brakethermo.pipelines.rig_outputs import write_rig_outputs
+    from brakethermo.report.ebooster import booster_page
+
     result = run_with_status(
         as_json, f"observing {session.name} ...",
         lambda: observe(session, train_path=train, fit_path=fit, bench=bench, aliases=aliases,

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich import box
@@ -23,15 +23,9 @@ from brakethermo.cli._options import (
     OutDir,
     TuningOpt,
 )
-from brakethermo.pipelines.estimate import (
-    EstimateOptions,
-    EstimateResult,
-    disc_of,
-    estimate_from_session,
-    write_estimate,
-)
-from brakethermo.pipelines.outputs import to_json
-from brakethermo.pipelines.summary import lap_label, temp_text
+
+if TYPE_CHECKING:
+    from brakethermo.pipelines.estimate import EstimateResult
 
 
 def _fmt(x: Any, spec: str = ".1f") -> str:
@@ -43,6 +37,8 @@ def render_laps(result: EstimateResult) -> None:
 
     Sized for 80 columns (CI logs, pipes): short headers, no wrapping inside cells.
     """
+    from brakethermo.pipelines.summary import lap_label, temp_text
+
     run = result.summary["run"]
     lo, hi = run["window_c"]
     table = Table(
@@ -179,9 +175,16 @@ def estimate_command(
     ] = 1,
 ) -> None:
     """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
+    from brakethermo.pipelines.estimate import (
+        EstimateOptions,
+        disc_of,
+        estimate_from_session,
+        write_estimate,
+    )
     from brakethermo.pipelines.inputs import load_timed
     from brakethermo.pipelines.models import choose_h_law, disc_for
     from brakethermo.pipelines.output_dir import check_output_dir, replace_session_dir
+    from brakethermo.pipelines.outputs import to_json
 
     reports = not no_reports and legacy_report is not False
     check_output_dir(out)

@@ -19,8 +19,6 @@ from brakethermo.cli._options import (
     OutDir,
     TuningOpt,
 )
-from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
-from brakethermo.pipelines.outputs import to_json
 
 
 @app.command("identify-h")
@@ -48,7 +46,9 @@ def identify_command(
 ) -> None:
     """Identify h(V) (joint UKF, h as a random walk) and the disc model's structure."""
     from brakethermo.cli.estimate_cmd import preflight
+    from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
     from brakethermo.pipelines.output_dir import check_output_dir
+    from brakethermo.pipelines.outputs import to_json
 
     check_output_dir(out)
     preflight(tuning=tuning, aliases=aliases, disc=disc)

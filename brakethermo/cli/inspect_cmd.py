@@ -8,20 +8,22 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
-from brakethermo.io import Session, load_session
-from brakethermo.io.aliases import resolve
-from brakethermo.io.units import si_unit
+
+if TYPE_CHECKING:
+    from brakethermo.io import Session
 
 
 def summary(session: Session) -> dict[str, Any]:
     """The machine-readable summary printed by ``inspect --json``."""
+    from brakethermo.io.aliases import resolve
+
     mapped = set(resolve(session.aliases, session.available).values())
     return {
         "path": str(session.path),
@@ -57,6 +59,9 @@ def summary(session: Session) -> dict[str, Any]:
 
 
 def _render(session: Session) -> None:
+    from brakethermo.io.aliases import resolve
+    from brakethermo.io.units import si_unit
+
     found = resolve(session.aliases, session.available)
     channels = Table(title=escape(f"{session.path.name} ({session.format}): channels"),
                      title_justify="left")
@@ -129,6 +134,8 @@ def inspect(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead.")] = False,
 ) -> None:
     """Channels, units, rates, gaps and laps of a logged session."""
+    from brakethermo.io import load_session
+
     session = load_session(session_file, aliases=aliases, gap_limit_s=gap_limit)
     session.require(*(require or ()))
     if as_json:

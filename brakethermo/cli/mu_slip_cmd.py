@@ -10,17 +10,6 @@ from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
 from brakethermo.cli._options import AliasesOpt, JsonOpt, OutDir
-from brakethermo.pipelines.mu_slip import (
-    UNITS,
-    MuSlipOptions,
-    animation_gif,
-    mu_slip,
-    page,
-    result_frame,
-    summary,
-)
-from brakethermo.pipelines.outputs import to_json
-from brakethermo.pipelines.rig_outputs import write_rig_outputs
 
 
 @app.command("mu-slip")
@@ -41,6 +30,18 @@ def mu_slip_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Peak μ and slip: Rudd's EKF, batch LM, and the curve family with the best held-out fit."""
+    from brakethermo.pipelines.mu_slip import (
+        UNITS,
+        MuSlipOptions,
+        animation_gif,
+        mu_slip,
+        page,
+        result_frame,
+        summary,
+    )
+    from brakethermo.pipelines.outputs import to_json
+    from brakethermo.pipelines.rig_outputs import write_rig_outputs
+
     opts = MuSlipOptions(mu_range=(0.1, mu_max), slip_range=(0.05, slip_max), radius_m=radius)
     res = run_with_status(as_json, "mu-slip…", lambda: mu_slip(session, opts, aliases=aliases))
     summ = summary(res)

@@ -3,21 +3,17 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
 from brakethermo.cli._options import AliasesOpt, JsonOpt, OutDir
-from brakethermo.pipelines.outputs import to_json
-from brakethermo.pipelines.roller_rig import (
-    TUNINGS,
-    RollerRigOptions,
-    RollerRigResult,
-    run_roller_rig,
-    write_roller_rig,
-)
+from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS
+
+if TYPE_CHECKING:
+    from brakethermo.pipelines.roller_rig import RollerRigResult
 
 
 def _fmt(x: float | None, spec: str = ".2f") -> str:
@@ -67,7 +63,8 @@ def roller_rig_cmd(
         bool, typer.Option("--smoother/--filter-only", help="Unscented RTS smoother (offline).")
     ] = True,
     tuning: Annotated[
-        str, typer.Option(help=f"Filter noise: {' or '.join(TUNINGS)} (the paper's P0/Q/R).")
+        str,
+        typer.Option(help=f"Filter noise: {' or '.join(ROLLER_RIG_TUNINGS)} (the paper's P0/Q/R)."),
     ] = "measured",
     creep: Annotated[
         str, typer.Option(help="Creep law: polach, or fastsim (Kalker, 20 x 20, slower).")
@@ -80,6 +77,9 @@ def roller_rig_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Rolling radius of the tram wheel by joint UKF from every starting guess."""
+    from brakethermo.pipelines.outputs import to_json
+    from brakethermo.pipelines.roller_rig import RollerRigOptions, run_roller_rig, write_roller_rig
+
     options = RollerRigOptions(
         r0_mm=tuple(r0) if r0 else RollerRigOptions().r0_mm,
         smoother=smoother,

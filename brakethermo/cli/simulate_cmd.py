@@ -14,11 +14,8 @@ from rich.table import Table
 
 from brakethermo.cli._app import app, console
 from brakethermo.cli._options import JsonOpt
-from brakethermo.io.writers import infer_format
-from brakethermo.pipelines.output_dir import check_output_file
 from brakethermo.sim.effects import EFFECT_NAMES, STRENGTH_MAX, parse_effects
-from brakethermo.sim.rigs import RIG_SIMULATORS, simulate_rig
-from brakethermo.sim.session import SimConfig, simulate, write_simulation
+from brakethermo.sim.rigs import RIG_SIMULATORS
 
 
 @app.command("simulate")
@@ -72,6 +69,10 @@ def simulate_cmd(
     ] = None,
 ) -> None:
     """Simulate a session with named effects; write it and <stem>.truth.parquet beside it."""
+    from brakethermo.io.writers import infer_format
+    from brakethermo.pipelines.output_dir import check_output_file
+    from brakethermo.sim.session import SimConfig, simulate, write_simulation
+
     check_output_file(out)
     fmt = infer_format(out, fmt)
     if rig is not None:
@@ -128,6 +129,8 @@ def _simulate_rig(
     rig: str, settings: list[str], seed: int, out: Path, fmt: str, as_json: bool
 ) -> None:
     """``simulate --rig``: one rig session and its truth file."""
+    from brakethermo.sim.rigs import simulate_rig
+
     t0 = time.perf_counter()
     cfg, session_path, truth_path = simulate_rig(rig, settings, seed, out, fmt)
     facts = RIG_SIMULATORS[rig].truth_facts

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.markup import escape
@@ -13,11 +13,14 @@ from rich.table import Table
 from brakethermo.cli._app import app, console
 from brakethermo.cli._options import AliasesOpt, JsonOpt, NodesOpt, positive_finite
 from brakethermo.errors import BrakethermoError
-from brakethermo.pipelines.summary import lap_label, lap_name
-from brakethermo.pipelines.timing import TimingReport, time_laps
+
+if TYPE_CHECKING:
+    from brakethermo.pipelines.timing import TimingReport
 
 
 def _table(report: TimingReport, name: str) -> Table:
+    from brakethermo.pipelines.summary import lap_label
+
     table = Table(
         title=f"{escape(name)}: estimate wall time per lap "
         f"(budget {report.budget_per_lap_s:.1f} s/lap)",
@@ -50,6 +53,8 @@ def timing_check(
     from brakethermo.cli.estimate_cmd import preflight
     from brakethermo.io.load import load_session
     from brakethermo.pipelines.estimate import EstimateOptions, estimate_from_session
+    from brakethermo.pipelines.summary import lap_name
+    from brakethermo.pipelines.timing import time_laps
 
     preflight(h_law=h_law, aliases=aliases)
     session = load_session(session_path, aliases=aliases)

@@ -27,6 +27,7 @@ from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.roller_rig import CREEP_LAWS, RollerRigModel
+from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS as TUNINGS
 from brakethermo.rigs.motor import motor_torque
 from brakethermo.rigs.roller_rig import RollerRigSpec, load_roller_rig
 
@@ -41,7 +42,6 @@ MIN_TRACTION_NM = 20.0  # a session whose request never exceeds this has no trac
 CONVERGED_MM = 1.0  # the estimate has converged once it stays this close to its end value
 CONVERGENCE_WINDOW_S = 0.25  # moving average of the filter track judged for convergence
 SUPPLY_FACT = "roller_supply_hz"
-TUNINGS = ("measured", "paper")
 
 
 @dataclass(frozen=True)

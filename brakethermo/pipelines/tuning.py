@@ -1,4 +1,7 @@
-"""Filter tuning for the disc pipelines, loaded from TOML with validation."""
+"""Filter tuning for the disc pipelines, loaded from TOML with validation.
+
+Also the names of the roller rig's noise presets: light enough for the CLI's option help.
+"""
 
 from __future__ import annotations
 
@@ -101,6 +104,10 @@ class IdentifyTuning(SigmaPointTuning):
 
 
 T = TypeVar("T", bound=SigmaPointTuning)
+
+# The roller rig's filter noise (pipelines.roller_rig): R from the session and the
+# datasheet's q_measured, or the paper's P0/Q/R (eq. 15a-15c).
+ROLLER_RIG_TUNINGS = ("measured", "paper")
 
 # Ranges a value must lie in (inclusive); beyond them the model or filter is meaningless
 # or numerically broken. Keys not listed only need to be finite and > 0.

@@ -1,69 +1,86 @@
 """Rig simulators reachable from ``brakethermo simulate --rig NAME --set KEY=VALUE``.
 
 Each rig registers a config dataclass (its fields are the ``--set`` keys) and a
-function that simulates and writes a session plus its truth file.
+function that simulates and writes a session plus its truth file. The simulators
+(numba kernels, scipy, pyarrow) are imported on first use: the CLI lists the rig names
+in ``simulate --help`` and must start without them.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import typing
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from brakethermo.errors import ConfigError
-from brakethermo.sim.ebooster import EboosterRigConfig, write_ebooster_simulation
-from brakethermo.sim.emb import EmbSimConfig, simulate_emb_config, write_emb_simulation
-from brakethermo.sim.roller_rig import (
-    RollerRigSimConfig,
-    simulate_roller_rig,
-    write_roller_rig_simulation,
-)
-from brakethermo.sim.tyre_rig import (
-    TyreRigSimConfig,
-    simulate_tyre_config,
-    tyre_curve,
-    write_tyre_simulation,
-)
+
+if TYPE_CHECKING:
+    from brakethermo.sim.ebooster import EboosterRigConfig
+    from brakethermo.sim.emb import EmbSimConfig
+    from brakethermo.sim.roller_rig import RollerRigSimConfig
+    from brakethermo.sim.tyre_rig import TyreRigSimConfig
 
 
 @dataclass(frozen=True)
 class RigSimulator:
     """A rig's simulator: its config class and ``run(config, out, fmt) -> (session, truth)``.
 
-    ``truth_facts(config)``, when given, adds the truth a user compares the pipeline with
-    (e.g. a tyre's true peak) to the command's summary.
+    The config class is named (``module``, ``config_name``) and imported when first asked
+    for. ``truth_facts(config)``, when given, adds the truth a user compares the pipeline
+    with (e.g. a tyre's true peak) to the command's summary.
     """
 
-    config: type
+    module: str
+    config_name: str
     run: Callable[[Any, Path, str | None], tuple[Path, Path]]
     truth_facts: Callable[[Any], dict[str, Any]] | None = None
 
+    @property
+    def config(self) -> type:
+        """The rig's config dataclass (imports its simulator module)."""
+        return getattr(importlib.import_module(self.module), self.config_name)
+
 
 def _roller_rig(cfg: RollerRigSimConfig, out: Path, fmt: str | None) -> tuple[Path, Path]:
+    from brakethermo.sim.roller_rig import simulate_roller_rig, write_roller_rig_simulation
+
     return write_roller_rig_simulation(simulate_roller_rig(cfg), out, fmt)
 
 
+def _ebooster(cfg: EboosterRigConfig, out: Path, fmt: str | None) -> tuple[Path, Path]:
+    from brakethermo.sim.ebooster import write_ebooster_simulation
+
+    return write_ebooster_simulation(cfg, out, fmt)
+
+
 def _emb(cfg: EmbSimConfig, out: Path, fmt: str | None) -> tuple[Path, Path]:
+    from brakethermo.sim.emb import simulate_emb_config, write_emb_simulation
+
     return write_emb_simulation(simulate_emb_config(cfg), out, fmt)
 
 
 def _tyre(cfg: TyreRigSimConfig, out: Path, fmt: str | None) -> tuple[Path, Path]:
+    from brakethermo.sim.tyre_rig import simulate_tyre_config, write_tyre_simulation
+
     return write_tyre_simulation(simulate_tyre_config(cfg), out, fmt)
 
 
 def _tyre_peak(cfg: TyreRigSimConfig) -> dict[str, Any]:
+    from brakethermo.sim.tyre_rig import tyre_curve
+
     mu_p, s_p = tyre_curve(cfg.tyre)[1]
     return {"peak_mu": float(mu_p), "peak_slip": float(s_p)}
 
 
 RIG_SIMULATORS: dict[str, RigSimulator] = {
-    "ebooster": RigSimulator(EboosterRigConfig, write_ebooster_simulation),
-    "emb": RigSimulator(EmbSimConfig, _emb),
-    "roller-rig": RigSimulator(RollerRigSimConfig, _roller_rig),
-    "tyre": RigSimulator(TyreRigSimConfig, _tyre, _tyre_peak),
+    "ebooster": RigSimulator("brakethermo.sim.ebooster", "EboosterRigConfig", _ebooster),
+    "emb": RigSimulator("brakethermo.sim.emb", "EmbSimConfig", _emb),
+    "roller-rig": RigSimulator("brakethermo.sim.roller_rig", "RollerRigSimConfig", _roller_rig),
+    "tyre": RigSimulator("brakethermo.sim.tyre_rig", "TyreRigSimConfig", _tyre, _tyre_peak),
 }
 
 
