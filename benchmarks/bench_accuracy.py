@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from brakethermo.errors import DataError
 from brakethermo.pipelines.estimate import EstimateOptions, estimate_session
 from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
 from brakethermo.sim.effects import EFFECT_NAMES
@@ -46,14 +47,18 @@ MODELS = ("layered", "one_layer")
 def run_case(effect: str, seed: int, test_laps: int, race_laps: int) -> dict:
     """Simulate, identify (per model), estimate and score one (effect, seed) case."""
     effects = () if effect == "none" else (effect,)
+    # a test session and a race of one bike: the same brake-chain errors (bike_seed), the
+    # rider, traffic, disc and effect draws of each session its own
     with tempfile.TemporaryDirectory(prefix="bench-acc-") as tmp, threadpool_limits(1):
         work = Path(tmp)
         test = write_simulation(
-            simulate(SimConfig(laps=test_laps, effects=effects, sensor="multi", seed=seed)),
+            simulate(SimConfig(laps=test_laps, effects=effects, sensor="multi", seed=seed,
+                               bike_seed=seed)),
             work / "test.mcap",
         )[0]
         race, truth_path = write_simulation(
-            simulate(SimConfig(laps=race_laps, effects=effects, sensor="multi", seed=seed + 1)),
+            simulate(SimConfig(laps=race_laps, effects=effects, sensor="multi", seed=seed + 1,
+                               bike_seed=seed)),
             work / "race.parquet",
         )
         one_layer = work / "one_layer.toml"
@@ -61,7 +66,10 @@ def run_case(effect: str, seed: int, test_laps: int, race_laps: int) -> dict:
         truth = read_truth(truth_path)
         out: dict = {"effect": effect, "seed": seed}
         for key, tuning in (("layered", None), ("one_layer", one_layer)):
-            ident = identify_h(test, IdentifyOptions(tuning=tuning))
+            try:
+                ident = identify_h(test, IdentifyOptions(tuning=tuning))
+            except DataError as exc:  # a failure is a result: counted, not hidden
+                return {"effect": effect, "seed": seed, "failed": f"identify-h ({key}): {exc}"}
             law_path = write_identify(ident, work / key) / "h_law.toml"
             t0 = time.perf_counter()
             res = estimate_session(race, EstimateOptions(h_law=law_path, tuning=tuning))
@@ -121,13 +129,16 @@ def main() -> None:
     def finished(case: dict) -> None:
         cases.append(case)
         done.append(case)
+        if args.json:
+            args.json.write_text(json.dumps(done, indent=1, default=float))
+        if "failed" in case:
+            print(f"{case['effect']:22s} seed {case['seed']}: FAILED {case['failed']}", flush=True)
+            return
         f = figures(case)
         print(f"{case['effect']:22s} seed {case['seed']}/{case['seed'] + 1}: smoother "
               f"{f['smoother']:.2f}x, open-loop {f['open_loop']:.2f}x, one layer "
               f"{f['one_layer']:.2f}x, peak {f['peak_pct']:.1f} %, coverage "
               f"{f['coverage_pct']:.0f} % ({f['layers']} layers)", flush=True)
-        if args.json:
-            args.json.write_text(json.dumps(done, indent=1, default=float))
 
     if args.workers > 1:
         with ProcessPoolExecutor(args.workers) as pool:
@@ -142,13 +153,14 @@ def main() -> None:
           "| spot-3 peak error | 95 % band coverage |")
     print("|---|---|---|---|---|---|")
     for effect in effects:
-        rows = [figures(c) for c in cases if c["effect"] == effect]
+        rows = [figures(c) for c in cases if c["effect"] == effect and "failed" not in c]
+        failed = sum("failed" in c for c in cases if c["effect"] == effect)
         if not rows:
             continue
         name = effect if effect != "none" else "mild effects only"
         if effect in SENSOR_FAULTS:
             name += " (sensor fault)"
-        name += f" (n = {len(rows)})"
+        name += f" (n = {len(rows)}" + (f", {failed} failed" if failed else "") + ")"
         cols = [spread([r["smoother"] for r in rows], ".2f") + "x",
                 spread([r["open_loop"] for r in rows], ".2f") + "x",
                 spread([r["one_layer"] for r in rows], ".2f") + "x",

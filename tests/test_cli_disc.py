@@ -38,12 +38,13 @@ def test_online_effects_can_be_switched_off(sim_race_session, identified, tmp_pa
 
     res = runner.invoke(app, ["estimate", str(sim_race_session[0]), "--h-law",
                               str(identified[1]), "--out", str(tmp_path), "--no-smoother",
-                              "--no-report", "--no-adapt-kz", "--json"])
+                              "--no-report", "--no-adapt-kz", "--adapt-balance", "--json"])
     assert res.exit_code == 0, res.output
     effects = json.loads(res.stdout)["run"]["effects"]
     assert "thickness_gradient" not in effects and "slipstream" in effects
+    assert "adapted online" in effects["power_distribution"]["use"]
     columns = pq.read_schema(tmp_path / "race_multi" / "estimate.parquet").names
-    assert "h_factor" in columns and "kz_factor" not in columns
+    assert "h_factor" in columns and "kz_factor" not in columns and "crown_balance" in columns
 
 
 def test_bad_h_law_file_is_one_line_exit_1(sim_race_session, tmp_path):

@@ -95,3 +95,27 @@ def test_effects_move_the_prediction_the_physical_way() -> None:
     assert np.all(ext.predict(low)[0] < base)
     batch = ext.predict(np.vstack([p, hot, low]))
     np.testing.assert_allclose(batch[0], base)  # batch members are independent
+
+
+@given(st.floats(-0.6, 0.6))
+def test_crown_balance_conserves_power_and_tilts_the_heat(b: float) -> None:
+    """The balance state moves heat between the inner and outer crown at equal total."""
+    from brakethermo.models.disc import BALANCE_PARAM, DiscStateSpace, RandomWalkParam
+
+    disc = load_disc()
+    model = DiscFEModel(disc, n_nodes=10)
+    K = 3
+    ssm = DiscStateSpace(model, np.full(K, 50e3), np.full(K, 25.0), np.full(K, 100.0),
+                         [RandomWalkParam(BALANCE_PARAM, 0.0, 0.15, 1e-3, lower=-0.6)],
+                         sigma_temp=0.1, sigma_crown=0.1)
+    load = ssm._load0 + b * ssm._dload
+    assert load.sum() == pytest.approx(1.0, abs=1e-12)
+    assert np.all(load >= -1e-12)
+    T0 = model.initial_state(300.0)
+    X = np.vstack([np.append(T0, 0.0), np.append(T0, b)])
+    out = ssm.f(X, 0)[:, : model.n_state]
+    gain = model.energy(out) - model.energy(T0)  # J over one 0.1 s step, 5 kJ braking in
+    assert gain[1] == pytest.approx(gain[0], rel=1e-3)  # only the losses differ, slightly
+    inner, outer = model.spot_matrix([disc.spot_radii[0], disc.spot_radii[-1]]) @ (out[1] - out[0])
+    if abs(b) > 1e-3:
+        assert np.sign(inner) == np.sign(b) and np.sign(outer) == -np.sign(b)

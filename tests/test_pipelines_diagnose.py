@@ -103,9 +103,10 @@ def test_single_spot_race_gives_what_one_spot_can(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     summary = json.loads(result.output)
     assert summary["mode"].startswith("single-spot")
-    assert {e["name"] for e in summary["effects"]} == {"thickness_gradient", "slipstream"}
+    online = {"thickness_gradient", "slipstream", "power_distribution"}
+    assert {e["name"] for e in summary["effects"]} == online
     blind = {e["name"] for e in summary["not_identifiable_from_one_spot"]}
-    assert blind == set(EFFECT_NAMES) - {"thickness_gradient", "slipstream"}
+    assert blind == set(EFFECT_NAMES) - online
     assert list(summary["consistency"]["per_spot"]) == ["spot3"]
-    assert summary["verdict"] in ("none", "thickness_gradient", "slipstream")
+    assert summary["verdict"] in ("none", *online)
     assert (tmp_path / "o" / "race" / "diagnosis" / "index.html").is_file()

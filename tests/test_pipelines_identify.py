@@ -95,3 +95,26 @@ def test_single_spot_session_is_refused(tmp_path):
                                tmp_path / "single.csv")
     with pytest.raises(DataError, match="four-spot"):
         identify_h(path, IdentifyOptions(fit_structure=False))
+
+
+def test_unusable_ukf_h_track_falls_back_to_the_refit(sim_test_session, monkeypatch):
+    """A joint-UKF h track below zero everywhere (power far from nominal, lagging sensor:
+    seen on seed 9060 with sensor_lag) no longer stops identify-h: the output-error refit,
+    which also fits the power scale, finds the law from the shipped one, and says so."""
+    from brakethermo.pipelines import identify_h as ih
+
+    real = ih.identify_h_samples
+
+    def negative(*args, **kwargs):
+        h, h_std, forward = real(*args, **kwargs)
+        return -np.abs(h), h_std, forward
+
+    monkeypatch.setattr(ih, "identify_h_samples", negative)
+    result = identify_h(sim_test_session[0])
+    assert result.law_ukf is None and result.summary["law_ukf_only"] is None
+    assert any("h track is unusable" in w for w in result.summary["run"]["warnings"])
+    truth = read_truth(sim_test_session[1])
+    v = truth["speed"].to_numpy() / 3.6
+    off = truth["q_brake"].to_numpy() == 0
+    h_true = truth["h"].to_numpy()[off]
+    assert np.sqrt(np.mean((result.law(v[off]) - h_true) ** 2)) / np.mean(h_true) < 0.15

@@ -157,6 +157,12 @@ def estimate_command(
         typer.Option("--adapt-slipstream/--no-adapt-slipstream",
                      help="An off-brake h factor as a state (slipstream, traffic)."),
     ] = None,
+    adapt_balance: Annotated[
+        bool | None,
+        typer.Option("--adapt-balance/--no-adapt-balance",
+                     help="The inner/outer pad-pressure balance as a state (pads that press "
+                     "unlike the test session's)."),
+    ] = None,
     disc: DiscOpt = None,
     tuning: TuningOpt = None,
     aliases: AliasesOpt = None,
@@ -195,7 +201,8 @@ def estimate_command(
     options = EstimateOptions(
         spot=spot, h_law=law, disc=disc, tuning=tuning, nodes=nodes, layers=layers,
         smoother=smoother, adapt_power=adapt_power, adapt_kz=adapt_kz,
-        adapt_slipstream=adapt_slipstream, aliases=aliases, ambient_c=ambient, workers=workers,
+        adapt_slipstream=adapt_slipstream, adapt_balance=adapt_balance, aliases=aliases,
+        ambient_c=ambient, workers=workers,
     )  # fmt: skip
     result = run_with_status(as_json, f"estimating {session.name} ...",
                              lambda: estimate_from_session(loaded, options))

@@ -67,7 +67,8 @@ def identify_command(
     table.add_column("h W/(m² K)", justify="right")
     table.add_column("UKF-only law", justify="right")
     for v in (50, 100, 150, 200, 250, 280, 300, 330, 350):
-        table.add_row(str(v), f"{float(law(v / 3.6)):.1f}", f"{float(result.law_ukf(v / 3.6)):.1f}")
+        ukf = "–" if result.law_ukf is None else f"{float(result.law_ukf(v / 3.6)):.1f}"
+        table.add_row(str(v), f"{float(law(v / 3.6)):.1f}", ukf)
     console.print(table)
     fit = result.summary["fit"]
     console.print(

@@ -7,9 +7,12 @@ sensor's own temperature ``s``. The parameters: the convection coefficient ``h``
 (identify-h), the braking-power scale (the friction coefficient relative to nominal,
 which the paper names as the main uncertainty of the braking power), and the online
 forms of the registered effects (:mod:`brakethermo.models.effects`): an h multiplier
-that moves only off the brakes (``slipstream``) and a through-thickness conductivity
-factor (``thickness_gradient``). Fixed effects from a test session enter as
-:class:`DiscEffects`: μ(T) on the braking power and the sensor's time constant.
+that moves only off the brakes (``slipstream``), a through-thickness conductivity
+factor (``thickness_gradient``) and the balance ``b`` of the pad pressure between the
+inner and the outer crown (``power_distribution``: crown weights ``w1 (1 + b), w2,
+w3 (1 - b)``, renormalised to the same total power, eq. 8). Fixed effects from a test
+session enter as :class:`DiscEffects`: μ(T) on the braking power and the sensor's time
+constant.
 
 Process noise has two parts: white noise on every node, and the uncertainty of how the
 braking power splits over the three pad crowns (paper §2: the split changes from corner
@@ -35,7 +38,10 @@ H_PARAM = "h"
 SCALE_PARAM = "power_scale"
 H_FACTOR_PARAM = "h_factor"  # slipstream, online: moves off the brakes only
 KZ_PARAM = "kz_factor"  # thickness_gradient, online
-PARAMS = (H_PARAM, SCALE_PARAM, H_FACTOR_PARAM, KZ_PARAM)
+BALANCE_PARAM = "crown_balance"  # power_distribution, online: inner vs outer crown
+PARAMS = (H_PARAM, SCALE_PARAM, H_FACTOR_PARAM, KZ_PARAM, BALANCE_PARAM)
+BALANCE_MAX = 0.6  # |b| beyond which the outer (or inner) crown's load would vanish
+BALANCE_STEP = 0.1  # finite-difference step of the load's derivative in b (it is linear)
 C_TYPICAL_C = 500.0  # degC at which the crown-noise gain is evaluated
 H_TYPICAL = 100.0  # W/(m² K), the same; the gain hardly depends on either
 T_AMB_TYPICAL_C = 25.0
@@ -162,6 +168,13 @@ class DiscStateSpace:
         S = np.zeros((self.n, self.n))
         S[: self.n_temp, : self.n_temp] = self._crown_covariance(model, sigma_crown)
         self._S_crown = S
+        if BALANCE_PARAM in self.index:
+            w = model.weights if np.isfinite(model.weights).all() else np.ones(3)
+            self._load0 = crown_load(model.radii, edges, w)
+            tilt = np.array([BALANCE_STEP, 0.0, -BALANCE_STEP])
+            # the nodal load is linear in b: both crowns' shares move, the total stays 1
+            self._dload = (crown_load(model.radii, edges, w * (1 + tilt))
+                           - crown_load(model.radii, edges, w * (1 - tilt))) / (2 * BALANCE_STEP)
 
     @staticmethod
     def _crown_covariance(model: DiscFEModel, sigma_crown: float) -> np.ndarray:
@@ -204,6 +217,10 @@ class DiscStateSpace:
             T_contact = X[:, self._contact_face].mean(axis=1)
             scale = scale * mu_ratio(T_contact, self.effects.mu_beta, self.effects.mu_t_mid_c)
         kz = self._param(X, KZ_PARAM)
+        balance = self._param(X, BALANCE_PARAM)
+        load = None
+        if balance is not None:
+            load = self._load0 + np.minimum(balance, BALANCE_MAX)[:, None] * self._dload
         out = np.empty_like(X)
         try:
             out[:, : self.n_temp] = self.model.step(
@@ -213,6 +230,7 @@ class DiscStateSpace:
                 self.t_amb[k],
                 scale,
                 kz_ratio=None if kz is None else kz * self.model.kz_ratio,
+                load=load,
             )
         except (ZeroDivisionError, FloatingPointError):
             raise DataError(

@@ -799,7 +799,10 @@ def diagnose_session(
                           best.pred if best else None, dist, nis, timings)
 
 
-SINGLE_SPOT_ONLINE = {"thickness_gradient": "adapt_kz", "slipstream": "adapt_slipstream"}
+# effect -> (estimate option that adapts it online, its state column, its test-session value)
+SINGLE_SPOT_ONLINE = {"thickness_gradient": ("adapt_kz", "kz_factor", 1.0),
+                      "slipstream": ("adapt_slipstream", "h_factor", 1.0),
+                      "power_distribution": ("adapt_balance", "crown_balance", 0.0)}
 
 
 def diagnose_single_spot(
@@ -825,7 +828,7 @@ def diagnose_single_spot(
         raise DataError("diagnose needs at least one flying lap (lap_beacon >= 1)",
                         path=session.path, channel="lap_beacon")
     online = [n for n in names if n in SINGLE_SPOT_ONLINE]
-    off = {flag: False for flag in SINGLE_SPOT_ONLINE.values()}
+    off = {flag: False for flag, _, _ in SINGLE_SPOT_ONLINE.values()}
     base = EstimateOptions(spot=RACE_SPOT, h_law=options.h_law, disc=options.disc,
                            tuning=options.tuning, aliases=options.aliases,
                            ambient_c=options.ambient_c, smoother=False, score=False)
@@ -833,7 +836,7 @@ def diagnose_single_spot(
     for i, label in enumerate(["reference", *online], start=1):
         flags = dict(off)
         if label != "reference":
-            flags[SINGLE_SPOT_ONLINE[label]] = True
+            flags[SINGLE_SPOT_ONLINE[label][0]] = True
         runs[label] = estimate_from_session(session, replace(base, **flags))
         if progress:
             progress(label, i, len(online) + 1)
@@ -869,7 +872,7 @@ def diagnose_single_spot(
         before, after = score(ref_pred, y, layout, spots), score(pred, y, layout, spots)
         shrink, lo, hi = bootstrap_shrink(ref_pred, pred, y, layout, spots)
         frame = runs[label].frame
-        column = "kz_factor" if label == "thickness_gradient" else "h_factor"
+        _, column, nominal = SINGLE_SPOT_ONLINE[label]
         track = frame[column].to_numpy()[scored]
         effects_out.append({
             "name": label, "rmse_before": before["overall"], "rmse_after": after["overall"],
@@ -887,7 +890,7 @@ def diagnose_single_spot(
                        f"{column}_p95": float(np.percentile(track, 95))},
             "evidence": (f"online {column} over the flying laps: median"
                          f" {np.median(track):.2f}, 5-95 % {np.percentile(track, 5):.2f}-"
-                         f"{np.percentile(track, 95):.2f} (1 = the test-session disc)"),
+                         f"{np.percentile(track, 95):.2f} ({nominal:g} = the test-session disc)"),
             "signature": EFFECTS[label].signature,
             "extension": EFFECTS[label].extension,
             "identifiable_from_one_spot": True,

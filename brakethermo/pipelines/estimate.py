@@ -22,6 +22,8 @@ from brakethermo.estimation import UnscentedKalmanFilter
 from brakethermo.estimation.urts import urts_smooth_windowed
 from brakethermo.io.session import Session
 from brakethermo.models.disc import (
+    BALANCE_MAX,
+    BALANCE_PARAM,
     H_FACTOR_PARAM,
     KZ_PARAM,
     SCALE_PARAM,
@@ -67,8 +69,9 @@ class EstimateOptions:
     smoother, adapt_power : bool, optional
     sigma_crown : float, optional
         Crown-split process noise (identify-h's validation sets it per variant).
-    adapt_kz, adapt_slipstream : bool, optional
-        Online k_z factor and slipstream h factor (diagnose compares with and without).
+    adapt_kz, adapt_slipstream, adapt_balance : bool, optional
+        Online k_z factor, slipstream h factor and inner/outer crown balance (diagnose
+        compares with and without).
     aliases : path, optional
     ambient_c : float, optional — degC
     score : bool
@@ -89,6 +92,7 @@ class EstimateOptions:
     sigma_crown: float | None = None
     adapt_kz: bool | None = None
     adapt_slipstream: bool | None = None
+    adapt_balance: bool | None = None
     aliases: str | Path | None = None
     ambient_c: float | None = None
     score: bool = True
@@ -114,6 +118,7 @@ class EstimateOptions:
                 ("sigma_crown", self.sigma_crown),
                 ("adapt_kz", self.adapt_kz),
                 ("adapt_slipstream", self.adapt_slipstream),
+                ("adapt_balance", self.adapt_balance),
             )
             if v is not None
         }
@@ -247,8 +252,9 @@ def effect_plan(effects: dict[str, dict[str, Any]], tuning: EstimateTuning) -> E
     """Turn ``[effects.<name>]`` tables and the tuning into fixed and online effects.
 
     The k_z factor and the slipstream h factor are online whenever the tuning says so
-    (the default): they are what one spot can follow on a disc the test session never
-    saw; an h law that carries the effect switches them on regardless.
+    (the default), the crown balance when asked for: they are what one spot can follow
+    on a disc the test session never saw; an h law that carries the effect switches
+    them on regardless.
     """
     facts: dict[str, dict[str, Any]] = {}
     fixed = DiscEffects()
@@ -259,6 +265,8 @@ def effect_plan(effects: dict[str, dict[str, Any]], tuning: EstimateTuning) -> E
         tables.setdefault("thickness_gradient", {})
     if tuning.adapt_slipstream:
         tables.setdefault("slipstream", {})
+    if tuning.adapt_balance:
+        tables.setdefault("power_distribution", {})
     for name, values in tables.items():
         use = "fixed at the test-session value"
         if name == "friction_temperature":
@@ -280,8 +288,15 @@ def effect_plan(effects: dict[str, dict[str, Any]], tuning: EstimateTuning) -> E
                                           tuning.sigma_kz_step, lower=0.05))
             use = ("test-session value, adapted online (a race disc's k_z differs from batch"
                    " to batch)")
-        elif name in ("h_speed_knee", "power_distribution"):
-            use = "in the h law and crown weights of the file"
+        elif name == "power_distribution" and not tuning.adapt_balance:
+            use = "in the crown weights of the file"
+        elif name == "power_distribution":
+            online.append(RandomWalkParam(BALANCE_PARAM, 0.0, tuning.init_sigma_balance,
+                                          tuning.sigma_balance_step, lower=-BALANCE_MAX))
+            use = ("crown weights of the file, their inner/outer balance adapted online (one"
+                   " spot cannot tell it from a k_z change)")
+        elif name == "h_speed_knee":
+            use = "in the h law of the file"
         facts[name] = {"values": values, "use": use}
     return EffectPlan(fixed, tuple(online), ratio, facts)
 

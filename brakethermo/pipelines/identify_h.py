@@ -36,11 +36,11 @@ from brakethermo.pipelines.estimate import (
     estimate_from_session,
 )
 from brakethermo.pipelines.inputs import MULTI_SPOT, DiscInputs, disc_inputs, load_timed
-from brakethermo.pipelines.models import DiscCalibration, disc_for
+from brakethermo.pipelines.models import DiscCalibration, disc_for, shipped_h_law
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.tuning import EstimateTuning, IdentifyTuning, load_tuning
 from brakethermo.thermal.disc import DiscSpec
-from brakethermo.thermal.hlaw import HLaw
+from brakethermo.thermal.hlaw import HLaw, read_h_law
 from brakethermo.thermal.model import DiscFEModel
 from brakethermo.thermal.power import normalise_weights
 
@@ -92,7 +92,7 @@ class IdentifyResult:
 
     session: Session
     law: HLaw
-    law_ukf: HLaw
+    law_ukf: HLaw | None
     calibration: DiscCalibration
     samples: pd.DataFrame
     structure: StructureFit | None
@@ -442,14 +442,29 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
 
     braking = inputs.braking
     fit_mask = off_brake_mask(braking) & np.isfinite(y).all(axis=1) & (inputs.speed > 1.0)
-    law_ukf = HLaw.fit(inputs.speed[fit_mask], h_mean[fit_mask], 1.0 / h_std[fit_mask] ** 2,
-                       v_ref=disc.v_ref, knee=tuning.knee)
-    t_law = time.perf_counter()
-    law, structure = law_ukf, None
     effects: tuple[str, ...] = ()
     if options.with_effects:
         effects = (auto_effects(session, options) if options.with_effects.strip() == "auto"
                    else parse_effects(options.with_effects))
+    notes: list[str] = []
+    try:
+        law_ukf: HLaw | None = HLaw.fit(inputs.speed[fit_mask], h_mean[fit_mask],
+                                        1.0 / h_std[fit_mask] ** 2, v_ref=disc.v_ref,
+                                        knee=tuning.knee)
+        start = law_ukf
+    except DataError as exc:
+        # The paper's joint UKF has h as its only free parameter: a braking power far from
+        # nominal or a lagging sensor can drive its h track below zero everywhere. The
+        # output-error refit fits the power scale too, so it can still find the law.
+        shipped = shipped_h_law(disc)
+        if shipped is None or not (options.fit_structure or effects):
+            raise
+        law_ukf, start = None, read_h_law(shipped).law
+        notes.append(f"the joint UKF's h track is unusable ({exc}); the law comes from the"
+                     " output-error refit alone (with the braking-power scale), started from"
+                     f" the shipped law {shipped.name}")
+    t_law = time.perf_counter()
+    law, structure = start, None
 
     def structure_fit(start: HLaw, tuning_: EstimateTuning) -> tuple[HLaw, StructureFit]:
         if effects:
@@ -457,7 +472,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         return fit_structure(inputs, y, disc, start, tuning_)
 
     if options.fit_structure or effects:
-        law, structure = structure_fit(law_ukf, est_tuning)
+        law, structure = structure_fit(start, est_tuning)
         if structure.kz_ratio < est_tuning.thin_skin_kz_ratio:
             est_tuning = replace(est_tuning, layers=est_tuning.thin_skin_layers,
                                  layer_growth=est_tuning.thin_skin_layer_growth)
@@ -488,14 +503,14 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         "h_std": h_std,
         "braking": braking,
     })
-    residual = h_mean[fit_mask] - law_ukf(inputs.speed[fit_mask])
+    residual = h_mean[fit_mask] - (law_ukf or law)(inputs.speed[fit_mask])
     timings = {"ukf_s": t_ukf - t0, "law_s": t_law - t_ukf, "structure_s": t_struct - t_law,
                "calibration_s": t_end - t_struct, "total_s": t_end - t0}
     summary = {
         "session": str(session.path),
         "metadata": session.metadata,
         "law": _law_dict(law),
-        "law_ukf_only": _law_dict(law_ukf),
+        "law_ukf_only": None if law_ukf is None else _law_dict(law_ukf),
         "fit": {
             "samples_off_brake": int(fit_mask.sum()),
             "samples_total": int(fit_mask.size),
@@ -530,7 +545,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             "mean_nis": float(np.nanmean(forward.nis)),
             "timings_s": timings,
             "wall_time_s": timings["total_s"],
-            "warnings": list(session.warnings) + list(inputs.warnings),
+            "warnings": list(session.warnings) + list(inputs.warnings) + notes,
         },
     }
     return IdentifyResult(session, law, law_ukf, calibration, samples, structure, fit_mask,

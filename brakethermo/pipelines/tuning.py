@@ -52,6 +52,11 @@ class EstimateTuning(SigmaPointTuning):
         another bike changes the cooling air straight by straight).
     sigma_kz_step, init_sigma_kz : float — per step, dimensionless
     sigma_h_factor_step, init_sigma_h_factor : float — per step, dimensionless
+    adapt_balance : bool
+        The inner/outer crown balance of the pad pressure as a random-walk state (a
+        race's pads need not press as the test session's did; spot 3 sees the balance
+        only weakly, and cannot tell it from a k_z change: off by default).
+    sigma_balance_step, init_sigma_balance : float — per step, dimensionless
     ir_calibration_pct : float — % of absolute temperature, 1 sigma
         The pyrometer's absolute calibration (emissivity) uncertainty, common to every
         reading: added to the reported band, which the filter alone cannot widen for it.
@@ -77,6 +82,9 @@ class EstimateTuning(SigmaPointTuning):
     init_sigma_kz: float = 0.3
     sigma_h_factor_step: float = 0.01
     init_sigma_h_factor: float = 0.05
+    adapt_balance: bool = False
+    sigma_balance_step: float = 0.0005
+    init_sigma_balance: float = 0.15
     ir_calibration_pct: float = 1.0
 
 
@@ -119,6 +127,7 @@ BOUNDS: dict[str, tuple[float, float]] = {
     "thin_skin_layer_growth": (0.2, 10.0),
     "thin_skin_kz_ratio": (0.0, 10.0),
     "ir_calibration_pct": (0.0, 10.0),
+    "init_sigma_balance": (0.0, 0.6),
     "alpha": (1e-4, 1.0),
     "beta": (0.0, 10.0),
     "kappa": (-1e3, 1e3),
