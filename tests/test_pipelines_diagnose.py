@@ -52,6 +52,20 @@ def test_withheld_sensor_lag_is_named_and_the_gap_shrinks(diagnosed: tuple[dict,
     assert 0 not in summary["heldout_laps"] + summary["train_laps"]
 
 
+def test_report_page_renders_in_a_browser(diagnosed: tuple[dict, Path], tmp_path: Path
+                                          ) -> None:
+    """The diagnosis page loads offline in headless Chromium, its PNGs decode, no errors."""
+    from test_report_browser import CHROMIUM, render_offline, screenshots
+
+    if CHROMIUM is None:
+        pytest.skip("chromium is not installed (apt-get install -y chromium)")
+    _, folder = diagnosed
+    shots = screenshots(tmp_path)
+    problems = render_offline([("diagnosis", folder / "diagnosis" / "index.html")], shots)
+    assert problems == []
+    assert (shots / "diagnosis.png").stat().st_size > 50_000
+
+
 def test_outputs_contract(diagnosed: tuple[dict, Path]) -> None:
     summary, folder = diagnosed
     for key in ("gap", "where", "effects", "verdict", "reference", "train_laps",
