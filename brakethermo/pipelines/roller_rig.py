@@ -167,7 +167,7 @@ def _check_speed(session: Session, name: str, v: np.ndarray) -> None:
         )  # fmt: skip
 
 
-def speed_noise_var(omega: np.ndarray, mask: np.ndarray, dt: float) -> float:
+def speed_noise_var(omega: np.ndarray, mask: np.ndarray) -> float:
     """Variance of a speed channel's sample noise, (rad/s)^2, from free rolling.
 
     Half the variance of successive differences (white noise doubles in a difference;
@@ -314,7 +314,7 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         Q, R = np.array(fd.q), np.array(fd.r)
     else:
         Q = np.array(fd.q_measured)
-        R = np.array([speed_noise_var(w_w, free & both, dt), speed_noise_var(w_r, free & both, dt)])
+        R = np.array([speed_noise_var(w_w, free & both), speed_noise_var(w_r, free & both)])
     H = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
     ukf = UnscentedKalmanFilter(
         f, np.diag(Q), np.diag(R), H=H, alpha=fd.alpha, beta=fd.beta, kappa=fd.kappa
