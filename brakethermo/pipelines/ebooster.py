@@ -218,7 +218,7 @@ def default_fit_path() -> Path:
 def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTrack:
     s = model.spec
     Q, R = model.Q_of_step(), model.R()
-    x0, P0 = model.prior(float(y[0]) if np.isfinite(y[0]) else 0.0)
+    x0, P0 = model.prior(float(y[0]))  # prior() starts a gap at delta = 0
     t0 = time.perf_counter()
     if which == "ukf":
         flt: UnscentedKalmanFilter | ExtendedKalmanFilter = UnscentedKalmanFilter(
