@@ -94,14 +94,11 @@ def train(
     """
     ds = fit_dynamic_stiffness(theta, F, ts)
     sigma_ds = rmse(ds.simulate(theta), F)
-    fold = (np.arange(theta.size) * ts // CV_BLOCK_S).astype(int) % 2
-    omega_acc = {w: motor_rates(theta, ts, w) for w in (WINDOWS if structure is None else ())}
-    best: tuple[float, int, float] | None = None
-    if structure is not None:
-        best = (0.0, structure.window, structure.torque.omega_s)
-        omega_acc = {structure.window: motor_rates(theta, ts, structure.window)}
-    for window in WINDOWS if structure is None else ():
-        for band in SIGN_BANDS:
+    if structure is None:
+        fold = (np.arange(theta.size) * ts // CV_BLOCK_S).astype(int) % 2
+        omega_acc = {w: motor_rates(theta, ts, w) for w in WINDOWS}
+
+        def cv_score(window: int, band: float) -> float:
             err = []
             for j in (0, 1):
                 tb = fit_torque_balance(
@@ -109,11 +106,15 @@ def train(
                 )
                 F_tb = torque_balance_force(current, theta, ts, tb, window, rates=omega_acc[window])
                 err.append((F_tb - F)[fold != j])
-            score = float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
-            if best is None or score < best[0]:
-                best = (score, window, band)
-    assert best is not None
-    _, window, band = best
+            return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+
+        # the first pair with the smallest score, the paper's choices first
+        window, band = min(
+            ((w, b) for w in WINDOWS for b in SIGN_BANDS), key=lambda wb: cv_score(*wb)
+        )
+    else:
+        window, band = structure.window, structure.torque.omega_s
+        omega_acc = {window: motor_rates(theta, ts, window)}
     tb = fit_torque_balance(current, theta, ts, F, window, band, rates=omega_acc[window])
     sigma_tb = rmse(
         torque_balance_force(current, theta, ts, tb, window, rates=omega_acc[window]), F
