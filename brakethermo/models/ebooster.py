@@ -41,7 +41,6 @@ average, against 0.8 % with the clip), so the clip stays.
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -50,6 +49,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from brakethermo.config import load_toml
 from brakethermo.errors import ConfigError
 from brakethermo.io.atomic import write_text_atomic
 from brakethermo.rigs.booster import (
@@ -114,9 +114,8 @@ class BoosterFit:
 
 def load_fit(path: str | Path) -> BoosterFit:
     """Read a training result written by :meth:`BoosterFit.write`."""
-    path = Path(path)
+    raw = load_toml(path)
     try:
-        raw = tomllib.loads(path.read_text())
         return BoosterFit(
             pv_coeffs=tuple(float(v) for v in raw["pv_coeffs"]),  # type: ignore[arg-type]
             stroke_mm=float(raw["stroke_mm"]),
@@ -129,10 +128,8 @@ def load_fit(path: str | Path) -> BoosterFit:
             pv_rmse_mpa=float(raw["pv_rmse_mpa"]),
             disk_rmse_mm=float(raw["disk_rmse_mm"]),
         )
-    except FileNotFoundError:
-        raise ConfigError("training result not found; check the path", path=path) from None
-    except (KeyError, TypeError, ValueError, tomllib.TOMLDecodeError) as exc:
-        raise ConfigError(f"not a valid training result ({exc})", path=path) from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ConfigError(f"not a valid training result ({exc})", path=Path(path)) from None
 
 
 @numba.njit(cache=True)
