@@ -85,6 +85,7 @@ class MuSlipResult:
     best: FamilyFit
     radius_m: float | None
     ramp_s: tuple[float, float]
+    inflation: float
 
 
 def slip_and_mu(
@@ -190,6 +191,7 @@ def mu_slip(
         best=best,
         radius_m=radius,
         ramp_s=(float(session.time[start]), float(session.time[lock])),
+        inflation=options.inflation,
     )
 
 
@@ -411,7 +413,7 @@ def page(res: MuSlipResult, summ: dict[str, Any]) -> Page:
                 paragraphs=[
                     f"Ramp {res.ramp_s[0]:.2f}–{res.ramp_s[1]:.2f} s up to wheel lock;"
                     f" noise std of μ {res.sigma:.4f} (from point-to-point differences), inflated"
-                    " ×3 plus second-order pseudo-noise in the EKF."
+                    f" ×{res.inflation:g} plus second-order pseudo-noise in the EKF."
                 ],
                 tables=[TableBlock(["estimator", "μ peak", "slip peak"], rows)],
                 figures={"ekf_convergence": fig},

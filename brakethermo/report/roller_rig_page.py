@@ -116,6 +116,9 @@ def creep_figure(result: RollerRigResult) -> Figure:
     return fig
 
 
+CREEP_NAMES = {"polach": "Polach law", "fastsim": "FASTSIM table (Kalker)"}
+
+
 def roller_rig_page(result: RollerRigResult) -> Page:
     """The report page of one roller-rig run (``result``: RollerRigResult)."""
     s = result.summary
@@ -198,7 +201,8 @@ def roller_rig_page(result: RollerRigResult) -> Page:
             "traction: above 50 %.")]),
         Section("Speeds and torque", [], [], {"speeds": speeds_figure(result)}),
         Section("Creep", [], [], {"creep": creep_figure(result)},
-                ["Creep force from the estimator's Polach law at the estimated states; the "
+                [f"Creep force from the estimator's {CREEP_NAMES[s['filter']['creep_law']]} at"
+                 " the estimated states; the "
                  "roller transducer is shown for validation only (the filter never reads it)."]),
     ]  # fmt: skip
     return Page(
