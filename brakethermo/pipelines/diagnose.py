@@ -122,7 +122,9 @@ def lap_distance(inputs: DiscInputs, session: Session) -> np.ndarray:
     if session.has("distance"):
         d = session.values("distance")
         if np.isfinite(d).all():
-            return d - np.array([d[inputs.lap == lap].min() for lap in inputs.lap])
+            laps, which = np.unique(inputs.lap, return_inverse=True)
+            start = np.array([d[which == j].min() for j in range(laps.size)])
+            return d - start[which]  # each lap from its own least distance
     dt = session.dt
     out = np.zeros(inputs.speed.size)
     for lap in np.unique(inputs.lap):
