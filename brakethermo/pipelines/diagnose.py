@@ -593,7 +593,6 @@ def diagnose_session(
     for _, b in zones:
         release[b: b + settle] = True
     release &= ~braking
-    cycles = segments.zone.copy()
     starts = zones[:, 0] if zones.size else np.empty(0, int)
     cycles = np.full(inputs.time.size, -1)
     for j, a in enumerate(starts):
@@ -602,9 +601,8 @@ def diagnose_session(
                     braking=braking, release=release, cycles=cycles)
     train_mask = layout.train[:, None] & np.isfinite(y)
 
-    k_z = disc.k_z if disc.k_z is not None else None
     model = DiscFEModel(disc, est_tuning.nodes, est_tuning.layers,
-                        layer_growth=est_tuning.layer_growth, k_z=k_z)
+                        layer_growth=est_tuning.layer_growth, k_z=disc.k_z)
     T0 = _initial_nodes(model, spot_radii, y, float(inputs.t_amb[0]))
     a0, b0, w0 = _reference_start(disc, options.h_law)
 
