@@ -271,6 +271,21 @@ class Layout:
     cycles: np.ndarray  # (K,) id of the braking cycle (bootstrap unit), -1 outside
 
 
+def zone_masks(zones: np.ndarray, K: int, settle: int
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per step from the ``[start, stop)`` braking zones: braking, release (the ``settle``
+    steps after a release, off the brakes) and the braking cycle's id (-1 before the first).
+    """
+    braking = np.zeros(K, bool)
+    release = np.zeros(K, bool)
+    cycles = np.full(K, -1)
+    for j, (a, b) in enumerate(zones):
+        braking[a:b] = True
+        release[b: b + settle] = True
+        cycles[a:] = j
+    return braking, release & ~braking, cycles
+
+
 def _phase_masks(layout: Layout) -> dict[str, np.ndarray]:
     return {"braking": layout.braking, "cooling": ~layout.braking}
 
@@ -585,18 +600,7 @@ def diagnose_session(
     dist = lap_distance(inputs, session)
     segments = build_segments(inputs, zones, dist)
     train_laps, held_laps = split_laps(session, inputs, options.holdout_laps)
-    braking = np.zeros(inputs.time.size, bool)
-    for a, b in zones:
-        braking[a:b] = True
-    release = np.zeros_like(braking)
-    settle = round(SETTLE_S / session.dt)
-    for _, b in zones:
-        release[b: b + settle] = True
-    release &= ~braking
-    starts = zones[:, 0] if zones.size else np.empty(0, int)
-    cycles = np.full(inputs.time.size, -1)
-    for j, a in enumerate(starts):
-        cycles[a:] = j
+    braking, release, cycles = zone_masks(zones, inputs.time.size, round(SETTLE_S / session.dt))
     layout = Layout(train=np.isin(inputs.lap, train_laps), held=np.isin(inputs.lap, held_laps),
                     braking=braking, release=release, cycles=cycles)
     train_mask = layout.train[:, None] & np.isfinite(y)
@@ -853,16 +857,10 @@ def diagnose_single_spot(
     zones = detect_zones(inputs.time, pressure)
     dist = lap_distance(inputs, session)
     segments = build_segments(inputs, zones, dist)
-    braking = np.zeros(inputs.time.size, bool)
-    release = np.zeros_like(braking)
-    cycles = np.full(inputs.time.size, -1)
-    for j, (a, b) in enumerate(zones):
-        braking[a:b] = True
-        release[b: b + round(SETTLE_S / session.dt)] = True
-        cycles[a:] = j
+    braking, release, cycles = zone_masks(zones, inputs.time.size, round(SETTLE_S / session.dt))
     scored = np.isin(inputs.lap, flying)
     layout = Layout(train=np.zeros_like(scored), held=scored, braking=braking,
-                    release=release & ~braking, cycles=cycles)
+                    release=release, cycles=cycles)
     ref_pred = prediction("reference")
     spots = (RACE_SPOT,)
     effects_out = []
