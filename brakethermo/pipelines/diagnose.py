@@ -704,13 +704,7 @@ def diagnose_session(
         params = ext.values(c.p, c.name)
         effects_out.append({
             "name": c.name,
-            **{k: c.scores[k] for k in ("rmse_before", "rmse_after", "shrink_pct")},
-            "shrink_ci95_pct": c.scores["shrink_ci95_pct"],
-            "significant": c.scores["significant"],
-            "heldout_loglik_gain": c.scores["heldout_loglik_gain"],
-            "scored_spots": c.scores["scored_spots"],
-            "per_spot": c.scores["per_spot"],
-            "per_phase": c.scores["per_phase"],
+            **c.scores,  # describe()'s keys, in its order
             "params": params,
             "evidence": EVIDENCE[c.name](sig[c.name]),
             "signature": EFFECTS[c.name].signature,
