@@ -48,6 +48,7 @@ from brakethermo.models.disc import DiscStateSpace
 from brakethermo.models.disc_effects import N_REFERENCE, ExtendedDisc, Segments
 from brakethermo.models.effects import EFFECTS, parse_effects
 from brakethermo.pipelines import scoring
+from brakethermo.pipelines.estimate import SIGMA_MEAS_FLOOR_C
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import disc_for, shipped_h_law
 from brakethermo.pipelines.tuning import load_tuning
@@ -737,7 +738,8 @@ def diagnose_session(
     timings["forward_selection_s"] = time.perf_counter() - t0
     tick("forward selection")
 
-    sigma_meas = np.array([max(scoring.reading_noise(y[:, i]), 0.5) for i in range(4)])
+    sigma_meas = np.array([max(scoring.reading_noise(y[:, i]), SIGMA_MEAS_FLOOR_C)
+                           for i in range(4)])
     cons, nis = consistency(model, inputs, y, ref.law(p_ref)(inputs.speed),
                             float(np.exp(p_ref[2])), T0, spot_radii, sigma_meas,
                             est_tuning.sigma_temp, est_tuning.init_sigma_temp,
