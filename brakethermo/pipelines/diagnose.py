@@ -169,6 +169,15 @@ def build_segments(inputs: DiscInputs, zones: np.ndarray, dist: np.ndarray) -> S
                     n_straights=len(laps), straight_lap=np.asarray(laps, int))
 
 
+def session_segments(session: Session, inputs: DiscInputs
+                     ) -> tuple[np.ndarray, np.ndarray, Segments]:
+    """The session's braking zones (``[start, stop)`` rows), lap distance (m) and segments."""
+    pressure = np.nan_to_num(session.values("brake_pressure_front"), nan=0.0)
+    zones = detect_zones(inputs.time, pressure)
+    dist = lap_distance(inputs, session)
+    return zones, dist, build_segments(inputs, zones, dist)
+
+
 def split_laps(session: Session, inputs: DiscInputs, holdout: Sequence[int] | None
                ) -> tuple[tuple[int, ...], tuple[int, ...]]:
     """Training and held-out flying laps (out-lap and partial last lap excluded)."""
@@ -596,10 +605,7 @@ def diagnose_session(
     y = inputs.spots.copy()
     y[y <= SENSOR_FLOOR_C] = np.nan
     spot_radii = np.asarray(disc.spot_radii)
-    pressure = np.nan_to_num(session.values("brake_pressure_front"), nan=0.0)
-    zones = detect_zones(inputs.time, pressure)
-    dist = lap_distance(inputs, session)
-    segments = build_segments(inputs, zones, dist)
+    zones, dist, segments = session_segments(session, inputs)
     train_laps, held_laps = split_laps(session, inputs, options.holdout_laps)
     braking, release, cycles = zone_masks(zones, inputs.time.size, round(SETTLE_S / session.dt))
     layout = Layout(train=np.isin(inputs.lap, train_laps), held=np.isin(inputs.lap, held_laps),
@@ -849,10 +855,7 @@ def diagnose_single_spot(
         pred[:, RACE_SPOT - 1] = y[:, RACE_SPOT - 1] - runs[label].innovation
         return pred
 
-    pressure = np.nan_to_num(session.values("brake_pressure_front"), nan=0.0)
-    zones = detect_zones(inputs.time, pressure)
-    dist = lap_distance(inputs, session)
-    segments = build_segments(inputs, zones, dist)
+    zones, dist, segments = session_segments(session, inputs)
     braking, release, cycles = zone_masks(zones, inputs.time.size, round(SETTLE_S / session.dt))
     scored = np.isin(inputs.lap, flying)
     layout = Layout(train=np.zeros_like(scored), held=scored, braking=braking,
