@@ -165,6 +165,7 @@ class DiscStateSpace:
             Q[self.sensor_index, self.sensor_index] = sigma_temp**2
         self._Q_base = Q
         self._step_var = np.array([p.step_sigma**2 for p in self.params])
+        self._param_idx = self.n_temp + np.arange(len(self.params))
         S = np.zeros((self.n, self.n))
         S[: self.n_temp, : self.n_temp] = self._crown_covariance(model, sigma_crown)
         self._S_crown = S
@@ -248,7 +249,7 @@ class DiscStateSpace:
         """Process noise of the step ``k -> k + 1``, squared state units."""
         Q = self._Q_base + self.q_brk[k] ** 2 * self._S_crown
         if self.params:
-            i = self.n_temp + np.arange(len(self.params))
+            i = self._param_idx
             Q[i, i] = self._step_var * self._moving[k]
         return Q
 

@@ -48,6 +48,7 @@ from brakethermo.models.disc import DiscStateSpace
 from brakethermo.models.disc_effects import N_REFERENCE, ExtendedDisc, Segments
 from brakethermo.models.effects import EFFECTS, parse_effects
 from brakethermo.pipelines import scoring
+from brakethermo.pipelines.estimate import SIGMA_MEAS_FLOOR_C
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import disc_for, shipped_h_law
 from brakethermo.pipelines.tuning import load_tuning
@@ -122,7 +123,9 @@ def lap_distance(inputs: DiscInputs, session: Session) -> np.ndarray:
     if session.has("distance"):
         d = session.values("distance")
         if np.isfinite(d).all():
-            return d - np.array([d[inputs.lap == lap].min() for lap in inputs.lap])
+            laps, which = np.unique(inputs.lap, return_inverse=True)
+            start = np.array([d[which == j].min() for j in range(laps.size)])
+            return d - start[which]  # each lap from its own least distance
     dt = session.dt
     out = np.zeros(inputs.speed.size)
     for lap in np.unique(inputs.lap):
@@ -164,6 +167,15 @@ def build_segments(inputs: DiscInputs, zones: np.ndarray, dist: np.ndarray) -> S
         laps.append(int(inputs.lap[a]))
     return Segments(zone=zone, n_zones=len(centres), straight=straight,
                     n_straights=len(laps), straight_lap=np.asarray(laps, int))
+
+
+def session_segments(session: Session, inputs: DiscInputs
+                     ) -> tuple[np.ndarray, np.ndarray, Segments]:
+    """The session's braking zones (``[start, stop)`` rows), lap distance (m) and segments."""
+    pressure = np.nan_to_num(session.values("brake_pressure_front"), nan=0.0)
+    zones = detect_zones(inputs.time, pressure)
+    dist = lap_distance(inputs, session)
+    return zones, dist, build_segments(inputs, zones, dist)
 
 
 def split_laps(session: Session, inputs: DiscInputs, holdout: Sequence[int] | None
@@ -267,6 +279,21 @@ class Layout:
     braking: np.ndarray  # (K,)
     release: np.ndarray  # (K,) first seconds after a release
     cycles: np.ndarray  # (K,) id of the braking cycle (bootstrap unit), -1 outside
+
+
+def zone_masks(zones: np.ndarray, K: int, settle: int
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per step from the ``[start, stop)`` braking zones: braking, release (the ``settle``
+    steps after a release, off the brakes) and the braking cycle's id (-1 before the first).
+    """
+    braking = np.zeros(K, bool)
+    release = np.zeros(K, bool)
+    cycles = np.full(K, -1)
+    for j, (a, b) in enumerate(zones):
+        braking[a:b] = True
+        release[b: b + settle] = True
+        cycles[a:] = j
+    return braking, release & ~braking, cycles
 
 
 def _phase_masks(layout: Layout) -> dict[str, np.ndarray]:
@@ -578,31 +605,15 @@ def diagnose_session(
     y = inputs.spots.copy()
     y[y <= SENSOR_FLOOR_C] = np.nan
     spot_radii = np.asarray(disc.spot_radii)
-    pressure = np.nan_to_num(session.values("brake_pressure_front"), nan=0.0)
-    zones = detect_zones(inputs.time, pressure)
-    dist = lap_distance(inputs, session)
-    segments = build_segments(inputs, zones, dist)
+    zones, dist, segments = session_segments(session, inputs)
     train_laps, held_laps = split_laps(session, inputs, options.holdout_laps)
-    braking = np.zeros(inputs.time.size, bool)
-    for a, b in zones:
-        braking[a:b] = True
-    release = np.zeros_like(braking)
-    settle = round(SETTLE_S / session.dt)
-    for _, b in zones:
-        release[b: b + settle] = True
-    release &= ~braking
-    cycles = segments.zone.copy()
-    starts = zones[:, 0] if zones.size else np.empty(0, int)
-    cycles = np.full(inputs.time.size, -1)
-    for j, a in enumerate(starts):
-        cycles[a:] = j
+    braking, release, cycles = zone_masks(zones, inputs.time.size, round(SETTLE_S / session.dt))
     layout = Layout(train=np.isin(inputs.lap, train_laps), held=np.isin(inputs.lap, held_laps),
                     braking=braking, release=release, cycles=cycles)
     train_mask = layout.train[:, None] & np.isfinite(y)
 
-    k_z = disc.k_z if disc.k_z is not None else None
     model = DiscFEModel(disc, est_tuning.nodes, est_tuning.layers,
-                        layer_growth=est_tuning.layer_growth, k_z=k_z)
+                        layer_growth=est_tuning.layer_growth, k_z=disc.k_z)
     T0 = _initial_nodes(model, spot_radii, y, float(inputs.t_amb[0]))
     a0, b0, w0 = _reference_start(disc, options.h_law)
 
@@ -700,13 +711,7 @@ def diagnose_session(
         params = ext.values(c.p, c.name)
         effects_out.append({
             "name": c.name,
-            **{k: c.scores[k] for k in ("rmse_before", "rmse_after", "shrink_pct")},
-            "shrink_ci95_pct": c.scores["shrink_ci95_pct"],
-            "significant": c.scores["significant"],
-            "heldout_loglik_gain": c.scores["heldout_loglik_gain"],
-            "scored_spots": c.scores["scored_spots"],
-            "per_spot": c.scores["per_spot"],
-            "per_phase": c.scores["per_phase"],
+            **c.scores,  # describe()'s keys, in its order
             "params": params,
             "evidence": EVIDENCE[c.name](sig[c.name]),
             "signature": EFFECTS[c.name].signature,
@@ -739,7 +744,8 @@ def diagnose_session(
     timings["forward_selection_s"] = time.perf_counter() - t0
     tick("forward selection")
 
-    sigma_meas = np.array([max(scoring.reading_noise(y[:, i]), 0.5) for i in range(4)])
+    sigma_meas = np.array([max(scoring.reading_noise(y[:, i]), SIGMA_MEAS_FLOOR_C)
+                           for i in range(4)])
     cons, nis = consistency(model, inputs, y, ref.law(p_ref)(inputs.speed),
                             float(np.exp(p_ref[2])), T0, spot_radii, sigma_meas,
                             est_tuning.sigma_temp, est_tuning.init_sigma_temp,
@@ -849,20 +855,11 @@ def diagnose_single_spot(
         pred[:, RACE_SPOT - 1] = y[:, RACE_SPOT - 1] - runs[label].innovation
         return pred
 
-    pressure = np.nan_to_num(session.values("brake_pressure_front"), nan=0.0)
-    zones = detect_zones(inputs.time, pressure)
-    dist = lap_distance(inputs, session)
-    segments = build_segments(inputs, zones, dist)
-    braking = np.zeros(inputs.time.size, bool)
-    release = np.zeros_like(braking)
-    cycles = np.full(inputs.time.size, -1)
-    for j, (a, b) in enumerate(zones):
-        braking[a:b] = True
-        release[b: b + round(SETTLE_S / session.dt)] = True
-        cycles[a:] = j
+    zones, dist, segments = session_segments(session, inputs)
+    braking, release, cycles = zone_masks(zones, inputs.time.size, round(SETTLE_S / session.dt))
     scored = np.isin(inputs.lap, flying)
     layout = Layout(train=np.zeros_like(scored), held=scored, braking=braking,
-                    release=release & ~braking, cycles=cycles)
+                    release=release, cycles=cycles)
     ref_pred = prediction("reference")
     spots = (RACE_SPOT,)
     effects_out = []

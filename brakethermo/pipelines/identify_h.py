@@ -280,16 +280,13 @@ def fit_with_effects(
     spots — so that an unmodelled μ(T), lag or slipstream is not folded into h(V).
     """
     from brakethermo.models.disc_effects import ExtendedDisc
-    from brakethermo.pipelines.diagnose import _fit, build_segments, lap_distance
-    from brakethermo.report.braking_zones import detect_zones
+    from brakethermo.pipelines.diagnose import _fit, session_segments
 
     spot_radii = np.asarray(disc.spot_radii)
     model = disc_model(disc, est)
     T0 = np.repeat(_initial_profile(model.radii, spot_radii, y, float(inputs.t_amb[0])),
                    est.layers)
-    pressure = np.nan_to_num(session.values("brake_pressure_front"), nan=0.0)
-    segments = build_segments(inputs, detect_zones(inputs.time, pressure),
-                              lap_distance(inputs, session))
+    _, _, segments = session_segments(session, inputs)
     v = inputs.speed[:-1]
     upper = np.count_nonzero(v >= law0.knee * law0.v_ref) * GRID_DT >= MIN_ABOVE_KNEE_S
     names = tuple(dict.fromkeys(("thickness_gradient", *(("h_speed_knee",) if upper else ()),
