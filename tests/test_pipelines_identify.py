@@ -118,3 +118,20 @@ def test_unusable_ukf_h_track_falls_back_to_the_refit(sim_test_session, monkeypa
     off = truth["q_brake"].to_numpy() == 0
     h_true = truth["h"].to_numpy()[off]
     assert np.sqrt(np.mean((result.law(v[off]) - h_true) ** 2)) / np.mean(h_true) < 0.15
+
+
+def test_with_effect_writes_its_table_and_estimate_uses_it(sim_test_session, tmp_path):
+    """--with-effect fits the effect jointly with h(V), writes [effects.<name>] to
+    h_law.toml, and estimate carries it (the pyrometer lag becomes a state)."""
+    import tomllib
+
+    from brakethermo.pipelines.estimate import EstimateOptions, estimate_session
+    from brakethermo.pipelines.identify_h import write_identify
+
+    result = identify_h(sim_test_session[0], IdentifyOptions(with_effects="sensor_lag"))
+    assert result.summary["with_effects"] == ["sensor_lag"]
+    law_path = write_identify(result, tmp_path) / "h_law.toml"
+    table = tomllib.loads(law_path.read_text())["effects"]["sensor_lag"]
+    assert 0.0 <= table["tau_s"] < 2.0  # the mild simulator lag is ~0.04 s
+    run = estimate_session(sim_test_session[0], EstimateOptions(h_law=law_path)).summary["run"]
+    assert run["effects"]["sensor_lag"]["values"] == table
