@@ -35,10 +35,6 @@ OutDir = Annotated[Path, typer.Option("--out", "-o", help="Output folder.")]
 DiscOpt = Annotated[str | None, typer.Option(help="Disc datasheet id or TOML file.")]
 TuningOpt = Annotated[Path | None, typer.Option(help="Filter tuning TOML.")]
 AliasesOpt = Annotated[Path | None, typer.Option(help="Channel alias TOML.")]
-HLawOpt = Annotated[
-    Path | None,
-    typer.Option("--h-law", help="h_law.toml from identify-h (default: see the command help)."),
-]
 NodesOpt = Annotated[
     int | None,
     typer.Option(min=NODES_MIN, max=NODES_MAX, help="Radial nodes (as the tuning file caps them)."),

@@ -18,11 +18,10 @@ import pandas as pd
 
 from brakethermo.errors import DataError
 from brakethermo.io.raw import Format, RawChannel, RawSession, rebase_s
-from brakethermo.io.timebase import integer_time_scale
+from brakethermo.io.timebase import TIME_SCALE, integer_time_scale
 
 _HEADER = re.compile(r"^\s*(?P<name>.*?)\s*(?:\[(?P<unit>[^\]]*)\])?\s*$")
-_TIME_SCALE = {None: 1.0, "": 1.0, "s": 1.0, "ms": 1.0e-3, "us": 1.0e-6, "µs": 1.0e-6,
-               "ns": 1.0e-9}
+_TIME_SCALE = {None: 1.0, "": 1.0, **TIME_SCALE}  # no unit: seconds
 _SEPARATORS = (",", ";", "\t", "|")
 _SNIFF_LINES = 50
 _DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+\s*$")

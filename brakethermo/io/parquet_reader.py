@@ -13,7 +13,7 @@ import pyarrow.parquet as pq
 
 from brakethermo.errors import DataError
 from brakethermo.io.raw import Format, RawChannel, RawSession, rebase_ns, rebase_s
-from brakethermo.io.timebase import integer_time_scale
+from brakethermo.io.timebase import TIME_SCALE, integer_time_scale
 
 
 def _session_metadata(schema: pa.Schema, path: Path) -> dict[str, str]:
@@ -30,9 +30,6 @@ def _session_metadata(schema: pa.Schema, path: Path) -> dict[str, str]:
     if not isinstance(facts, dict):
         raise DataError("key-value metadata 'session' must be a JSON object", path=path)
     return {str(k): v if isinstance(v, str) else json.dumps(v) for k, v in facts.items()}
-
-
-_TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}
 
 
 def _time_seconds(column: pa.ChunkedArray, unit: str | None, path: Path
@@ -55,11 +52,11 @@ def _time_seconds(column: pa.ChunkedArray, unit: str | None, path: Path
         values = column.to_numpy()
         note = None
         if unit is not None and unit.strip():
-            if unit.strip() not in _TIME_UNITS:
+            if unit.strip() not in TIME_SCALE:
                 raise DataError(
                     f"column 'time' has unit '{unit}'; use s, ms, us or ns", path=path
                 )
-            scale = _TIME_UNITS[unit.strip()]
+            scale = TIME_SCALE[unit.strip()]
         elif pa.types.is_integer(kind):
             scale, note = integer_time_scale(values, path=path, column="time")
         else:

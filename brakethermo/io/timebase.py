@@ -26,6 +26,8 @@ MAX_SPAN_S = 7 * 86400.0
 MAX_STEP_S = 1.0
 # Units tried for an integer time column, coarsest first: (label, seconds per tick).
 TIME_UNITS = (("s", 1.0), ("ms", 1e-3), ("µs", 1e-6), ("ns", 1e-9))
+# Time units a file may name for its time column: seconds per unit.
+TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}
 # Samples further than this from the bulk of the session are a clock jump, s ...
 OUTLIER_MARGIN_S = 60.0
 # ... or this fraction of the bulk's span, whichever is longer.

@@ -110,21 +110,23 @@ def lap_summaries(
     time = frame["time"].to_numpy()
     dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
     contact = frame["contact_avg"].to_numpy()
+    spots = {s: frame[s].to_numpy() for s in SPOTS}
     hot, hot_idx = hottest_radius(frame)
     records = []
     for lap in laps:
         sel = lap_col == lap.lap
         if not sel.any():
             continue
+        t_lap = time[sel]
         peaks = {}
         above_by_spot = {}
-        for i, s in enumerate(SPOTS, start=1):
-            vals = frame[s].to_numpy()[sel]
+        for s, spot in spots.items():
+            vals = spot[sel]
             if np.isfinite(vals).any():
                 j = int(np.nanargmax(vals))
-                peaks[f"spot{i}"] = {
+                peaks[s] = {
                     "temp_c": _finite_or_none(vals[j]),
-                    "time_s": round(float(time[sel][j]), 1),
+                    "time_s": round(float(t_lap[j]), 1),
                 }
                 above_by_spot[s] = round(float(np.sum(vals > hi) * dt), 1)
         c = contact[sel]
@@ -146,7 +148,7 @@ def lap_summaries(
             k = int(hot_idx[sel][j])
             record["hottest"] = {
                 "temp_c": _finite_or_none(h[j]),
-                "time_s": round(float(time[sel][j]), 1),
+                "time_s": round(float(t_lap[j]), 1),
                 "radius_mm": (
                     round(float(node_radii[k]) * 1e3, 1) if node_radii is not None else None
                 ),

@@ -352,8 +352,8 @@ def write_session_report(
     lap_tpl = env.get_template("lap.html.j2")
     window = f"{disc.window_c[0]:.0f}–{disc.window_c[1]:.0f} °C"
     facts = _facts(session)
-    spot_roles = _spot_roles(summary, tuple(
-        int(i) + 1 for i in np.flatnonzero(np.isfinite(measured).any(axis=1))))
+    measured_spots = tuple(int(i) + 1 for i in np.flatnonzero(np.isfinite(measured).any(axis=1)))
+    spot_roles = _spot_roles(summary, measured_spots)
     footer = f"brakethermo {__version__} · disc {disc.id} · {len(nodes_cols)} nodes"
     lap_numbers = [int(v) for v in stats.index]
     lap_slices = pd.Series(np.arange(len(laps_col))).groupby(laps_col).agg(["min", "max"])
@@ -370,7 +370,6 @@ def write_session_report(
         speed_kmh=max(padded_range(speed * KMH)[1], 10.0),
         pressure_bar=max(padded_range(pressure / BAR)[1], 1.0),
     )
-    measured_spots = tuple(int(i) + 1 for i in np.flatnonzero(np.isfinite(measured).any(axis=1)))
     figs = LapFigures(
         node_radii,
         disc.spot_radii,

@@ -151,6 +151,7 @@ class ThermalStepper:
         self.mids = np.empty((n_max + 1, grid.nr))
         self.means = np.empty(n_max + 1)
         self.vol = model.volume
+        self.vol_total = self.vol.sum()
         self.k = 0
         self._record()
         self.flows = np.zeros(5)
@@ -158,7 +159,7 @@ class ThermalStepper:
     def _record(self) -> None:
         self.faces[self.k] = self.t_face
         self.mids[self.k] = self.model.mid_plane(self.T)
-        self.means[self.k] = float(np.sum(self.T * self.vol) / self.vol.sum())
+        self.means[self.k] = float(np.sum(self.T * self.vol) / self.vol_total)
 
     def step(self, dt: float, q_face: np.ndarray, h_face: float, t_amb: float) -> None:
         """One step with face flux ``q_face`` (W/m^2 per column), face h (W/(m^2 K))."""

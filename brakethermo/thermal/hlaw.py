@@ -274,12 +274,13 @@ def read_h_law(path: str | Path) -> HLawRecord:
     knee = raw.number("knee", positive=True, hi=10.0)
     power = raw.table("power")
     a, b = power.number("a", lo=0.0), power.number("b", lo=0.0, hi=10.0)
-    c = raw.table("cubic").numbers("c", length=4)
+    cubic = raw.table("cubic")
+    c = cubic.numbers("c", length=4)
     weights = raw.table("weights", {})
     w = weights.numbers("w", [1.0, 1.0, 1.0], length=3, lo=0.0)
     weights.check(sum(w) > 0, "w", "three weights >= 0, not all 0", w)
     law = HLaw(v_ref=v_ref, a=a, b=b, c=(c[1], c[2], c[3]), knee=knee)
-    raw.table("cubic").check(
+    cubic.check(
         math.isclose(c[0], law.c0, rel_tol=1e-6, abs_tol=1e-9), "c",
         f"c[0] = a * knee^b = {law.c0} (continuity at the knee)", c[0],
     )
