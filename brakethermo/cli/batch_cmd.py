@@ -32,6 +32,8 @@ def _law_tag(source: str) -> str:
 
 
 def _table(result: BatchResult, out: Path) -> Table:
+    from brakethermo.pipelines.summary import temp_text
+
     table = Table(
         title=f"batch: {len(result.outcomes)} sessions -> {escape(str(out))}",
         title_justify="left",
@@ -48,7 +50,7 @@ def _table(result: BatchResult, out: Path) -> Table:
         table.add_column(f"S{i}", justify="right")
     table.add_column("h law")
     for o in result.outcomes:
-        peaks = [f"{o.peaks[s]:.0f}" if s in o.peaks else "-" for s in SPOTS]
+        peaks = [temp_text(o.peaks[s]) if s in o.peaks else "-" for s in SPOTS]
         table.add_row(
             escape(o.name),
             o.kind or "-",

@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
@@ -59,7 +60,7 @@ def clamp_force_cmd(
     if as_json:
         typer.echo(to_json(summ))
         return
-    tab = Table(title=f"clamp-force — {Path(session).name}")
+    tab = Table(title=f"clamp-force — {escape(Path(session).name)}")
     tab.add_column("estimator")
     tab.add_column("RMSE (kN)", justify="right")
     for k, v in summ["rmse_kn"].items():

@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
@@ -59,7 +60,7 @@ def mu_slip_cmd(
     if as_json:
         typer.echo(to_json(summ))
         return
-    tab = Table(title=f"mu-slip — {Path(session).name}")
+    tab = Table(title=f"mu-slip — {escape(Path(session).name)}")
     for c in ("estimate", "μ peak", "slip peak"):
         tab.add_column(c)
     for key in ("ekf", "lm_one_pass", "lm_converged"):
