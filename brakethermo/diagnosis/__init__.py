@@ -1,0 +1,1 @@
+"""The diagnosis engine: reference model, held-out split, candidates, verdicts (any model)."""

@@ -1,0 +1,250 @@
+"""Verdicts from held-out evidence, for any model: which candidate effect explains the
+gap, which few the data cannot tell apart, and what would separate them.
+
+The engine knows nothing of discs or rigs. A caller scores the reference model and each
+candidate extension on held-out data, cuts the held-out errors into independent
+*units* (braking cycles of a lap, apply cycles of a rig, sessions of a test day) and
+hands over the sum of squared errors per unit. Everything here resamples those units:
+
+- **shrink** of a candidate: ``100 (1 - sqrt(SSE_after / SSE_before))`` over all units,
+  with a 95 % interval from a paired bootstrap over units;
+- **significant**: the lower end of that interval above ``min_shrink_pct``;
+- **set verdict**: the best significant candidate, joined by every other significant one
+  it does not beat clearly — the lower end of the bootstrap interval of the shrink
+  *difference* (percentage points, same resamples) not above ``clear_margin_pct``. A
+  single name is given only when it beats every other significant candidate clearly;
+- **undecided**: candidates whose interval straddles the threshold (the data can neither
+  confirm nor rule them out) are listed with what would decide them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class VerdictRule:
+    """The thresholds of a verdict.
+
+    Parameters
+    ----------
+    min_shrink_pct : float — % ; lower bootstrap bound a named effect needs.
+    clear_margin_pct : float — percentage points; lower bound of the shrink difference by
+        which the first effect must beat another to stand alone.
+    correlated : float — correlation of two held-out corrections reported as alike.
+    n_boot : int — bootstrap resamples.
+    max_set : int — most effects in a set verdict (the rest are listed as also significant).
+    seed : int — resampling seed (verdicts are reproducible).
+    """
+
+    min_shrink_pct: float = 10.0
+    clear_margin_pct: float = 3.0
+    correlated: float = 0.8
+    n_boot: int = 2000
+    max_set: int = 3
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class CandidateEvidence:
+    """One candidate's held-out errors per unit and what to say about it.
+
+    Parameters
+    ----------
+    name : str — effect name as registered by the model.
+    sse : numpy.ndarray — (U,) held-out sum of squared errors per unit with the effect, in
+        the same unit order as the reference's.
+    correction : numpy.ndarray — held-out change of the prediction against the reference
+        (any shape; flattened), used to tell look-alike effects.
+    separate_by : str — the data that would tell this effect from look-alikes.
+    next_step : str — how to carry it forward (a command), shown when it is named.
+    """
+
+    name: str
+    sse: np.ndarray
+    correction: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    separate_by: str = ""
+    next_step: str = ""
+
+
+def unit_sse(err: np.ndarray, units: np.ndarray, mask: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sum of squared finite errors and sample count per unit.
+
+    Parameters
+    ----------
+    err : numpy.ndarray — (K,) or (K, m) errors, any unit of measure.
+    units : numpy.ndarray — (K,) integer unit id per step; negative ids are not scored.
+    mask : numpy.ndarray, optional — (K,) bool, steps to score (e.g. held-out laps).
+
+    Returns
+    -------
+    sse, count, ids : numpy.ndarray — each (U,), units in increasing id order.
+    """
+    e = np.asarray(err, float).reshape(len(units), -1)
+    keep = np.asarray(units) >= 0
+    if mask is not None:
+        keep &= np.asarray(mask, bool)
+    ids, inv = np.unique(np.asarray(units)[keep], return_inverse=True)
+    sq = np.where(np.isfinite(e[keep]), e[keep], 0.0) ** 2
+    n = np.isfinite(e[keep]).sum(axis=1).astype(float)
+    sse = np.bincount(inv, weights=sq.sum(axis=1), minlength=ids.size)
+    count = np.bincount(inv, weights=n, minlength=ids.size)
+    return sse, count, ids
+
+
+def _draws(n_units: int, rule: VerdictRule) -> np.ndarray:
+    rng = np.random.default_rng(rule.seed)
+    return rng.integers(0, n_units, size=(rule.n_boot, n_units))
+
+
+def _shrink(sse_before: np.ndarray, sse_after: np.ndarray) -> np.ndarray:
+    return 100.0 * (1.0 - np.sqrt(sse_after / np.maximum(sse_before, 1e-300)))
+
+
+def shrink_interval(sse_before: np.ndarray, sse_after: np.ndarray, rule: VerdictRule
+                    ) -> tuple[float, float, float]:
+    """Held-out RMSE shrink (%) and its 95 % paired-bootstrap interval over units."""
+    sb, sa = np.asarray(sse_before, float), np.asarray(sse_after, float)
+    if sb.size == 0 or sb.sum() <= 0:
+        return float("nan"), float("nan"), float("nan")
+    point = float(_shrink(sb.sum(), sa.sum()))
+    draw = _draws(sb.size, rule)
+    lo, hi = np.percentile(_shrink(sb[draw].sum(axis=1), sa[draw].sum(axis=1)), [2.5, 97.5])
+    return point, float(lo), float(hi)
+
+
+def difference_interval(sse_before: np.ndarray, sse_a: np.ndarray, sse_b: np.ndarray,
+                        rule: VerdictRule) -> tuple[float, float, float]:
+    """Shrink of ``a`` minus shrink of ``b`` (percentage points), 95 % interval, paired."""
+    sb = np.asarray(sse_before, float)
+    if sb.size == 0 or sb.sum() <= 0:
+        return float("nan"), float("nan"), float("nan")
+    point = float(_shrink(sb.sum(), np.sum(sse_a)) - _shrink(sb.sum(), np.sum(sse_b)))
+    draw = _draws(sb.size, rule)
+    base = sb[draw].sum(axis=1)
+    diff = (_shrink(base, np.asarray(sse_a)[draw].sum(axis=1))
+            - _shrink(base, np.asarray(sse_b)[draw].sum(axis=1)))
+    lo, hi = np.percentile(diff, [2.5, 97.5])
+    return point, float(lo), float(hi)
+
+
+def correlation(a: np.ndarray, b: np.ndarray) -> float:
+    """Pearson correlation of two corrections over their common finite entries."""
+    a, b = np.ravel(a), np.ravel(b)
+    if a.size != b.size:
+        return float("nan")
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 3 or np.std(a[ok]) == 0 or np.std(b[ok]) == 0:
+        return float("nan")
+    return float(np.corrcoef(a[ok], b[ok])[0, 1])
+
+
+@dataclass(frozen=True)
+class Decision:
+    """A verdict and how it was reached; :meth:`summary` gives the OUTPUTS.md keys."""
+
+    verdict: str
+    verdict_set: list[str]
+    rows: list[dict[str, Any]]
+    undecided: list[str]
+    next_steps: list[str]
+    reasons: list[str]
+    rule: VerdictRule
+
+    @property
+    def kind(self) -> str:
+        """``"none"``, ``"single"`` or ``"set"``."""
+        return "none" if not self.verdict_set else (
+            "single" if len(self.verdict_set) == 1 else "set")
+
+    def summary(self) -> dict[str, Any]:
+        r = self.rule
+        return {
+            "verdict": self.verdict,
+            "verdict_set": list(self.verdict_set),
+            "verdict_kind": self.kind,
+            "undecided": list(self.undecided),
+            "next_steps": list(self.next_steps),
+            "verdict_reasons": list(self.reasons),
+            "verdict_rule": (
+                f"an effect is significant when the lower end of its 95 % bootstrap interval"
+                f" of held-out shrink exceeds {r.min_shrink_pct:g} %; the best significant"
+                f" effect stands alone only when it beats each other significant one by more"
+                f" than {r.clear_margin_pct:g} percentage points (lower end of the paired"
+                f" interval), else the verdict is the set of those it does not beat"
+                f" (at most {r.max_set}); none when no effect is significant"),
+        }
+
+
+def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
+           rule: VerdictRule | None = None) -> Decision:
+    """Rank the candidates and give the verdict (module docstring).
+
+    Parameters
+    ----------
+    sse_before : numpy.ndarray — (U,) held-out SSE per unit of the reference model.
+    candidates : sequence of CandidateEvidence — each with the same units.
+    rule : VerdictRule, optional.
+    """
+    rule = rule or VerdictRule()
+    by_name = {c.name: c for c in candidates}
+    rows = []
+    for c in candidates:
+        point, lo, hi = shrink_interval(sse_before, c.sse, rule)
+        rows.append({"name": c.name, "shrink_pct": point, "shrink_ci95_pct": [lo, hi],
+                     "significant": bool(np.isfinite(lo) and lo > rule.min_shrink_pct)})
+    rows.sort(key=lambda r: -np.nan_to_num(r["shrink_pct"], nan=-1e9))
+    for rank, row in enumerate(rows, start=1):
+        row["rank"] = rank
+    significant = [r["name"] for r in rows if r["significant"]]
+    undecided = [r["name"] for r in rows if not r["significant"]
+                 and np.isfinite(r["shrink_ci95_pct"][1])
+                 and r["shrink_ci95_pct"][1] > rule.min_shrink_pct]
+    reasons: list[str] = []
+    verdict_set: list[str] = []
+    if significant:
+        top = significant[0]
+        verdict_set = [top]
+        for name in significant[1:]:
+            d, lo, hi = difference_interval(sse_before, by_name[top].sse, by_name[name].sse,
+                                            rule)
+            r = correlation(by_name[top].correction, by_name[name].correction)
+            alike = f", corrections correlated {r:.2f}" if np.isfinite(r) else ""
+            row = next(x for x in rows if x["name"] == name)
+            row["vs_first_pp"] = {"point": d, "ci95": [lo, hi], "correlation": r}
+            if lo > rule.clear_margin_pct:
+                reasons.append(f"{top} beats {name} by {d:.1f} points (95 % interval"
+                               f" {lo:.1f} to {hi:.1f}{alike})")
+            else:
+                verdict_set.append(name)
+                reasons.append(f"{top} does not beat {name} clearly: {d:.1f} points (95 %"
+                               f" interval {lo:.1f} to {hi:.1f}{alike})")
+        if len(verdict_set) > rule.max_set:
+            reasons.append("also significant, not separated: "
+                           + ", ".join(verdict_set[rule.max_set:]))
+            verdict_set = verdict_set[: rule.max_set]
+    next_steps: list[str] = []
+    if len(verdict_set) == 1:
+        if by_name[verdict_set[0]].next_step:
+            next_steps.append(by_name[verdict_set[0]].next_step)
+    elif verdict_set:
+        next_steps.append("the data cannot tell " + " from ".join(verdict_set)
+                          + "; to separate them:")
+        next_steps += [f"{n}: {by_name[n].separate_by}" for n in verdict_set
+                       if by_name[n].separate_by]
+        steps = [by_name[n].next_step for n in verdict_set if by_name[n].next_step]
+        if steps:
+            next_steps.append(f"meanwhile, carry the first: {steps[0]}")
+    for name in undecided:
+        row = next(x for x in rows if x["name"] == name)
+        lo, hi = row["shrink_ci95_pct"]
+        hint = by_name[name].separate_by or "more held-out laps"
+        next_steps.append(f"{name} undecided (held-out shrink {lo:.0f} to {hi:.0f} %): "
+                          f"{hint}")
+    return Decision(verdict_set[0] if verdict_set else "none", verdict_set, rows, undecided,
+                    next_steps, reasons, rule)

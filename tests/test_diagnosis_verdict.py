@@ -1,0 +1,85 @@
+"""The model-agnostic verdict: single names only when clear, sets for look-alikes."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from brakethermo.diagnosis.verdict import (
+    CandidateEvidence,
+    VerdictRule,
+    decide,
+    shrink_interval,
+    unit_sse,
+)
+
+RULE = VerdictRule(n_boot=500)
+
+
+def _units(n: int, rng: np.random.Generator, scale: float) -> np.ndarray:
+    return scale * rng.uniform(0.5, 1.5, n)
+
+
+def test_unit_sse_sums_per_unit_and_skips_nan_and_negative_ids() -> None:
+    err = np.array([[1.0, np.nan], [2.0, 1.0], [3.0, 0.0], [5.0, 5.0]])
+    units = np.array([0, 0, 1, -1])
+    sse, n, ids = unit_sse(err, units)
+    np.testing.assert_allclose(sse, [1 + 4 + 1, 9])
+    np.testing.assert_allclose(n, [3, 2])
+    np.testing.assert_array_equal(ids, [0, 1])
+
+
+def test_clear_winner_stands_alone() -> None:
+    rng = np.random.default_rng(1)
+    before = _units(40, rng, 100.0)
+    good = CandidateEvidence("a", before * 0.25, next_step="carry a")
+    weak = CandidateEvidence("b", before * 0.7)
+    d = decide(before, [weak, good], RULE)
+    assert d.verdict == "a" and d.verdict_set == ["a"] and d.kind == "single"
+    assert d.next_steps == ["carry a"]
+    assert [r["name"] for r in d.rows] == ["a", "b"]
+
+
+def test_near_tie_gives_a_ranked_set_with_what_separates_them() -> None:
+    rng = np.random.default_rng(2)
+    before = _units(40, rng, 100.0)
+    a = CandidateEvidence("a", before * 0.30 * rng.uniform(0.95, 1.05, 40),
+                          separate_by="a cool-down run")
+    b = CandidateEvidence("b", before * 0.31 * rng.uniform(0.95, 1.05, 40),
+                          separate_by="a second pyrometer")
+    d = decide(before, [a, b], RULE)
+    assert d.kind == "set" and set(d.verdict_set) == {"a", "b"}
+    assert d.verdict == d.verdict_set[0]
+    assert any("cool-down" in s for s in d.next_steps)
+    assert any("second pyrometer" in s for s in d.next_steps)
+
+
+def test_nothing_significant_is_none_and_straddlers_are_undecided() -> None:
+    rng = np.random.default_rng(3)
+    before = _units(6, rng, 100.0)
+    noisy = CandidateEvidence("c", before * rng.uniform(0.3, 1.3, 6), separate_by="more laps")
+    d = decide(before, [noisy], RULE)
+    lo, hi = d.rows[0]["shrink_ci95_pct"]
+    if lo <= RULE.min_shrink_pct:
+        assert d.verdict == "none" and d.verdict_set == []
+        if hi > RULE.min_shrink_pct:
+            assert d.undecided == ["c"] and "more laps" in d.next_steps[-1]
+
+
+def test_shrink_interval_contains_point_and_is_exact_for_uniform_scaling() -> None:
+    before = np.full(10, 4.0)
+    point, lo, hi = shrink_interval(before, before * 0.25, RULE)
+    assert point == lo == hi == 50.0
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.permutations(range(4)), st.integers(0, 10_000))
+def test_verdict_does_not_depend_on_candidate_order(order: list[int], seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    before = _units(20, rng, 50.0)
+    cands = [CandidateEvidence(f"e{i}", before * rng.uniform(0.2, 1.1) * rng.uniform(0.9, 1.1, 20))
+             for i in range(4)]
+    d1 = decide(before, cands, RULE)
+    d2 = decide(before, [cands[i] for i in order], RULE)
+    assert d1.verdict_set == d2.verdict_set and d1.verdict == d2.verdict
