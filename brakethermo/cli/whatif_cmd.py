@@ -1,4 +1,4 @@
-"""`brakethermo whatif`: the session's laps replayed with a bigger duct, another disc, another day."""
+"""`brakethermo whatif`: the session's laps replayed with a bigger duct, another disc, a hot day."""
 
 from __future__ import annotations
 
