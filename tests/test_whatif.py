@@ -161,3 +161,18 @@ def test_session_without_the_estimate_channels(tmp_path: Path) -> None:
 def test_scenario_rejects_zero_cooling_directly() -> None:
     with pytest.raises(ConfigError):
         Scenario(cooling=0.0)
+
+
+def test_page_renders_in_a_browser(sim_race_session, tmp_path: Path) -> None:
+    """The whatif page loads offline in headless Chromium, its PNGs decode, no errors."""
+    from test_report_browser import CHROMIUM, render_offline, screenshots
+
+    if CHROMIUM is None:
+        pytest.skip("chromium is not installed (apt-get install -y chromium)")
+    r = runner.invoke(app, ["whatif", str(sim_race_session[0]), "--cooling", "1.2",
+                            "--ambient", "35", "--draws", "2", "--out", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    shots = screenshots(tmp_path)
+    page = tmp_path / sim_race_session[0].stem / "whatif" / "index.html"
+    assert render_offline([("whatif", page)], shots) == []
+    assert (shots / "whatif.png").stat().st_size > 50_000

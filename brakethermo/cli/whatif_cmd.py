@@ -109,13 +109,13 @@ def whatif_cmd(
     tab.add_column("lap")
     tab.add_column("base peak °C / in window %")
     for lab in labels:
-        tab.add_column(escape(f"{lab}: peak °C (±2σ) / in window %"))
+        tab.add_column(escape(f"{lab}: peak °C (95 %) / in window %"))
     for row in res.summary["laps"]:
         b = row["base"]
         cells = [str(row["lap"]), f"{_fmt(b['peak_contact_c'])} / {_fmt(b['time_in_window_pct'])}"]
         for lab in labels:
             s = row[lab]
-            cells.append(f"{_fmt(s['peak_contact_c'])} (±{_fmt(2 * s['peak_contact_std_c'])})"
+            cells.append(f"{_fmt(s['peak_contact_c'])} (±{_fmt(s['peak_contact_band95_c'])})"
                          f" / {_fmt(s['time_in_window_pct'])}")
         tab.add_row(*cells)
     console.print(tab)

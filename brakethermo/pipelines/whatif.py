@@ -309,6 +309,7 @@ def lap_figures(r: Replay, lap: np.ndarray, braking: np.ndarray, dt: float
             "time_above_s": float(np.sum(c > hi) * dt),
             "peak_contact_c": float(np.max(c)),
             "peak_contact_std_c": float(r.contact_std[m][np.argmax(c)]),
+            "peak_contact_band95_c": float(1.96 * r.contact_std[m][np.argmax(c)]),
             "hottest_radius_c": float(np.max(r.hottest[m])),
             "tyre_heat_kj": float(np.sum(r.tyre_w[m]) * dt / 1000.0),
             "tyre_heat_peak_w": float(np.max(r.tyre_w[m])),
