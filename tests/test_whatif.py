@@ -66,7 +66,8 @@ def test_tyre_heat_signs_and_scaling() -> None:
 @pytest.fixture(scope="module")
 def replayed(sim_race_session: tuple[Path, Path]):
     opts = WhatifOptions(scenarios=(Scenario(), Scenario(cooling=1.3), Scenario(cooling=0.8),
-                                    Scenario(ambient_c=40.0)), draws=4)
+                                    Scenario(ambient_c=40.0), Scenario(heat_share=0.95)),
+                         draws=4)
     return whatif_session(sim_race_session[0], opts)
 
 
@@ -83,7 +84,8 @@ def test_more_cooling_is_cooler_less_is_hotter_and_hot_air_hotter(replayed) -> N
     base = replayed.base.contact
     braked = np.flatnonzero(replayed.estimate.frame["braking_power"].to_numpy() > 0)
     after = slice(int(braked[0]) + 50, None)  # once the first stop has heated the disc
-    cool, warm, hot_day = (r.contact for r in replayed.replays[1:])
+    cool, warm, hot_day, more_heat = (r.contact for r in replayed.replays[1:])
+    assert np.all(more_heat[after] >= base[after] - 1e-6)
     assert np.all(cool[after] <= base[after] + 1e-6)
     assert np.all(warm[after] >= base[after] - 1e-6)
     assert np.mean(cool[after] - base[after]) < -5.0
@@ -130,6 +132,8 @@ def test_cli_writes_parquet_summary_and_page(sim_race_session, tmp_path: Path) -
     (["--disc", "no-such-disc"], "no-such-disc"),
     (["--ambient", "400"], "ambient"),
     (["--scenario", "cooling=fast"], "not a number"),
+    (["--scenario", "duct=2"], "KEY one of"),
+    (["--pads", "2"], "pads"),
     ([], "at least one change"),
 ])
 def test_bad_options_one_line_exit_1(sim_race_session, tmp_path: Path, args: list[str],

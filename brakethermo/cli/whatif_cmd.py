@@ -14,7 +14,8 @@ from brakethermo.cli._app import app, console, run_with_status
 from brakethermo.cli._options import AliasesOpt, AmbientOpt, JsonOpt, OutDir, TuningOpt
 from brakethermo.errors import ConfigError
 
-SCENARIO_KEYS = ("cooling", "disc", "ambient")
+SCENARIO_KEYS = ("cooling", "disc", "ambient", "pads")
+FIELD = {"cooling": "cooling", "ambient": "ambient_c", "pads": "heat_share"}
 
 
 def parse_scenario(text: str) -> dict[str, object]:
@@ -33,7 +34,7 @@ def parse_scenario(text: str) -> dict[str, object]:
             number = float(value)
         except ValueError:
             raise ConfigError(f"--scenario '{text}': {key}={value} is not a number") from None
-        kw["cooling" if key == "cooling" else "ambient_c"] = number
+        kw[FIELD[key]] = number
     if not kw:
         raise ConfigError(f"--scenario '{text}' changes nothing")
     return kw
@@ -62,9 +63,15 @@ def whatif_cmd(
         list[float] | None,
         typer.Option("--ambient", help="Air temperature, degC; each one a scenario."),
     ] = None,
+    pads: Annotated[
+        list[float] | None,
+        typer.Option("--pads", help="Other pads, as the share of the friction heat entering"
+                     " the disc (datasheet 0.9); each one a scenario."),
+    ] = None,
     scenario: Annotated[
         list[str] | None,
-        typer.Option("--scenario", help="Combined changes, e.g. 'cooling=1.2,ambient=35'."),
+        typer.Option("--scenario", help="Combined changes, e.g. 'cooling=1.2,ambient=35'"
+                     " (keys cooling, disc, ambient, pads)."),
     ] = None,
     spot: Annotated[int, typer.Option(min=1, max=4, help="Measured spot of the estimate.")] = 3,
     session_disc: Annotated[
@@ -91,6 +98,7 @@ def whatif_cmd(
     scenarios = [Scenario(cooling=c) for c in cooling or []]
     scenarios += [Scenario(disc=d) for d in disc or []]
     scenarios += [Scenario(ambient_c=a) for a in ambient or []]
+    scenarios += [Scenario(heat_share=p) for p in pads or []]
     scenarios += [Scenario(**parse_scenario(s)) for s in scenario or []]  # type: ignore[arg-type]
     if not math.isfinite(tyre_temp) or not -20.0 <= tyre_temp <= 200.0:
         raise ConfigError(f"--tyre-temp {tyre_temp}: give the sidewall in degC, -20 to 200")

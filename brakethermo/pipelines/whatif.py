@@ -19,7 +19,9 @@ Changes: ``cooling`` scales the convection coefficient (a bigger duct; the rims'
 share scales with it); ``ambient_c`` sets the air temperature, and h with the air density
 (``h ∝ ρ^0.8``, turbulent forced convection, ``ρ ∝ 1/T``); ``disc`` swaps the datasheet
 (geometry, c(T), k(T), k_z, heat share; the identified through-thickness ratio, crown
-weights and h law are kept: the same duct, wheel and pads). Node ``i`` of the new disc
+weights and h law are kept: the same duct, wheel and pads); ``heat_share`` (other pads)
+sets the share of the friction heat that enters the disc — the braking power is the
+rider's, whatever the pad's friction level. Node ``i`` of the new disc
 takes the correction of node ``i`` of the old (the same relative place on the ring).
 
 Band: the estimate's own band, plus the spread of the replay over draws of the h law
@@ -73,11 +75,15 @@ class Scenario:
         Datasheet id or TOML file of another disc.
     ambient_c : float, optional — degC
         Air temperature.
+    heat_share : float, optional — dimensionless
+        Share of the friction heat entering the disc with other pads (the datasheet's is
+        0.9): a pad compound of lower thermal effusivity sends more heat into the disc.
     """
 
     cooling: float = 1.0
     disc: str | None = None
     ambient_c: float | None = None
+    heat_share: float | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.cooling) and 0.0 < self.cooling <= 10.0):
@@ -87,6 +93,10 @@ class Scenario:
                                                and -40.0 <= self.ambient_c <= 60.0):
             raise ConfigError(f"--ambient {self.ambient_c}: give the air temperature in degC,"
                               " between -40 and 60")
+        if self.heat_share is not None and not (math.isfinite(self.heat_share)
+                                                and 0.3 <= self.heat_share <= 1.0):
+            raise ConfigError(f"--pads {self.heat_share}: give the share of the friction heat"
+                              " that enters the disc with those pads, 0.3 to 1 (datasheet 0.9)")
 
     @property
     def label(self) -> str:
@@ -97,11 +107,13 @@ class Scenario:
             parts.append(f"disc {Path(self.disc).stem}")
         if self.ambient_c is not None:
             parts.append(f"ambient {self.ambient_c:g} degC")
+        if self.heat_share is not None:
+            parts.append(f"pads heat share {self.heat_share:g}")
         return ", ".join(parts) or "no change"
 
     def describe(self) -> dict[str, Any]:
         return {"label": self.label, "cooling": self.cooling, "disc": self.disc,
-                "ambient_c": self.ambient_c}
+                "ambient_c": self.ambient_c, "heat_share": self.heat_share}
 
 
 @dataclass(frozen=True)
@@ -242,8 +254,8 @@ def replay(est: EstimateResult, scenario: Scenario, options: WhatifOptions,
     if scenario.ambient_c is not None:
         ta1 = np.full(K, scenario.ambient_c)
         h1 = h1 * ((ta0 + 273.15) / (ta1 + 273.15)) ** DENSITY_EXPONENT
-    if disc1 is not disc0:
-        q1 = q0 * disc1.heat_share / disc0.heat_share
+    share = disc1.heat_share if scenario.heat_share is None else scenario.heat_share
+    q1 = q0 * share / disc0.heat_share
     spot_r = float(disc0.spot_radii[options.spot - 1])
     base = _space_for(ssm, model0, q0, np.repeat(ta0[:, None], S, 1), h0[:, None] * g,
                       spot_r)
