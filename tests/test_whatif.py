@@ -180,3 +180,19 @@ def test_page_renders_in_a_browser(sim_race_session, tmp_path: Path) -> None:
     page = tmp_path / sim_race_session[0].stem / "whatif" / "index.html"
     assert render_offline([("whatif", page)], shots) == []
     assert (shots / "whatif.png").stat().st_size > 50_000
+
+
+def test_simulator_replays_the_same_drive_with_a_change() -> None:
+    """Same seed with more cooling / hotter air: same speed, cooler / hotter disc."""
+    from brakethermo.sim.session import SimConfig, simulate
+
+    base = simulate(SimConfig(laps=1, sensor="single", seed=77, nr=12, nz=3))
+    cool = simulate(SimConfig(laps=1, sensor="single", seed=77, nr=12, nz=3, cooling=1.3))
+    hot = simulate(SimConfig(laps=1, sensor="single", seed=77, nr=12, nz=3, ambient_c=45.0))
+    tb, tc, th = (r.truth.to_pandas() for r in (base, cool, hot))
+    n = min(len(tb), len(tc), len(th))
+    np.testing.assert_allclose(tc["speed"][:n], tb["speed"][:n], rtol=0, atol=2.0)
+    late = slice(n // 2, n)
+    assert (tc["contact_avg"][late] < tb["contact_avg"][late]).mean() > 0.95
+    assert th["contact_avg"][late].mean() > tb["contact_avg"][late].mean()
+    assert th["ambient"].mean() == pytest.approx(45.0, abs=0.5)
