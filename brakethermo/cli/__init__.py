@@ -19,6 +19,7 @@ from brakethermo.cli import mu_slip_cmd  # noqa: F401  isort: skip
 from brakethermo.cli import roller_rig_cmd  # noqa: F401  isort: skip
 from brakethermo.cli import simulate_cmd  # noqa: F401  isort: skip
 from brakethermo.cli import timing_cmd  # noqa: F401  isort: skip
+from brakethermo.cli import whatif_cmd  # noqa: F401  isort: skip
 
 
 def main() -> None:

@@ -65,7 +65,9 @@ def simulate_cmd(
     ] = None,
     rig_set: Annotated[
         list[str] | None,
-        typer.Option("--set", help="Rig simulation setting KEY=VALUE (with --rig); repeat."),
+        typer.Option("--set", help="Setting KEY=VALUE; repeat. With --rig, the rig's settings;"
+                     " for a disc session cooling=F (convection factor) and ambient_c=C (air"
+                     " temperature, degC): the same seed replays the same drive."),
     ] = None,
 ) -> None:
     """Simulate a session with named effects; write it and <stem>.truth.parquet beside it."""
@@ -85,6 +87,7 @@ def simulate_cmd(
         sensor=sensor,
         seed=seed,
         disc=disc,
+        **_disc_settings(rig_set or []),
     )
     t0 = time.perf_counter()
     result = simulate(cfg)
@@ -123,6 +126,26 @@ def simulate_cmd(
     tab.add_row("hottest spot (truth)", f"{summary['peak_spot_c']:.0f} °C")
     tab.add_row("time", f"simulate {summary['simulate_s']:.1f} s, write {summary['write_s']:.1f} s")
     console.print(tab)
+
+
+DISC_SETTINGS = ("cooling", "ambient_c")
+
+
+def _disc_settings(settings: list[str]) -> dict[str, float]:
+    """``--set cooling=1.2 --set ambient_c=35`` for a disc session."""
+    from brakethermo.errors import ConfigError
+
+    out: dict[str, float] = {}
+    for item in settings:
+        key, sep, value = item.partition("=")
+        if not sep or key.strip() not in DISC_SETTINGS:
+            raise ConfigError(f"--set {item}: a disc session takes {', '.join(DISC_SETTINGS)}"
+                              " as KEY=VALUE (rig settings need --rig)")
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            raise ConfigError(f"--set {item}: {value!r} is not a number") from None
+    return out
 
 
 def _simulate_rig(

@@ -150,6 +150,11 @@ class EstimateResult:
         The filter's (smoother's) own 1-sigma at spot1..4, without the pyrometer
         calibration term of the reported band: what readings of the same sensor, which
         share that calibration error, are compared with.
+    states : ndarray (K, n) or None
+        The smoothed (or filtered) full state: every node of every layer, then the
+        online parameters; what ``whatif`` replays.
+    state_space : DiscStateSpace or None
+        The filter's state space, whose transition the states follow.
     """
 
     session: Session
@@ -163,6 +168,8 @@ class EstimateResult:
     innovation: np.ndarray | None = None
     innovation_var: np.ndarray | None = None
     spread: np.ndarray | None = None
+    states: np.ndarray | None = None
+    state_space: DiscStateSpace | None = None
 
     @property
     def stem(self) -> str:
@@ -446,7 +453,7 @@ def estimate_from_session(
     }
     return EstimateResult(session, frame, model.radii.copy(), summary, scores, open_loop, disc,
                           timings, forward.innovation[:, 0], forward.innovation_var[:, 0],
-                          std[:, :4])
+                          std[:, :4], states, ssm)
 
 
 def band_std(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning) -> np.ndarray:

@@ -89,3 +89,21 @@ def crown_weights(
     log_w = sigma_base * (g + z_corner)[None] / np.sqrt(2.0) + sigma_event * z_event
     w = np.exp(log_w - log_w.max(axis=-1, keepdims=True))
     return w / w.sum(axis=-1, keepdims=True)
+
+
+def air_convection_factor(t_new_c: float, t_ref_c: float, exponent: float) -> float:
+    """Change of a forced-convection coefficient with the air temperature, dimensionless.
+
+    ``Nu = C Re^m Pr^n`` at one speed and length gives ``h ∝ k (ρ/μ)^m`` (Pr of air
+    hardly changes): density from the ideal gas at one pressure, viscosity ``μ`` and
+    conductivity ``k`` of air from Sutherland's law (S = 110.4 K and 194 K).
+    """
+    def props(t_c: float) -> float:
+        T = t_c + 273.15
+        rho = 1.0 / T
+        mu = T**1.5 / (T + 110.4)
+        k = T**1.5 / (T + 194.0)
+        return k * (rho / mu) ** exponent
+
+    return props(t_new_c) / props(t_ref_c)
+

@@ -1,0 +1,161 @@
+"""The ``whatif`` page: base and scenarios on the same axes, and a table a crew chief reads
+in ten seconds. Takes the summary and the ``whatif.parquet`` table (plain data)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from brakethermo.report.page import Card, Page, Section, TableBlock, write_page
+
+COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
+BASE_COLOR = "#444444"
+
+
+def _f(x: float | None, spec: str = ".0f") -> str:
+    return "–" if x is None or not math.isfinite(x) else format(x, spec)
+
+
+def _shown(label: str) -> str:
+    """A scenario label as people read it (the summary keys keep ASCII units)."""
+    return label.replace(" degC", " °C")
+
+
+def _suffixes(n: int) -> list[str]:
+    return ["" if j == 1 else f"_{j}" for j in range(1, n + 1)]
+
+
+def contact_figure(frame: pd.DataFrame, labels: Sequence[str], window: Sequence[float]
+                   ) -> Figure:
+    """Contact-band temperature over the session: base and each scenario with its 95 % band."""
+    fig, ax = plt.subplots(figsize=(11, 4.2))
+    t = frame["time"].to_numpy() / 60.0
+    ax.axhspan(window[0], window[1], color="#2ca02c", alpha=0.07, lw=0)
+    for w in window:
+        ax.axhline(w, color="#2ca02c", lw=0.8, ls="--")
+    ax.plot(t, frame["base_contact_avg"], color=BASE_COLOR, lw=1.0, label="as run (estimate)")
+    for j, (sfx, lab) in enumerate(zip(_suffixes(len(labels)), labels, strict=True)):
+        c = frame[f"contact_avg{sfx}"].to_numpy()
+        s = frame[f"contact_avg_std{sfx}"].to_numpy()
+        col = COLORS[j % len(COLORS)]
+        ax.fill_between(t, c - 1.96 * s, c + 1.96 * s, color=col, alpha=0.15, lw=0)
+        ax.plot(t, c, color=col, lw=1.0, label=f"{_shown(lab)} (95 % band)")
+    ax.set_xlabel("time, min")
+    ax.set_ylabel("contact band, °C")
+    ax.set_title("Contact-band temperature: as run and replayed with each change")
+    ax.legend(loc="upper left", fontsize=8, ncols=2)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
+
+
+def lap_figure(laps: Sequence[Mapping[str, Any]], labels: Sequence[str],
+               window: Sequence[float], mu_varies: bool) -> Figure:
+    """Per lap: peak contact (95 %), time in the window, heat to the tyre, and the least
+    μ/μ_nom while braking — or, when the law carries no μ(T), the hottest radius."""
+    fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), sharex=True)
+    n = [row["lap"] for row in laps]
+    x = np.arange(len(n))
+    keys = ["base", *labels]
+    width = 0.8 / len(keys)
+    panels = (("peak_contact_c", "peak contact band, °C"),
+              ("time_in_window_pct", "time in window, %"),
+              ("tyre_heat_kj", "heat radiated to the tyre, kJ per lap (one disc)"),
+              ("mu_rel_min", "least μ/μ_nom while braking") if mu_varies else
+              ("hottest_radius_c", "hottest radius, °C"))
+    for ax, (key, title) in zip(axes.ravel(), panels, strict=True):
+        for j, k in enumerate(keys):
+            vals = np.array([row[k][key] for row in laps], float)
+            col = BASE_COLOR if k == "base" else COLORS[(j - 1) % len(COLORS)]
+            err = None
+            if key == "peak_contact_c" and k != "base":
+                err = np.array([row[k]["peak_contact_band95_c"] for row in laps], float)
+            ax.bar(x + (j - (len(keys) - 1) / 2) * width, vals, width, yerr=err, color=col,
+                   alpha=0.85, capsize=2, label="as run" if k == "base" else _shown(k))
+        if key in ("peak_contact_c", "hottest_radius_c"):
+            for w in window:
+                ax.axhline(w, color="#2ca02c", lw=0.8, ls="--")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3, axis="y")
+    for ax in axes[1]:
+        ax.set_xticks(x, [str(v) for v in n])
+        ax.set_xlabel("lap")
+    axes[0, 0].legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def _table(laps: Sequence[Mapping[str, Any]], labels: Sequence[str]) -> TableBlock:
+    header = ["lap", "as run: peak °C", "in window %"]
+    for lab in labels:
+        header += [f"{_shown(lab)}: peak °C (95 %)", "in window %", "above s", "tyre kJ", "μ min"]
+    rows = []
+    for row in laps:
+        b = row["base"]
+        cells: list[object] = [row["lap"], _f(b["peak_contact_c"]),
+                               _f(b["time_in_window_pct"])]
+        for lab in labels:
+            s = row[lab]
+            cells += [f"{_f(s['peak_contact_c'])} ± {_f(s['peak_contact_band95_c'])}",
+                      _f(s["time_in_window_pct"]), _f(s["time_above_s"], ".1f"),
+                      _f(s["tyre_heat_kj"], ".1f"), _f(s["mu_rel_min"], ".2f")]
+        rows.append(cells)
+    return TableBlock(header, rows, "Per lap, contact band; ± is the 95 % band of the"
+                      " scenario's peak (estimate, h-law uncertainty, model allowance).")
+
+
+def whatif_page(summary: Mapping[str, Any], frame: pd.DataFrame) -> Page:
+    """The page of one ``whatif`` run."""
+    labels = [s["label"] for s in summary["scenarios"]]
+    window = summary["run"]["window_c"]
+    laps = summary["laps"]
+    mu_varies = any(abs(row[k]["mu_rel_min"] - 1.0) > 1e-9 for row in laps
+                    for k in ("base", *labels) if math.isfinite(row[k]["mu_rel_min"]))
+    flying = [row for row in laps if row["lap"] > 0] or laps
+    cards = []
+    for lab in labels:
+        d = [row[lab]["peak_contact_c"] - row["base"]["peak_contact_c"] for row in flying]
+        w = [row[lab]["time_in_window_pct"] - row["base"]["time_in_window_pct"]
+             for row in flying]
+        cards.append(Card(f"{_shown(lab)}: peak change", _f(float(np.mean(d)), "+.0f"), "°C"))
+        cards.append(Card(f"{_shown(lab)}: window change", _f(float(np.mean(w)), "+.0f"),
+                          "% of lap"))
+    main = Section(
+        "Contact band as run and with each change",
+        paragraphs=[
+            f"Session {summary['session']}, disc {summary['run']['disc']}, window"
+            f" {window[0]:g}–{window[1]:g} °C, h law {summary['run']['h_law']}.",
+            "Each scenario replays the session's own laps: the same speed trace and braking"
+            " power at every stop, the laps' own model corrections kept, so the model"
+            " predicts the change and the measured laps fix the rest.",
+        ],
+        tables=[_table(laps, labels)],
+        figures={"contact": contact_figure(frame, labels, window),
+                 "laps": lap_figure(laps, labels, window, mu_varies)},
+        notes=list(summary["assumptions"]),
+    )
+    run = summary["run"]
+    facts = Section("How the band is made", paragraphs=[
+        f"95 % band = the estimate's own band, the spread of {run['draws']} replays over the"
+        f" h law's level (1-sigma {100 * run['h_rel_sigma']:.0f} %), and"
+        f" {run['model_error_pct']:g} % of the change as a model-structure allowance, in"
+        " quadrature.",
+        f"Tyre view: rim {run['tyre_view']['rim_radius_m']:g} m, tyre"
+        f" {run['tyre_view']['tyre_radius_m']:g} m, gap {run['tyre_view']['gap_m']:g} m,"
+        f" sidewall {run['tyre_view']['carcass_c']:g} °C, ε {run['tyre_view']['emissivity']:g}.",
+    ] + [f"warning: {w}" for w in run.get("warnings", [])])
+    return Page(title="What if", subtitle=", ".join(map(_shown, labels)), cards=cards,
+                sections=[main, facts], back_href="../index.html",
+                footer=f"brakethermo {run['brakethermo']}")
+
+
+def write_whatif_page(summary: Mapping[str, Any], frame: pd.DataFrame, folder: Path) -> Path:
+    """Write ``folder/index.html`` and its PNGs; return the page path."""
+    return write_page(whatif_page(summary, frame), Path(folder))

@@ -1,0 +1,198 @@
+"""`whatif`: replaying the estimate's laps with a change (physics, anchoring, CLI, bad input)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from brakethermo.cli import app
+from brakethermo.errors import ConfigError
+from brakethermo.pipelines.whatif import Scenario, WhatifOptions, whatif_session
+from brakethermo.thermal.tyre_radiation import (
+    TyreView,
+    annulus_view_factors,
+    disk_to_disk,
+    tyre_heat,
+)
+
+runner = CliRunner()
+
+
+# ---------------------------------------------------------------- view factors
+def test_disk_to_disk_limits() -> None:
+    assert disk_to_disk(0.2, 0.2, 1e-5) == pytest.approx(1.0, abs=1e-4)
+    assert disk_to_disk(0.2, 0.2, 100.0) == pytest.approx(0.0, abs=1e-5)
+    # tabulated case (Incropera Fig. 13.5): r_i = r_j = L gives F = 0.382
+    assert disk_to_disk(1.0, 1.0, 1.0) == pytest.approx(0.382, abs=1e-3)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(0.05, 0.15), st.floats(0.01, 0.05), st.floats(0.16, 0.25),
+       st.floats(0.02, 0.1), st.floats(0.005, 0.2))
+def test_annulus_reciprocity(a1: float, w1: float, a2: float, w2: float, gap: float) -> None:
+    """A1 F12 = A2 F21 for coaxial parallel annuli, computed from either side."""
+    b1, b2 = a1 + w1, a2 + w2
+    f12 = annulus_view_factors(np.array([a1, b1]), TyreView(a2, b2, gap))[0]
+    # the reverse direction: the same algebra with the roles swapped
+    to_1 = (disk_to_disk(np.array([a2, b2]), b1, gap) - disk_to_disk(np.array([a2, b2]), a1,
+                                                                     gap))
+    f21 = np.diff(np.pi * np.array([a2, b2]) ** 2 * to_1)[0] / (np.pi * (b2**2 - a2**2))
+    A1, A2 = np.pi * (b1**2 - a1**2), np.pi * (b2**2 - a2**2)
+    assert 0.0 <= f12 <= 1.0
+    assert A1 * f12 == pytest.approx(A2 * f21, rel=1e-6, abs=1e-12)
+
+
+def test_tyre_heat_signs_and_scaling() -> None:
+    radii = np.linspace(0.1, 0.17, 10)
+    view = TyreView(carcass_c=60.0)
+    hot = tyre_heat(np.full(10, 600.0), radii, 0.1, 0.17, 0.85, view)
+    assert 0.0 < hot < 1000.0  # watts, a fraction of the ~1.6 kW the face radiates
+    assert tyre_heat(np.full(10, 60.0), radii, 0.1, 0.17, 0.85, view) == pytest.approx(0.0)
+    # a taller sidewall sees more of the disc (the annulus only grows); the exchange
+    # vanishes at zero gap, where the radially offset annuli no longer see each other
+    taller = tyre_heat(np.full(10, 600.0), radii, 0.1, 0.17, 0.85, TyreView(tyre_radius=0.35))
+    assert taller > hot
+    assert tyre_heat(np.full(10, 600.0), radii, 0.1, 0.17, 0.85, TyreView(gap=1e-4)) < 0.01 * hot
+
+
+# ---------------------------------------------------------------- replay
+@pytest.fixture(scope="module")
+def replayed(sim_race_session: tuple[Path, Path]):
+    opts = WhatifOptions(scenarios=(Scenario(), Scenario(cooling=1.3), Scenario(cooling=0.8),
+                                    Scenario(ambient_c=40.0), Scenario(heat_share=0.95)),
+                         draws=4)
+    return whatif_session(sim_race_session[0], opts)
+
+
+def test_no_change_reproduces_the_estimate(replayed) -> None:
+    est = replayed.estimate.frame
+    same = replayed.replays[0]
+    np.testing.assert_allclose(same.contact, est["contact_avg"], atol=1e-9)
+    for i in range(4):
+        np.testing.assert_allclose(same.spots[:, i], est[f"spot{i + 1}"], atol=1e-9)
+    np.testing.assert_allclose(same.contact_std, est["contact_avg_std"], atol=1e-9)
+
+
+def test_more_cooling_is_cooler_less_is_hotter_and_hot_air_hotter(replayed) -> None:
+    base = replayed.base.contact
+    braked = np.flatnonzero(replayed.estimate.frame["braking_power"].to_numpy() > 0)
+    after = slice(int(braked[0]) + 50, None)  # once the first stop has heated the disc
+    cool, warm, hot_day, more_heat = (r.contact for r in replayed.replays[1:])
+    assert np.all(more_heat[after] >= base[after] - 1e-6)
+    assert np.all(cool[after] <= base[after] + 1e-6)
+    assert np.all(warm[after] >= base[after] - 1e-6)
+    assert np.mean(cool[after] - base[after]) < -5.0
+    assert np.mean(hot_day[after] - base[after]) > 2.0
+    # the scenario's band admits the change's own uncertainty
+    assert np.all(replayed.replays[1].contact_std >= replayed.base.contact_std - 1e-9)
+
+
+def test_summary_and_frame_follow_outputs_md(replayed) -> None:
+    f: pd.DataFrame = replayed.frame
+    for col in ("time", "lap", "base_contact_avg", "base_spot1", "base_spot4", "contact_avg",
+                "contact_avg_std", "spot1", "spot4", "tyre_heat_w", "mu_rel",
+                "contact_avg_2", "spot3_4", "tyre_heat_w_4", "mu_rel_4"):
+        assert col in f, col
+    assert np.isfinite(f.to_numpy(float)).all()
+    s = replayed.summary
+    assert [x["label"] for x in s["scenarios"]][1] == "cooling x1.3"
+    for row in s["laps"]:
+        for key in ("base", "cooling x1.3"):
+            assert set(row[key]) >= {"time_in_window_pct", "time_above_s", "peak_contact_c",
+                                     "hottest_radius_c", "tyre_heat_kj", "mu_rel_min"}
+            assert row[key]["hottest_radius_c"] >= row[key]["peak_contact_c"] - 1e-6
+    assert s["laps"][-1]["cooling x1.3"]["tyre_heat_kj"] < s["laps"][-1]["base"]["tyre_heat_kj"]
+
+
+# ---------------------------------------------------------------- CLI and bad input
+def test_cli_writes_parquet_summary_and_page(sim_race_session, tmp_path: Path) -> None:
+    r = runner.invoke(app, ["whatif", str(sim_race_session[0]), "--cooling", "1.2",
+                            "--draws", "2", "--out", str(tmp_path), "--json"])
+    assert r.exit_code == 0, r.output
+    summ = json.loads(r.output)
+    folder = tmp_path / sim_race_session[0].stem
+    assert (folder / "whatif.parquet").is_file()
+    assert (folder / "whatif" / "index.html").is_file()
+    assert (folder / "whatif" / "contact.png").stat().st_size > 10_000
+    assert summ["scenarios"][0]["cooling"] == 1.2
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--cooling", "0"], "cooling"),
+    (["--cooling", "-1"], "cooling"),
+    (["--cooling", "nan"], "cooling"),
+    (["--cooling", "inf"], "cooling"),
+    (["--disc", "no-such-disc"], "no-such-disc"),
+    (["--ambient", "400"], "ambient"),
+    (["--scenario", "cooling=fast"], "not a number"),
+    (["--scenario", "duct=2"], "KEY one of"),
+    (["--pads", "2"], "pads"),
+    ([], "at least one change"),
+])
+def test_bad_options_one_line_exit_1(sim_race_session, tmp_path: Path, args: list[str],
+                                     needle: str) -> None:
+    r = runner.invoke(app, ["whatif", str(sim_race_session[0]), *args, "--draws", "0",
+                            "--out", str(tmp_path)])
+    assert r.exit_code == 1, r.output
+    assert needle in r.output and "Traceback" not in r.output
+
+
+def test_law_of_another_disc_is_refused(sim_race_session, tmp_path: Path) -> None:
+    law = tmp_path / "other.toml"
+    shipped = Path(__file__).resolve().parents[1] / "configs" / "hlaw" / "cc-340-8.toml"
+    text = shipped.read_text()
+    law.write_text(text.replace("[extra]\n", '[extra]\ndisc = "cc-355-9"\n'))
+    r = runner.invoke(app, ["whatif", str(sim_race_session[0]), "--h-law", str(law),
+                            "--cooling", "1.2", "--draws", "0", "--out", str(tmp_path)])
+    assert r.exit_code == 1 and "cc-355-9" in r.output and "Traceback" not in r.output
+
+
+def test_session_without_the_estimate_channels(tmp_path: Path) -> None:
+    bad = tmp_path / "speed_only.csv"
+    t = np.arange(0, 60, 0.1)
+    pd.DataFrame({"time": t, "speed [km/h]": 100 + 0 * t}).to_csv(bad, index=False)
+    r = runner.invoke(app, ["whatif", str(bad), "--cooling", "1.2", "--out", str(tmp_path)])
+    assert r.exit_code == 1 and "Traceback" not in r.output
+
+
+def test_scenario_rejects_zero_cooling_directly() -> None:
+    with pytest.raises(ConfigError):
+        Scenario(cooling=0.0)
+
+
+def test_page_renders_in_a_browser(sim_race_session, tmp_path: Path) -> None:
+    """The whatif page loads offline in headless Chromium, its PNGs decode, no errors."""
+    from test_report_browser import CHROMIUM, render_offline, screenshots
+
+    if CHROMIUM is None:
+        pytest.skip("chromium is not installed (apt-get install -y chromium)")
+    r = runner.invoke(app, ["whatif", str(sim_race_session[0]), "--cooling", "1.2",
+                            "--ambient", "35", "--draws", "2", "--out", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    shots = screenshots(tmp_path)
+    page = tmp_path / sim_race_session[0].stem / "whatif" / "index.html"
+    assert render_offline([("whatif", page)], shots) == []
+    assert (shots / "whatif.png").stat().st_size > 50_000
+
+
+def test_simulator_replays_the_same_drive_with_a_change() -> None:
+    """Same seed with more cooling / hotter air: same speed, cooler / hotter disc."""
+    from brakethermo.sim.session import SimConfig, simulate
+
+    base = simulate(SimConfig(laps=1, sensor="single", seed=77, nr=12, nz=3))
+    cool = simulate(SimConfig(laps=1, sensor="single", seed=77, nr=12, nz=3, cooling=1.3))
+    hot = simulate(SimConfig(laps=1, sensor="single", seed=77, nr=12, nz=3, ambient_c=45.0))
+    tb, tc, th = (r.truth.to_pandas() for r in (base, cool, hot))
+    n = min(len(tb), len(tc), len(th))
+    np.testing.assert_allclose(tc["speed"][:n], tb["speed"][:n], rtol=0, atol=2.0)
+    late = slice(n // 2, n)
+    assert (tc["contact_avg"][late] < tb["contact_avg"][late]).mean() > 0.95
+    assert th["contact_avg"][late].mean() > tb["contact_avg"][late].mean()
+    assert th["ambient"].mean() == pytest.approx(45.0, abs=0.5)
