@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -83,3 +84,17 @@ def test_verdict_does_not_depend_on_candidate_order(order: list[int], seed: int)
     d1 = decide(before, cands, RULE)
     d2 = decide(before, [cands[i] for i in order], RULE)
     assert d1.verdict_set == d2.verdict_set and d1.verdict == d2.verdict
+
+
+def test_per_output_sse_compares_candidates_on_common_outputs() -> None:
+    rng = np.random.default_rng(5)
+    before = rng.uniform(50, 150, (30, 4))
+    # 'a' is scored on every output, 'b' (latent values fitted on output 2) on 0, 1, 3
+    a = CandidateEvidence("a", before * 0.3)
+    b = CandidateEvidence("b", before * 0.31, outputs=(0, 1, 3))
+    d = decide(before, [a, b], RULE)
+    assert set(d.verdict_set) == {"a", "b"}
+    row_b = next(r for r in d.rows if r["name"] == "b")
+    assert row_b["shrink_pct"] == pytest.approx(100 * (1 - np.sqrt(0.31)), rel=1e-9)
+    sse, n, _ids = unit_sse(np.ones((6, 3)), np.array([0, 0, 1, 1, 2, -1]), per_output=True)
+    assert sse.shape == (3, 3) and np.all(sse[0] == 2) and np.all(n[2] == 1)

@@ -124,3 +124,58 @@ def test_single_spot_race_gives_what_one_spot_can(tmp_path: Path) -> None:
     assert list(summary["consistency"]["per_spot"]) == ["spot3"]
     assert summary["verdict"] in ("none", *online)
     assert (tmp_path / "o" / "race" / "diagnosis" / "index.html").is_file()
+
+
+def test_verdict_keys_sizes_zone_names_and_next_steps(diagnosed: tuple[dict, Path]) -> None:
+    summary, _ = diagnosed
+    assert summary["verdict_set"][0] == summary["verdict"]
+    assert summary["verdict_kind"] in ("single", "set") and summary["next_steps"]
+    assert len(summary["verdict_set"]) == 1 or summary["verdict_kind"] == "set"
+    lag = next(e for e in summary["effects"] if e["name"] == "sensor_lag")
+    assert lag["size"]["tau_s"] == pytest.approx(lag["params"]["tau_s"])
+    assert "s" in lag["size_text"] and lag["separate_by"]
+    if summary["verdict_kind"] == "single":
+        assert "--with-effect sensor_lag" in summary["next_steps"][0]
+    for cell in summary["where"]["ranked_cells"]:
+        assert cell["zone"] is None or cell["zone"].startswith("B")
+    top_speed = max(float(b["band_kmh"].split("-")[1]) for b in summary["where"]["by_speed_band"])
+    assert top_speed < 400.0  # bands end at the session's top speed, not 1000 km/h
+
+
+def test_pooled_sessions_and_pooling_bad_input(lag_session: Path, tmp_path: Path) -> None:
+    import pyarrow.parquet as pq
+
+    cfg = SimConfig(track="tight-like", laps=2, sensor="multi", seed=DIAGNOSE_SEED + 2,
+                    effects=("sensor_lag",))
+    second = write_simulation(simulate(cfg), tmp_path / "lag2.parquet")[0]
+    runner = CliRunner()
+    args = ["--effects", "sensor_lag,thickness_gradient"]
+    result = runner.invoke(app, ["diagnose", str(lag_session), str(second), "--out",
+                                 str(tmp_path / "o"), "--json", *args])
+    assert result.exit_code == 0, result.output
+    pooled = json.loads(result.output)
+    for key in ("sessions", "gap", "where", "effects", "verdict", "verdict_set", "next_steps",
+                "reference", "train_laps", "heldout_laps", "consistency", "per_session"):
+        assert key in pooled, key
+    assert len(pooled["sessions"]) == 2 and pooled["verdict"] == "sensor_lag"
+    assert (tmp_path / "o" / "pooled" / "diagnosis.json").is_file()
+    assert (tmp_path / "o" / "lag2" / "diagnosis.json").is_file()
+    # another disc in the same call
+    table = pq.read_table(second)
+    meta = dict(table.schema.metadata)
+    facts = json.loads(meta[b"session"])
+    facts["disc"] = "cc-355-9"
+    meta[b"session"] = json.dumps(facts).encode()
+    other = tmp_path / "other_disc.parquet"
+    pq.write_table(table.replace_schema_metadata(meta), other)
+    result = runner.invoke(app, ["diagnose", str(lag_session), str(other), "--out",
+                                 str(tmp_path / "o"), *args])
+    assert result.exit_code == 1 and "one disc" in result.output
+    assert "Traceback" not in result.output
+    # a single-spot race cannot be pooled with four-spot sessions
+    race = write_simulation(simulate(SimConfig(track="tight-like", laps=2, sensor="single",
+                                               seed=DIAGNOSE_SEED + 3)),
+                            tmp_path / "race.parquet")[0]
+    result = runner.invoke(app, ["diagnose", str(lag_session), str(race), "--out",
+                                 str(tmp_path / "o"), *args])
+    assert result.exit_code == 1 and "four-spot" in result.output

@@ -27,7 +27,11 @@ def _laps(text: str | None) -> tuple[int, ...] | None:
 
 @app.command("diagnose")
 def diagnose_command(
-    session: Annotated[Path, typer.Argument(help="Four-spot test session file.")],
+    sessions: Annotated[
+        list[Path],
+        typer.Argument(help="Four-spot test session file(s) (or a single-spot race); several"
+                       " sessions of one bike and disc are also pooled."),
+    ],
     out: OutDir = Path("out"),
     effects: Annotated[
         str, typer.Option(help=f"'all' or a comma-separated list of: {', '.join(EFFECT_NAMES)}.")
@@ -46,28 +50,59 @@ def diagnose_command(
     as_json: JsonOpt = False,
 ) -> None:
     """Where the model parts from the disc, which effect causes it, how far the gap shrinks."""
-    from brakethermo.pipelines.diagnose import DiagnoseOptions, diagnose, write_diagnosis
+    from brakethermo.pipelines.diagnose import (
+        DiagnoseOptions,
+        diagnose,
+        diagnose_many,
+        write_diagnosis,
+        write_pooled,
+    )
     from brakethermo.pipelines.outputs import to_json
 
     options = DiagnoseOptions(effects=effects, holdout_laps=_laps(holdout_laps), h_law=h_law,
                               disc=disc, tuning=tuning, aliases=aliases, ambient_c=ambient)
-    if as_json:
-        result = diagnose(session, options)
-    else:
-        with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/"
-                      "{task.total}"), TimeElapsedColumn(), console=console) as bar:
-            task = bar.add_task(f"diagnosing {escape(session.name)}", total=None)
+    name = sessions[0].name if len(sessions) == 1 else f"{len(sessions)} sessions"
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/"
+                  "{task.total}"), TimeElapsedColumn(), console=console,
+                  disable=as_json) as bar:
+        task = bar.add_task(f"diagnosing {escape(name)}", total=None)
 
-            def progress(label: str, done: int, total: int) -> None:
-                bar.update(task, completed=done, total=total,
-                           description=f"diagnosing {escape(session.name)}: {escape(label)}")
+        def progress(label: str, done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total,
+                       description=f"diagnosing {escape(name)}: {escape(label)}")
 
-            result = diagnose(session, options, progress)
-    folder = write_diagnosis(result, out)
-    s = result.summary
+        if len(sessions) == 1:
+            results, pooled = [diagnose(sessions[0], options, progress)], None
+        else:
+            results, pooled = diagnose_many(sessions, options, progress)
+    folders = [write_diagnosis(r, out) for r in results]
+    pooled_path = write_pooled(pooled, out) if pooled is not None else None
     if as_json:
-        print(to_json({**s, "output": str(folder)}))
+        if pooled is None:
+            print(to_json({**results[0].summary, "output": str(folders[0])}))
+        else:
+            print(to_json({**pooled, "output": str(pooled_path)}))
         return
+    for result, folder in zip(results, folders, strict=True):
+        _render(result, folder)
+    if pooled is not None:
+        console.print(f"[bold]pooled over {len(results)} sessions[/]: verdict "
+                      f"[bold]{_verdict_text(pooled)}[/]")
+        for step in pooled["next_steps"]:
+            console.print(f"  next: {escape(step)}", highlight=False)
+        for note in pooled["notes"]:
+            console.print(f"  [yellow]note:[/] {escape(note)}")
+        console.print(f"wrote {escape(str(pooled_path))}")
+
+
+def _verdict_text(s: dict) -> str:
+    if s["verdict_kind"] == "set":
+        return "one of " + " / ".join(s["verdict_set"]) + " (the data cannot tell them apart)"
+    return s["verdict"]
+
+
+def _render(result, folder: Path) -> None:
+    s = result.summary
     console.print(f"[bold]{escape(result.stem)}[/]: reference model held-out RMSE "
                   f"{s['gap']['rmse_c']:.1f} °C (train laps {s['train_laps']}, held-out "
                   f"{s['heldout_laps']})")
@@ -85,8 +120,13 @@ def diagnose_command(
     for e in s.get("not_identifiable_from_one_spot", []):
         console.print(f"  {e['name']}: not diagnosed here — {escape(e['reason'])}",
                       highlight=False)
-    console.print(f"verdict: [bold]{s['verdict']}[/]; combined model: "
+    for e in s["effects"]:
+        if e["name"] in s["verdict_set"] and e.get("size_text"):
+            console.print(f"  size of {e['name']}: {escape(e['size_text'])}", highlight=False)
+    console.print(f"verdict: [bold]{escape(_verdict_text(s))}[/]; combined model: "
                   f"{' + '.join(s['combined']['effects']) or 'none'}")
+    for step in s["next_steps"]:
+        console.print(f"  next: {escape(step)}", highlight=False)
     for w in s["warnings"]:
         console.print(f"[yellow]warning:[/] {escape(w)}")
     console.print(f"wrote {escape(str(folder / 'diagnosis.json'))} and "

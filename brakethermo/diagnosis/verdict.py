@@ -56,12 +56,15 @@ class CandidateEvidence:
     Parameters
     ----------
     name : str — effect name as registered by the model.
-    sse : numpy.ndarray — (U,) held-out sum of squared errors per unit with the effect, in
-        the same unit order as the reference's.
+    sse : numpy.ndarray — (U,) or (U, m) held-out sum of squared errors per unit (and per
+        output) with the effect, in the same unit order as the reference's.
     correction : numpy.ndarray — held-out change of the prediction against the reference
         (any shape; flattened), used to tell look-alike effects.
     separate_by : str — the data that would tell this effect from look-alikes.
     next_step : str — how to carry it forward (a command), shown when it is named.
+    outputs : tuple of int, optional — the output columns of ``sse`` this candidate is
+        scored on (e.g. not the spot its latent values were fitted to); ``None`` = all.
+        Two candidates are compared on the outputs both are scored on.
     """
 
     name: str
@@ -69,10 +72,30 @@ class CandidateEvidence:
     correction: np.ndarray = field(default_factory=lambda: np.zeros(0))
     separate_by: str = ""
     next_step: str = ""
+    outputs: tuple[int, ...] | None = None
+
+    def total(self, cols: tuple[int, ...] | None = None) -> np.ndarray:
+        """(U,) SSE per unit over ``cols`` (default: its own outputs)."""
+        return _total(self.sse, self.outputs if cols is None else cols)
 
 
-def unit_sse(err: np.ndarray, units: np.ndarray, mask: np.ndarray | None = None
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _total(sse: np.ndarray, cols: tuple[int, ...] | None) -> np.ndarray:
+    a = np.asarray(sse, float)
+    if a.ndim == 1:
+        return a
+    return a.sum(axis=1) if cols is None else a[:, list(cols)].sum(axis=1)
+
+
+def _common(a: tuple[int, ...] | None, b: tuple[int, ...] | None) -> tuple[int, ...] | None:
+    if a is None:
+        return b
+    if b is None:
+        return a
+    return tuple(sorted(set(a) & set(b)))
+
+
+def unit_sse(err: np.ndarray, units: np.ndarray, mask: np.ndarray | None = None,
+             per_output: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Sum of squared finite errors and sample count per unit.
 
     Parameters
@@ -80,10 +103,11 @@ def unit_sse(err: np.ndarray, units: np.ndarray, mask: np.ndarray | None = None
     err : numpy.ndarray — (K,) or (K, m) errors, any unit of measure.
     units : numpy.ndarray — (K,) integer unit id per step; negative ids are not scored.
     mask : numpy.ndarray, optional — (K,) bool, steps to score (e.g. held-out laps).
+    per_output : bool — keep the outputs apart: ``sse`` and ``count`` are then (U, m).
 
     Returns
     -------
-    sse, count, ids : numpy.ndarray — each (U,), units in increasing id order.
+    sse, count, ids : numpy.ndarray — (U,) (or (U, m)), units in increasing id order.
     """
     e = np.asarray(err, float).reshape(len(units), -1)
     keep = np.asarray(units) >= 0
@@ -91,9 +115,13 @@ def unit_sse(err: np.ndarray, units: np.ndarray, mask: np.ndarray | None = None
         keep &= np.asarray(mask, bool)
     ids, inv = np.unique(np.asarray(units)[keep], return_inverse=True)
     sq = np.where(np.isfinite(e[keep]), e[keep], 0.0) ** 2
-    n = np.isfinite(e[keep]).sum(axis=1).astype(float)
-    sse = np.bincount(inv, weights=sq.sum(axis=1), minlength=ids.size)
-    count = np.bincount(inv, weights=n, minlength=ids.size)
+    n = np.isfinite(e[keep]).astype(float)
+    if not per_output:
+        sq, n = sq.sum(axis=1, keepdims=True), n.sum(axis=1, keepdims=True)
+    sse = np.stack([np.bincount(inv, weights=c, minlength=ids.size) for c in sq.T], axis=1)
+    count = np.stack([np.bincount(inv, weights=c, minlength=ids.size) for c in n.T], axis=1)
+    if not per_output:
+        sse, count = sse[:, 0], count[:, 0]
     return sse, count, ids
 
 
@@ -187,7 +215,7 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
 
     Parameters
     ----------
-    sse_before : numpy.ndarray — (U,) held-out SSE per unit of the reference model.
+    sse_before : numpy.ndarray — (U,) or (U, m) held-out SSE per unit of the reference.
     candidates : sequence of CandidateEvidence — each with the same units.
     rule : VerdictRule, optional.
     """
@@ -195,7 +223,7 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
     by_name = {c.name: c for c in candidates}
     rows = []
     for c in candidates:
-        point, lo, hi = shrink_interval(sse_before, c.sse, rule)
+        point, lo, hi = shrink_interval(_total(sse_before, c.outputs), c.total(), rule)
         rows.append({"name": c.name, "shrink_pct": point, "shrink_ci95_pct": [lo, hi],
                      "significant": bool(np.isfinite(lo) and lo > rule.min_shrink_pct)})
     rows.sort(key=lambda r: -np.nan_to_num(r["shrink_pct"], nan=-1e9))
@@ -211,8 +239,9 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
         top = significant[0]
         verdict_set = [top]
         for name in significant[1:]:
-            d, lo, hi = difference_interval(sse_before, by_name[top].sse, by_name[name].sse,
-                                            rule)
+            cols = _common(by_name[top].outputs, by_name[name].outputs)
+            d, lo, hi = difference_interval(_total(sse_before, cols), by_name[top].total(cols),
+                                            by_name[name].total(cols), rule)
             r = correlation(by_name[top].correction, by_name[name].correction)
             alike = f", corrections correlated {r:.2f}" if np.isfinite(r) else ""
             row = next(x for x in rows if x["name"] == name)

@@ -127,6 +127,9 @@ class Effect:
     single_spot : {"online", "test-session", "none"}
         What one race pyrometer can do with it: adapt it online, only use the
         test-session value, or nothing.
+    separate_by : str
+        The data that tell this effect from look-alikes, and how to get them (what a
+        set verdict asks the engineer for).
     """
 
     name: str
@@ -137,6 +140,7 @@ class Effect:
     single_spot: Observability
     latent: Literal["zone", "straight"] | None = None
     latent_params: tuple[EffectParam, ...] = ()
+    separate_by: str = ""
 
 
 EFFECTS: dict[str, Effect] = {
@@ -153,6 +157,9 @@ EFFECTS: dict[str, Effect] = {
             latent="zone",
             latent_params=(EffectParam("zone_balance", 0.0, -1.5, 1.5, prior_sigma=0.8),
                            EffectParam("zone_middle", 0.0, -1.5, 1.5, prior_sigma=0.8)),
+            separate_by=("the inner and outer spots (1 and 4) under braking, braking zone by"
+                         " braking zone: more laps per zone, or a contact thermocouple at "
+                         "the inner and outer pad radius"),
         ),
         Effect(
             "h_speed_knee", "h",
@@ -160,6 +167,9 @@ EFFECTS: dict[str, Effect] = {
             "h multiplied by 1 + g u^2 above 0.8 V_ref (u = 0 at the knee, 1 at V_ref)",
             "cooling only, at high speed: the model stays too hot on the fastest straights",
             "test-session",
+            separate_by=("cooling on the fastest straights against the slow ones: laps with "
+                         "long straights above 0.8 V_ref, or a run at steady top speed with "
+                         "the brakes off"),
         ),
         Effect(
             "slipstream", "h",
@@ -172,6 +182,8 @@ EFFECTS: dict[str, Effect] = {
             latent="straight",
             latent_params=(EffectParam("straight_factor", 1.0, 0.4, 1.6, log=True,
                                        prior_sigma=0.2, online_step=0.01),),
+            separate_by=("laps run alone against laps in a group: the same straight cools "
+                         "differently when following another bike"),
         ),
         Effect(
             "friction_temperature", "power",
@@ -182,6 +194,8 @@ EFFECTS: dict[str, Effect] = {
             "braking only, growing with disc temperature: too little heat in hot stops, too"
             " much in cold ones",
             "test-session",
+            separate_by=("stops at different disc temperatures: the cold first stops of a "
+                         "run against hot laps, or a brake-torque (strain) measurement"),
         ),
         Effect(
             "thickness_gradient", "structure",
@@ -190,6 +204,9 @@ EFFECTS: dict[str, Effect] = {
             "face hotter than the model in braking and cooler right after release (the skin"
             " heats and cools faster than the bulk), every spot alike",
             "test-session",
+            separate_by=("the seconds after each release, when the skin cools faster than "
+                         "the bulk: a cool-down run with the bike at rest, or a second "
+                         "pyrometer"),
         ),
         Effect(
             "sensor_lag", "measurement",
@@ -198,6 +215,8 @@ EFFECTS: dict[str, Effect] = {
             "first-order pyrometer tau dy/dt + y = T_face",
             "residual proportional to dT/dt: reading low while heating, high while cooling",
             "test-session",
+            separate_by=("sharp stops against slow cooling: the reading's delay where the "
+                         "temperature moves fastest, or a second, faster pyrometer"),
         ),
         Effect(
             "emissivity_error", "measurement",
@@ -206,6 +225,9 @@ EFFECTS: dict[str, Effect] = {
             " T_K (eps_disc/eps_set)^(1/4)",
             "bias growing with absolute temperature, in every phase and at every spot",
             "none",
+            separate_by=("the reading error against absolute temperature, hot and cold "
+                         "alike: a contact thermocouple on a cold and on a hot disc, or a "
+                         "pyrometer of known emissivity"),
         ),
     )
 }

@@ -41,12 +41,19 @@ from scipy.optimize import least_squares
 from scipy.stats import chi2
 
 from brakethermo import __version__
+from brakethermo.diagnosis.verdict import (
+    CandidateEvidence,
+    VerdictRule,
+    decide,
+    shrink_interval,
+    unit_sse,
+)
 from brakethermo.errors import DataError
 from brakethermo.estimation import UnscentedKalmanFilter
 from brakethermo.io.session import Session
 from brakethermo.models.disc import DiscStateSpace
 from brakethermo.models.disc_effects import N_REFERENCE, ExtendedDisc, Segments
-from brakethermo.models.effects import EFFECTS, parse_effects
+from brakethermo.models.effects import EFFECTS, mu_ratio, parse_effects
 from brakethermo.pipelines import scoring
 from brakethermo.pipelines.estimate import SIGMA_MEAS_FLOOR_C
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
@@ -64,10 +71,11 @@ PRIOR_WEIGHT_C = 5.0  # degC: one prior sigma costs like one residual of this si
 BOOTSTRAP = 2000
 ZONE_MATCH_M = 120.0  # m: braking starts closer than this on different laps are one zone
 MIN_STRAIGHT_S = 3.0  # s: shorter off-brake stretches join their neighbour's latent value
-SPEED_BANDS_KMH = (0.0, 100.0, 200.0, 280.0, 1000.0)
+SPEED_BANDS_KMH = (0.0, 100.0, 200.0, 280.0)  # the last band ends at the session's top speed
 TEMP_BANDS_C = (0.0, 250.0, 450.0, 650.0, 2000.0)
 SETTLE_S = 5.0  # s after release counted as the "release" phase
 RACE_SPOT = 3
+RULE = VerdictRule(min_shrink_pct=MIN_SHRINK_PCT, correlated=CORRELATED, n_boot=BOOTSTRAP)
 
 
 @dataclass(frozen=True)
@@ -111,6 +119,8 @@ class DiagnoseResult:
     lap_distance: np.ndarray
     nis: np.ndarray
     timings: dict[str, float]
+    reference_sse: np.ndarray | None = None  # (U, 4) held-out SSE per braking cycle
+    evidence: list[CandidateEvidence] = field(default_factory=list)
 
     @property
     def stem(self) -> str:
@@ -318,32 +328,14 @@ def score(pred: np.ndarray, y: np.ndarray, layout: Layout, spots: Sequence[int]
     return out
 
 
-def _cycle_sse(err: np.ndarray, layout: Layout, cols: list[int]) -> tuple[np.ndarray, np.ndarray]:
-    """Sum of squared held-out errors and sample count per braking cycle."""
-    ids = np.unique(layout.cycles[layout.held & (layout.cycles >= 0)])
-    sse = np.empty(ids.size)
-    n = np.empty(ids.size)
-    for j, c in enumerate(ids):
-        e = err[(layout.cycles == c) & layout.held][:, cols]
-        e = e[np.isfinite(e)]
-        sse[j], n[j] = float(np.sum(e**2)), e.size
-    return sse, n
-
-
 def bootstrap_shrink(before: np.ndarray, after: np.ndarray, y: np.ndarray, layout: Layout,
-                     spots: Sequence[int], seed: int = 0) -> tuple[float, float, float]:
+                     spots: Sequence[int]) -> tuple[float, float, float]:
     """Held-out RMSE shrink (%) and its 95 % interval by bootstrap over braking cycles."""
     cols = [s - 1 for s in spots]
-    sb, nb = _cycle_sse(before - y, layout, cols)
-    sa, _ = _cycle_sse(after - y, layout, cols)
-    if sb.size == 0 or nb.sum() == 0:
-        return float("nan"), float("nan"), float("nan")
-    point = 100.0 * (1.0 - np.sqrt(sa.sum() / sb.sum()))
-    rng = np.random.default_rng(seed)
-    draw = rng.integers(0, sb.size, size=(BOOTSTRAP, sb.size))
-    ratio = np.sqrt(sa[draw].sum(axis=1) / np.maximum(sb[draw].sum(axis=1), 1e-12))
-    lo, hi = np.percentile(100.0 * (1.0 - ratio), [2.5, 97.5])
-    return float(point), float(lo), float(hi)
+    units = np.where(layout.held, layout.cycles, -1)
+    sb = unit_sse((before - y)[:, cols], units)[0]
+    sa = unit_sse((after - y)[:, cols], units)[0]
+    return shrink_interval(sb, sa, RULE)
 
 
 def heldout_loglik(pred: np.ndarray, y: np.ndarray, layout: Layout, spots: Sequence[int]
@@ -439,7 +431,10 @@ EVIDENCE: dict[str, Callable[[dict[str, float]], str]] = {
         f" {s['corr_braking_residual_temperature']:+.2f}"),
     "power_distribution": lambda s: (
         f"braking bias spot 2 {s['braking_bias_spot2_c']:+.1f} °C, spot 4"
-        f" {s['braking_bias_spot4_c']:+.1f} °C (opposite signs: pad pressure not uniform)"),
+        f" {s['braking_bias_spot4_c']:+.1f} °C"
+        + (" (opposite signs: the heat split over the radius is not the model's)"
+           if s["braking_bias_spot2_c"] * s["braking_bias_spot4_c"] < 0 else
+           " (same sign: the whole band, not its split, departs)")),
     "slipstream": lambda s: (
         f"lap-to-lap spread of the straights' cooling bias {s['lap_to_lap_sd_straight_bias_c']:.1f}"
         " °C"),
@@ -449,6 +444,67 @@ EVIDENCE: dict[str, Callable[[dict[str, float]], str]] = {
 }
 
 
+def carry_command(session: Path, name: str) -> str:
+    """The command that carries an effect into the law the race estimate uses."""
+    return f"brakethermo identify-h {session} --with-effect {name} --out OUT"
+
+
+def _spread(values: Sequence[float]) -> str:
+    v = np.asarray(values, float)
+    return f"median {np.median(v):.2f}, range {v.min():.2f}-{v.max():.2f}"
+
+
+def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int
+                ) -> tuple[dict[str, Any], str]:
+    """An effect's fitted size in physical units, and the sentence the page shows."""
+    if name == "thickness_gradient":
+        f = float(params["kz_factor"])
+        k_z = f * disc.k_z if disc.k_z else float("nan")
+        return ({"kz_over_nominal": f, "k_z_w_mk": k_z, "k_z_nominal_w_mk": disc.k_z},
+                f"through-thickness conductivity k_z = {k_z:.1f} W/(m K), {f:.2f} x the"
+                f" datasheet's {disc.k_z:g} W/(m K) ({layers} layers)")
+    if name == "sensor_lag":
+        tau = float(params["tau_s"])
+        return {"tau_s": tau}, f"pyrometer time constant {tau:.2f} s"
+    if name == "emissivity_error":
+        r = float(params["ratio"])
+        eps_set = disc.emissivity / r
+        err600 = (600.0 + 273.15) * (r**0.25 - 1.0)
+        return ({"eps_disc_over_set": r, "eps_set": eps_set, "eps_disc": disc.emissivity,
+                 "reading_error_at_600c": err600},
+                f"pyrometer set to emissivity {eps_set:.2f} on a {disc.emissivity:g} disc:"
+                f" reads {err600:+.0f} °C at 600 °C")
+    if name == "friction_temperature":
+        points = {f"{t:.0f}": float(mu_ratio(np.array(t), params["beta"], params["t_mid"]))
+                  for t in (200.0, 400.0, 600.0, 800.0)}
+        return ({"mu_over_ref_at_c": points, "beta": params["beta"],
+                 "t_mid_c": params["t_mid"]},
+                "μ/μ_ref " + ", ".join(f"{v:.2f} at {t} °C" for t, v in points.items()))
+    if name == "h_speed_knee":
+        g = float(params["gain"])
+        knee = 0.8 * disc.v_ref * 3.6
+        return ({"knee_kmh": knee, "gain_at_v_ref": g},
+                f"h {100 * g:+.0f} % at {disc.v_ref * 3.6:.0f} km/h, growing from the knee"
+                f" at {knee:.0f} km/h")
+    if name == "slipstream":
+        f = np.asarray(params.get("straight_factor", [1.0]), float)
+        off = int(np.sum(np.abs(f - 1.0) > 0.1))
+        return ({"h_factor_per_straight": f.tolist(), "straights_off_10pct": off},
+                f"h factor per straight {_spread(f)}; {off} of {f.size} straights more than"
+                " 10 % off")
+    if name == "power_distribution":
+        b = np.asarray(params.get("zone_balance", []), float)
+        m = np.asarray(params.get("zone_middle", []), float)
+        zones = {zone_label(z): {"inner_vs_outer": float(np.exp(2 * b[z])),
+                                 "middle_factor": float(np.exp(m[z]))} for z in range(b.size)}
+        worst = int(np.argmax(np.abs(b))) if b.size else -1
+        text = ("no zone" if worst < 0 else
+                f"inner/outer crown power ratio per zone {_spread(np.exp(2 * b))}; most"
+                f" uneven {zone_label(worst)}: {np.exp(2 * b[worst]):.2f}")
+        return {"per_zone": zones}, text
+    return dict(params), ""
+
+
 # ------------------------------------------------------------------ where
 def where_table(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: Segments,
                 y: np.ndarray, top: int = 12) -> list[dict[str, Any]]:
@@ -456,7 +512,8 @@ def where_table(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: S
     scored = layout.held | layout.train
     phase = np.where(layout.braking, "braking", np.where(layout.release, "release", "straight"))
     v_kmh = np.abs(inputs.speed) * 3.6
-    speed_band = np.digitize(v_kmh, SPEED_BANDS_KMH[1:-1])
+    speed_edges = _speed_edges(v_kmh[scored])
+    speed_band = np.digitize(v_kmh, speed_edges[1:-1])
     rows = []
     total = float(np.nansum(res[scored] ** 2))
     for i in range(4):
@@ -476,8 +533,8 @@ def where_table(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: S
             rows.append({
                 "spot": f"spot{i + 1}",
                 "phase": str(phases[key[0]]),
-                "zone": int(key[1]) - 1,
-                "speed_band_kmh": _band(SPEED_BANDS_KMH, key[2]),
+                "zone": zone_label(int(key[1]) - 1),
+                "speed_band_kmh": _band(speed_edges, key[2]),
                 "temp_band_c": _band(TEMP_BANDS_C, key[3]),
                 "rmse_c": float(np.sqrt(sse[j] / count[j])),
                 "bias_c": float(bias[j]),
@@ -490,6 +547,18 @@ def where_table(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: S
 
 def _band(edges: Sequence[float], i: int) -> str:
     return f"{edges[i]:.0f}-{edges[i + 1]:.0f}"
+
+
+def zone_label(z: int) -> str | None:
+    """Braking zone ``z`` (0-based, in lap order) as the lap reports name it: B1, B2, …"""
+    return f"B{z + 1}" if z >= 0 else None
+
+
+def _speed_edges(v_kmh: np.ndarray) -> tuple[float, ...]:
+    """Speed-band edges, km/h, within the session: the last band ends at its top speed."""
+    top = float(np.ceil(np.nanmax(v_kmh))) if np.isfinite(v_kmh).any() else 1.0
+    inner = tuple(e for e in SPEED_BANDS_KMH[1:] if e < top)
+    return (SPEED_BANDS_KMH[0], *inner, top)
 
 
 def _marginals(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: Segments,
@@ -506,15 +575,15 @@ def _marginals(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: Se
         for i in range(4)
     }
     out["by_zone"] = [
-        {"zone": z, "rmse_c": _rmse(res[scored & (segments.zone == z)]),
+        {"zone": zone_label(z), "rmse_c": _rmse(res[scored & (segments.zone == z)]),
          "bias_c": float(_nanmean(res[scored & (segments.zone == z)]))}
         for z in range(segments.n_zones) if (scored & (segments.zone == z)).any()
     ]
     v = np.abs(inputs.speed) * 3.6
     out["by_speed_band"] = [
-        {"band_kmh": f"{lo:.0f}-{hi:.0f}", "rmse_c": _rmse(res[scored & (v >= lo) & (v < hi)])}
-        for lo, hi in itertools.pairwise(SPEED_BANDS_KMH)
-        if (scored & (v >= lo) & (v < hi)).any()
+        {"band_kmh": f"{lo:.0f}-{hi:.0f}", "rmse_c": _rmse(res[scored & (v >= lo) & (v <= hi)])}
+        for lo, hi in itertools.pairwise(_speed_edges(v[scored]))
+        if (scored & (v >= lo) & (v <= hi)).any()
     ]
     t = _nanmean(y, axis=1)
     out["by_temperature_band"] = [
@@ -704,29 +773,47 @@ def diagnose_session(
 
     res_ref = y - ref_pred
     sig = signatures(res_ref, y, inputs, layout, segments, disc.v_ref, session.dt)
+    units = np.where(layout.held, layout.cycles, -1)
+    ref_sse = unit_sse(ref_pred - y, units, per_output=True)[0]
+    evidence = [
+        CandidateEvidence(c.name, unit_sse(c.pred - y, units, per_output=True)[0],
+                          correction=(c.pred - ref_pred)[layout.held],
+                          separate_by=EFFECTS[c.name].separate_by,
+                          next_step=carry_command(session.path, c.name),
+                          outputs=tuple(s_ - 1 for s_ in c.scored_spots))
+        for c in candidates]
+    decision = decide(ref_sse, evidence, RULE)
     effects_out = []
     for c in candidates:
         c.scores = describe(c, ref_pred)
-        ext = make(c.effects)
-        params = ext.values(c.p, c.name)
+        row = next(r for r in decision.rows if r["name"] == c.name)
+        c.scores.update(shrink_pct=row["shrink_pct"], shrink_ci95_pct=row["shrink_ci95_pct"],
+                        significant=row["significant"])
+        params = make(c.effects).values(c.p, c.name)
+        size, sentence = effect_size(c.name, params, disc, est_tuning.layers)
+        if "kz_factor" in params:  # in h_law.toml kz_factor is relative to k(T), not k_z
+            params = {"kz_over_nominal": params.pop("kz_factor"), **params}
         effects_out.append({
             "name": c.name,
             **c.scores,  # describe()'s keys, in its order
             "params": params,
+            "size": size,
+            "size_text": sentence,
             "evidence": EVIDENCE[c.name](sig[c.name]),
             "signature": EFFECTS[c.name].signature,
             "extension": EFFECTS[c.name].extension,
+            "separate_by": EFFECTS[c.name].separate_by,
             "fit_s": c.fit_s,
+            **({"vs_first_pp": row["vs_first_pp"]} if "vs_first_pp" in row else {}),
         })
-    order = sorted(range(len(candidates)),
-                   key=lambda i: -np.nan_to_num(candidates[i].scores["shrink_pct"], nan=-1e9))
-    effects_out = [effects_out[i] for i in order]
-    ranked = [candidates[i] for i in order]
-    for rank, e in enumerate(effects_out, start=1):
-        e["rank"] = rank
+    rank_of = {r["name"]: r["rank"] for r in decision.rows}
+    effects_out.sort(key=lambda e: rank_of[e["name"]])
+    ranked = sorted(candidates, key=lambda c: rank_of[c.name])
+    for e in effects_out:
+        e["rank"] = rank_of[e["name"]]
 
     significant = [c for c in ranked if c.scores["significant"]]
-    verdict = significant[0].name if significant else "none"
+    verdict = decision.verdict
 
     # Correlated corrections: two significant effects moving the prediction alike.
     warnings: list[str] = []
@@ -735,10 +822,13 @@ def diagnose_session(
         for b in significant[i + 1:]:
             r = _corr((a.pred - ref_pred)[held].ravel(), (b.pred - ref_pred)[held].ravel())
             if np.isfinite(r) and r > CORRELATED:
+                alone = decision.kind == "single" and verdict in (a.name, b.name)
                 warnings.append(
                     f"{a.name} and {b.name} correct the held-out residual alike (correlation"
-                    f" {r:.2f}): the data cannot tell them apart well; the verdict takes the"
-                    " larger shrink")
+                    f" {r:.2f})" + ("; the first still beats the other clearly on held-out"
+                                    " cycles" if alone else
+                                    ": the data cannot tell them apart, the verdict names"
+                                    " the set"))
     t0 = time.perf_counter()
     selection = _forward_selection(significant, fit_candidate, describe, y, layout)
     timings["forward_selection_s"] = time.perf_counter() - t0
@@ -785,11 +875,7 @@ def diagnose_session(
                   "braking_zones": segments.n_zones},
         "consistency": cons,
         "effects": effects_out,
-        "verdict": verdict,
-        "verdict_rule": (
-            f"the effect with the largest held-out shrink, when the lower end of its 95 %"
-            f" bootstrap interval over held-out braking cycles exceeds {MIN_SHRINK_PCT:g} %;"
-            " else none"),
+        **decision.summary(),
         "combined": selection,
         "warnings": warnings,
         "run": {
@@ -802,9 +888,12 @@ def diagnose_session(
         },
     }
     return DiagnoseResult(session, summary, inputs.time, inputs.lap, y, ref_pred,
-                          best.pred if best else None, dist, nis, timings)
+                          best.pred if best else None, dist, nis, timings, ref_sse, evidence)
 
 
+# estimate.parquet's online columns are relative to the law's structure: their names here
+ONLINE_KEY = {"kz_factor": "kz_over_test_session", "h_factor": "h_factor",
+              "crown_balance": "crown_balance"}
 # effect -> (estimate option that adapts it online, its state column, its test-session value)
 SINGLE_SPOT_ONLINE = {"thickness_gradient": ("adapt_kz", "kz_factor", 1.0),
                       "slipstream": ("adapt_slipstream", "h_factor", 1.0),
@@ -862,19 +951,32 @@ def diagnose_single_spot(
                     release=release, cycles=cycles)
     ref_pred = prediction("reference")
     spots = (RACE_SPOT,)
+    units = np.where(layout.held, layout.cycles, -1)
+    ref_sse = unit_sse(ref_pred - y, units, per_output=True)[0]
+    evidence = [
+        CandidateEvidence(label, unit_sse(prediction(label) - y, units, per_output=True)[0],
+                          correction=(prediction(label) - ref_pred)[layout.held],
+                          separate_by=EFFECTS[label].separate_by,
+                          next_step=(f"brakethermo estimate {session.path} --"
+                                     f"{SINGLE_SPOT_ONLINE[label][0].replace('_', '-')}"),
+                          outputs=(RACE_SPOT - 1,))
+        for label in online]
+    decision = decide(ref_sse, evidence, RULE)
+    rows = {r["name"]: r for r in decision.rows}
     effects_out = []
     best_pred = None
     for label in online:
         pred = prediction(label)
         before, after = score(ref_pred, y, layout, spots), score(pred, y, layout, spots)
-        shrink, lo, hi = bootstrap_shrink(ref_pred, pred, y, layout, spots)
+        row = rows[label]
         frame = runs[label].frame
         _, column, nominal = SINGLE_SPOT_ONLINE[label]
         track = frame[column].to_numpy()[scored]
+        key = ONLINE_KEY[column]
         effects_out.append({
             "name": label, "rmse_before": before["overall"], "rmse_after": after["overall"],
-            "shrink_pct": shrink, "shrink_ci95_pct": [lo, hi],
-            "significant": bool(np.isfinite(lo) and lo > MIN_SHRINK_PCT),
+            "shrink_pct": row["shrink_pct"], "shrink_ci95_pct": row["shrink_ci95_pct"],
+            "significant": row["significant"], "rank": row["rank"],
             "heldout_loglik_gain": float(np.nanmean(_gauss_ll(runs[label]))
                                          - np.nanmean(_gauss_ll(runs["reference"]))),
             "scored_spots": [f"spot{RACE_SPOT}"],
@@ -882,19 +984,18 @@ def diagnose_single_spot(
                                               "after": after["overall"]}},
             "per_phase": {k: {"before": before["per_phase"][k], "after": after["per_phase"][k]}
                           for k in after["per_phase"]},
-            "params": {f"{column}_median": float(np.median(track)),
-                       f"{column}_p05": float(np.percentile(track, 5)),
-                       f"{column}_p95": float(np.percentile(track, 95))},
-            "evidence": (f"online {column} over the flying laps: median"
+            "params": {f"{key}_median": float(np.median(track)),
+                       f"{key}_p05": float(np.percentile(track, 5)),
+                       f"{key}_p95": float(np.percentile(track, 95))},
+            "evidence": (f"online {key} over the flying laps: median"
                          f" {np.median(track):.2f}, 5-95 % {np.percentile(track, 5):.2f}-"
                          f"{np.percentile(track, 95):.2f} ({nominal:g} = the test-session disc)"),
             "signature": EFFECTS[label].signature,
             "extension": EFFECTS[label].extension,
+            "separate_by": EFFECTS[label].separate_by,
             "identifiable_from_one_spot": True,
         })
-    effects_out.sort(key=lambda e: -np.nan_to_num(e["shrink_pct"], nan=-1e9))
-    for rank, e in enumerate(effects_out, start=1):
-        e["rank"] = rank
+    effects_out.sort(key=lambda e: e["rank"])
     not_observable = [
         {"name": n, "identifiable_from_one_spot": False,
          "reason": ("one pyrometer cannot tell its own bias from the disc: only the test"
@@ -902,8 +1003,7 @@ def diagnose_single_spot(
                    "needs the four-spot test session (diagnose it there, then estimate with"
                    " its h_law.toml)"}
         for n in names if n not in SINGLE_SPOT_ONLINE]
-    significant = [e for e in effects_out if e["significant"]]
-    verdict = significant[0]["name"] if significant else "none"
+    verdict = decision.verdict
     if verdict != "none":
         best_pred = prediction(verdict)
     ref_scores = score(ref_pred, y, layout, spots)
@@ -947,11 +1047,7 @@ def diagnose_single_spot(
         },
         "effects": effects_out,
         "not_identifiable_from_one_spot": not_observable,
-        "verdict": verdict,
-        "verdict_rule": (
-            f"the online effect with the largest innovation shrink, when the lower end of its"
-            f" 95 % bootstrap interval over braking cycles exceeds {MIN_SHRINK_PCT:g} %;"
-            " else none"),
+        **decision.summary(),
         "combined": {"effects": [verdict] if verdict != "none" else [], "steps": []},
         "warnings": [],
         "run": {"brakethermo": __version__, "disc": disc.id, "effects_tried": list(names),
@@ -959,7 +1055,7 @@ def diagnose_single_spot(
                 "input_warnings": list(session.warnings) + list(inputs.warnings)},
     }
     return DiagnoseResult(session, summary, inputs.time, inputs.lap, y, ref_pred, best_pred,
-                          dist, nis, {})
+                          dist, nis, {}, ref_sse, evidence)
 
 
 def _gauss_ll(result: Any) -> np.ndarray:
@@ -1000,6 +1096,94 @@ def diagnose(path: str | Path, options: DiagnoseOptions | None = None,
     result = diagnose_session(session, options, progress)
     result.timings["read_s"] = read_s
     return result
+
+
+def diagnose_many(paths: Sequence[str | Path], options: DiagnoseOptions | None = None,
+                  progress: Callable[[str, int, int], None] | None = None
+                  ) -> tuple[list[DiagnoseResult], dict[str, Any]]:
+    """Diagnose several sessions of one bike and disc, then pool their evidence.
+
+    Raises
+    ------
+    DataError
+        Sessions of different discs, or a session without the four spots pooling needs.
+    """
+    options = options or DiagnoseOptions()
+    sessions = [load_timed(p, options.aliases)[0] for p in paths]
+    discs = {s.path.name: disc_for(s, options.disc).id for s in sessions}
+    if len(set(discs.values())) > 1:
+        listing = ", ".join(f"{n}: {d}" for n, d in discs.items())
+        raise DataError(f"diagnose pools sessions of one disc; these run {listing}: diagnose"
+                        " each disc's sessions in their own call")
+    for s in sessions:
+        have = [i for i in range(1, 5) if s.has(f"disc_temp_spot{i}")]
+        if len(have) < 4:
+            raise DataError(
+                "pooling several sessions needs the four-spot sensor in each; this one logs"
+                f" {len(have)} spot(s): diagnose it alone", path=s.path)
+    results = []
+    for i, s in enumerate(sessions):
+        def tick(label: str, done: int, total: int, i: int = i, name: str = s.path.name
+                 ) -> None:
+            if progress:
+                progress(f"{name} ({i + 1}/{len(sessions)}): {label}", done, total)
+        results.append(diagnose_session(s, options, tick))
+    return results, pool(results)
+
+
+def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
+    """One verdict from several sessions: their held-out braking cycles resampled together.
+
+    Per-session verdicts stay beside the pooled one; an effect significant in one run only
+    is said so (a one-off — a gusty session, one set of pads — is not the disc).
+    """
+    names = [e.name for e in results[0].evidence]
+    by_session = [{e.name: e for e in r.evidence} for r in results]
+    ref = np.concatenate([r.reference_sse for r in results if r.reference_sse is not None])
+    evidence = [
+        CandidateEvidence(n, np.concatenate([b[n].sse for b in by_session]),
+                          correction=np.concatenate([np.ravel(b[n].correction)
+                                                     for b in by_session]),
+                          separate_by=by_session[0][n].separate_by,
+                          next_step=by_session[0][n].next_step, outputs=by_session[0][n].outputs)
+        for n in names if all(n in b for b in by_session)]
+    decision = decide(ref, evidence, RULE)
+    stems = [r.stem for r in results]
+    seen_in = {n: [r.stem for r in results for e in r.summary["effects"]
+                   if e["name"] == n and e["significant"]] for n in names}
+    rows = []
+    for row in decision.rows:
+        per = {r.stem: next(e["shrink_pct"] for e in r.summary["effects"]
+                            if e["name"] == row["name"]) for r in results}
+        rows.append({**row, "per_session_shrink_pct": per, "significant_in": seen_in[row["name"]]})
+    notes = [f"{n} is significant in {seen_in[n][0]} only: a one-off of that run, or an effect"
+             " the other runs cannot show" for n in names if len(seen_in[n]) == 1]
+    gaps = [r.summary["gap"]["rmse_c"] for r in results]
+    first = results[0].summary
+    return {
+        "sessions": [str(r.session.path) for r in results],
+        "reference": first["reference"],
+        "train_laps": {r.stem: r.summary["train_laps"] for r in results},
+        "heldout_laps": {r.stem: r.summary["heldout_laps"] for r in results},
+        "gap": {"rmse_c": float(np.sqrt(np.mean(np.square(gaps)))),
+                "per_session": dict(zip(stems, gaps, strict=True))},
+        "where": {r.stem: r.summary["where"]["by_spot_phase"] for r in results},
+        "consistency": {r.stem: r.summary["consistency"] for r in results},
+        "effects": rows,
+        **decision.summary(),
+        "per_session": [{"session": r.stem, "verdict": r.summary["verdict"],
+                         "verdict_set": r.summary["verdict_set"]} for r in results],
+        "notes": notes,
+        "run": {"brakethermo": __version__, "disc": first["run"]["disc"],
+                "pooled_units": int(ref.shape[0])},
+    }
+
+
+def write_pooled(summary: dict[str, Any], out_dir: str | Path) -> Path:
+    """``<out>/pooled/diagnosis.json``; returns its path."""
+    from brakethermo.pipelines.outputs import write_json
+
+    return write_json(Path(out_dir) / "pooled" / "diagnosis.json", summary)
 
 
 def write_diagnosis(result: DiagnoseResult, out_dir: str | Path) -> Path:

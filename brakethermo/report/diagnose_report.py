@@ -133,11 +133,14 @@ def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
     """The whole diagnosis page from the summary and the residual series."""
     effects = summary["effects"]
     verdict = summary["verdict"]
+    vset = summary.get("verdict_set", [] if verdict == "none" else [verdict])
     top = next((e for e in effects if e["name"] == verdict), None)
     cons = summary["consistency"]
+    shown = (" or ".join(v.replace("_", " ") for v in vset) if len(vset) > 1 else
+             verdict.replace("_", " "))
     cards = [
         Card("Gap (held-out RMSE)", _f(summary["gap"]["rmse_c"]), "°C"),
-        Card("Verdict", verdict.replace("_", " ")),
+        Card("Verdict" if len(vset) < 2 else "Verdict: cannot tell apart", shown),
         Card("Shrink", _f(top["shrink_pct"], "{:.0f}") if top else "–", "%" if top else ""),
         Card("Held-out laps", ", ".join(map(str, summary["heldout_laps"]))),
     ]
@@ -162,7 +165,7 @@ def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
         {"nis": nis_figure(time, nis)},
     )
     gap = summary["gap"]["per_spot_phase"]
-    where_rows = [[c["spot"], c["phase"], c["zone"] if c["zone"] >= 0 else "–",
+    where_rows = [[c["spot"], c["phase"], c["zone"] or "–",
                    c["speed_band_kmh"], c["temp_band_c"], _f(c["rmse_c"]), _f(c["bias_c"]),
                    _f(c["share_pct"])] for c in summary["where"]["ranked_cells"]]
     where_section = Section(
@@ -182,9 +185,11 @@ def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
                    _f(e["heldout_loglik_gain"], "{:+.3f}"), "yes" if e["significant"] else "no",
                    e["evidence"]] for e in effects]
     combined = summary["combined"]
+    sizes = [[e["name"], e.get("size_text", "")] for e in effects if e["name"] in vset]
     which_section = Section(
         "Which effect, and how far the gap shrinks",
-        [f"Verdict: {verdict}. Rule: {summary['verdict_rule']}.",
+        [f"Verdict: {shown}. Rule: {summary['verdict_rule']}.",
+         *summary.get("verdict_reasons", []),
          "Combined model by forward selection: "
          + (" + ".join(combined["effects"]) if combined["effects"] else "none") + "."],
         [TableBlock(["rank", "effect", "before °C", "after °C", "shrink %", "95 % interval %",
@@ -193,6 +198,13 @@ def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
         {"effects": effects_figure(effects, verdict)} if effects else {},
         list(summary.get("warnings", [])),
     )
+    if sizes and any(text for _, text in sizes):
+        which_section.tables.insert(0, TableBlock(["effect", "size (fitted on training laps)"],
+                                                  sizes, caption="How big it is"))
+    next_section = Section("What to run or measure next",
+                           list(summary.get("next_steps", [])) or
+                           ["Nothing to carry: the reference model explains the held-out laps"
+                            " within the rule."])
     blind = summary.get("not_identifiable_from_one_spot")
     if blind:
         which_section.tables.append(TableBlock(
@@ -210,7 +222,8 @@ def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
         title=f"{title} · diagnosis",
         subtitle=f"disc {summary['run']['disc']}, brakethermo {summary['run']['brakethermo']}",
         cards=cards,
-        sections=[ref_section, cons_section, where_section, which_section, trace_section],
+        sections=[ref_section, cons_section, where_section, which_section, next_section,
+                  trace_section],
         footer="Effects are fitted on the training laps only; 'after' figures are held-out.",
         back_href="../index.html",
     )
