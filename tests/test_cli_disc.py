@@ -40,11 +40,17 @@ def test_online_effects_can_be_switched_off(sim_race_session, identified, tmp_pa
                               str(identified[1]), "--out", str(tmp_path), "--no-smoother",
                               "--no-report", "--no-adapt-kz", "--adapt-balance", "--json"])
     assert res.exit_code == 0, res.output
-    effects = json.loads(res.stdout)["run"]["effects"]
-    assert "thickness_gradient" not in effects and "slipstream" in effects
+    run = json.loads(res.stdout)["run"]
+    effects = run["effects"]
+    assert "thickness_gradient" not in effects
     assert "adapted online" in effects["power_distribution"]["use"]
+    # slipstream, not forced, was left to the race: its decision is in the run facts
+    slip = run["online_choice"]["chosen"]
+    assert ("slipstream" in effects) == ("slipstream" in slip)
+    assert run["online_choice"]["forced_or_from_law"] == {"adapt_kz": False}
     columns = pq.read_schema(tmp_path / "race_multi" / "estimate.parquet").names
-    assert "h_factor" in columns and "kz_factor" not in columns and "crown_balance" in columns
+    assert "kz_factor" not in columns and "crown_balance" in columns
+    assert ("h_factor" in columns) == ("slipstream" in slip)
 
 
 def test_bad_h_law_file_is_one_line_exit_1(sim_race_session, tmp_path):

@@ -35,6 +35,7 @@ from brakethermo.models.effects import true_from_reading
 from brakethermo.pipelines import scoring
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
+from brakethermo.pipelines.online_choice import ONLINE_FLAGS, OnlineChoice, choose_online
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.summary import lap_summaries
 from brakethermo.pipelines.tuning import (
@@ -79,6 +80,9 @@ class EstimateOptions:
     workers : int
         Threads re-running smoother windows in parallel (a fine mesh's smoother runs in
         windows to bound its memory; see ``estimation.urts``).
+    online_auto : bool
+        Let the race decide the online effects whose flag is neither given here nor set
+        in the user's tuning file (:mod:`brakethermo.pipelines.online_choice`).
     """
 
     spot: int = 3
@@ -97,6 +101,7 @@ class EstimateOptions:
     ambient_c: float | None = None
     score: bool = True
     workers: int = 1
+    online_auto: bool = True
 
     def __post_init__(self) -> None:
         check_overrides(self.overrides())
@@ -155,6 +160,11 @@ class EstimateResult:
         online parameters; what ``whatif`` replays.
     state_space : DiscStateSpace or None
         The filter's state space, whose transition the states follow.
+    y_measured : ndarray (K,) or None — degC
+        The measured spot's readings as the filter used them (NaN at the sensor floor,
+        emissivity-corrected when the law says so).
+    spot_radius : float or None — m
+        Radius of the measured spot.
     """
 
     session: Session
@@ -170,6 +180,8 @@ class EstimateResult:
     spread: np.ndarray | None = None
     states: np.ndarray | None = None
     state_space: DiscStateSpace | None = None
+    y_measured: np.ndarray | None = None
+    spot_radius: float | None = None
 
     @property
     def stem(self) -> str:
@@ -308,6 +320,28 @@ def effect_plan(effects: dict[str, dict[str, Any]], tuning: EstimateTuning) -> E
     return EffectPlan(fixed, tuple(online), ratio, facts)
 
 
+def _online_choice(session: Session, options: EstimateOptions, cal: DiscCalibration,
+                   tuning: EstimateTuning, calibration: DiscCalibration | None
+                   ) -> OnlineChoice | None:
+    """The race's own choice of the online effects nobody forced (None: nothing to choose).
+
+    An effect the h law carries is on whatever the race says (identify-h found it on the
+    test session); a flag given as an option or in the user's tuning file is forced.
+    """
+    if not options.online_auto or calibration is not None:
+        return None  # identify-h's own validation runs choose their variants themselves
+    user = user_tuning_keys(options.tuning, "estimate")
+    given = options.overrides()
+    candidates = tuple(name for name, flag in ONLINE_FLAGS.items()
+                       if flag not in given and flag not in user and name not in cal.effects)
+    if not candidates:
+        return None
+    choice = choose_online(session, options, candidates)
+    forced = {flag: getattr(tuning, flag) for name, flag in ONLINE_FLAGS.items()
+              if name not in candidates}
+    return OnlineChoice(choice.flags, {**choice.facts, "forced_or_from_law": forced})
+
+
 def build_state_space(
     model: DiscFEModel, inputs: DiscInputs, h: np.ndarray, tuning: EstimateTuning,
     power_scale: float = 1.0, plan: EffectPlan | None = None, spot_radius: float | None = None,
@@ -349,6 +383,9 @@ def estimate_from_session(
             f"the model runs {tuning.layers} layers but the h law's k_z ratio was fitted for"
             f" {cal.layers}; re-run identify-h with the same layering for best accuracy"
         )
+    choice = _online_choice(session, options, cal, tuning, calibration)
+    if choice is not None:
+        tuning = replace(tuning, **choice.flags)
     h = cal.law(inputs.speed)
     model = disc_model(disc, tuning, cal.weights, cal.kz_ratio)
     spot_radii = np.asarray(disc.spot_radii)
@@ -441,6 +478,8 @@ def estimate_from_session(
             "adapt_power": tuning.adapt_power,
             "measured_spot": options.spot,
             "effects": plan.facts,
+            "online_choice": choice.facts if choice is not None else {
+                "rule": "every online effect set by the options or the tuning file"},
             "steps": len(frame),
             "covariance_repairs": forward.n_repairs,
             "log_likelihood": forward.log_likelihood,
@@ -453,7 +492,8 @@ def estimate_from_session(
     }
     return EstimateResult(session, frame, model.radii.copy(), summary, scores, open_loop, disc,
                           timings, forward.innovation[:, 0], forward.innovation_var[:, 0],
-                          std[:, :4], states, ssm)
+                          std[:, :4], states, ssm, y,
+                          float(spot_radii[options.spot - 1]))
 
 
 def band_std(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning) -> np.ndarray:

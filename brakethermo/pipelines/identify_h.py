@@ -341,7 +341,10 @@ def _held_out(
         EstimateOptions(spot=spot, disc=options.disc, tuning=options.tuning,
                         aliases=options.aliases, ambient_c=options.ambient_c, score=False,
                         sigma_crown=calibration.sigma_crown,
-                        adapt_power=calibration.adapt_power),
+                        adapt_power=calibration.adapt_power,
+                        # the race switches online effects on only where it shows them; on
+                        # a disc like this session's it leaves them off: calibrate for that
+                        adapt_kz=False, adapt_slipstream=False),
         calibration=calibration,
     )  # fmt: skip
     readings = np.column_stack([session.values(name) for name in MULTI_SPOT])
@@ -578,6 +581,7 @@ def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
     cal = result.calibration
     extra: dict[str, Any] = {
         "session": str(result.session.path),
+        "disc": result.summary["run"]["disc"],  # whatif and estimate refuse another disc's law
         "brakethermo": __version__,
         "kz_ratio": cal.kz_ratio,
         "power_scale": cal.power_scale,

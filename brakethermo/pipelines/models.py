@@ -58,6 +58,8 @@ class DiscCalibration:
         validated against :data:`brakethermo.models.effects.EFFECTS`.
     source : str
         Where it came from (file path).
+    disc_id : str or None
+        The datasheet the law was identified with (``[extra] disc``; older files: None).
     """
 
     law: HLaw
@@ -72,6 +74,7 @@ class DiscCalibration:
     layer_growth: float | None = None
     effects: dict[str, dict[str, Any]] = field(default_factory=dict)
     source: str = ""
+    disc_id: str | None = None
 
 
 # Ranges of the identified values an h_law.toml may carry (those identify-h can produce).
@@ -98,9 +101,10 @@ def read_calibration(path: str | Path) -> DiscCalibration:
             else:
                 values[key] = extra.number(key, lo=lo, hi=hi)
     adapt = extra.boolean("adapt_power", None)
+    disc_id = record.extra.get("disc")
     return DiscCalibration(law=record.law, weights=record.weights, adapt_power=adapt,
                            effects=_checked_effects(record.effects, path), source=str(path),
-                           **values)
+                           disc_id=str(disc_id) if disc_id is not None else None, **values)
 
 
 def _checked_effects(tables: dict[str, Any], path: str | Path) -> dict[str, dict[str, Any]]:
@@ -133,7 +137,13 @@ def calibration_for(disc: DiscSpec, h_law: str | Path | None) -> DiscCalibration
             f"no h(V) law for disc '{disc.id}': run `brakethermo identify-h` on a multi-spot"
             " test session and pass its h_law.toml with --h-law"
         )
-    return read_calibration(path)
+    cal = read_calibration(path)
+    if cal.disc_id is not None and cal.disc_id != disc.id:
+        raise ConfigError(
+            f"this h law was identified on disc '{cal.disc_id}' but the session runs disc"
+            f" '{disc.id}': identify-h on a test session of disc '{disc.id}', or name the"
+            " session's disc with --disc if its facts are wrong", path=path)
+    return cal
 
 
 def own_h_law(folder: str | Path, session: Session) -> Path | None:

@@ -187,16 +187,9 @@ class WhatifResult:
         return self.estimate.stem
 
 
-def _law_facts(h_law: str | Path | None, disc: DiscSpec) -> dict[str, Any]:
-    cal = calibration_for(disc, h_law)
-    extra = read_h_law(cal.source).extra
-    law_disc = extra.get("disc")
-    if law_disc is not None and law_disc != disc.id:
-        raise ConfigError(
-            f"the h law was identified on disc '{law_disc}', the session runs disc '{disc.id}':"
-            " identify-h on a test session of this disc, or give --disc-of-session",
-            path=cal.source)
-    return extra
+def _law_extra(h_law: str | Path | None, disc: DiscSpec) -> dict[str, Any]:
+    """The ``[extra]`` table of the law (``calibration_for`` has refused another disc's)."""
+    return read_h_law(calibration_for(disc, h_law).source).extra
 
 
 def _scenario_disc(scenario: Scenario, disc: DiscSpec) -> DiscSpec:
@@ -370,7 +363,7 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
     est = estimate_from_session(session, EstimateOptions(
         spot=options.spot, h_law=options.h_law, disc=options.disc, tuning=options.tuning,
         aliases=options.aliases, ambient_c=options.ambient_c, score=False))
-    extra = _law_facts(options.h_law, est.disc)
+    extra = _law_extra(options.h_law, est.disc)
     h_sig = options.h_rel_sigma
     if h_sig is None:
         h_sig = float(extra.get("h_rel_sigma", H_REL_SIGMA))

@@ -1,0 +1,161 @@
+"""Which online effects a race supports: decided by the race's own innovations.
+
+A race disc may have another through-thickness conductivity than the test session's, a
+rider may follow others down the straights, the pads may bite off-centre; each is an
+online state of the estimate (``adapt_kz``, ``adapt_slipstream``, ``adapt_balance``). A
+state the race does not need only adds variance — on a disc like the test session's an
+online k_z lets the one measured spot pull the whole profile — so none is switched on
+by default. Instead the race decides:
+
+1. the filter runs (no smoother) on the first :data:`DECISION_LAPS` flying laps with no
+   online effect (the reference) and with each candidate alone;
+2. **a disc property** (k_z, the crown balance) is learned on the odd flying laps — the
+   median of its online state there — and tested on the even ones: from the filtered
+   state at the start of each held-out lap, the model runs open loop through the lap
+   once with the property at its test-session value and once at the learned value;
+   whichever predicts the measured spot better over the lap's braking cycles wins. A
+   whole lap ahead, a structural error shows (one-step innovations hardly see it);
+3. **slipstream** changes straight by straight, so nothing learned on one lap holds on
+   the next: it is judged by the one-step-ahead innovations, predictions from past
+   readings only (a prequential score), with the predictive log-likelihood improving;
+4. in both, the shrink must exceed :data:`MIN_SHRINK_PCT` at the lower end of a 95 %
+   bootstrap interval over braking cycles (the diagnosis engine's rule). Of two effects
+   one spot cannot tell apart (k_z and the crown balance) only the better is kept.
+
+The crown balance is not a candidate: on the measured spot it does what a k_z change
+does, and on races where neither the test session's split nor its k_z held, letting the
+race pick it moved the unmeasured spots the wrong way (README, accuracy); it stays off
+unless forced. The user's ``--adapt-*`` flags (or the tuning file's keys) force either
+way.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from brakethermo.diagnosis.verdict import CandidateEvidence, VerdictRule, decide, unit_sse
+from brakethermo.io.session import Session
+from brakethermo.report.braking_zones import detect_zones
+
+if TYPE_CHECKING:
+    from brakethermo.pipelines.estimate import EstimateOptions
+
+DECISION_LAPS = 8  # flying laps the decision runs on (a disc's k_z shows in a few)
+MIN_SHRINK_PCT = 5.0  # % — lower bootstrap bound of the innovation shrink
+# effect -> estimate option the race may switch on
+ONLINE_FLAGS = {"thickness_gradient": "adapt_kz", "slipstream": "adapt_slipstream"}
+CONFOUNDED = ("thickness_gradient", "power_distribution")  # one spot cannot tell them apart
+# disc properties (a constant of the race disc) and their state columns and neutral value
+STRUCTURAL = {"thickness_gradient": "kz_factor", "power_distribution": "crown_balance"}
+NEUTRAL = {"kz_factor": 1.0, "crown_balance": 0.0}
+
+
+@dataclass(frozen=True)
+class OnlineChoice:
+    """The flags the race chose and why (the ``run.online_choice`` facts)."""
+
+    flags: dict[str, bool]
+    facts: dict[str, Any]
+
+
+def head(session: Session, laps: int) -> Session:
+    """The session up to the end of flying lap ``laps`` (out-lap included)."""
+    ends = [lap.start_s + lap.duration_s for lap in session.laps if 1 <= lap.lap <= laps]
+    if not ends:
+        return session
+    keep = session.frame["time"].to_numpy() <= max(ends) + 1e-9
+    return replace(session, frame=session.frame.loc[keep].reset_index(drop=True),
+                   laps=tuple(lap for lap in session.laps if lap.lap <= laps))
+
+
+def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str, ...]
+                  ) -> OnlineChoice:
+    """Run the decision (module docstring) for ``candidates`` (effect names).
+
+    ``base`` is the estimate's options with every candidate's flag unset; the decision
+    runs filter-only passes with each flag forced.
+    """
+    from brakethermo.pipelines.estimate import estimate_from_session
+
+    flying = sorted({lap.lap for lap in session.laps if lap.lap >= 1})
+    if not candidates or len(flying) < 2:
+        return OnlineChoice({ONLINE_FLAGS[c]: False for c in candidates}, {
+            "rule": "not decided: fewer than two flying laps; online effects left off",
+            "candidates": list(candidates)})
+    part = head(session, min(DECISION_LAPS, flying[-1]))
+    off = {ONLINE_FLAGS[c]: False for c in candidates}
+    quick = replace(base, smoother=False, score=False, online_auto=False)
+    runs = {"reference": estimate_from_session(part, replace(quick, **off))}
+    for c in candidates:
+        runs[c] = estimate_from_session(part, replace(quick, **{**off, ONLINE_FLAGS[c]: True}))
+    lap = part.frame["lap"].to_numpy()
+    zones = detect_zones(part.time, np.nan_to_num(part.values("brake_pressure_front")))
+    cycles = np.full(lap.size, -1)
+    for j, (a, _) in enumerate(zones):
+        cycles[a:] = j
+    rule = VerdictRule(min_shrink_pct=MIN_SHRINK_PCT)
+    ref = runs["reference"]
+    loglik = {name: float(np.nanmean(_loglik(r))) for name, r in runs.items()}
+    rows = []
+    for c in candidates:
+        if c in STRUCTURAL:
+            row = _structural_test(runs[c], STRUCTURAL[c], lap, cycles, rule)
+        else:
+            units = np.where(lap >= 1, cycles, -1)
+            d = decide(unit_sse(ref.innovation, units)[0],
+                       [CandidateEvidence(c, unit_sse(runs[c].innovation, units)[0])], rule)
+            row = {**d.rows[0], "test": "one-step-ahead innovations, every flying lap",
+                   "loglik_gain_per_reading": loglik[c] - loglik["reference"]}
+            row["significant"] &= row["loglik_gain_per_reading"] > 0
+        row["name"] = c
+        rows.append(row)
+    rows.sort(key=lambda r: -np.nan_to_num(r["shrink_pct"], nan=-1e9))
+    chosen = [r["name"] for r in rows if r["significant"]]
+    alike = [c for c in chosen if c in CONFOUNDED]
+    chosen = [c for c in chosen if c not in alike[1:]]
+    flags = {ONLINE_FLAGS[c]: c in chosen for c in candidates}
+    return OnlineChoice(flags, {
+        "rule": (f"switched on when the measured spot's one-step-ahead innovation RMSE"
+                 f" shrinks by more than {MIN_SHRINK_PCT:g} % (lower end of a 95 % bootstrap"
+                 " interval over braking cycles) and the predictive log-likelihood improves,"
+                 f" on flying laps 1-{min(DECISION_LAPS, flying[-1])}; of k_z and the crown"
+                 " balance (one spot cannot tell them apart) only the better"),
+        "laps": [int(v) for v in np.unique(lap[lap >= 1])],
+        "chosen": chosen,
+        "scores": rows,
+    })
+
+
+def _structural_test(run: Any, param: str, lap: np.ndarray, cycles: np.ndarray,
+                     rule: VerdictRule) -> dict[str, Any]:
+    """Learn a disc property on odd laps, test it a whole lap ahead on even ones."""
+    ssm, X = run.state_space, run.states
+    j = ssm.index[param]
+    neutral = NEUTRAL[param]
+    train = (lap >= 1) & (lap % 2 == 1)
+    learned = float(np.median(X[train, j])) if train.any() else neutral
+    y = run.y_measured
+    H = ssm.H_measured(run.spot_radius)[0]
+    pred = np.full((lap.size, 2), np.nan)
+    for n in np.unique(lap[(lap >= 2) & (lap % 2 == 0)]):
+        idx = np.flatnonzero(lap == n)
+        x = np.repeat(X[idx[0]][None, :], 2, axis=0)
+        x[:, j] = (neutral, learned)
+        for k in idx:
+            pred[k] = x @ H
+            x = ssm.f(x, k) if k + 1 < lap.size else x
+    held = (lap >= 2) & (lap % 2 == 0)
+    units = np.where(held, cycles, -1)
+    err = pred - y[:, None]
+    d = decide(unit_sse(err[:, 0], units)[0],
+               [CandidateEvidence(param, unit_sse(err[:, 1], units)[0])], rule)
+    return {**d.rows[0], "test": "learned on odd flying laps, a whole lap ahead on even ones",
+            "learned": learned, "neutral": neutral}
+
+
+def _loglik(result: Any) -> np.ndarray:
+    nu, s2 = result.innovation, result.innovation_var
+    return -0.5 * (np.log(2.0 * np.pi * s2) + nu**2 / s2)

@@ -1,0 +1,61 @@
+"""The race decides its online effects: k_z on where the race disc differs, not where it
+matches; forced flags win; the decision and its evidence are in the run facts."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from brakethermo.pipelines.estimate import EstimateOptions, estimate_session
+from brakethermo.sim.score import read_truth
+from brakethermo.sim.session import SimConfig, simulate, write_simulation
+
+SEED = 61101  # not a tuning seed
+
+
+def _contact_rmse(frame, truth) -> float:
+    t = truth[["spot2", "spot3", "spot4"]].mean(axis=1).to_numpy()
+    n = min(t.size, len(frame))
+    fly = frame["lap"].to_numpy()[:n] >= 1
+    return float(np.sqrt(np.mean((frame["contact_avg"].to_numpy()[:n] - t[:n])[fly] ** 2)))
+
+
+@pytest.fixture(scope="module")
+def races(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, Path]]:
+    out = tmp_path_factory.mktemp("online")
+    return {
+        name: write_simulation(simulate(SimConfig(laps=4, sensor="single", seed=SEED,
+                                                  effects=eff)), out / f"{name}.parquet")
+        for name, eff in (("low_kz", {"thickness_gradient": 1.0}), ("normal", {}))
+    }
+
+
+def test_a_disc_of_other_kz_switches_kz_on_and_gains(races) -> None:
+    path, truth_path = races["low_kz"]
+    auto = estimate_session(path, EstimateOptions(smoother=False))
+    choice = auto.summary["run"]["online_choice"]
+    assert "thickness_gradient" in choice["chosen"]
+    row = next(r for r in choice["scores"] if r["name"] == "thickness_gradient")
+    assert row["learned"] < 0.8 and row["shrink_ci95_pct"][0] > 5.0
+    off = estimate_session(path, EstimateOptions(smoother=False, adapt_kz=False,
+                                                 adapt_slipstream=False))
+    truth = read_truth(truth_path)
+    assert _contact_rmse(auto.frame, truth) < 0.6 * _contact_rmse(off.frame, truth)
+
+
+def test_a_matching_disc_is_not_made_worse_and_flags_force(races) -> None:
+    path, truth_path = races["normal"]
+    truth = read_truth(truth_path)
+    auto = estimate_session(path, EstimateOptions(smoother=False))
+    off = estimate_session(path, EstimateOptions(smoother=False, adapt_kz=False,
+                                                 adapt_slipstream=False))
+    assert _contact_rmse(auto.frame, truth) <= 1.1 * _contact_rmse(off.frame, truth) + 0.5
+    forced = estimate_session(path, EstimateOptions(smoother=False, adapt_kz=True))
+    run = forced.summary["run"]
+    assert run["online_choice"]["forced_or_from_law"] == {"adapt_kz": True}
+    assert "kz_factor" in forced.frame
+    none = estimate_session(path, EstimateOptions(smoother=False, adapt_kz=False,
+                                                  adapt_slipstream=False))
+    assert "every online effect" in none.summary["run"]["online_choice"]["rule"]
