@@ -227,6 +227,9 @@ def estimate_command(
             write_session_report(result.frame, result.session, stage,
                                  node_radii=result.node_radii, disc=disc_of(result),
                                  summary=result.summary)
+    from brakethermo.report.session_links import refresh_page_links
+
+    refresh_page_links(folder)
     if as_json:
         print(to_json({**result.summary, "output": str(folder)}))
         return

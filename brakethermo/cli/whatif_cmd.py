@@ -92,6 +92,7 @@ def whatif_cmd(
     """Replay the session's own laps with a change: window, peaks, friction, heat to the tyre."""
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.whatif import Scenario, WhatifOptions, whatif_session, write_whatif
+    from brakethermo.report.session_links import refresh_page_links
     from brakethermo.report.whatif_page import write_whatif_page
     from brakethermo.thermal.tyre_radiation import TyreView
 
@@ -108,6 +109,7 @@ def whatif_cmd(
     res = run_with_status(as_json, "whatif…", lambda: whatif_session(session, opts))
     folder = write_whatif(res, out)
     page = write_whatif_page(res.summary, res.frame, folder / "whatif")
+    refresh_page_links(folder)
     res.summary["output"] = {"parquet": str(folder / "whatif.parquet"), "page": str(page)}
     if as_json:
         typer.echo(to_json(res.summary))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fnmatch
 import glob
 import os
 import shutil
@@ -141,3 +142,56 @@ def write_atomic_with(target: str | Path, writer: Callable[[Path], None]) -> Non
     """Call ``writer(tmp_path)`` and move the result onto ``target`` atomically."""
     with atomic_path(target) as tmp:
         writer(tmp)
+
+
+def _swap_in(src: Path, dest: Path, tag: str) -> None:
+    """Move ``src`` onto ``dest`` (a file or a folder), the old one set aside first."""
+    if src.is_dir() and dest.exists():
+        aside = dest.with_name(f".{dest.name}{_ASIDE}{tag}{os.urandom(4).hex()}")
+        os.replace(dest, aside)
+        os.replace(src, dest)
+        if aside.is_dir():
+            shutil.rmtree(aside, ignore_errors=True)
+        else:
+            aside.unlink()
+    else:
+        if dest.is_dir():
+            shutil.rmtree(dest)
+        os.replace(src, dest)
+
+
+def owns(name: str, patterns: tuple[str, ...]) -> bool:
+    """Whether entry ``name`` of a session folder matches one of a command's patterns."""
+    return any(fnmatch.fnmatchcase(name, p) for p in patterns)
+
+
+@contextmanager
+def atomic_entries(target: str | Path, owned: tuple[str, ...]) -> Iterator[Path]:
+    """Yield a staging folder whose entries replace their namesakes in ``target``.
+
+    For folders several commands write into: every entry of the stage (a file or a
+    folder) is swapped in atomically on its own, entries of ``target`` matching the
+    ``owned`` patterns that the stage did not produce (an earlier, longer session's
+    ``lap_12``) are removed, and everything else — another command's results — is left
+    as it was. A failure or an interrupt inside the ``with`` leaves ``target`` untouched.
+    """
+    target = Path(target)
+    target.mkdir(parents=True, exist_ok=True)
+    clean_stale_stages(target)
+    tag = f"{_host()}.{os.getpid()}."
+    stage = Path(tempfile.mkdtemp(prefix=f".{target.name}{_STAGE}{tag}", dir=target.parent))
+    os.chmod(stage, 0o777 & ~_umask())
+    try:
+        yield stage
+        produced = {e.name for e in stage.iterdir()}
+        for entry in list(target.iterdir()):
+            if entry.name in produced or not owns(entry.name, owned):
+                continue
+            if entry.is_dir():
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
+        for entry in sorted(stage.iterdir(), key=lambda e: e.name == "index.html"):
+            _swap_in(entry, target / entry.name, tag)  # the index last: its links exist
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

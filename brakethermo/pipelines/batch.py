@@ -6,8 +6,9 @@ in-process, in local worker processes or on a Dask distributed cluster. Multi-sp
 then estimated with a law chosen deliberately (:func:`choose_law`: same disc, then same
 track and vehicle, then the newest), never silently with another disc's law.
 
-Each session's outputs go to ``OUT/<name>/`` through :func:`atomic_dir`: a failure or
-an interruption leaves the previous outputs as they were. A manifest in that directory
+Each session's outputs go to ``OUT/<name>/`` through :func:`replace_session_dir`: the
+batch's own entries are swapped in, another command's (a diagnosis, a what-if) are kept;
+a failure or an interruption leaves the previous outputs as they were. A manifest in that directory
 (hash of the input bytes, of the options and the package version) lets a re-run skip
 sessions whose outputs are up to date.
 """
@@ -34,10 +35,11 @@ import pandas as pd
 from brakethermo import __version__
 from brakethermo.config import config_dir
 from brakethermo.errors import EXIT_BATCH_PARTIAL, EXIT_OK, BrakethermoError, ConfigError
-from brakethermo.io.atomic import atomic_dir, write_text_atomic
+from brakethermo.io.atomic import write_text_atomic
 from brakethermo.io.formats import SUFFIXES as FORMAT_SUFFIXES
 from brakethermo.io.session import Session
 from brakethermo.io.writers import TRUTH_SUFFIX
+from brakethermo.pipelines.output_dir import BATCH_FILES, replace_session_dir
 from brakethermo.pipelines.outputs import write_json
 from brakethermo.pipelines.summary import flying_laps, round_temp
 from brakethermo.thermal.disc import DiscSpec
@@ -510,10 +512,11 @@ def _write_outputs(
     # Imported here: matplotlib loads only where sessions are processed (fast CLI start).
     from brakethermo.report.lap_report import write_session_report
     from brakethermo.report.mcap_export import write_estimate_mcap
+    from brakethermo.report.session_links import refresh_page_links
 
     target = task.options.out / task.name
     single = outcome.kind == "single"
-    with atomic_dir(target) as stage:
+    with replace_session_dir(target, BATCH_FILES) as stage:
         report("identifying h(V)" if not single else "estimating")
         run = runner.run(session, stage, task.options, task.h_law if single else None)
         outcome.timings.update(run.timings)
@@ -576,6 +579,7 @@ def _write_outputs(
             "peaks_c": outcome.peaks,
         }
         write_text_atomic(stage / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+    refresh_page_links(target)
 
 
 class PipelineRunner:

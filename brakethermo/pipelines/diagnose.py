@@ -1198,6 +1198,7 @@ def write_diagnosis(result: DiagnoseResult, out_dir: str | Path) -> Path:
     from brakethermo.pipelines.outputs import write_json, write_parquet
     from brakethermo.report.diagnose_report import diagnosis_page
     from brakethermo.report.page import write_page
+    from brakethermo.report.session_links import refresh_page_links
 
     folder = Path(out_dir) / result.stem
     folder.mkdir(parents=True, exist_ok=True)
@@ -1217,8 +1218,7 @@ def write_diagnosis(result: DiagnoseResult, out_dir: str | Path) -> Path:
     page = diagnosis_page(result.summary, result.time, result.lap, result.y,
                           result.reference_pred, result.best_pred, result.lap_distance,
                           result.nis, result.stem)
-    if not (folder / "index.html").is_file():
-        page.back_href = None
     with atomic_dir(folder / "diagnosis") as tmp:
         write_page(page, tmp)
+    refresh_page_links(folder)  # the session index links the page (or a small one does)
     return folder

@@ -2,25 +2,28 @@
 
 ``--out`` that is a file, or a folder nobody can write to, used to end in a traceback
 after all the computation; :func:`check_output_dir` says so first. A session's output
-folder is written through :func:`replace_session_dir` (a staging folder renamed over
-the old one), so a re-run never keeps stale ``lap_NN`` folders of an earlier, longer
-session, and a run killed half-way leaves the old folder as it was.
+folder is shared by the commands (estimate, identify-h, diagnose, whatif, batch): each
+writes through a staging folder whose entries replace only their namesakes and the
+stale entries the command owns (:func:`replace_session_dir`), so a re-run never keeps
+stale ``lap_NN`` folders of an earlier, longer session, never deletes another
+command's results, and a run killed half-way leaves the old folder as it was.
 """
 
 from __future__ import annotations
 
 import os
-import shutil
 import tempfile
-from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager
 from pathlib import Path
 
 from brakethermo.errors import ConfigError
-from brakethermo.io.atomic import atomic_dir
+from brakethermo.io.atomic import atomic_entries
 
-# What identify-h writes into OUT/<stem>/: estimate replaces its own outputs, not these.
+# What each command owns in OUT/<stem>/ (fnmatch patterns); nothing else is its to delete.
 IDENTIFY_FILES = ("h_law.toml", "h_samples.parquet", "identify.json", "h_law.png")
+ESTIMATE_FILES = ("estimate.parquet", "estimate.mf4", "estimate.mcap", "summary.json",
+                  "index.html", "lap_[0-9]*", "trend.png")
+BATCH_FILES = (*ESTIMATE_FILES, *IDENTIFY_FILES, "batch_manifest.json")
 
 
 def _nearest_existing(path: Path) -> Path:
@@ -73,19 +76,11 @@ def check_output_file(path: str | Path, option: str = "--out") -> Path:
     return path
 
 
-@contextmanager
-def replace_session_dir(
-    target: str | Path, keep: tuple[str, ...] = IDENTIFY_FILES
-) -> Iterator[Path]:
-    """Yield a staging folder that replaces ``target`` as a whole on success.
+def replace_session_dir(target: str | Path, owned: tuple[str, ...] = ESTIMATE_FILES
+                        ) -> AbstractContextManager[Path]:
+    """A staging folder whose entries replace their namesakes in ``target`` on success.
 
-    Files named in ``keep`` (another command's outputs in the same folder) are carried
-    over from the old folder first; the caller may overwrite them.
+    Entries of ``target`` matching ``owned`` that the run did not produce are removed;
+    every other entry (another command's results) is left as it was.
     """
-    target = Path(target)
-    with atomic_dir(target) as stage:
-        for name in keep:
-            old = target / name
-            if old.is_file():
-                shutil.copy2(old, stage / name)
-        yield stage
+    return atomic_entries(target, owned)

@@ -1,0 +1,55 @@
+"""The links of a session folder's index to the pages other commands wrote beside it.
+
+Several commands write into ``OUT/<stem>/``: estimate (the lap reports and the session
+index), identify-h (the h(V) plot), diagnose (``diagnosis/``), whatif (``whatif/``).
+Whichever runs last refreshes the index's list of pages from what is on disk, so the
+index links every page that exists and nothing that is gone; when no lap report was
+written, a small index holds the links (the pages' back links land there).
+"""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+
+from brakethermo.io.atomic import write_text_atomic
+
+PAGES = (
+    ("diagnosis/index.html", "diagnosis: where the model parts from the disc"),
+    ("whatif/index.html", "what if: the laps replayed with a change"),
+    ("h_law.png", "h(V) law identified here"),
+)
+START, END = "<!--pages-->", "<!--/pages-->"
+
+
+def page_links(folder: Path) -> str:
+    """The HTML list of the sibling pages present in ``folder``."""
+    items = [f'<a href="{href}">{html.escape(label)}</a>' for href, label in PAGES
+             if (folder / href).exists()]
+    return " · ".join(items)
+
+
+def refresh_page_links(folder: str | Path) -> Path | None:
+    """Rewrite the page links of ``folder/index.html`` (or write a small index)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return None
+    index = folder / "index.html"
+    links = page_links(folder)
+    if index.is_file():
+        text = index.read_text(encoding="utf-8")
+        a, b = text.find(START), text.find(END)
+        if a < 0 or b < a:
+            return index
+        write_text_atomic(index, text[: a + len(START)] + links + text[b:])
+        return index
+    if not links:
+        return None
+    name = html.escape(folder.name)
+    write_text_atomic(index, (
+        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+        f"<title>{name}</title><link rel=\"icon\" href=\"data:,\"></head><body>"
+        f"<h1>{name}</h1><p>No per-lap reports here (run <code>brakethermo estimate</code>"
+        " without --no-report for them).</p>"
+        f"<nav class=\"pages\">{START}{links}{END}</nav></body></html>\n"))
+    return index
