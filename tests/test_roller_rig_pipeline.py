@@ -204,3 +204,20 @@ def test_supply_frequency_inferred_without_the_fact(tmp_path: Path) -> None:
     assert res.supply_source == "inferred from free rolling"
     assert res.supply_hz == pytest.approx(15.0, rel=0.005)
     assert abs(res.summary["runs"][0]["radius_mm"] - 348.2) < 0.5
+
+
+def test_any_accepted_guess_gives_the_same_radius_or_says_why(sessions: dict[str, Path]):
+    """From 100 to 1000 mm: the same answer as from 320 mm (a guess outside the filter's
+    basin is re-started from the free-rolling ratio, and the summary says so); never a
+    wrong or negative radius."""
+    guesses = (100.0, 150.0, 250.0, 320.0, 550.0, 1000.0)
+    res = run_roller_rig(sessions["30"], RollerRigOptions(r0_mm=guesses, smoother=False))
+    truth = _truth(sessions["30"])
+    finals = [run.filter_mm[-1] for run in res.runs]
+    assert max(finals) - min(finals) < 0.5
+    assert all(abs(f - truth) < 0.005 * truth for f in finals)
+    rows = {r["r0_mm"]: r for r in res.summary["runs"]}
+    assert rows[320.0]["restarted"] is None
+    for run in res.runs:
+        if run.restart is not None:
+            assert "re-started from the ratio radius" in rows[run.r0_mm]["restarted"]

@@ -14,7 +14,7 @@ import math
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +43,8 @@ CONVERGED_MM = 1.0  # the estimate has converged once it stays this close to its
 CONVERGENCE_WINDOW_S = 0.25  # moving average of the filter track judged for convergence
 SUPPLY_FACT = "roller_supply_hz"
 
+RADIUS_RANGE_MM = (100.0, 1000.0)  # a tram wheel's rolling radius, and the accepted guesses
+RATIO_TOLERANCE = 0.03  # traction creep moves the speed-ratio radius by well under this
 
 @dataclass(frozen=True)
 class RollerRigOptions:
@@ -82,8 +84,10 @@ class RollerRigOptions:
         if not self.r0_mm:
             raise ConfigError("give at least one starting guess --r0 MM")
         for r in self.r0_mm:
-            if not (math.isfinite(r) and 100.0 <= r <= 1000.0):
-                raise ConfigError(f"--r0 {r:g} mm is not a plausible wheel radius (100-1000 mm)")
+            lo, hi = RADIUS_RANGE_MM
+            if not (math.isfinite(r) and lo <= r <= hi):
+                raise ConfigError(f"--r0 {r:g} mm is not a plausible wheel radius"
+                                  f" ({lo:g}-{hi:g} mm)")
         labels = [guess_label(r) for r in self.r0_mm]
         if len(set(labels)) != len(labels):
             raise ConfigError(f"starting guesses repeat: {', '.join(labels)} mm")
@@ -105,6 +109,7 @@ class GuessRun:
     filter_std_mm: np.ndarray
     states: np.ndarray  # (K, 3) output means
     convergence_time_s: float | None
+    restart: str | None = None  # why the guess was re-started from the speed ratio
 
 
 @dataclass(frozen=True)
@@ -341,6 +346,14 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     workers = max(1, min(len(opts.r0_mm), os.cpu_count() or 1))
     with ThreadPoolExecutor(max_workers=workers) as pool:
         runs = list(pool.map(one_guess, opts.r0_mm))
+    ratio_mm = float(np.sum(w_r[free & both]) * spec.roller_radius
+                     / np.sum(w_w[free & both]) * 1e3)
+    if not (math.isfinite(ratio_mm) and RADIUS_RANGE_MM[0] <= ratio_mm <= RADIUS_RANGE_MM[1]):
+        raise DataError(
+            f"the free-rolling speed ratio gives a wheel radius of {ratio_mm:.1f} mm, which no"
+            " tram wheel has: check the units of wheel_omega and roller_omega (rad/s) and the"
+            " roller radius of the rig datasheet", path=session.path, channel="wheel_omega")
+    runs = [_checked_guess(run, ratio_mm, one_guess) for run in runs]
     s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2], normal)
     naive = w_r * spec.roller_radius / np.where(np.abs(w_w) > 1e-9, w_w, np.nan) * 1e3
     ref = session.constant("rolling_radius_ref")
@@ -362,6 +375,32 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         }
     )
     return result
+
+
+def _checked_guess(run: GuessRun, ratio_mm: float, rerun: Any) -> GuessRun:
+    """A guess whose filter ended where free rolling says no wheel is, re-started.
+
+    The joint UKF is locally convergent: from a guess far outside its basin it can settle
+    on a radius (even a negative one) that explains the speeds with an absurd creep. The
+    free-rolling speed ratio bounds the answer (traction creep moves it by well under
+    :data:`RATIO_TOLERANCE`); a final radius outside that is re-run from the ratio, and
+    the summary says so.
+    """
+    final = float(run.filter_mm[-1])
+    if math.isfinite(final) and abs(final - ratio_mm) <= RATIO_TOLERANCE * ratio_mm:
+        return run
+    again = rerun(ratio_mm)
+    end = float(again.filter_mm[-1])
+    if not (math.isfinite(end) and abs(end - ratio_mm) <= RATIO_TOLERANCE * ratio_mm):
+        raise DataError(
+            f"the rolling-radius filter does not converge near the free-rolling ratio radius"
+            f" {ratio_mm:.1f} mm (from --r0 {run.r0_mm:g} mm it ended at {final:.1f} mm, from"
+            f" the ratio at {end:.1f} mm): the speeds and the torque do not fit one radius;"
+            " check the channels' units and the rig datasheet")
+    return replace(again, r0_mm=run.r0_mm, restart=(
+        f"from {run.r0_mm:g} mm the filter ended at {final:.1f} mm, more than"
+        f" {100 * RATIO_TOLERANCE:g} % from the free-rolling ratio radius {ratio_mm:.1f} mm"
+        " (outside its basin of attraction); re-started from the ratio radius"))
 
 
 def _supply(
@@ -423,6 +462,7 @@ def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> di
         runs.append(
             {
                 "r0_mm": run.r0_mm,
+                "restarted": run.restart,
                 "radius_mm": float(run.radius_mm[-1]),
                 "radius_std_mm": float(run.radius_std_mm[-1]),
                 "convergence_time_s": run.convergence_time_s,
