@@ -115,16 +115,24 @@ def test_targets_on_unseen_sessions(trained) -> None:
         fresh = rmse(
             estimate(train(thw, cw, Fw, TS, structure=trained), thv, cv, TS).kf, _truth(worn)
         )
-        assert fresh < 0.3 * stale
+        # the stale models' fixed filter is over-confident on worn pads (mean NIS ~60), so
+        # the matched filter leans on the torque balance (it was 3x worse than re-trained)
+        assert fresh < 0.5 * stale
         ratios.append(fresh / kf)
     assert np.mean(ratios) <= 1.3
     assert max(ratios) <= 1.45
-    # heating pads: the adaptive filter holds the error down without a sensor
+    # heating pads: the fixed filter is over-confident there, the reported one switches to
+    # matched noise and stays within 10 % of its best input (it was 2.3x the torque balance);
+    # the adaptive-stiffness filter holds the error down too
     hot = simulate_emb("heating", seed=6171, duration_s=40.0)
     th_h, c_h, _ = _arrays(hot)
     eh = estimate(trained, th_h, c_h, TS)
-    assert rmse(eh.adaptive, _truth(hot)) < 0.5 * rmse(eh.kf, _truth(hot))
-    assert rmse(eh.adaptive, _truth(hot)) < 1.3 * kf
+    truth_h = _truth(hot)
+    assert eh.kf_matched and eh.kf_paper_nis > 1.5
+    best = min(rmse(eh.stiffness, truth_h), rmse(eh.torque_balance, truth_h))
+    assert rmse(eh.kf, truth_h) <= 1.1 * best  # 431 vs 410 N here
+    assert rmse(eh.kf, truth_h) < 0.8 * rmse(eh.kf_paper, truth_h)
+    assert rmse(eh.adaptive, truth_h) < 1.3 * kf
 
 
 def test_cli_outputs_and_json(tmp_path: Path) -> None:

@@ -10,6 +10,18 @@ F(k) = α0 F(k−1) + s(k) u(k), s(k) = s(k−1) + w: a two-state filter linear 
 for a known input, whose transition [[α0, u(k)], [0, 1]] varies with the motor angle.
 Pads that soften as they heat (or stiffen with wear) pull s away from 1, and the torque
 balance, which does not depend on the pads, tells the filter by how much.
+
+The filter the tool reports (``kf``) is the paper's scalar filter with its process
+noise matched to the innovations (covariance matching, Mehra 1972): over a sliding
+window the innovations' mean square ``C_ν`` should equal ``α0² P + Q + R``; when it
+exceeds that — the stiffness model has drifted from the pads (heat, wear) — the step's
+``Q`` is raised to ``C_ν − α0² P − R``, so the fusion leans on the torque balance
+exactly as much as the process model has lost, and never below the trained ``Q``; an
+excess under :data:`MATCH_EXCESS` is the scatter of a model that holds and changes nothing.
+Which of the two filters is reported is decided by the session itself: the matched one
+only where the fixed filter's mean NIS exceeds :data:`NIS_LIMIT` (its innovations larger
+than its noise settings admit: the pads are not the trained ones), else the fixed one. The
+paper's fixed-Q filter stays as ``kf_paper``.
 """
 
 from __future__ import annotations
@@ -122,13 +134,73 @@ def train(
     return ClampForceModels(ds, tb, sigma_ds, sigma_tb, ts, window)
 
 
+MATCH_WINDOW_S = 0.5  # s, window of the innovations' mean square (covariance matching)
+NIS_LIMIT = 1.5  # mean NIS of the fixed filter above which its model no longer holds
+MATCH_EXCESS = 3.0  # the mean square must exceed its expectation this much: a model gap,
+#                     not the autocorrelated scatter of a model that holds
+
+
+def matched_scalar_kf(alpha: float, b: Array, z: Array, Q: float, R: float, x0: float,
+                      window: int) -> tuple[Array, Array, Array]:
+    """Scalar KF ``x(k+1) = α x(k) + b(k) + w``, ``z = x + v``, Q matched to innovations.
+
+    Parameters
+    ----------
+    alpha : float — transition.
+    b : ndarray (K,) — input term of step ``k -> k+1``, N.
+    z : ndarray (K,) — measurements, N (NaN = predict only).
+    Q, R : float — trained process and measurement variances, N².
+    x0 : float — initial state, N; ``P(0) = Q``.
+    window : int — samples of the innovations' moving mean square.
+
+    Returns
+    -------
+    x, std, q_used, loglik : ndarray (K,) — posterior mean and 1-sigma, N; the step's Q,
+        N²; the log-likelihood of each measurement before it is used.
+    """
+    K = z.size
+    x_out, s_out, q_out = np.empty(K), np.empty(K), np.empty(K)
+    ll = np.zeros(K)
+    x, P = x0, Q
+    buf = np.zeros(max(window, 1))
+    acc, n = 0.0, 0
+    for k in range(K):
+        if k > 0:
+            P_prev = P
+            c_nu = acc / n if n else 0.0
+            expected = alpha * alpha * P_prev + Q + R
+            q = (max(Q, c_nu - alpha * alpha * P_prev - R)
+                 if n == buf.size and c_nu > MATCH_EXCESS * expected else Q)
+            x = alpha * x + b[k - 1]
+            P = alpha * alpha * P_prev + q
+        else:
+            q = Q
+        if np.isfinite(z[k]):
+            nu = z[k] - x
+            S = P + R
+            ll[k] = -0.5 * (np.log(2.0 * np.pi * S) + nu * nu / S)
+            G = P / S
+            x = x + G * nu
+            P = (1.0 - G) * P
+            j = k % buf.size
+            acc += nu * nu - buf[j]
+            buf[j] = nu * nu
+            n = min(n + 1, buf.size)
+        x_out[k], s_out[k], q_out[k] = x, np.sqrt(P), q
+    return x_out, s_out, q_out, ll
+
+
 @dataclass(frozen=True)
 class ClampForceEstimates:
     """Every estimate of one session, N (factor –).
 
     Attributes
     ----------
-    kf, kf_std : ndarray — paper's Kalman filter (eq. 9-13), posterior mean and std.
+    kf, kf_std : ndarray — the paper's Kalman filter (eq. 9-13) with Q matched to its
+        innovations (module docstring), posterior mean and std.
+    kf_paper : ndarray — the paper's filter with its fixed Q.
+    kf_matched : bool — whether ``kf`` is the matched filter (else the fixed one).
+    kf_paper_nis : float — mean NIS of the fixed filter on this session (1 = consistent).
     ml_fusion : ndarray — eq. 8.
     stiffness : ndarray — eq. 6 open loop.
     torque_balance : ndarray — eq. 7.
@@ -138,6 +210,9 @@ class ClampForceEstimates:
 
     kf: Array
     kf_std: Array
+    kf_paper: Array
+    kf_matched: bool
+    kf_paper_nis: float
     ml_fusion: Array
     stiffness: Array
     torque_balance: Array
@@ -192,7 +267,16 @@ def estimate(
         y,
         b,
     )
-    kf, kf_std = res.x_filt[:, 0], np.sqrt(res.P_filt[:, 0, 0])
+    kf_paper = res.x_filt[:, 0]
+    kf, kf_std, _, _ = matched_scalar_kf(ds.alpha0, b[:, 0], F_tb, Q, R, float(F_ds[0]),
+                                          max(1, round(MATCH_WINDOW_S / ts)))
+    # the session decides (no force sensor needed): the matched filter only where the
+    # fixed one is over-confident, its innovations larger than its noise settings admit
+    nu = F_tb - res.x_pred[:, 0]
+    nis = float(np.nanmean(nu**2 / (res.P_pred[:, 0, 0] + R)))
+    matched = nis > NIS_LIMIT
+    if not matched:
+        kf, kf_std = kf_paper, np.sqrt(res.P_filt[:, 0, 0])
 
     # adaptive: state [F, s], transition [[α0, u(k+1)], [0, 1]]
     A = np.zeros((K, 2, 2))
@@ -212,6 +296,9 @@ def estimate(
     return ClampForceEstimates(
         kf=kf,
         kf_std=kf_std,
+        kf_paper=kf_paper,
+        kf_matched=matched,
+        kf_paper_nis=nis,
         ml_fusion=F_ml,
         stiffness=F_ds,
         torque_balance=F_tb,

@@ -29,7 +29,7 @@ from brakethermo.report.page import Card, Page, Section, TableBlock
 from brakethermo.rigs.emb import rmse
 
 CHANNELS = ("motor_angle", "motor_current", "clamp_force")
-ESTIMATORS = ("kf", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
+ESTIMATORS = ("kf", "kf_paper", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
 
 
 @dataclass(frozen=True)
@@ -123,6 +123,7 @@ def estimator_series(est: ClampForceEstimates) -> dict[str, np.ndarray]:
     """Each estimator's clamp force by output column name, N."""
     return {
         "kf": est.kf,
+        "kf_paper": est.kf_paper,
         "ml_fusion": est.ml_fusion,
         "stiffness": est.stiffness,
         "torque_balance": est.torque_balance,
@@ -159,6 +160,7 @@ UNITS = {
     for c in (
         "kf",
         "kf_std",
+        "kf_paper",
         "ml_fusion",
         "stiffness",
         "torque_balance",
@@ -203,6 +205,13 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         "has_sensor": force is not None,
         "rmse_kn": {k: r[k] for k in ("kf", "ml_fusion", "stiffness", "torque_balance")},
         "rmse_kn_adaptive": r["kf_adaptive"],
+        "rmse_kn_kf_paper": r["kf_paper"],
+        "kf_noise": (f"matched to the innovations: the fixed filter's mean NIS is"
+                     f" {res.est.kf_paper_nis:.2f}, its stiffness model no longer holds for"
+                     " these pads" if res.est.kf_matched else
+                     f"the paper's fixed Q (its mean NIS {res.est.kf_paper_nis:.2f} is"
+                     " consistent)"),
+        "kf_paper_mean_nis": res.est.kf_paper_nis,
         "kf_vs_stiffness_pct": None if force is None else 100.0 * (1 - r["kf"] / r["stiffness"]),
         "stiffness_factor_final": float(res.est.stiffness_factor[-1]),
         "fitted": _model_dict(res.models, res.train.session.path),
