@@ -63,9 +63,13 @@ def clamp_force_cmd(
     tab = Table(title=f"clamp-force — {escape(Path(session).name)}")
     tab.add_column("estimator")
     tab.add_column("RMSE (kN)", justify="right")
-    for k, v in summ["rmse_kn"].items():
-        tab.add_row(k, "–" if v is None else f"{v:.3f}")
-    a = summ["rmse_kn_adaptive"]
-    tab.add_row("kf_adaptive", "–" if a is None else f"{a:.3f}")
+    tab.add_column("peak (kN)", justify="right")
+    tab.add_column("mean applied (kN)", justify="right")
+    est = summ["estimate_kn"]
+    rmses = {**summ["rmse_kn"], "kf_adaptive": summ["rmse_kn_adaptive"]}
+    for k, v in rmses.items():
+        m = est[k]["mean_applied"]
+        tab.add_row(k, "–" if v is None else f"{v:.3f}", f"{est[k]['peak']:.2f}",
+                    "–" if m is None else f"{m:.2f}")
     console.print(tab)
     console.print(f"written: {folder}")

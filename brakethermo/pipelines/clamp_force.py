@@ -31,6 +31,7 @@ from brakethermo.rigs.emb import rmse
 CHANNELS = ("motor_angle", "motor_current", "clamp_force")
 ESTIMATORS = ("kf", "kf_paper", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
 
+APPLIED_N = 500.0  # N: the caliper is clamping (the mean force is taken over these)
 
 @dataclass(frozen=True)
 class EmbData:
@@ -171,6 +172,19 @@ UNITS = {
 } | {"time": "s"}
 
 
+def estimate_figures(est: ClampForceEstimates) -> dict[str, Any]:
+    """What each estimator says, sensor or not: peak and mean applied force, kN, and the
+    KF's 95 % band (what a session without the sensor still shows)."""
+    series = estimator_series(est)
+    applied = est.kf > APPLIED_N
+    out: dict[str, Any] = {
+        name: {"peak": float(np.max(v)) / 1e3,
+               "mean_applied": float(np.mean(v[applied])) / 1e3 if applied.any() else None}
+        for name, v in series.items()}
+    out["kf_band95_median"] = float(np.median(1.96 * est.kf_std)) / 1e3
+    return out
+
+
 def _model_dict(m: ClampForceModels, path: Path) -> dict[str, Any]:
     return {
         "training_session": str(path),
@@ -205,6 +219,7 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         "has_sensor": force is not None,
         "rmse_kn": {k: r[k] for k in ("kf", "ml_fusion", "stiffness", "torque_balance")},
         "rmse_kn_adaptive": r["kf_adaptive"],
+        "estimate_kn": estimate_figures(res.est),
         "rmse_kn_kf_paper": r["kf_paper"],
         "kf_noise": (f"matched to the innovations: the fixed filter's mean NIS is"
                      f" {res.est.kf_paper_nis:.2f}, its stiffness model no longer holds for"
@@ -238,31 +253,44 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     t = res.data.session.time
     force = res.data.force
     r = summ["rmse_kn"]
-    cards = [
-        Card("KF RMSE", _fmt(r["kf"]), "kN"),
-        Card("ML fusion RMSE", _fmt(r["ml_fusion"]), "kN"),
-        Card("adaptive KF RMSE", _fmt(summ["rmse_kn_adaptive"]), "kN"),
-        Card("final stiffness factor", f"{summ['stiffness_factor_final']:.3f}"),
-    ]
-    rows = [
-        ["Kalman filter (eq. 9-13)", _fmt(r["kf"]), "0.29"],
-        ["ML fusion (eq. 8)", _fmt(r["ml_fusion"]), "0.32"],
-        ["dynamic stiffness (eq. 6)", _fmt(r["stiffness"]), "0.35"],
-        ["torque balance (eq. 7)", _fmt(r["torque_balance"]), "0.61"],
-        ["adaptive KF (stiffness factor)", _fmt(summ["rmse_kn_adaptive"]), "–"],
-    ]
+    e = summ["estimate_kn"]
+    if force is not None:
+        cards = [
+            Card("KF RMSE", _fmt(r["kf"]), "kN"),
+            Card("ML fusion RMSE", _fmt(r["ml_fusion"]), "kN"),
+            Card("adaptive KF RMSE", _fmt(summ["rmse_kn_adaptive"]), "kN"),
+            Card("final stiffness factor", f"{summ['stiffness_factor_final']:.3f}"),
+        ]
+    else:
+        cards = [
+            Card("KF peak force", f"{e['kf']['peak']:.2f}", "kN"),
+            Card("KF 95 % band", f"± {e['kf_band95_median']:.2f}", "kN"),
+            Card("mean force applied", _fmt(e["kf"]["mean_applied"]), "kN"),
+            Card("final stiffness factor", f"{summ['stiffness_factor_final']:.3f}"),
+        ]
+    names = ("kf", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
+    labels = ("Kalman filter (eq. 9-13)", "ML fusion (eq. 8)", "dynamic stiffness (eq. 6)",
+              "torque balance (eq. 7)", "adaptive KF (stiffness factor)")
+    paper = ("0.29", "0.32", "0.35", "0.61", "–")
+    rmse_of = {**r, "kf_adaptive": summ["rmse_kn_adaptive"]}
+    rows = [[lab, _fmt(rmse_of[n]), p, f"{e[n]['peak']:.2f}", _fmt(e[n]["mean_applied"])]
+            for n, lab, p in zip(names, labels, paper, strict=True)]
     main = Section(
         "Clamp-force estimators",
         paragraphs=[
             f"Trained on {res.train.session.path.name} ({res.train.session.time[-1]:.0f} s at"
             f" {res.train.session.rate_hz:.0f} Hz); estimated on {res.data.session.path.name}."
-            + ("" if force is not None else " The session has no clamp-force sensor: no RMSE."),
+            + ("" if force is not None else " The session has no clamp-force sensor: each"
+               " estimator's peak and mean applied force, no RMSE."),
+            f"Reported filter: {summ['kf_noise']}.",
         ],
         tables=[
             TableBlock(
-                ["estimator", "RMSE here (kN)", "paper (kN)"],
+                ["estimator", "RMSE here (kN)", "paper RMSE (kN)", "peak (kN)",
+                 "mean applied (kN)"],
                 rows,
-                caption="RMSE against the clamp-force sensor",
+                caption="RMSE against the clamp-force sensor (where the session has it),"
+                        " and what each estimator says",
             )
         ],
     )
