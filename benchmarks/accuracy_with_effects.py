@@ -26,7 +26,7 @@ from threadpoolctl import threadpool_limits
 
 from brakethermo.pipelines.estimate import EstimateOptions, estimate_session
 from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
-from brakethermo.sim.score import read_truth
+from brakethermo.pipelines.truth_score import read_truth
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
 
 CASES = ("friction_temperature:auto", "emissivity_error:emissivity_error")

@@ -33,8 +33,8 @@ from threadpoolctl import threadpool_limits
 from brakethermo.errors import DataError
 from brakethermo.pipelines.estimate import EstimateOptions, estimate_session
 from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
+from brakethermo.pipelines.truth_score import read_truth, score_against_truth
 from brakethermo.sim.effects import EFFECT_NAMES
-from brakethermo.sim.score import read_truth, score_against_truth
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
 
 SENSOR_FAULTS = ("sensor_lag", "emissivity_error")

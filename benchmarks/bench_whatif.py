@@ -25,8 +25,8 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from brakethermo.pipelines.identify_h import identify_h, write_identify
+from brakethermo.pipelines.truth_score import read_truth
 from brakethermo.pipelines.whatif import Scenario, WhatifOptions, whatif_session
-from brakethermo.sim.score import read_truth
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
 
 SEED_BASE = 52000

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from brakethermo.pipelines.estimate import EstimateOptions, estimate_session
-from brakethermo.sim.score import read_truth
+from brakethermo.pipelines.truth_score import read_truth
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
 
 SEED = 61101  # not a tuning seed

@@ -16,7 +16,7 @@ from brakethermo.pipelines.estimate import (
     estimate_session,
     write_estimate,
 )
-from brakethermo.sim.score import read_truth, score_against_truth
+from brakethermo.pipelines.truth_score import read_truth, score_against_truth
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ import pytest
 from brakethermo.errors import DataError
 from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, off_brake_mask
 from brakethermo.pipelines.models import read_calibration
-from brakethermo.sim.score import read_truth, read_truth_params
+from brakethermo.pipelines.truth_score import read_truth, read_truth_params
 
 
 def test_recovers_true_h_within_15_percent(sim_test_session, identified):

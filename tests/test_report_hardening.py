@@ -12,16 +12,16 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from brakethermo.io.session import Lap
-from brakethermo.pipelines.summary import (
+from brakethermo.report.figures import LapFigures
+from brakethermo.report.index import write_batch_index
+from brakethermo.report.lap_report import _colour_range, lap_stats, write_session_report
+from brakethermo.results.laps import (
     flying_laps,
     lap_label,
     lap_summaries,
     round_temp,
     temp_text,
 )
-from brakethermo.report.figures import LapFigures
-from brakethermo.report.index import write_batch_index
-from brakethermo.report.lap_report import _colour_range, lap_stats, write_session_report
 
 WINDOW = (250.0, 850.0)
 RADII = np.linspace(0.100, 0.170, 11)

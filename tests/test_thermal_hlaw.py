@@ -72,7 +72,8 @@ def test_constant_law() -> None:
 
 def test_toml_round_trip_and_layout(tmp_path: Path) -> None:
     path = tmp_path / "h_law.toml"
-    TRUE.to_toml(path, weights=(0.8, 1.1, 1.05), extra={"kz_ratio": 0.35, "fit": {"n": 12}})
+    path.write_text(TRUE.toml_text(weights=(0.8, 1.1, 1.05),
+                                   extra={"kz_ratio": 0.35, "fit": {"n": 12}}))
     record = read_h_law(path)
     assert record.law == TRUE
     assert HLaw.from_toml(path) == TRUE

@@ -32,7 +32,7 @@ def _law_tag(source: str) -> str:
 
 
 def _table(result: BatchResult, out: Path) -> Table:
-    from brakethermo.pipelines.summary import temp_text
+    from brakethermo.results.laps import temp_text
 
     table = Table(
         title=f"batch: {len(result.outcomes)} sessions -> {escape(str(out))}",

@@ -53,7 +53,9 @@ def ebooster_command(
                         smooth=smooth),
     )
     if save_fit is not None:
-        result.fit.write(save_fit)
+        from brakethermo.io.atomic import write_text_atomic
+
+        write_text_atomic(save_fit, result.fit.toml_text())
     cols, units = frame_columns(result)
     folder = write_rig_outputs(out, result.session.path.stem, "ebooster", pd.DataFrame(cols),
                                result.summary, booster_page(result), units)

@@ -37,7 +37,7 @@ def render_laps(result: EstimateResult) -> None:
 
     Sized for 80 columns (CI logs, pipes): short headers, no wrapping inside cells.
     """
-    from brakethermo.pipelines.summary import lap_label, temp_text
+    from brakethermo.results.laps import lap_label, temp_text
 
     run = result.summary["run"]
     lo, hi = run["window_c"]

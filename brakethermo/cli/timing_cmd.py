@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 
 def _table(report: TimingReport, name: str) -> Table:
-    from brakethermo.pipelines.summary import lap_label
+    from brakethermo.results.laps import lap_label
 
     table = Table(
         title=f"{escape(name)}: estimate wall time per lap "
@@ -53,8 +53,8 @@ def timing_check(
     from brakethermo.cli.estimate_cmd import preflight
     from brakethermo.io.load import load_session
     from brakethermo.pipelines.estimate import EstimateOptions, estimate_from_session
-    from brakethermo.pipelines.summary import lap_name
     from brakethermo.pipelines.timing import time_laps
+    from brakethermo.results.laps import lap_name
 
     preflight(h_law=h_law, aliases=aliases)
     session = load_session(session_path, aliases=aliases)

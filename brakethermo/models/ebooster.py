@@ -51,7 +51,6 @@ from numpy.typing import NDArray
 
 from brakethermo.config import load_toml
 from brakethermo.errors import ConfigError
-from brakethermo.io.atomic import write_text_atomic
 from brakethermo.rigs.booster import (
     discretise,
     disk_quasi_static,
@@ -98,8 +97,8 @@ class BoosterFit:
     pv_rmse_mpa: float
     disk_rmse_mm: float
 
-    def write(self, path: Path) -> Path:
-        """Save as TOML (round-trips through :func:`load_fit`)."""
+    def toml_text(self) -> str:
+        """The fit as TOML (round-trips through :func:`load_fit`; io writes it)."""
         lines = ["# E-Booster training result (brakethermo ebooster --train)"]
         for key, value in asdict(self).items():
             if isinstance(value, str):
@@ -108,8 +107,7 @@ class BoosterFit:
                 lines.append(f"{key} = [{', '.join(repr(float(v)) for v in value)}]")
             else:
                 lines.append(f"{key} = {float(value)!r}")
-        write_text_atomic(Path(path), "\n".join(lines) + "\n")
-        return Path(path)
+        return "\n".join(lines) + "\n"
 
 
 def load_fit(path: str | Path) -> BoosterFit:

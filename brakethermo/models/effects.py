@@ -39,16 +39,7 @@ from typing import Literal
 import numpy as np
 
 from brakethermo.errors import ConfigError
-
-EFFECT_NAMES = (
-    "power_distribution",
-    "h_speed_knee",
-    "slipstream",
-    "friction_temperature",
-    "thickness_gradient",
-    "sensor_lag",
-    "emissivity_error",
-)
+from brakethermo.vocabulary import EFFECT_NAMES
 
 ActsOn = Literal["power", "h", "structure", "measurement"]
 Observability = Literal["online", "test-session", "none"]

@@ -41,7 +41,7 @@ from brakethermo.io.session import Session
 from brakethermo.io.writers import TRUTH_SUFFIX
 from brakethermo.pipelines.output_dir import BATCH_FILES, replace_session_dir
 from brakethermo.pipelines.outputs import write_json
-from brakethermo.pipelines.summary import flying_laps, round_temp
+from brakethermo.results.laps import flying_laps, round_temp
 from brakethermo.thermal.disc import DiscSpec
 
 SESSION_SUFFIXES = FORMAT_SUFFIXES  # every registered reader (brakethermo.io.formats)

@@ -11,7 +11,6 @@ followed by the RTS smoother (offline). Pressure channels, when present, only sc
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -23,70 +22,32 @@ from scipy.signal import lfilter, ss2tf
 from brakethermo.config import config_dir
 from brakethermo.errors import DataError
 from brakethermo.estimation import ExtendedKalmanFilter, UnscentedKalmanFilter, urts_smooth
-from brakethermo.estimation.results import FilterResult
 from brakethermo.estimation.rls import even_powers, rls_fit
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.ebooster import STATE_NAMES, BoosterFit, EboosterModel, load_fit
+from brakethermo.results.ebooster import (
+    OBSERVERS,
+    PRESSURES,
+    EboosterResult,
+    ObserverTrack,
+)
 from brakethermo.rigs.booster import (
     PV_POWERS,
     discretise,
     disk_quasi_static,
     disk_transfer,
     leverage_force,
-    pv_pressure,
 )
 from brakethermo.rigs.booster_datasheet import BoosterSpec, load_booster
 
 Array = NDArray[np.float64]
 S2, DELTA = "pushrod_displacement", "reaction_disk_delta"
-PRESSURES = {
-    "p_m": "master_cylinder_pressure",
-    "p_f": "front_circuit_pressure",
-    "p_r": "rear_circuit_pressure",
-}
 PEDAL = "pedal_force"
 CHANNELS = (S2, DELTA, *PRESSURES.values(), PEDAL)
 DEFAULT_FIT = "ebooster_fit"  # configs/rigs/ebooster_fit.toml, trained on a simulated bench
 MM, MPA = 1e3, 1e-6  # SI -> model units
 Z95 = 1.959963984540054
-OBSERVERS = ("ukf", "ekf")
-
-
-@dataclass(frozen=True)
-class ObserverTrack:
-    """One observer's output over the session (model units).
-
-    Attributes
-    ----------
-    x, std : ndarray (K, 5) — state and 1 sigma (smoothed when ``smoothed``).
-    residual : ndarray (K,) — mm, measured minus one-step-predicted delta (innovation).
-    filt : FilterResult — the forward pass.
-    smoothed : bool
-    seconds : float — wall time of filter + smoother.
-    """
-
-    x: Array
-    std: Array
-    residual: Array
-    filt: FilterResult
-    smoothed: bool
-    seconds: float
-
-
-@dataclass(frozen=True)
-class EboosterResult:
-    """Everything the writers and the report need."""
-
-    session: Session
-    spec: BoosterSpec
-    fit: BoosterFit
-    time: Array
-    s2: Array
-    delta: Array
-    validation: dict[str, Array]
-    tracks: dict[str, ObserverTrack]
-    summary: dict[str, Any]
 
 
 def _series(session: Session, name: str, scale: float, *, gaps: bool) -> Array:
@@ -367,6 +328,3 @@ def frame_columns(result: EboosterResult) -> tuple[dict[str, Array], dict[str, s
     return cols, units
 
 
-def static_pressure(result: EboosterResult) -> Array:
-    """MPa, the p-V curve at the session's s2 (what the model predicts without delta)."""
-    return pv_pressure(result.s2, np.array(result.fit.pv_coeffs), result.fit.stroke_mm)

@@ -37,7 +37,6 @@ from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
 from brakethermo.pipelines.online_choice import ONLINE_FLAGS, OnlineChoice, choose_online
 from brakethermo.pipelines.outputs import write_json, write_parquet
-from brakethermo.pipelines.summary import lap_summaries
 from brakethermo.pipelines.tuning import (
     EstimateTuning,
     check_overrides,
@@ -45,6 +44,7 @@ from brakethermo.pipelines.tuning import (
     user_tuning_keys,
 )
 from brakethermo.report.braking_zones import detect_zones
+from brakethermo.results.laps import lap_summaries
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
 

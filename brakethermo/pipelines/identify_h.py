@@ -25,6 +25,7 @@ from scipy.optimize import least_squares
 from brakethermo import __version__
 from brakethermo.errors import DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
+from brakethermo.io.atomic import write_text_atomic
 from brakethermo.io.session import GRID_DT, Session
 from brakethermo.models.disc import H_PARAM, DiscStateSpace, RandomWalkParam
 from brakethermo.models.effects import parse_effects
@@ -594,8 +595,8 @@ def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
     }
     if result.structure is not None:
         extra.update(nodes=result.structure.nodes)
-    result.law.to_toml(folder / "h_law.toml", weights=cal.weights, extra=extra,
-                       effects=cal.effects)
+    write_text_atomic(folder / "h_law.toml",
+                      result.law.toml_text(weights=cal.weights, extra=extra, effects=cal.effects))
     write_parquet(
         folder / "h_samples.parquet", result.samples,
         {"time": {"unit": "s"}, "speed": {"unit": "m/s"}, "h": {"unit": "W/(m2 K)"},

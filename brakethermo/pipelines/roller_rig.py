@@ -28,6 +28,7 @@ from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.roller_rig import CREEP_LAWS, RollerRigModel
 from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS as TUNINGS
+from brakethermo.results.roller_rig import GuessRun, RollerRigResult
 from brakethermo.rigs.motor import motor_torque
 from brakethermo.rigs.roller_rig import RollerRigSpec, load_roller_rig
 
@@ -96,45 +97,6 @@ class RollerRigOptions:
         ):
             raise ConfigError(f"--supply-hz {self.supply_hz:g} is out of range (0.5-200 Hz)")
         return self
-
-
-@dataclass(frozen=True)
-class GuessRun:
-    """One starting guess: tracks in mm on the session grid and its figures."""
-
-    r0_mm: float
-    radius_mm: np.ndarray  # the output track (smoothed when the smoother is on)
-    radius_std_mm: np.ndarray
-    filter_mm: np.ndarray  # the forward filter's track (the paper's)
-    filter_std_mm: np.ndarray
-    states: np.ndarray  # (K, 3) output means
-    convergence_time_s: float | None
-    restart: str | None = None  # why the guess was re-started from the speed ratio
-
-
-@dataclass(frozen=True)
-class RollerRigResult:
-    """Everything a command writes."""
-
-    stem: str
-    session: Session
-    spec: RollerRigSpec
-    options: RollerRigOptions
-    time: np.ndarray
-    omega_w: np.ndarray  # measured, rad/s
-    omega_r: np.ndarray
-    torque: np.ndarray  # request, N m
-    normal_force: np.ndarray  # N
-    creep_force: np.ndarray  # of the first guess's states, N
-    creepage: np.ndarray
-    naive_mm: np.ndarray  # omega_r R_r / omega_w, mm
-    free: np.ndarray  # bool masks
-    traction: np.ndarray
-    runs: tuple[GuessRun, ...]
-    supply_hz: float
-    supply_source: str
-    reference_mm: float | None
-    summary: dict[str, Any]
 
 
 def guess_label(r0_mm: float) -> str:

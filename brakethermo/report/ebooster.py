@@ -10,13 +10,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from brakethermo.pipelines.ebooster import (
+from brakethermo.report.page import Card, Page, Section, TableBlock
+from brakethermo.results.ebooster import (
     OBSERVERS,
     PRESSURES,
     EboosterResult,
     static_pressure,
 )
-from brakethermo.report.page import Card, Page, Section, TableBlock
 from brakethermo.rigs.booster import pv_pressure
 
 COLOURS = {"ukf": "#1f77b4", "ekf": "#d62728"}

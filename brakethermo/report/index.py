@@ -8,8 +8,8 @@ from typing import Any
 
 from brakethermo import __version__
 from brakethermo.io.atomic import write_text_atomic
-from brakethermo.pipelines.summary import temp_text
 from brakethermo.report.page import template_environment
+from brakethermo.results.laps import temp_text
 
 
 def write_batch_index(

@@ -22,15 +22,6 @@ from jinja2 import Environment
 from brakethermo import __version__
 from brakethermo.io.atomic import write_bytes_atomic, write_text_atomic
 from brakethermo.io.session import Session
-from brakethermo.pipelines.summary import (
-    flying_laps,
-    hottest_radius,
-    lap_folder,
-    lap_label,
-    lap_name,
-    node_columns,
-    temp_text,
-)
 from brakethermo.report.braking_zones import (
     BAR,
     KMH,
@@ -47,6 +38,15 @@ from brakethermo.report.figures import (
     trend_figure,
 )
 from brakethermo.report.page import template_environment
+from brakethermo.results.laps import (
+    flying_laps,
+    hottest_radius,
+    lap_folder,
+    lap_label,
+    lap_name,
+    node_columns,
+    temp_text,
+)
 from brakethermo.thermal.disc import DiscSpec, load_disc
 
 FIGURE_ALT = {

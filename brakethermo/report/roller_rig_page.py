@@ -2,16 +2,12 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
 from brakethermo.report.page import Card, Page, Section, TableBlock
-
-if TYPE_CHECKING:
-    from brakethermo.pipelines.roller_rig import RollerRigResult
+from brakethermo.results.roller_rig import RollerRigResult
 
 # The paper's Table 1: whole-run RMSE of the radius, mm, (under-, over-estimation).
 PAPER_TABLE1 = {15: (0.6060, 0.8233), 30: (1.0631, 1.0139)}

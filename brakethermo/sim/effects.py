@@ -23,7 +23,7 @@ from brakethermo.errors import ConfigError
 
 # The names are the output contract's (OUTPUTS.md), shared with the estimator's registry;
 # nothing else of the estimator's models reaches the truth model.
-from brakethermo.models.effects import EFFECT_NAMES
+from brakethermo.vocabulary import EFFECT_NAMES
 
 STRENGTH_MAX = 1.5
 

@@ -26,7 +26,6 @@ from scipy.optimize import least_squares
 
 from brakethermo.config import config_file
 from brakethermo.errors import DataError
-from brakethermo.io.atomic import write_text_atomic
 
 KMH = 1.0 / 3.6  # m/s per km/h
 TABLE_SPEEDS_KMH = np.arange(0.0, 361.0, 10.0)
@@ -181,18 +180,16 @@ class HLaw:
         """Speeds 0..360 km/h in steps of 10 and h there (OUTPUTS.md ``[tabulated]``)."""
         return TABLE_SPEEDS_KMH.copy(), self(TABLE_SPEEDS_KMH * KMH)
 
-    def to_toml(
+    def toml_text(
         self,
-        path: str | Path,
         weights: Sequence[float] = (1.0, 1.0, 1.0),
         extra: Mapping[str, Any] | None = None,
         effects: Mapping[str, Mapping[str, Any]] | None = None,
-    ) -> None:
-        """Write ``h_law.toml`` (OUTPUTS.md layout) atomically.
+    ) -> str:
+        """The ``h_law.toml`` text (OUTPUTS.md layout); io writes it.
 
         Parameters
         ----------
-        path : str or Path
         weights : sequence of 3 float
             Pad-crown power weights w_1..w_3 (eq. 6–8), stored in ``[weights]``.
         extra : mapping, optional
@@ -238,7 +235,7 @@ class HLaw:
                 lines += ["", f"[extra.{name}]"] + [f"{k} = {_fmt(v)}" for k, v in table.items()]
         for name, table in (effects or {}).items():
             lines += ["", f"[effects.{name}]"] + [f"{k} = {_fmt(v)}" for k, v in table.items()]
-        write_text_atomic(path, "\n".join(lines) + "\n")
+        return "\n".join(lines) + "\n"
 
     @classmethod
     def from_toml(cls, path: str | Path) -> HLaw:

@@ -1,0 +1,98 @@
+"""The layers of docs/architecture.md, kept by CI: every ``brakethermo`` import of every
+module (including those inside functions) is checked against what its package may use."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "brakethermo"
+
+# package -> the brakethermo packages it may import (itself always allowed). Base modules:
+# errors, config, vocabulary, the package root (__version__).
+BASE = {"errors", "config", "vocabulary", "__init__"}
+ALLOWED: dict[str, set[str]] = {
+    "estimation": BASE,
+    "io": BASE,
+    "thermal": BASE,
+    "rigs": BASE,
+    "models": BASE | {"estimation", "thermal", "rigs"},
+    "results": BASE | {"io", "estimation", "thermal", "rigs", "models"},
+    "diagnosis": BASE | {"estimation", "models"},
+    "report": BASE | {"io", "thermal", "rigs", "models", "results"},
+    "pipelines": BASE | {"io", "estimation", "thermal", "rigs", "models", "results",
+                         "diagnosis", "report"},
+    # the simulator is its own program: the session writer, the datasheet and track
+    # loaders, the shared names — no estimator code
+    "sim": BASE | {"io", "thermal"},
+    "cli": BASE | {"io", "thermal", "pipelines", "report", "sim", "models", "results"},
+}
+# Known debt, each with its issue; the test fails when one is fixed (remove it here) or
+# when a new one appears.
+KNOWN = {
+    ("sim/roller_rig.py", "rigs"),  # issue 17 item 5: an independent contact model
+    ("sim/tyre_rig.py", "rigs"),  # issue 17 item 5: a brush-model tyre
+}
+# Within a layer that may import io, physics must not write files: only these modules of
+# thermal/ models/ rigs/ may import io, and only to read (the datasheet loaders).
+PHYSICS_IO_READERS: set[str] = set()
+
+
+def _imports(path: Path) -> set[str]:
+    """The brakethermo packages ``path`` imports (top-level package names)."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module]
+        elif isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        else:
+            continue
+        for name in names:
+            parts = name.split(".")
+            if parts[0] == "brakethermo":
+                out.add(parts[1] if len(parts) > 1 else "__init__")
+    return out
+
+
+def _violations() -> set[tuple[str, str]]:
+    found = set()
+    for path in PACKAGE.rglob("*.py"):
+        rel = path.relative_to(PACKAGE)
+        if len(rel.parts) == 1:
+            continue  # the base modules
+        pkg = rel.parts[0]
+        allowed = ALLOWED[pkg] | {pkg}
+        for target in _imports(path):
+            if target.removesuffix(".py") not in allowed:
+                found.add((rel.as_posix(), target))
+    return found
+
+
+def test_every_package_has_a_rule() -> None:
+    packages = {p.name for p in PACKAGE.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
+    assert packages <= set(ALLOWED), f"add a layer rule for {packages - set(ALLOWED)}"
+
+
+def test_imports_follow_the_layers() -> None:
+    found = _violations()
+    new = found - KNOWN
+    assert not new, "imports against the layers (docs/architecture.md): " + ", ".join(
+        f"{f} -> {t}" for f, t in sorted(new))
+    fixed = KNOWN - found
+    assert not fixed, f"known debt fixed, remove it from KNOWN: {sorted(fixed)}"
+
+
+def test_physics_and_models_write_no_files() -> None:
+    for pkg in ("thermal", "models", "rigs", "estimation"):
+        for path in (PACKAGE / pkg).rglob("*.py"):
+            rel = path.relative_to(PACKAGE).as_posix()
+            if rel in PHYSICS_IO_READERS:
+                continue
+            assert "io" not in _imports(path), f"{rel} imports io (the models return data)"
+
+
+def test_the_checker_sees_imports_inside_functions(tmp_path: Path) -> None:
+    probe = tmp_path / "probe.py"
+    probe.write_text("def f():\n    from brakethermo.pipelines.estimate import x\n")
+    assert _imports(probe) == {"pipelines"}
