@@ -60,7 +60,7 @@ def run_case(effect: str, with_effect: str, seed: int, test_laps: int, race_laps
             laps=race_laps, effects=strengths, sensor="single", seed=seed + 1, bike_seed=seed)),
             work / "race.parquet")
         truth_test, truth_race = read_truth(test_truth), read_truth(race_truth)
-        for label, opts in (("no effect", None),
+        for label, opts in (("no effect", IdentifyOptions(with_effects="none")),
                             (f"--with-effect {with_effect}",
                              IdentifyOptions(with_effects=with_effect))):
             t0 = time.perf_counter()

@@ -34,10 +34,11 @@ def identify_command(
         ),
     ] = True,
     with_effect: Annotated[
-        str | None,
-        typer.Option(help="Fit these effects jointly with h(V): a comma-separated list of"
-                          " effect names, or 'auto' (the diagnosis's forward selection)."),
-    ] = None,
+        str,
+        typer.Option(help="Effects fitted jointly with h(V): 'auto' (default: the"
+                          " diagnosis's forward selection on held-out laps), 'none' (the"
+                          " plain law), or a comma-separated list of effect names."),
+    ] = "auto",
     disc: DiscOpt = None,
     tuning: TuningOpt = None,
     aliases: AliasesOpt = None,
@@ -93,6 +94,9 @@ def identify_command(
             + ", ".join(f"{k} {v:.1f} (uniform {s.rmse_uniform_c[k]:.1f})"
                         for k, v in s.rmse_c.items())
         )
+    sel = result.summary["effect_selection"]
+    console.print(f"effects carried: {', '.join(sel['selected']) or 'none'} —"
+                  f" {escape(sel['why'])}", highlight=False)
     for warning in result.summary["run"]["warnings"]:
         console.print(f"[yellow]warning:[/] {escape(warning)}", soft_wrap=True)
     console.print(f"wrote {escape(str(folder / 'h_law.toml'))}, h_samples.parquet, h_law.png "

@@ -34,7 +34,12 @@ from brakethermo.models.disc import (
 from brakethermo.models.effects import true_from_reading
 from brakethermo.pipelines import scoring
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
-from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
+from brakethermo.pipelines.models import (
+    DiscCalibration,
+    calibration_for,
+    disc_for,
+    other_disc,
+)
 from brakethermo.pipelines.online_choice import ONLINE_FLAGS, OnlineChoice, choose_online
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.tuning import (
@@ -378,6 +383,9 @@ def estimate_from_session(
     cal = calibration or calibration_for(disc, options.h_law)
     tuning = calibrated_tuning(cal, options)
     warnings = list(session.warnings) + list(inputs.warnings)
+    mismatch = other_disc(cal, disc)
+    if mismatch:
+        warnings.append(mismatch)
     if cal.layers is not None and tuning.layers != cal.layers:
         warnings.append(
             f"the model runs {tuning.layers} layers but the h law's k_z ratio was fitted for"

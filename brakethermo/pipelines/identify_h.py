@@ -60,7 +60,7 @@ class IdentifyOptions:
     aliases: str | Path | None = None
     ambient_c: float | None = None
     fit_structure: bool = True
-    with_effects: str | None = None
+    with_effects: str | None = "auto"
 
 
 @dataclass(frozen=True)
@@ -315,14 +315,29 @@ def fit_with_effects(
     )
 
 
-def auto_effects(session: Session, options: IdentifyOptions) -> tuple[str, ...]:
-    """The effects the diagnosis's forward selection keeps on this session."""
+def auto_effects(session: Session, options: IdentifyOptions
+                 ) -> tuple[tuple[str, ...], dict[str, Any]]:
+    """The effects the diagnosis's forward selection keeps on this session, and why.
+
+    A session the diagnosis cannot split into training and held-out laps (fewer than two
+    flying laps) carries no effect, and says so.
+    """
     from brakethermo.pipelines.diagnose import DiagnoseOptions, diagnose_session
 
-    result = diagnose_session(session, DiagnoseOptions(
-        disc=options.disc, tuning=options.tuning, aliases=options.aliases,
-        ambient_c=options.ambient_c))
-    return tuple(result.summary["combined"]["effects"])
+    try:
+        result = diagnose_session(session, DiagnoseOptions(
+            disc=options.disc, tuning=options.tuning, aliases=options.aliases,
+            ambient_c=options.ambient_c))
+    except DataError as exc:
+        return (), {"mode": "auto", "selected": [],
+                    "why": f"no selection: the diagnosis could not run ({exc.detail})"}
+    s = result.summary
+    chosen = tuple(s["combined"]["effects"])
+    why = (f"diagnosis verdict {s['verdict']} ({s['verdict_kind']}); forward selection on"
+           f" held-out laps {s['heldout_laps']} keeps {', '.join(chosen) or 'none'}")
+    return chosen, {"mode": "auto", "selected": list(chosen), "why": why,
+                    "verdict": s["verdict"], "verdict_set": s["verdict_set"],
+                    "next_steps": s["next_steps"]}
 
 
 SIGMA_CROWN_GRID = (0.1, 0.2, 0.4)  # relative crown-share noise tried by validation
@@ -444,9 +459,13 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
     braking = inputs.braking
     fit_mask = off_brake_mask(braking) & np.isfinite(y).all(axis=1) & (inputs.speed > 1.0)
     effects: tuple[str, ...] = ()
-    if options.with_effects:
-        effects = (auto_effects(session, options) if options.with_effects.strip() == "auto"
-                   else parse_effects(options.with_effects))
+    selection: dict[str, Any] = {"mode": "none", "selected": [],
+                                 "why": "--with-effect none: the plain law"}
+    if options.with_effects and options.with_effects.strip() == "auto":
+        effects, selection = auto_effects(session, options)
+    elif options.with_effects and options.with_effects.strip().lower() != "none":
+        effects = parse_effects(options.with_effects)
+        selection = {"mode": "given", "selected": list(effects), "why": "--with-effect"}
     notes: list[str] = []
     try:
         law_ukf: HLaw | None = HLaw.fit(inputs.speed[fit_mask], h_mean[fit_mask],
@@ -529,6 +548,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             "effects": structure.effects,
         },
         "with_effects": list(effects),
+        "effect_selection": selection,
         "band_scale": band_scale,
         "sigma_crown": sigma_crown,
         "sigma_temp": sigma_temp,

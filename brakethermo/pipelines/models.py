@@ -137,13 +137,16 @@ def calibration_for(disc: DiscSpec, h_law: str | Path | None) -> DiscCalibration
             f"no h(V) law for disc '{disc.id}': run `brakethermo identify-h` on a multi-spot"
             " test session and pass its h_law.toml with --h-law"
         )
-    cal = read_calibration(path)
-    if cal.disc_id is not None and cal.disc_id != disc.id:
-        raise ConfigError(
-            f"this h law was identified on disc '{cal.disc_id}' but the session runs disc"
-            f" '{disc.id}': identify-h on a test session of disc '{disc.id}', or name the"
-            " session's disc with --disc if its facts are wrong", path=path)
-    return cal
+    return read_calibration(path)
+
+
+def other_disc(cal: DiscCalibration, disc: DiscSpec) -> str | None:
+    """What to say when the law was identified on another disc than ``disc`` (else None)."""
+    if cal.disc_id is None or cal.disc_id == disc.id:
+        return None
+    return (f"{cal.source}: this h law was identified on disc '{cal.disc_id}' but the session"
+            f" runs disc '{disc.id}': identify-h on a test session of disc '{disc.id}', or"
+            " name the session's disc with --disc if its facts are wrong")
 
 
 def own_h_law(folder: str | Path, session: Session) -> Path | None:

@@ -50,7 +50,7 @@ from brakethermo.pipelines.estimate import (
     estimate_from_session,
 )
 from brakethermo.pipelines.inputs import load_timed
-from brakethermo.pipelines.models import calibration_for
+from brakethermo.pipelines.models import calibration_for, disc_for, other_disc
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.report.braking_zones import detect_zones
 from brakethermo.thermal.disc import DiscSpec, load_disc
@@ -188,8 +188,12 @@ class WhatifResult:
 
 
 def _law_extra(h_law: str | Path | None, disc: DiscSpec) -> dict[str, Any]:
-    """The ``[extra]`` table of the law (``calibration_for`` has refused another disc's)."""
-    return read_h_law(calibration_for(disc, h_law).source).extra
+    """The ``[extra]`` table of the law; a law of another disc cannot predict this one."""
+    cal = calibration_for(disc, h_law)
+    mismatch = other_disc(cal, disc)
+    if mismatch:
+        raise ConfigError(mismatch)
+    return read_h_law(cal.source).extra
 
 
 def _scenario_disc(scenario: Scenario, disc: DiscSpec) -> DiscSpec:
@@ -264,8 +268,10 @@ def replay(est: EstimateResult, scenario: Scenario, options: WhatifOptions,
     # estimate: a scenario that changes nothing is the estimate itself
     delta = (np.einsum("ksn,in->ksi", T, _spot_rows(model1, disc1))
              - (X[:, : model0.n_state] @ _spot_rows(model0, disc0).T)[:, None, :])
-    est_out = est.frame[[*(f"spot{i}" for i in range(1, 5)), "contact_avg"]].to_numpy()
-    out = est_out + delta[:, 0]
+    # the replayed state itself, read out on the scenario disc: it follows the estimate's
+    # corrections, so it is the estimate plus the change; a disc is never colder than the
+    # air (the estimate's own projection, Simon & Chia 2002)
+    out = np.fmax(T[:, 0] @ _spot_rows(model1, disc1).T, ta1[:, None])
     est_std = est.frame["contact_avg_std"].to_numpy()
     spread = delta[:, 1:, 4].std(axis=1) if S > 1 else np.zeros(K)
     std = np.sqrt(est_std**2 + spread**2
@@ -360,10 +366,13 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
     """Estimate the session, then replay its laps under each scenario."""
     t0 = time.perf_counter()
     session, read_s = load_timed(path, options.aliases)
+    extra = _law_extra(options.h_law, disc_for(session, options.disc))
+    for s in options.scenarios:  # an unknown disc before any work
+        if s.disc:
+            _scenario_disc(s, disc_for(session, options.disc))
     est = estimate_from_session(session, EstimateOptions(
         spot=options.spot, h_law=options.h_law, disc=options.disc, tuning=options.tuning,
         aliases=options.aliases, ambient_c=options.ambient_c, score=False))
-    extra = _law_extra(options.h_law, est.disc)
     h_sig = options.h_rel_sigma
     if h_sig is None:
         h_sig = float(extra.get("h_rel_sigma", H_REL_SIGMA))
