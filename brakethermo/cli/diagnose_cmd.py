@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.markup import escape
@@ -88,11 +88,15 @@ def diagnose_command(
     if pooled is not None:
         console.print(f"[bold]pooled over {len(results)} sessions[/]: verdict "
                       f"[bold]{_verdict_text(pooled)}[/]")
-        for step in pooled["next_steps"]:
-            console.print(f"  next: {escape(step)}", highlight=False)
+        _next_steps(pooled)
         for note in pooled["notes"]:
             console.print(f"  [yellow]note:[/] {escape(note)}")
         console.print(f"wrote {escape(str(pooled_path))}")
+
+
+def _next_steps(s: dict) -> None:
+    for step in s["next_steps"]:
+        console.print(f"  next: {escape(step)}", highlight=False)
 
 
 def _verdict_text(s: dict) -> str:
@@ -101,7 +105,7 @@ def _verdict_text(s: dict) -> str:
     return s["verdict"]
 
 
-def _render(result, folder: Path) -> None:
+def _render(result: Any, folder: Path) -> None:  # a DiagnoseResult (imported lazily)
     s = result.summary
     console.print(f"[bold]{escape(result.stem)}[/]: reference model held-out RMSE "
                   f"{s['gap']['rmse_c']:.1f} °C (train laps {s['train_laps']}, held-out "
@@ -125,8 +129,7 @@ def _render(result, folder: Path) -> None:
             console.print(f"  size of {e['name']}: {escape(e['size_text'])}", highlight=False)
     console.print(f"verdict: [bold]{escape(_verdict_text(s))}[/]; combined model: "
                   f"{' + '.join(s['combined']['effects']) or 'none'}")
-    for step in s["next_steps"]:
-        console.print(f"  next: {escape(step)}", highlight=False)
+    _next_steps(s)
     for w in s["warnings"]:
         console.print(f"[yellow]warning:[/] {escape(w)}")
     console.print(f"wrote {escape(str(folder / 'diagnosis.json'))} and "

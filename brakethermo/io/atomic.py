@@ -109,6 +109,16 @@ def clean_stale_stages(target: str | Path) -> list[Path]:
     return removed
 
 
+def _new_stage(target: Path) -> tuple[Path, str]:
+    """A staging folder beside ``target`` (stale ones of killed runs removed first) and the
+    run's tag; the usual permissions (``mkdtemp`` alone would make it private)."""
+    clean_stale_stages(target)
+    tag = f"{_host()}.{os.getpid()}."
+    stage = Path(tempfile.mkdtemp(prefix=f".{target.name}{_STAGE}{tag}", dir=target.parent))
+    os.chmod(stage, 0o777 & ~_umask())
+    return stage, tag
+
+
 @contextmanager
 def atomic_dir(target: str | Path) -> Iterator[Path]:
     """Yield a temporary directory; on success it replaces ``target`` as a whole.
@@ -120,10 +130,7 @@ def atomic_dir(target: str | Path) -> Iterator[Path]:
     """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
-    clean_stale_stages(target)
-    tag = f"{_host()}.{os.getpid()}."
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}{_STAGE}{tag}", dir=target.parent))
-    os.chmod(tmp, 0o777 & ~_umask())
+    tmp, tag = _new_stage(target)
     try:
         yield tmp
     except BaseException:
@@ -177,10 +184,7 @@ def atomic_entries(target: str | Path, owned: tuple[str, ...]) -> Iterator[Path]
     """
     target = Path(target)
     target.mkdir(parents=True, exist_ok=True)
-    clean_stale_stages(target)
-    tag = f"{_host()}.{os.getpid()}."
-    stage = Path(tempfile.mkdtemp(prefix=f".{target.name}{_STAGE}{tag}", dir=target.parent))
-    os.chmod(stage, 0o777 & ~_umask())
+    stage, tag = _new_stage(target)
     try:
         yield stage
         produced = {e.name for e in stage.iterdir()}
