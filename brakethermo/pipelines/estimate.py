@@ -42,6 +42,7 @@ from brakethermo.pipelines.models import (
 )
 from brakethermo.pipelines.online_choice import ONLINE_FLAGS, OnlineChoice, choose_online
 from brakethermo.pipelines.outputs import write_json, write_parquet
+from brakethermo.pipelines.plausibility import estimate_warnings
 from brakethermo.pipelines.tuning import (
     EstimateTuning,
     check_overrides,
@@ -458,6 +459,8 @@ def estimate_from_session(
         "scoring_s": t_end - t_done,
         "total_s": t_end - t_start,
     }
+    mean_nis = float(np.nanmean(forward.nis))
+    warnings += estimate_warnings(mean_nis, float(np.nanmax(frame["contact_avg"])), disc)
     summary = {
         "session": str(session.path),
         "metadata": session.metadata,
@@ -491,7 +494,7 @@ def estimate_from_session(
             "steps": len(frame),
             "covariance_repairs": forward.n_repairs,
             "log_likelihood": forward.log_likelihood,
-            "mean_nis": float(np.nanmean(forward.nis)),
+            "mean_nis": mean_nis,
             "wall_time_s": timings["total_s"],
             "timings_s": timings,
             "warnings": warnings,

@@ -10,6 +10,7 @@ import numpy as np
 
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
+from brakethermo.pipelines.plausibility import check_pyrometers, check_wheel_speed
 from brakethermo.thermal.disc import DiscSpec
 
 MULTI_SPOT = ("disc_temp_spot1", "disc_temp_spot2", "disc_temp_spot3", "disc_temp_spot4")
@@ -92,6 +93,9 @@ def disc_inputs(session: Session, disc: DiscSpec, ambient_c: float | None = None
         if n:
             warnings.append(f"{name}: {n * 0.1:.1f} s of gaps bridged by linear interpolation")
     q_brk = disc.braking_power(np.clip(pressure, 0.0, None), omega)
+    on = q_brk > 0.01 * max(float(np.nanmax(q_brk, initial=0.0)), 1.0)
+    if session.has("wheel_speed_front"):
+        check_wheel_speed(speed, omega, on, disc, session)
 
     n = len(session.frame)
     spots = np.full((n, 4), np.nan)
@@ -105,12 +109,17 @@ def disc_inputs(session: Session, disc: DiscSpec, ambient_c: float | None = None
         measured.append(SINGLE_SPOT_INDEX)
     if not measured:
         session.require(SINGLE_SPOT)
+    t_amb = session.ambient_c(ambient_c)
+    names = [MULTI_SPOT[i - 1] if session.has(MULTI_SPOT[i - 1]) else SINGLE_SPOT
+             for i in measured]
+    warnings += check_pyrometers(spots[:, [i - 1 for i in measured]], t_amb, q_brk, names,
+                                 session)
     return DiscInputs(
         time=session.time,
         lap=session.lap,
         speed=speed,
         q_brk=q_brk,
-        t_amb=session.ambient_c(ambient_c),
+        t_amb=t_amb,
         spots=spots,
         measured=tuple(measured),
         warnings=tuple(warnings),

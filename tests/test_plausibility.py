@@ -1,0 +1,75 @@
+"""Mislabelled units and frozen sensors in a disc session: a clear line naming the channel
+and the likely unit, or a loud warning, never a silent impossible estimate."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from typer.testing import CliRunner
+
+from brakethermo.cli import app
+
+runner = CliRunner()
+
+
+def _mutate(src: Path, dst: Path, column_prefix: str, fn) -> Path:
+    table = pq.read_table(src)
+    cols = []
+    for name in table.column_names:
+        col = table.column(name)
+        if name.startswith(column_prefix):
+            arr = col.to_numpy(zero_copy_only=False).astype(float)
+            col = pa.array(fn(arr), type=pa.float64())
+        cols.append(col)
+    out = pa.Table.from_arrays(cols, schema=table.schema)
+    pq.write_table(out, dst)
+    return dst
+
+
+def _estimate(path: Path, tmp: Path):
+    return runner.invoke(app, ["estimate", str(path), "--out", str(tmp / "o"), "--no-report",
+                               "--no-smoother", "--json"])
+
+
+def test_wheel_speed_in_rpm_labelled_rad_s_is_named(sim_race_session, tmp_path: Path) -> None:
+    bad = _mutate(sim_race_session[0], tmp_path / "rpm.parquet", "wheel_speed_front",
+                  lambda v: v * 60.0 / (2 * np.pi))
+    res = _estimate(bad, tmp_path)
+    assert res.exit_code == 1, res.output
+    assert "wheel_speed_front" in res.output and "rpm labelled rad/s" in res.output
+    assert "Traceback" not in res.output
+
+
+def test_a_frozen_pyrometer_is_refused(sim_race_session, tmp_path: Path) -> None:
+    bad = _mutate(sim_race_session[0], tmp_path / "stuck.parquet", "disc_temp",
+                  lambda v: np.where(np.isfinite(v), 300.0, v))
+    res = _estimate(bad, tmp_path)
+    assert res.exit_code == 1, res.output
+    assert "stuck or frozen pyrometer" in res.output and "Traceback" not in res.output
+
+
+def test_a_pyrometer_in_kelvin_labelled_celsius_is_said_loudly(sim_race_session,
+                                                               tmp_path: Path) -> None:
+    # a kelvin pyrometer has no floor at 100 "degC": it logs the cold disc at rest too
+    bad = _mutate(sim_race_session[0], tmp_path / "kelvin.parquet", "disc_temp",
+                  lambda v: np.where(np.isfinite(v), v, 23.0) + 273.15)
+    res = _estimate(bad, tmp_path)
+    if res.exit_code == 1:  # the filter may also find the readings impossible
+        assert "Traceback" not in res.output
+        return
+    warnings = json.loads(res.stdout)["run"]["warnings"]
+    assert any("kelvin" in w for w in warnings), warnings
+
+
+@pytest.mark.parametrize("factor", [1.0])
+def test_the_clean_session_passes_every_check(sim_race_session, tmp_path: Path,
+                                              factor: float) -> None:
+    res = _estimate(sim_race_session[0], tmp_path)
+    assert res.exit_code == 0, res.output
+    warnings = json.loads(res.stdout)["run"]["warnings"]
+    assert not any("kelvin" in w or "innovations are" in w for w in warnings)
