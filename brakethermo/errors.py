@@ -6,6 +6,7 @@ EXIT_OK = 0
 EXIT_BAD_INPUT = 1
 EXIT_USAGE = 2
 EXIT_BATCH_PARTIAL = 3
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 
 
 class BrakethermoError(Exception):
@@ -36,3 +37,9 @@ class DataError(BrakethermoError):
 
 class ConfigError(BrakethermoError):
     """A TOML configuration (datasheet, aliases, tuning, track, h law) is invalid."""
+
+
+class Interrupted(BrakethermoError):
+    """The user stopped the run (Ctrl-C): what finished is complete, the rest untouched."""
+
+    exit_code = EXIT_INTERRUPTED

@@ -14,7 +14,7 @@ from rich.markup import escape
 from typer.core import TyperGroup
 
 from brakethermo import __version__
-from brakethermo.errors import BrakethermoError
+from brakethermo.errors import EXIT_INTERRUPTED, BrakethermoError
 
 console = Console()
 err_console = Console(stderr=True)
@@ -39,6 +39,11 @@ class _UserErrorGroup(TyperGroup):
             err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False,
                               soft_wrap=True)
             ctx.exit(exc.exit_code)
+        except KeyboardInterrupt:
+            # every output is staged and swapped in whole: nothing half-written is left
+            err_console.print("[bold red]interrupted:[/] nothing of this run was written;"
+                              " earlier outputs are as they were", highlight=False)
+            ctx.exit(EXIT_INTERRUPTED)
 
 
 app = typer.Typer(

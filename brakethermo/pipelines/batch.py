@@ -34,7 +34,13 @@ import pandas as pd
 
 from brakethermo import __version__
 from brakethermo.config import config_dir
-from brakethermo.errors import EXIT_BATCH_PARTIAL, EXIT_OK, BrakethermoError, ConfigError
+from brakethermo.errors import (
+    EXIT_BATCH_PARTIAL,
+    EXIT_OK,
+    BrakethermoError,
+    ConfigError,
+    Interrupted,
+)
 from brakethermo.io.atomic import write_text_atomic
 from brakethermo.io.formats import SUFFIXES as FORMAT_SUFFIXES
 from brakethermo.io.session import Session
@@ -836,6 +842,19 @@ def preflight(options: BatchOptions) -> None:
         read_calibration(options.h_law)
 
 
+def _interrupted(files: list[Path], names: list[str], done: dict[Path, SessionOutcome]
+                 ) -> Interrupted:
+    """What an interrupt leaves: finished sessions complete, the others untouched."""
+    finished = [o.name for o in done.values() if o.status in ("ok", "skipped")]
+    pending = [n for p, n in zip(files, names, strict=True)
+               if p not in done or done[p].status == "deferred"]
+    return Interrupted(
+        f"interrupted: {len(finished)} of {len(files)} sessions finished"
+        f" ({', '.join(finished) or 'none'}) and their outputs are complete; not done:"
+        f" {', '.join(pending) or 'none'}, their folders as before. Run the same command"
+        " again to resume (finished sessions are skipped)")
+
+
 def run_batch(
     folder: str | Path,
     options: BatchOptions,
@@ -911,40 +930,44 @@ def run_batch(
         for o in done.values():
             on_event("done", o)
 
-    # Longest first keeps a pool busy to the end; file size stands in for session length.
-    first.sort(key=lambda task: -sizes[task.path])
-    with _executor(options) as executor:
-        for o in _run_tasks(first, executor, job, on_event):
-            done[o.path] = o
-        identified = [o for o in done.values() if o.kind == "multi"]
-        second: list[SessionTask] = []
-        for path, name, sha, manifest in known_single:
-            facts = {str(k): str(v) for k, v in dict(manifest["facts"]).items()}
-            choice = choose_law(facts, identified)
-            law_sha = file_sha256(choice.path) if choice.path is not None else DEFAULT_LAW
-            if manifest.get("h_law_sha256") == law_sha:
-                done[path] = _skipped(path, name, manifest, out)
-                if on_event is not None:
-                    on_event("done", done[path])
-                continue
-            second.append(SessionTask(path, name, options, sha, choice.path, choice.source,
-                                      h_law_reason=choice.reason))
-        for o in [o for o in done.values() if o.status == "deferred"]:
-            task = next(t for t in first if t.path == o.path)
-            choice = choose_law(o.facts, identified)
-            second.append(
-                replace(
-                    task, h_law=choice.path, h_law_source=choice.source,
-                    h_law_reason=choice.reason, defer_single=False, session=o.session,
-                )
-            )  # fmt: skip
-        for o in _run_tasks(second, executor, job, on_event):
-            first_pass = done.get(o.path)
-            if first_pass is not None and first_pass.status == "deferred":
-                # The file was read in the first pass; count that read in this session.
-                o.wall_s += first_pass.wall_s
-                o.timings["read_s"] = o.timings.get("read_s", 0.0) + first_pass.timings["read_s"]
-            done[o.path] = o
+    try:
+        # Longest first keeps a pool busy to the end; file size stands in for session length.
+        first.sort(key=lambda task: -sizes[task.path])
+        with _executor(options) as executor:
+            for o in _run_tasks(first, executor, job, on_event):
+                done[o.path] = o
+            identified = [o for o in done.values() if o.kind == "multi"]
+            second: list[SessionTask] = []
+            for path, name, sha, manifest in known_single:
+                facts = {str(k): str(v) for k, v in dict(manifest["facts"]).items()}
+                choice = choose_law(facts, identified)
+                law_sha = file_sha256(choice.path) if choice.path is not None else DEFAULT_LAW
+                if manifest.get("h_law_sha256") == law_sha:
+                    done[path] = _skipped(path, name, manifest, out)
+                    if on_event is not None:
+                        on_event("done", done[path])
+                    continue
+                second.append(SessionTask(path, name, options, sha, choice.path, choice.source,
+                                          h_law_reason=choice.reason))
+            for o in [o for o in done.values() if o.status == "deferred"]:
+                task = next(t for t in first if t.path == o.path)
+                choice = choose_law(o.facts, identified)
+                second.append(
+                    replace(
+                        task, h_law=choice.path, h_law_source=choice.source,
+                        h_law_reason=choice.reason, defer_single=False, session=o.session,
+                    )
+                )  # fmt: skip
+            for o in _run_tasks(second, executor, job, on_event):
+                first_pass = done.get(o.path)
+                if first_pass is not None and first_pass.status == "deferred":
+                    # The file was read in the first pass; count that read in this session.
+                    o.wall_s += first_pass.wall_s
+                    o.timings["read_s"] = (o.timings.get("read_s", 0.0)
+                                           + first_pass.timings["read_s"])
+                done[o.path] = o
+    except KeyboardInterrupt:
+        raise _interrupted(files, names, done) from None
     result = BatchResult([done[p] for p in files], time.perf_counter() - t0)
     if options.reports and files:
         from brakethermo.report.index import write_batch_index

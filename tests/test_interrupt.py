@@ -1,0 +1,55 @@
+"""Ctrl-C during batch: exit 130, one line saying what finished, finished sessions intact,
+the interrupted one as before, and the next run resumes."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+CMD = [sys.executable, "-c", "from brakethermo.cli import main; main()"]
+
+
+@pytest.mark.skipif(os.name != "posix", reason="SIGINT semantics of POSIX")
+def test_sigint_during_batch_then_resume(sim_test_session, sim_race_session,
+                                         tmp_path: Path) -> None:
+    folder = tmp_path / "sessions"
+    folder.mkdir()
+    shutil.copy(sim_race_session[0], folder / "a_race.parquet")
+    shutil.copy(sim_race_session[0], folder / "b_race.parquet")
+    out = tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    proc = subprocess.Popen([*CMD, "batch", str(folder), "--out", str(out), "--no-reports",
+                             "--h-law", str(Path(__file__).resolve().parents[1] / "configs"
+                                            / "hlaw" / "cc-340-8.toml")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and not list(out.glob("*/batch_manifest.json")):
+        time.sleep(0.2)
+        if proc.poll() is not None:
+            break
+    if proc.poll() is not None:
+        pytest.skip("the batch finished before it could be interrupted")
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stdout + stderr
+    assert "interrupted" in stderr and "Traceback" not in stderr
+    assert "Exception ignored" not in stderr
+    finished = [p.parent.name for p in out.glob("*/batch_manifest.json")]
+    assert finished, "the finished session's outputs are complete"
+    for name in finished:
+        assert (out / name / "estimate.parquet").is_file()
+    assert not list(out.glob(".*stage*")), "no staging folder left behind"
+    # the next run resumes: finished sessions are skipped, the rest done
+    res = subprocess.run([*CMD, "batch", str(folder), "--out", str(out), "--no-reports",
+                          "--h-law", str(Path(__file__).resolve().parents[1] / "configs"
+                                         / "hlaw" / "cc-340-8.toml")],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert len(list(out.glob("*/batch_manifest.json"))) == 2
