@@ -109,6 +109,22 @@ def test_output_names_are_unique(tmp_path: Path) -> None:
     ]
     names = output_names(files, tmp_path)
     assert names == ["a__s_csv", "b__s", "a__s_mcap", "t"]
+    # case-only differences and a stem that equals another's suffixed name
+    same = [tmp_path / "s.mcap", tmp_path / "s.MCAP", tmp_path / "s.csv",
+            tmp_path / "s_mcap.mcap"]
+    names = output_names(same, tmp_path)
+    assert len({n.casefold() for n in names}) == 4, names
+
+
+def test_out_that_is_or_holds_the_input_is_refused(tmp_path: Path) -> None:
+    from brakethermo.cli import app
+
+    (tmp_path / "in").mkdir()
+    for args in ([str(tmp_path / "in"), "--out", str(tmp_path / "in")],
+                 [str(tmp_path / "in"), "--out", str(tmp_path)]):
+        res = CliRunner().invoke(app, ["batch", *args])
+        assert res.exit_code == 1 and "--out" in res.output, res.output
+        assert "Traceback" not in res.output
 
 
 def test_failures_isolated_and_rerun_skips(folder: Path, tmp_path: Path) -> None:

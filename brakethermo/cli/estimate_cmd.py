@@ -80,7 +80,9 @@ def render_scores(scores: dict[str, Any]) -> None:
     """The paper's Tables 3 and 4 for this session, plus peaks and band coverage."""
     table = Table(
         title=f"accuracy against the measured spots (spot {scores['measured_spot']} is the "
-        "filter's input; RMSE °C)",
+        "filter's input; RMSE °C)"
+        + (" — IN SAMPLE: the h law was identified on this session" if scores.get("in_sample")
+           else ""),
         title_justify="left",
         box=box.SIMPLE_HEAD,
         pad_edge=False,

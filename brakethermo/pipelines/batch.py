@@ -376,10 +376,21 @@ def output_names(files: list[Path], folder: Path) -> list[str]:
         rel = f.relative_to(folder)
         names.append("__".join((*rel.parent.parts, stem)))
     clashes = {n for n in names if names.count(n) > 1}
-    return [
+    names = [
         f"{n}_{f.suffix.lstrip('.').lower()}" if n in clashes else n
         for n, f in zip(names, files, strict=True)
     ]
+    # Still one folder per session: ``s.mcap`` and ``s.MCAP`` (or ``s.mcap`` beside
+    # ``s_mcap.mcap``) must not share one, also on a file system that folds case.
+    final: list[str] = []
+    seen: set[str] = set()
+    for n in names:
+        cand, k = n, 2
+        while cand.casefold() in seen:
+            cand, k = f"{n}_{k}", k + 1
+        seen.add(cand.casefold())
+        final.append(cand)
+    return final
 
 
 def is_multi_spot(session: Session) -> bool:
@@ -855,6 +866,17 @@ def _interrupted(files: list[Path], names: list[str], done: dict[Path, SessionOu
         " again to resume (finished sessions are skipped)")
 
 
+def _check_places(folder: Path, out: Path) -> None:
+    """The output folder may sit inside the input folder, not be it or hold it."""
+    f, o = folder.resolve(), out.resolve()
+    if f == o:
+        raise ConfigError(f"--out {out} is the input folder: its outputs would be read as"
+                          " sessions; give another folder, e.g. --out out")
+    if f.is_relative_to(o):
+        raise ConfigError(f"the input folder {folder} is inside --out {out}: give an output"
+                          " folder outside it")
+
+
 def run_batch(
     folder: str | Path,
     options: BatchOptions,
@@ -884,6 +906,7 @@ def run_batch(
     t0 = time.perf_counter()
     folder = Path(folder)
     out = Path(options.out)
+    _check_places(folder, out)
     files = discover_sessions(folder, exclude=[out])
     preflight(options)
     names = output_names(files, folder)

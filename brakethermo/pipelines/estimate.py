@@ -451,6 +451,14 @@ def estimate_from_session(
                                 options.spot, tuning.smoother,
                                 zones=detect_zones(inputs.time,
                                                    session.values("brake_pressure_front")))
+        in_sample = (cal.identified_on is not None
+                     and Path(cal.identified_on).name == session.path.name)
+        scores["in_sample"] = in_sample
+        scores["reference"] = (
+            "measured spots — in sample: the h law, crown weights and k_z were identified on"
+            " these spots of this very session; score a session the law did not see for a"
+            " held-out figure" if in_sample else
+            "measured spots (the law was identified on another session: held out)")
     t_end = time.perf_counter()
     timings = {
         "setup_s": t_filter - t_start,

@@ -60,6 +60,8 @@ class DiscCalibration:
         Where it came from (file path).
     disc_id : str or None
         The datasheet the law was identified with (``[extra] disc``; older files: None).
+    identified_on : str or None
+        The session file it was identified on (``[extra] session``).
     """
 
     law: HLaw
@@ -75,6 +77,7 @@ class DiscCalibration:
     effects: dict[str, dict[str, Any]] = field(default_factory=dict)
     source: str = ""
     disc_id: str | None = None
+    identified_on: str | None = None
 
 
 # Ranges of the identified values an h_law.toml may carry (those identify-h can produce).
@@ -104,7 +107,9 @@ def read_calibration(path: str | Path) -> DiscCalibration:
     disc_id = record.extra.get("disc")
     return DiscCalibration(law=record.law, weights=record.weights, adapt_power=adapt,
                            effects=_checked_effects(record.effects, path), source=str(path),
-                           disc_id=str(disc_id) if disc_id is not None else None, **values)
+                           disc_id=str(disc_id) if disc_id is not None else None,
+                           identified_on=(str(record.extra["session"])
+                                          if "session" in record.extra else None), **values)
 
 
 def _checked_effects(tables: dict[str, Any], path: str | Path) -> dict[str, dict[str, Any]]:

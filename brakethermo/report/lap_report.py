@@ -226,6 +226,9 @@ def _spot_roles(summary: dict[str, Any] | None, measured: tuple[int, ...]) -> st
     if not held:
         return f"spot {spot} measured (the filter's input)"
     listed = ", ".join(str(i) for i in held)
+    if ((summary or {}).get("scores") or {}).get("in_sample"):
+        return (f"spot {spot} measured (the filter's input); spot{'s' if len(held) > 1 else ''}"
+                f" {listed} compare in sample (the h law was identified on this session)")
     return (f"spot {spot} measured (the filter's input); spot{'s' if len(held) > 1 else ''} "
             f"{listed} held out to check the estimate")
 
@@ -243,6 +246,7 @@ def _scores_view(summary: dict[str, Any] | None) -> dict[str, Any] | None:
     peak = scores.get("peak", {}).get(f"spot{spot}", {})
     return {
         "rows": rows,
+        "in_sample": bool(scores.get("in_sample")),
         "measured_spot": spot,
         "peak": peak,
         "coverage": {k: 100.0 * v for k, v in scores.get("coverage95", {}).items()
