@@ -231,3 +231,39 @@ def test_rudd_ekf_matches_filterpy_with_the_same_pseudo_noise() -> None:
         )
         np.testing.assert_allclose(ours.x_filt[k], fp.x[:, 0], rtol=1e-5, atol=1e-7)
     np.testing.assert_allclose(ours.P_filt[-1], fp.P, rtol=1e-4, atol=1e-9)
+
+
+def _point_set(path: Path, slip: np.ndarray, mu: np.ndarray) -> Path:
+    import pandas as pd
+
+    pd.DataFrame({"time [s]": np.arange(slip.size, dtype=float),
+                  "slip_ratio": slip, "drag_force [N]": mu * 4000.0,
+                  "normal_force [N]": np.full(slip.size, 4000.0)}).to_csv(path, index=False)
+    return path
+
+
+def test_the_papers_forty_points_through_the_cli(tmp_path: Path) -> None:
+    """Rudd's case as a file: 40 noisy (slip, μ) points up to slip 0.948, no time ramp;
+    the EKF ends within 1σ of the truth (μp 0.35, sp 0.15)."""
+    from typer.testing import CliRunner
+
+    from brakethermo.cli import app
+
+    rng = np.random.default_rng(7101)
+    s = np.sort(rng.uniform(0.01, 0.948, 40))
+    mu = rudd_mu(s, 0.35, 0.15) + rng.normal(0.0, 0.04, 40)
+    path = _point_set(tmp_path / "paper.csv", s, mu)
+    res = CliRunner().invoke(app, ["mu-slip", str(path), "--points", "--mu-max", "1.0",
+                                   "--out", str(tmp_path / "o"), "--json"])
+    assert res.exit_code == 0, res.output
+    ekf = json.loads(res.stdout)["ekf"]
+    assert abs(ekf["mu_peak"] - 0.35) < ekf["mu_peak_std"] + 0.02
+    assert abs(ekf["slip_peak"] - 0.15) < ekf["slip_peak_std"] + 0.02
+    # points that never pass the peak: one clear line
+    s_low = np.sort(rng.uniform(0.01, 0.12, 40))
+    low = _point_set(tmp_path / "low.csv", s_low,
+                     rudd_mu(s_low, 0.35, 0.15) + rng.normal(0.0, 0.01, 40))
+    res = CliRunner().invoke(app, ["mu-slip", str(low), "--points", "--out",
+                                   str(tmp_path / "o")])
+    assert res.exit_code == 1 and "never passes the μ peak" in res.output
+    assert "Traceback" not in res.output

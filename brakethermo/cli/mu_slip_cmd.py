@@ -27,6 +27,12 @@ def mu_slip_cmd(
     slip_max: Annotated[
         float, typer.Option("--slip-max", help="High end of the expected peak slip (EKF start).")
     ] = 0.3,
+    points: Annotated[
+        bool,
+        typer.Option("--points", metavar="",
+                     help="The file is a (slip, μ) point set (slip_ratio, drag_force,"
+                          " normal_force), no time ramp: every point with 0 < slip <= 1."),
+    ] = False,
     aliases: AliasesOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
@@ -43,7 +49,8 @@ def mu_slip_cmd(
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.rig_outputs import write_rig_outputs
 
-    opts = MuSlipOptions(mu_range=(0.1, mu_max), slip_range=(0.05, slip_max), radius_m=radius)
+    opts = MuSlipOptions(mu_range=(0.1, mu_max), slip_range=(0.05, slip_max), radius_m=radius,
+                         points=points)
     res = run_with_status(as_json, "mu-slip…", lambda: mu_slip(session, opts, aliases=aliases))
     summ = summary(res)
     folder = write_rig_outputs(

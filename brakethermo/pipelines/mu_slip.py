@@ -52,12 +52,15 @@ class MuSlipOptions:
     slip_range : (float, float) — expected range of the peak slip, – (paper: 0.1–0.2).
     inflation : float — constant factor on the noise std (paper: 3).
     radius_m : float or None — wheel radius, m, when the session does not give it.
+    points : bool — the file is a set of (slip, μ) points (the paper's case: no time ramp),
+        every sample with 0 < slip ≤ 1 is used, in file order.
     """
 
     mu_range: tuple[float, float] = (0.1, 1.5)
     slip_range: tuple[float, float] = (0.05, 0.3)
     inflation: float = 3.0
     radius_m: float | None = None
+    points: bool = False
 
     def __post_init__(self) -> None:
         for name, (lo, hi) in (("mu_range", self.mu_range), ("slip_range", self.slip_range)):
@@ -86,6 +89,7 @@ class MuSlipResult:
     radius_m: float | None
     ramp_s: tuple[float, float]
     inflation: float
+    points: bool = False
 
 
 def slip_and_mu(
@@ -130,23 +134,29 @@ def slip_and_mu(
 
 
 def find_ramp(session: Session, slip: np.ndarray) -> tuple[int, int]:
-    """Index range [start, lock) of the first braking ramp from free rolling to wheel lock.
+    """Index range [start, end) of the first braking ramp from free rolling: up to wheel
+    lock, or, without a lock, up to the deepest slip of that braking.
 
     Raises
     ------
     DataError
-        No sample reaches wheel lock (a session without braking to lock).
+        No braking in the session.
     """
     w = max(3, round(0.01 / session.dt) | 1)
     smooth = median_filter(np.nan_to_num(slip, nan=0.0), size=w, mode="nearest")
     locked = np.flatnonzero(smooth >= LOCK_SLIP)
-    if locked.size == 0:
-        raise DataError(
-            f"no braking ramp to wheel lock found (slip never reaches {LOCK_SLIP:g}); give a"
-            " session of a brake ramp to lock",
-            path=session.path,
-        )
-    lock = int(locked[0])
+    if locked.size:
+        lock = int(locked[0])
+    else:
+        braking = np.flatnonzero(smooth > 0.02)
+        if braking.size == 0:
+            raise DataError("no braking found (slip never exceeds 0.02); give a session of"
+                            " a brake ramp, or a (slip, μ) point set with --points",
+                            path=session.path)
+        # the first braking event: up to where its slip is deepest
+        gap = np.flatnonzero(np.diff(braking) > 1)
+        last = braking[gap[0]] if gap.size else braking[-1]
+        lock = int(braking[0] + np.argmax(smooth[braking[0]: last + 1]))
     before = smooth[:lock]
     free = float(np.percentile(before, 5)) if before.size else 0.0
     rolling = np.flatnonzero(before <= free + 0.01)
@@ -160,6 +170,18 @@ def find_ramp(session: Session, slip: np.ndarray) -> tuple[int, int]:
     return start, lock
 
 
+def _check_past_peak(best: FamilyFit, s: np.ndarray, session: Session) -> None:
+    """A peak needs points on both sides: refuse a curve still rising at the largest slip."""
+    s_peak = float(best.slip_peak)
+    beyond = int(np.sum(s > 1.2 * s_peak))
+    if not np.isfinite(s_peak) or beyond < 3:
+        raise DataError(
+            f"the slip never passes the μ peak: the best curve ({best.name}) peaks at slip"
+            f" {s_peak:.3f} and only {beyond} point(s) lie beyond it (largest slip"
+            f" {float(np.max(s)):.3f}); brake further, toward wheel lock",
+            path=session.path)
+
+
 def mu_slip(
     path: str | Path, options: MuSlipOptions | None = None, *, aliases: Path | None = None
 ) -> MuSlipResult:
@@ -167,10 +189,16 @@ def mu_slip(
     options = options or MuSlipOptions()
     session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases)
     slip, mu, radius = slip_and_mu(session, options.radius_m)
-    start, lock = find_ramp(session, slip)
+    if options.points:
+        start, lock = 0, slip.size
+    else:
+        start, lock = find_ramp(session, slip)
     sl = slice(start, lock)
-    ok = np.isfinite(slip[sl]) & np.isfinite(mu[sl]) & (slip[sl] > 0.0)
+    ok = np.isfinite(slip[sl]) & np.isfinite(mu[sl]) & (slip[sl] > 0.0) & (slip[sl] <= 1.0)
     t, s, m = session.time[sl][ok], slip[sl][ok], mu[sl][ok]
+    if s.size < 10:
+        raise DataError(f"only {s.size} (slip, μ) points with 0 < slip <= 1; a curve needs"
+                        " at least 10", path=session.path)
     sigma = noise_std(m)
     (m_lo, m_hi), (s_lo, s_hi) = options.mu_range, options.slip_range
     x0 = np.array([m_hi, s_hi])  # paper: start at the high end, covariance covering the range
@@ -178,6 +206,7 @@ def mu_slip(
     ekf = rudd_ekf(s, m, sigma, x0, P0, inflation=options.inflation)
     fams = fit_families(s, m)
     best = min(fams, key=lambda f: f.heldout_rmse)
+    _check_past_peak(best, s, session)
     return MuSlipResult(
         session=session,
         time=t,
@@ -190,8 +219,9 @@ def mu_slip(
         families=fams,
         best=best,
         radius_m=radius,
-        ramp_s=(float(session.time[start]), float(session.time[lock])),
+        ramp_s=(float(session.time[start]), float(session.time[min(lock, slip.size - 1)])),
         inflation=options.inflation,
+        points=options.points,
     )
 
 
@@ -411,7 +441,10 @@ def page(res: MuSlipResult, summ: dict[str, Any]) -> Page:
             Section(
                 "Two-parameter curve (Rudd)",
                 paragraphs=[
-                    f"Ramp {res.ramp_s[0]:.2f}–{res.ramp_s[1]:.2f} s up to wheel lock;"
+                    (f"A set of {res.slip.size} (slip, μ) points, no time ramp;" if res.points
+                     else f"Ramp {res.ramp_s[0]:.2f}–{res.ramp_s[1]:.2f} s of the first"
+                          " braking;")
+                    +
                     f" noise std of μ {res.sigma:.4f} (from point-to-point differences), inflated"
                     f" ×{res.inflation:g} plus second-order pseudo-noise in the EKF."
                 ],
