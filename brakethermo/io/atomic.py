@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import glob
+import hashlib
 import os
 import shutil
 import socket
@@ -33,7 +34,8 @@ def atomic_path(target: str | Path, suffix: str | None = None) -> Iterator[Path]
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, name = tempfile.mkstemp(
-        prefix=f".{target.name}.", suffix=suffix or target.suffix or ".tmp", dir=target.parent
+        prefix=f".{_short(target.name)}.", suffix=suffix or target.suffix or ".tmp",
+        dir=target.parent,
     )
     os.close(fd)
     tmp = Path(name)
@@ -58,6 +60,17 @@ def write_text_atomic(target: str | Path, text: str) -> None:
 
 
 _STAGE = ".stage."
+_NAME_KEEP = 100  # a temp name adds ~40 characters; file names stop at 255
+
+
+def _short(name: str) -> str:
+    """``name`` itself, or (when too long to carry a temp suffix) its head and a hash."""
+    if len(name.encode()) <= _NAME_KEEP:
+        return name
+    digest = hashlib.sha1(name.encode()).hexdigest()[:12]
+    return f"{name.encode()[:60].decode(errors='ignore')}~{digest}"
+
+
 _ASIDE = ".old."
 STALE_FOREIGN_S = 24 * 3600.0  # a stage of another host this old is from a dead run
 
@@ -92,8 +105,9 @@ def clean_stale_stages(target: str | Path) -> list[Path]:
     host = _host()
     removed = []
     for prefix in (_STAGE, _ASIDE):
-        for path in target.parent.glob(f".{glob.escape(target.name)}{prefix}*"):
-            parts = path.name[len(target.name) + 1 + len(prefix):].split(".")
+        short = _short(target.name)
+        for path in target.parent.glob(f".{glob.escape(short)}{prefix}*"):
+            parts = path.name[len(short) + 1 + len(prefix):].split(".")
             stage_host, pid = (parts[0], parts[1]) if len(parts) >= 2 else ("", "")
             if not pid.isdigit():
                 continue
@@ -121,7 +135,8 @@ def atomic_dir(target: str | Path) -> Iterator[Path]:
     target.parent.mkdir(parents=True, exist_ok=True)
     clean_stale_stages(target)
     tag = f"{_host()}.{os.getpid()}."
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}{_STAGE}{tag}", dir=target.parent))
+    stage = f".{_short(target.name)}{_STAGE}{tag}"
+    tmp = Path(tempfile.mkdtemp(prefix=stage, dir=target.parent))
     os.chmod(tmp, 0o777 & ~_umask())
     try:
         yield tmp
@@ -130,7 +145,7 @@ def atomic_dir(target: str | Path) -> Iterator[Path]:
         raise
     old = None
     if target.exists():
-        old = target.with_name(f".{target.name}{_ASIDE}{tag}{os.urandom(4).hex()}")
+        old = target.with_name(f".{_short(target.name)}{_ASIDE}{tag}{os.urandom(4).hex()}")
         os.replace(target, old)
     os.replace(tmp, target)
     if old is not None:

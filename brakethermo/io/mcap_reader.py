@@ -63,7 +63,10 @@ _TRUNCATION_ERRORS = (
 
 
 def _decode_json(data: bytes) -> Any:
-    return json.loads(data)
+    try:
+        return json.loads(data)
+    except RecursionError:
+        raise ValueError("JSON nested too deeply") from None
 
 
 class JsonDecoderFactory(DecoderFactory):
@@ -266,7 +269,7 @@ def _json_docs(data: bytes, start: np.ndarray, end: np.ndarray) -> list[Any]:
     pieces = [data[a:b] for a, b in zip(start.tolist(), end.tolist(), strict=True)]
     try:
         return json.loads(b"[" + b",".join(pieces) + b"]")
-    except ValueError:
+    except (ValueError, RecursionError):
         decode = JsonDecoderFactory().decoder_for("json", None)
         assert decode is not None
         return [decode(p) for p in pieces]  # raises at the first bad payload
@@ -292,7 +295,8 @@ def _add_block(
         docs = _json_docs(data, start, end)
     except ValueError:
         raise DataError(
-            "a message is not valid JSON; every message must be a JSON object",
+            "a message is not valid JSON (or nested too deeply); every message must be a flat"
+            " JSON object",
             path=out.path,
             channel=_topic(channel),
         ) from None

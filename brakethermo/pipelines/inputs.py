@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from brakethermo.io.load import load_session
+from brakethermo.io.plausibility import check_pressure, check_pyrometer, check_speeds
 from brakethermo.io.session import Session
 from brakethermo.thermal.disc import DiscSpec
 
@@ -91,6 +92,12 @@ def disc_inputs(session: Session, disc: DiscSpec, ambient_c: float | None = None
     for name, n in (("speed", n_speed), ("brake_pressure_front", n_p), ("wheel_speed_front", n_w)):
         if n:
             warnings.append(f"{name}: {n * 0.1:.1f} s of gaps bridged by linear interpolation")
+    sources = {name: info.source for name, info in session.channels.items()}
+    check_speeds(session.values("speed"),
+                 session.values("wheel_speed_front") if session.has("wheel_speed_front")
+                 else None, disc.tyre_rolling_radius, session.path, sources)
+    check_pressure(session.values("brake_pressure_front"), session.path,
+                   sources.get("brake_pressure_front", "brake_pressure_front"))
     q_brk = disc.braking_power(np.clip(pressure, 0.0, None), omega)
 
     n = len(session.frame)
@@ -105,12 +112,19 @@ def disc_inputs(session: Session, disc: DiscSpec, ambient_c: float | None = None
         measured.append(SINGLE_SPOT_INDEX)
     if not measured:
         session.require(SINGLE_SPOT)
+    t_amb = session.ambient_c(ambient_c)
+    braking = q_brk > 0.01 * max(float(np.nanmax(q_brk)), 1.0)
+    dt = float(np.median(np.diff(session.time))) if n > 1 else 0.1
+    for i in measured:
+        name = MULTI_SPOT[i - 1] if session.has(MULTI_SPOT[i - 1]) else SINGLE_SPOT
+        warnings.extend(check_pyrometer(spots[:, i - 1], braking, float(np.nanmedian(t_amb)),
+                                        dt, session.path, sources.get(name, name)))
     return DiscInputs(
         time=session.time,
         lap=session.lap,
         speed=speed,
         q_brk=q_brk,
-        t_amb=session.ambient_c(ambient_c),
+        t_amb=t_amb,
         spots=spots,
         measured=tuple(measured),
         warnings=tuple(warnings),
