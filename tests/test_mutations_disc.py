@@ -196,3 +196,16 @@ def test_long_names_stage_and_replace(tmp_path):
     assert (tmp_path / (name[:240] + ".json")).read_text() == "{}"
     assert clean_stale_stages(tmp_path / name) == []
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([name, name[:240] + ".json"])
+
+
+def test_result_checks_flag_impossible_estimates():
+    from brakethermo.pipelines.checks import check_estimate_result
+
+    clean = np.linspace(25.0, 700.0, 500)
+    assert check_estimate_result(clean, np.full(500, 1.1)) == []
+    hot = check_estimate_result(np.append(clean, 4017.0), np.full(500, 1.1))
+    assert len(hot) == 1 and "4017 °C" in hot[0]
+    nis = check_estimate_result(clean, np.full(500, 35.0))
+    assert len(nis) == 1 and "mean NIS 35.0" in nis[0]
+    nan = check_estimate_result(np.append(clean, np.nan), np.full(500, 1.0))
+    assert len(nan) == 1 and "1 estimated temperatures are not finite" in nan[0]

@@ -33,6 +33,7 @@ from brakethermo.models.disc import (
 )
 from brakethermo.models.effects import true_from_reading
 from brakethermo.pipelines import scoring
+from brakethermo.pipelines.checks import check_estimate_result
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
@@ -385,6 +386,7 @@ def estimate_from_session(
     t_done = time.perf_counter()
 
     std = np.sqrt(np.maximum(out_var, 0.0))
+    warnings.extend(check_estimate_result(out[:, :5], forward.nis))
     online = {p.name: ssm.index[p.name] for p in plan.online}
     frame = _estimate_frame(inputs, model, states, out, band_std(out, std, tuning), tuning, h,
                             online)
