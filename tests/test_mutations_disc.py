@@ -209,3 +209,22 @@ def test_result_checks_flag_impossible_estimates():
     assert len(nis) == 1 and "mean NIS 35.0" in nis[0]
     nan = check_estimate_result(np.append(clean, np.nan), np.full(500, 1.0))
     assert len(nan) == 1 and "1 estimated temperatures are not finite" in nan[0]
+
+
+@pytest.mark.parametrize(("second_unit", "words"),
+                         [("m/s", "registered twice with different units"), ("km/h", None)])
+def test_mcap_topic_registered_twice(tmp_path, second_unit, words):
+    from mcap.writer import Writer
+
+    path = tmp_path / "twice.mcap"
+    with path.open("wb") as fh:
+        w = Writer(fh)
+        w.start()
+        sid = w.register_schema("v", "jsonschema", b"{}")
+        first = w.register_channel("speed", "json", sid, {"unit": "km/h"})
+        second = w.register_channel("speed", "json", sid, {"unit": second_unit})
+        for k in range(200):
+            w.add_message(first if k % 2 else second, k * 10_000_000, b'{"value": 100.0}', 0)
+        w.finish()
+    res, elapsed = _run("inspect", path)
+    _assert_clear(res, words, elapsed)

@@ -127,6 +127,11 @@ class _Collector:
         if name not in self.units:
             self.units[name] = unit
             self.order.append(name)
+        elif (unit or "").strip() != (self.units[name] or "").strip():
+            raise DataError(
+                f"registered twice with different units ('{self.units[name] or 'none'}' and "
+                f"'{unit or 'none'}'): the samples cannot be merged into one channel; log "
+                "one unit per topic", path=self.path, channel=name)
         self.times[name].append(t_ns)
         self.values[name].append(v)
 
