@@ -228,3 +228,23 @@ def test_mcap_topic_registered_twice(tmp_path, second_unit, words):
         w.finish()
     res, elapsed = _run("inspect", path)
     _assert_clear(res, words, elapsed)
+
+
+def test_mdf_channel_in_two_groups_is_said(tmp_path):
+    from asammdf import MDF, Signal
+
+    from brakethermo.io.load import load_session
+
+    t_old, t_new = np.arange(300) * 0.1, np.arange(600) * 0.05
+    mdf = MDF(version="4.10")
+    mdf.append([Signal(np.full(300, 400.0), t_old, name="disc_temp", unit="degC"),
+                Signal(np.full(300, 30.0), t_old, name="speed", unit="m/s")])
+    mdf.append([Signal(np.full(600, 500.0), t_new, name="disc_temp", unit="degC")])
+    path = tmp_path / "two.mf4"
+    mdf.save(path)
+    mdf.close()
+    session = load_session(path)
+    assert session.values("disc_temp")[5] == pytest.approx(500.0)
+    said = [w for w in session.warnings if "channel 'disc_temp' is in groups 0, 1" in w]
+    assert len(said) == 1 and "using group 1 (600 samples, the most)" in said[0]
+    assert "disc_temp [group 0]" in said[0] and "+100" in said[0]
