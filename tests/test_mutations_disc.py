@@ -248,3 +248,22 @@ def test_mdf_channel_in_two_groups_is_said(tmp_path):
     said = [w for w in session.warnings if "channel 'disc_temp' is in groups 0, 1" in w]
     assert len(said) == 1 and "using group 1 (600 samples, the most)" in said[0]
     assert "disc_temp [group 0]" in said[0] and "+100" in said[0]
+
+
+@pytest.mark.parametrize(("table", "words"), [
+    ("[effects.sensor_lag]\n", "'effects.sensor_lag.tau_s': expected a finite number between "
+                               "0.01 and 3, found nothing (the key is missing)"),
+    ("[effects.sensor_lag]\ntau_s = 9.0\n", "found 9.0"),
+    ("[effects.sensor_lag]\ntau_s = nan\n", "effects.sensor_lag.tau_s"),
+    ("[effects.friction_temperature]\nbeta = 0.1\n", "effects.friction_temperature.t_mid"),
+])
+def test_effect_table_missing_or_out_of_bounds(tmp_path, table, words):
+    from brakethermo.config import config_dir
+
+    law = tmp_path / "h_law.toml"
+    law.write_text((config_dir() / "hlaw" / "cc-340-8.toml").read_text() + "\n" + table)
+    path = _write(_base(), tmp_path / "s.parquet")
+    res, elapsed = _run("estimate", path, "--h-law", law, "--out", tmp_path / "o",
+                        "--no-reports")
+    _assert_clear(res, words, elapsed)
+    assert "h_law.toml" in res.output
