@@ -267,3 +267,34 @@ def test_effect_table_missing_or_out_of_bounds(tmp_path, table, words):
                         "--no-reports")
     _assert_clear(res, words, elapsed)
     assert "h_law.toml" in res.output
+
+
+def _beacons(path: Path, times: list[float], values: list[float]) -> Path:
+    frame = session_file_frame(4, seed=7, multi=True)
+    frame["lap_beacon"] = np.nan
+    for t, v in zip(times, values, strict=True):
+        frame.loc[int(round(t * 10)), "lap_beacon"] = v
+    return _write(frame, path)
+
+
+def test_beacon_counting_down_is_renumbered_and_said(tmp_path):
+    from brakethermo.io.load import load_session
+
+    session = load_session(_beacons(tmp_path / "s.parquet", [96.0, 192.0, 288.0],
+                                    [3.0, 2.0, 1.0]))
+    assert [lap.lap for lap in session.laps] == [0, 1, 2, 3]
+    assert session.laps[0].start_s == 0.0 and session.laps[1].start_s == pytest.approx(96.0)
+    assert any("3, 2, 1 count down" in w for w in session.warnings)
+
+
+def test_laps_of_implausible_length_are_said(tmp_path):
+    from brakethermo.io.load import load_session
+
+    # a misplaced beacon: flying laps of 40 s and 152 s on a 96 s track
+    session = load_session(_beacons(tmp_path / "s.parquet", [96.0, 136.0, 288.0],
+                                    [1.0, 2.0, 3.0]))
+    said = [w for w in session.warnings if "implausibly different length" in w]
+    assert len(said) == 1 and "lap 1: 40.0 s, lap 2: 152.0 s" in said[0]
+    clean = load_session(_beacons(tmp_path / "c.parquet", [96.0, 192.0, 288.0],
+                                  [1.0, 2.0, 3.0]))
+    assert not any("implausibly" in w for w in clean.warnings)

@@ -23,7 +23,7 @@ import pandas as pd
 from brakethermo.errors import DataError
 from brakethermo.io.aliases import AliasTable, load_aliases, resolve
 from brakethermo.io.formats import BY_SUFFIX
-from brakethermo.io.laps import laps_from_beacons, validate_beacons
+from brakethermo.io.laps import lap_length_warnings, laps_from_beacons, validate_beacons
 from brakethermo.io.raw import RawChannel, RawSession
 from brakethermo.io.resample import grid, hampel, resample, sort_checked
 from brakethermo.io.session import GRID_DT, ChannelInfo, Session
@@ -200,6 +200,7 @@ def load_session(
         tb, vb, notes = validate_beacons(tb, vb, path=path, channel=src.name)
         warnings.extend(notes)
         laps, lap = laps_from_beacons(tb, vb, t_grid, raw.end_s, path=path, channel=src.name)
+        warnings.extend(lap_length_warnings(laps, src.name))
     else:
         laps, lap = laps_from_beacons(np.empty(0), np.empty(0), t_grid, raw.end_s, path=path)
     frame = pd.DataFrame({"time": columns.pop("time"), "lap": lap, **columns})
