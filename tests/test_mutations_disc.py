@@ -273,7 +273,7 @@ def _beacons(path: Path, times: list[float], values: list[float]) -> Path:
     frame = session_file_frame(4, seed=7, multi=True)
     frame["lap_beacon"] = np.nan
     for t, v in zip(times, values, strict=True):
-        frame.loc[int(round(t * 10)), "lap_beacon"] = v
+        frame.loc[round(t * 10), "lap_beacon"] = v
     return _write(frame, path)
 
 
@@ -298,3 +298,10 @@ def test_laps_of_implausible_length_are_said(tmp_path):
     clean = load_session(_beacons(tmp_path / "c.parquet", [96.0, 192.0, 288.0],
                                   [1.0, 2.0, 3.0]))
     assert not any("implausibly" in w for w in clean.warnings)
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "0"])
+def test_gap_limit_must_be_finite_and_positive(tmp_path, value):
+    path = _write(_base(), tmp_path / "s.parquet")
+    res, elapsed = _run("inspect", path, "--gap-limit", value)
+    _assert_clear(res, "gap limit must be a finite number of seconds > 0", elapsed)

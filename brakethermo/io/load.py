@@ -14,6 +14,7 @@ use). One reader stack serves both.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -117,8 +118,8 @@ def load_session(
     ConfigError
         An invalid alias file.
     """
-    if gap_limit_s <= 0:
-        raise DataError(f"gap limit must be positive, got {gap_limit_s} s")
+    if not (math.isfinite(gap_limit_s) and gap_limit_s > 0):
+        raise DataError(f"gap limit must be a finite number of seconds > 0, got {gap_limit_s}")
     table: AliasTable = (
         {k: tuple(v) for k, v in aliases.items()}
         if isinstance(aliases, Mapping)
