@@ -305,3 +305,26 @@ def test_gap_limit_must_be_finite_and_positive(tmp_path, value):
     path = _write(_base(), tmp_path / "s.parquet")
     res, elapsed = _run("inspect", path, "--gap-limit", value)
     _assert_clear(res, "gap limit must be a finite number of seconds > 0", elapsed)
+
+
+def test_same_session_twice_days_apart_is_refused(tmp_path):
+    frame = _base()
+    later = frame.copy()
+    later["time"] = later["time"] + 5 * 86400.0
+    path = _write(pd.concat([frame, later], ignore_index=True), tmp_path / "s.parquet")
+    res, elapsed = _run("inspect", path)
+    _assert_clear(res, "the log has a pause of 5.00 days", elapsed)
+
+
+def test_short_fast_burst_does_not_set_the_grid(tmp_path):
+    from brakethermo.io.load import load_session
+
+    frame = _base()
+    burst_t = 10.0 + np.arange(10_000) * 1e-5  # 0.1 s at 100 kHz
+    burst = pd.DataFrame({"time": burst_t, "ambient_temp": np.full(burst_t.size, 25.0)})
+    both = pd.concat([frame, burst], ignore_index=True).sort_values("time")
+    t0 = time.perf_counter()
+    session = load_session(_write(both.reset_index(drop=True), tmp_path / "s.parquet"),
+                           rate_hz=None)  # the fastest rate, as the rig commands ask
+    assert time.perf_counter() - t0 < 20.0
+    assert len(session.frame) < 20 * len(frame)
