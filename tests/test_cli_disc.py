@@ -73,7 +73,7 @@ def test_missing_channel_names_aliases_and_channels(tmp_path):
 def test_identify_rejects_single_spot_session(tmp_path):
     csv = tmp_path / "single.csv"
     csv.write_text("time,speed [km/h],brake_pressure_front [bar],disc_temp [degC]\n"
-                   + "".join(f"{i / 10},{100 + i},0,{300 + i}\n" for i in range(50)))
+                   + "".join(f"{i / 10},{100 + i},20,{300 + i}\n" for i in range(50)))
     res = runner.invoke(app, ["identify-h", str(csv), "--out", str(tmp_path), "--ambient", "20"])
     assert res.exit_code == 1 and "four-spot" in res.output
 

@@ -50,7 +50,7 @@ def test_a_frozen_pyrometer_is_refused(sim_race_session, tmp_path: Path) -> None
                   lambda v: np.where(np.isfinite(v), 300.0, v))
     res = _estimate(bad, tmp_path)
     assert res.exit_code == 1, res.output
-    assert "stuck or frozen pyrometer" in res.output and "Traceback" not in res.output
+    assert "stuck or frozen" in res.output and "Traceback" not in res.output
 
 
 def test_a_pyrometer_in_kelvin_labelled_celsius_is_said_loudly(sim_race_session,
@@ -72,4 +72,4 @@ def test_the_clean_session_passes_every_check(sim_race_session, tmp_path: Path,
     res = _estimate(sim_race_session[0], tmp_path)
     assert res.exit_code == 0, res.output
     warnings = json.loads(res.stdout)["run"]["warnings"]
-    assert not any("kelvin" in w or "innovations are" in w for w in warnings)
+    assert not any("kelvin" in w or "IMPLAUSIBLE" in w for w in warnings)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import fnmatch
 import glob
+import hashlib
 import os
 import shutil
 import socket
@@ -34,7 +35,8 @@ def atomic_path(target: str | Path, suffix: str | None = None) -> Iterator[Path]
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, name = tempfile.mkstemp(
-        prefix=f".{target.name}.", suffix=suffix or target.suffix or ".tmp", dir=target.parent
+        prefix=f".{_short(target.name)}.", suffix=suffix or target.suffix or ".tmp",
+        dir=target.parent,
     )
     os.close(fd)
     tmp = Path(name)
@@ -59,6 +61,17 @@ def write_text_atomic(target: str | Path, text: str) -> None:
 
 
 _STAGE = ".stage."
+_NAME_KEEP = 100  # a temp name adds ~40 characters; file names stop at 255
+
+
+def _short(name: str) -> str:
+    """``name`` itself, or (when too long to carry a temp suffix) its head and a hash."""
+    if len(name.encode()) <= _NAME_KEEP:
+        return name
+    digest = hashlib.sha1(name.encode()).hexdigest()[:12]
+    return f"{name.encode()[:60].decode(errors='ignore')}~{digest}"
+
+
 _ASIDE = ".old."
 STALE_FOREIGN_S = 24 * 3600.0  # a stage of another host this old is from a dead run
 
@@ -93,8 +106,9 @@ def clean_stale_stages(target: str | Path) -> list[Path]:
     host = _host()
     removed = []
     for prefix in (_STAGE, _ASIDE):
-        for path in target.parent.glob(f".{glob.escape(target.name)}{prefix}*"):
-            parts = path.name[len(target.name) + 1 + len(prefix):].split(".")
+        short = _short(target.name)
+        for path in target.parent.glob(f".{glob.escape(short)}{prefix}*"):
+            parts = path.name[len(short) + 1 + len(prefix):].split(".")
             stage_host, pid = (parts[0], parts[1]) if len(parts) >= 2 else ("", "")
             if not pid.isdigit():
                 continue
@@ -114,7 +128,8 @@ def _new_stage(target: Path) -> tuple[Path, str]:
     run's tag; the usual permissions (``mkdtemp`` alone would make it private)."""
     clean_stale_stages(target)
     tag = f"{_host()}.{os.getpid()}."
-    stage = Path(tempfile.mkdtemp(prefix=f".{target.name}{_STAGE}{tag}", dir=target.parent))
+    stage = Path(tempfile.mkdtemp(prefix=f".{_short(target.name)}{_STAGE}{tag}",
+                                  dir=target.parent))
     os.chmod(stage, 0o777 & ~_umask())
     return stage, tag
 
@@ -138,7 +153,7 @@ def atomic_dir(target: str | Path) -> Iterator[Path]:
         raise
     old = None
     if target.exists():
-        old = target.with_name(f".{target.name}{_ASIDE}{tag}{os.urandom(4).hex()}")
+        old = target.with_name(f".{_short(target.name)}{_ASIDE}{tag}{os.urandom(4).hex()}")
         os.replace(target, old)
     os.replace(tmp, target)
     if old is not None:
@@ -154,7 +169,7 @@ def write_atomic_with(target: str | Path, writer: Callable[[Path], None]) -> Non
 def _swap_in(src: Path, dest: Path, tag: str) -> None:
     """Move ``src`` onto ``dest`` (a file or a folder), the old one set aside first."""
     if src.is_dir() and dest.exists():
-        aside = dest.with_name(f".{dest.name}{_ASIDE}{tag}{os.urandom(4).hex()}")
+        aside = dest.with_name(f".{_short(dest.name)}{_ASIDE}{tag}{os.urandom(4).hex()}")
         os.replace(dest, aside)
         os.replace(src, dest)
         if aside.is_dir():

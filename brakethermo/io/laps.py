@@ -17,6 +17,8 @@ MIN_LAP_S = 5.0
 MIN_LAP_FRACTION = 0.25
 # A lap longer than this many median laps is reported (a beacon was probably missed).
 LONG_LAP_FACTOR = 1.8
+# Flying laps of one track differ by far less than this factor (traffic, rain, safety car)
+IMPLAUSIBLE_LAP_RATIO = 3.0
 
 
 def laps_from_beacons(
@@ -138,6 +140,15 @@ def validate_beacons(
             path=path, channel=channel,
         )
     increasing = bool(valid.all() and (np.diff(v) > 0).all())
+    if v.size >= 2 and valid.all() and (np.diff(v) < 0).all():
+        warnings.append(
+            f"lap beacon '{channel}': values " + ", ".join(f"{x:g}" for x in v[:12])
+            + (" ..." if v.size > 12 else "") + " count down (laps remaining, not lap"
+            " numbers); laps renumbered 1, 2, ... in crossing order, the out-lap before the"
+            " first crossing is lap 0"
+        )
+        v = 1.0 + np.arange(v.size, dtype=np.float64)
+        increasing = True
     if v.size and not increasing:
         first = int(np.argmax(valid))
         start = max(int(v[first]) - first, 0)
@@ -172,3 +183,25 @@ def validate_beacons(
                 " a missed beacon? Kept as logged"
             )
     return t, v, warnings
+
+
+def lap_length_warnings(laps: tuple[Lap, ...], channel: str = "lap_beacon") -> list[str]:
+    """Say when flying laps differ in length beyond what one track allows.
+
+    A misplaced or extra beacon splits a session into a short and a long "lap"; a
+    command that trains or scores by lap would use them as if they were laps. The out-lap
+    (0) and the last lap (it ends with the log, often in the pits) are not compared.
+    """
+    flying = [lap for lap in laps[:-1] if lap.lap > 0]
+    if len(flying) < 2:
+        return []
+    d = np.array([lap.duration_s for lap in flying])
+    if d.max() <= IMPLAUSIBLE_LAP_RATIO * d.min():
+        return []
+    return [
+        f"lap beacon '{channel}': laps of implausibly different length ("
+        + ", ".join(f"lap {lap.lap}: {lap.duration_s:.1f} s" for lap in flying[:8])
+        + (" ..." if len(flying) > 8 else "")
+        + "): a misplaced or extra beacon? Per-lap results of these laps are not comparable;"
+        " fix the beacon channel"
+    ]

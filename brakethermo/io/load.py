@@ -14,6 +14,7 @@ use). One reader stack serves both.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -23,7 +24,7 @@ import pandas as pd
 from brakethermo.errors import DataError
 from brakethermo.io.aliases import AliasTable, load_aliases, resolve
 from brakethermo.io.formats import BY_SUFFIX
-from brakethermo.io.laps import laps_from_beacons, validate_beacons
+from brakethermo.io.laps import lap_length_warnings, laps_from_beacons, validate_beacons
 from brakethermo.io.raw import RawChannel, RawSession
 from brakethermo.io.resample import grid, hampel, resample, sort_checked
 from brakethermo.io.session import GRID_DT, ChannelInfo, Session
@@ -75,6 +76,25 @@ def _finite(ch: RawChannel) -> tuple[np.ndarray, np.ndarray, int]:
     return ch.t[keep], ch.v[keep], int((~keep).sum())
 
 
+# A pause in a log longer than this and than half the span is two recordings in one file.
+MAX_PAUSE_S = 6 * 3600.0
+
+
+def _refuse_split_session(series: dict, end_s: float, path: Path) -> None:
+    """Refuse a file whose samples leave most of its span empty (two sessions, days apart)."""
+    times = [t for _, t, _, _ in series.values() if t.size]
+    if not times or end_s <= MAX_PAUSE_S:
+        return
+    merged = np.unique(np.concatenate(times))
+    pause = np.diff(merged)
+    k = int(np.argmax(pause))
+    if pause[k] > MAX_PAUSE_S and pause[k] > 0.5 * end_s:
+        raise DataError(
+            f"the log has a pause of {pause[k] / 86400.0:.2f} days (from t = {merged[k]:.1f} s"
+            f" to {merged[k + 1]:.1f} s) in a span of {end_s / 86400.0:.2f} days: the file "
+            "holds two recordings; split it into one file per session", path=path)
+
+
 def load_session(
     path: str | Path,
     *,
@@ -117,8 +137,8 @@ def load_session(
     ConfigError
         An invalid alias file.
     """
-    if gap_limit_s <= 0:
-        raise DataError(f"gap limit must be positive, got {gap_limit_s} s")
+    if not (math.isfinite(gap_limit_s) and gap_limit_s > 0):
+        raise DataError(f"gap limit must be a finite number of seconds > 0, got {gap_limit_s}")
     table: AliasTable = (
         {k: tuple(v) for k, v in aliases.items()}
         if isinstance(aliases, Mapping)
@@ -157,9 +177,13 @@ def load_session(
             constants[canonical] = float(v[0])
         else:
             series[canonical] = (src, t, v, unit)
+    _refuse_split_session(series, raw.end_s, path)
     if rate_hz is None:
-        rates = [1.0 / float(np.median(np.diff(t))) for _, t, _, _ in series.values()
-                 if t.size > 1]
+        # A short burst (a validation channel logged at 100 kHz for 0.1 s) must not set
+        # the grid of the whole session: only channels covering half the span count.
+        long = [t for _, t, _, _ in series.values()
+                if t.size > 1 and t[-1] - t[0] >= 0.5 * raw.end_s]
+        rates = [1.0 / float(np.median(np.diff(t))) for t in long]
         rate_hz = max(rates, default=1.0 / GRID_DT)
     if not (np.isfinite(rate_hz) and rate_hz > 0):
         raise DataError(f"grid rate must be a positive number of Hz, got {rate_hz}", path=path)
@@ -200,6 +224,7 @@ def load_session(
         tb, vb, notes = validate_beacons(tb, vb, path=path, channel=src.name)
         warnings.extend(notes)
         laps, lap = laps_from_beacons(tb, vb, t_grid, raw.end_s, path=path, channel=src.name)
+        warnings.extend(lap_length_warnings(laps, src.name))
     else:
         laps, lap = laps_from_beacons(np.empty(0), np.empty(0), t_grid, raw.end_s, path=path)
     frame = pd.DataFrame({"time": columns.pop("time"), "lap": lap, **columns})

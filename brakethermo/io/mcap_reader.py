@@ -63,7 +63,10 @@ _TRUNCATION_ERRORS = (
 
 
 def _decode_json(data: bytes) -> Any:
-    return json.loads(data)
+    try:
+        return json.loads(data)
+    except RecursionError:
+        raise ValueError("JSON nested too deeply") from None
 
 
 class JsonDecoderFactory(DecoderFactory):
@@ -124,6 +127,11 @@ class _Collector:
         if name not in self.units:
             self.units[name] = unit
             self.order.append(name)
+        elif (unit or "").strip() != (self.units[name] or "").strip():
+            raise DataError(
+                f"registered twice with different units ('{self.units[name] or 'none'}' and "
+                f"'{unit or 'none'}'): the samples cannot be merged into one channel; log "
+                "one unit per topic", path=self.path, channel=name)
         self.times[name].append(t_ns)
         self.values[name].append(v)
 
@@ -266,7 +274,7 @@ def _json_docs(data: bytes, start: np.ndarray, end: np.ndarray) -> list[Any]:
     pieces = [data[a:b] for a, b in zip(start.tolist(), end.tolist(), strict=True)]
     try:
         return json.loads(b"[" + b",".join(pieces) + b"]")
-    except ValueError:
+    except (ValueError, RecursionError):
         decode = JsonDecoderFactory().decoder_for("json", None)
         assert decode is not None
         return [decode(p) for p in pieces]  # raises at the first bad payload
@@ -292,7 +300,8 @@ def _add_block(
         docs = _json_docs(data, start, end)
     except ValueError:
         raise DataError(
-            "a message is not valid JSON; every message must be a JSON object",
+            "a message is not valid JSON (or nested too deeply); every message must be a flat"
+            " JSON object",
             path=out.path,
             channel=_topic(channel),
         ) from None

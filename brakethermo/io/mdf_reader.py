@@ -104,6 +104,38 @@ def _unit(signal: Any) -> str | None:
     return unit if isinstance(unit, str) and unit.strip() else None
 
 
+def _label_copies(names: list[str], groups: list[int], values: list[np.ndarray],
+                  warnings: list[str]) -> list[str]:
+    """Labels for channels, one plain name per channel name and a warning per copy.
+
+    A name in several groups (a stale copy, a second raster) keeps its plain name on the
+    copy with the most samples (on a tie the later group, the newest write); the others
+    become ``name [group k]``, which no alias matches, and the choice is said.
+    """
+    labels = list(names)
+    for name in dict.fromkeys(names):
+        idx = [i for i, n in enumerate(names) if n == name]
+        if len(idx) < 2:
+            continue
+        keep = max(idx, key=lambda i: (values[i].size, groups[i]))
+        for i in idx:
+            if i != keep:
+                labels[i] = f"{name} [group {groups[i]}]"
+        others = [i for i in idx if i != keep]
+        diff = [float(np.nanmean(values[keep]) - np.nanmean(values[i])) for i in others]
+        why = ("the most" if any(values[i].size < values[keep].size for i in others)
+               else "a tie: the later group")
+        warnings.append(
+            f"channel '{name}' is in groups {', '.join(str(groups[i]) for i in idx)}: using "
+            f"group {groups[keep]} ({values[keep].size} samples, "
+            f"{why});"
+            f" the other copies ({', '.join(labels[i] for i in others)}) differ by "
+            f"{', '.join(f'{d:+.3g}' for d in diff)} on average and are not used — drop the"
+            " stale copy from the export if this is the wrong one"
+        )
+    return labels
+
+
 def read_mdf(path: Path) -> RawSession:
     """Read an MDF 3/4 file into native-rate channels.
 
@@ -158,7 +190,7 @@ def read_mdf(path: Path) -> RawSession:
     values: list[np.ndarray] = []
     units: list[str | None] = []
     warnings: list[str] = []
-    seen: set[str] = set()
+    groups: list[int] = []
     for (name, gi, _), sig in zip(wanted, signals, strict=True):
         samples = np.asarray(sig.samples)
         if samples.ndim != 1 or samples.dtype.kind not in "biuf":
@@ -167,12 +199,12 @@ def read_mdf(path: Path) -> RawSession:
                     f"channel '{name}' holds text (a value-to-text conversion); ignored"
                 )
             continue
-        label = name if name not in seen else f"{name} [group {gi}]"
-        seen.add(label)
-        names.append(label)
+        names.append(name)
+        groups.append(gi)
         times.append(np.asarray(sig.timestamps, dtype=np.float64))
         values.append(samples.astype(np.float64))
         units.append(_unit(sig))
+    names = _label_copies(names, groups, values, warnings)
     if not names:
         why = (" It looks like a raw bus log (CAN/LIN frames): decode it with the DBC first"
                " (asammdf: extract_bus_logging) and read the decoded file"

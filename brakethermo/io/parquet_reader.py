@@ -22,9 +22,10 @@ def _session_metadata(schema: pa.Schema, path: Path) -> dict[str, str]:
         return {}
     try:
         facts = json.loads(raw)
-    except ValueError:
+    except (ValueError, RecursionError):
         raise DataError(
-            "key-value metadata 'session' is not valid JSON; it must be a JSON object",
+            "key-value metadata 'session' is not valid JSON (or nested too deeply); it must be"
+            " a flat JSON object",
             path=path,
         ) from None
     if not isinstance(facts, dict):
@@ -156,6 +157,12 @@ def read_parquet(path: Path) -> RawSession:
         column that is not numeric at all is skipped with a warning).
     """
     table, warnings = _read_table(path)
+    names = table.column_names
+    doubled = sorted({n for n in names if names.count(n) > 1})
+    if doubled:
+        raise DataError(
+            f"column{'s' if len(doubled) > 1 else ''} {', '.join(map(repr, doubled))} "
+            "appear more than once; rename or drop the copies in the export", path=path)
     if "time" not in table.column_names:
         raise DataError(
             f"no 'time' column; the columns are: {', '.join(table.column_names) or 'none'}",
@@ -177,9 +184,12 @@ def read_parquet(path: Path) -> RawSession:
             continue
         keep = ~np.isnan(v)
         unit = (fld.metadata or {}).get(b"unit")
-        channels.append(
-            RawChannel(fld.name, t[keep], v[keep], unit.decode() if unit is not None else None)
-        )
+        try:
+            text = unit.decode() if unit is not None else None
+        except UnicodeDecodeError:
+            raise DataError(f"the unit of column '{fld.name}' is not UTF-8 text ({unit[:40]!r});"
+                            " write it as a unit string of CHANNELS.md §4", path=path) from None
+        channels.append(RawChannel(fld.name, t[keep], v[keep], text))
     return RawSession(path, tuple(channels), _session_metadata(table.schema, path), epoch,
                       tuple(warnings))
 

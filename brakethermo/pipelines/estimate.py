@@ -33,6 +33,7 @@ from brakethermo.models.disc import (
 )
 from brakethermo.models.effects import true_from_reading
 from brakethermo.pipelines import scoring
+from brakethermo.pipelines.checks import check_estimate_result
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import (
     DiscCalibration,
@@ -42,7 +43,6 @@ from brakethermo.pipelines.models import (
 )
 from brakethermo.pipelines.online_choice import ONLINE_FLAGS, OnlineChoice, choose_online
 from brakethermo.pipelines.outputs import write_json, write_parquet
-from brakethermo.pipelines.plausibility import estimate_warnings
 from brakethermo.pipelines.tuning import (
     EstimateTuning,
     check_overrides,
@@ -438,6 +438,7 @@ def estimate_from_session(
     t_done = time.perf_counter()
 
     std = np.sqrt(np.maximum(out_var, 0.0))
+    warnings.extend(check_estimate_result(out[:, :5], forward.nis))
     online = {p.name: ssm.index[p.name] for p in plan.online}
     frame = _estimate_frame(inputs, model, states, out, band_std(out, std, tuning), tuning, h,
                             online)
@@ -468,7 +469,6 @@ def estimate_from_session(
         "total_s": t_end - t_start,
     }
     mean_nis = float(np.nanmean(forward.nis))
-    warnings += estimate_warnings(mean_nis, float(np.nanmax(frame["contact_avg"])), disc)
     summary = {
         "session": str(session.path),
         "metadata": session.metadata,

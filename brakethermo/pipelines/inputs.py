@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from brakethermo.io.load import load_session
+from brakethermo.io.plausibility import check_pressure, check_pyrometer, check_speeds
 from brakethermo.io.session import Session
-from brakethermo.pipelines.plausibility import check_pyrometers, check_wheel_speed
 from brakethermo.thermal.disc import DiscSpec
 
 MULTI_SPOT = ("disc_temp_spot1", "disc_temp_spot2", "disc_temp_spot3", "disc_temp_spot4")
@@ -92,10 +92,13 @@ def disc_inputs(session: Session, disc: DiscSpec, ambient_c: float | None = None
     for name, n in (("speed", n_speed), ("brake_pressure_front", n_p), ("wheel_speed_front", n_w)):
         if n:
             warnings.append(f"{name}: {n * 0.1:.1f} s of gaps bridged by linear interpolation")
+    sources = {name: info.source for name, info in session.channels.items()}
+    check_speeds(session.values("speed"),
+                 session.values("wheel_speed_front") if session.has("wheel_speed_front")
+                 else None, disc.tyre_rolling_radius, session.path, sources)
+    check_pressure(session.values("brake_pressure_front"), session.path,
+                   sources.get("brake_pressure_front", "brake_pressure_front"))
     q_brk = disc.braking_power(np.clip(pressure, 0.0, None), omega)
-    on = q_brk > 0.01 * max(float(np.nanmax(q_brk, initial=0.0)), 1.0)
-    if session.has("wheel_speed_front"):
-        check_wheel_speed(speed, omega, on, disc, session)
 
     n = len(session.frame)
     spots = np.full((n, 4), np.nan)
@@ -110,10 +113,12 @@ def disc_inputs(session: Session, disc: DiscSpec, ambient_c: float | None = None
     if not measured:
         session.require(SINGLE_SPOT)
     t_amb = session.ambient_c(ambient_c)
-    names = [MULTI_SPOT[i - 1] if session.has(MULTI_SPOT[i - 1]) else SINGLE_SPOT
-             for i in measured]
-    warnings += check_pyrometers(spots[:, [i - 1 for i in measured]], t_amb, q_brk, names,
-                                 session)
+    braking = q_brk > 0.01 * max(float(np.nanmax(q_brk)), 1.0)
+    dt = float(np.median(np.diff(session.time))) if n > 1 else 0.1
+    for i in measured:
+        name = MULTI_SPOT[i - 1] if session.has(MULTI_SPOT[i - 1]) else SINGLE_SPOT
+        warnings.extend(check_pyrometer(spots[:, i - 1], braking, float(np.nanmedian(t_amb)),
+                                        dt, session.path, sources.get(name, name)))
     return DiscInputs(
         time=session.time,
         lap=session.lap,

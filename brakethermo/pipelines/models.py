@@ -124,8 +124,8 @@ def _checked_effects(tables: dict[str, Any], path: str | Path) -> dict[str, dict
         table.only(known, f"a parameter of {name}")
         checked: dict[str, Any] = {}
         for key, param in known.items():
-            if not table.has(key):
-                continue
+            if not table.has(key) and param in latent:
+                continue  # a missing effect parameter is an error: it would run neutral
             if param in latent:
                 checked[key] = list(table.numbers(key, lo=param.lower, hi=param.upper))
             else:

@@ -1,0 +1,164 @@
+"""Physical plausibility of disc-session channels, checked before any model work.
+
+A channel in the wrong unit, scaled, zeroed, negated or stuck reads without error but
+gives an answer that cannot be. These checks compare each channel with physics (a
+vehicle speed range, a rolling wheel turning at ``v / r``, a cold disc before the first
+stop) and raise :class:`~brakethermo.errors.DataError` naming the channel, the likely
+cause and the fix; softer findings are returned as warnings.
+
+All inputs are on the session grid in SI units (speeds m/s, angular speed rad/s,
+pressure Pa, temperatures degC).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from brakethermo.errors import DataError
+
+RPM_PER_RAD_S = 60.0 / (2.0 * np.pi)
+KMH_PER_M_S = 3.6
+MAX_SPEED_M_S = 150.0  # 540 km/h: above any road or race vehicle
+MOVING_M_S = 10.0  # speeds above which a wheel is surely rolling
+KELVIN_OFFSET = 273.15
+PRE_BRAKE_EXCESS_C = 200.0  # a disc before the first stop is not this far above ambient
+STUCK_SPAN_S = 60.0  # a pyrometer that does not move for this long is stuck
+STUCK_TOLERANCE_C = 0.01
+
+
+def _finite(values: np.ndarray) -> np.ndarray:
+    return values[np.isfinite(values)]
+
+
+def _ratio_cause(ratio: float) -> str:
+    """Name the unit confusion a wheel-speed / vehicle-speed ratio points to."""
+    known = (
+        (RPM_PER_RAD_S, "wheel_speed_front looks like rpm labelled rad/s: set its unit to rpm"),
+        (1.0 / RPM_PER_RAD_S, "wheel_speed_front looks like rad/s labelled rpm: set its unit "
+                              "to rad/s"),
+        (KMH_PER_M_S, "speed looks like m/s labelled km/h: set its unit to m/s"),
+        (1.0 / KMH_PER_M_S, "speed looks like km/h labelled m/s: set its unit to km/h"),
+        (-1.0, "one of the two is logged with the other sign"),
+    )
+    for value, cause in known:
+        if abs(ratio / value - 1.0) < 0.2:
+            return cause
+    return ("check the units of speed and wheel_speed_front and the tyre rolling radius "
+            "of the datasheet")
+
+
+def check_speeds(speed: np.ndarray, omega: np.ndarray | None, tyre_radius: float,
+                 path: Path | None = None, sources: dict[str, str] | None = None) -> None:
+    """Vehicle speed in a vehicle's range; wheel speed × tyre radius ≈ vehicle speed.
+
+    Parameters
+    ----------
+    speed : ndarray — m/s
+    omega : ndarray or None — rad/s, front wheel speed (None: not logged)
+    tyre_radius : float — m, rolling radius of the datasheet
+    path : Path, optional — the session file, for the message
+    sources : dict, optional — canonical name to the file's channel name
+    """
+    src = sources or {}
+    v = _finite(speed)
+    if v.size == 0 or np.max(np.abs(v)) < 1.0:
+        raise DataError("never above 1 m/s: the signal is zeroed or missing; "
+                        "log the vehicle speed", path=path, channel=src.get("speed", "speed"))
+    if np.median(v) < 0.0 and abs(v.min()) > v.max():
+        raise DataError("mostly negative: the speed is logged with the other sign; "
+                        "negate it in the export", path=path, channel=src.get("speed", "speed"))
+    if v.max() > MAX_SPEED_M_S:
+        raise DataError(
+            f"peaks at {v.max() * KMH_PER_M_S:.0f} km/h, no vehicle's speed: check its unit "
+            "(km/h labelled m/s?)", path=path, channel=src.get("speed", "speed"))
+    if omega is None:
+        return
+    name = src.get("wheel_speed_front", "wheel_speed_front")
+    moving = np.isfinite(speed) & np.isfinite(omega) & (np.abs(speed) > MOVING_M_S)
+    if moving.sum() < 10:
+        return
+    w = omega[moving]
+    if np.max(np.abs(w)) < 1e-6:
+        raise DataError("is zero while the vehicle moves: the signal is zeroed; fix the "
+                        "export or drop the channel (speed / tyre radius is then used)",
+                        path=path, channel=name)
+    ratio = float(np.median(w * tyre_radius / speed[moving]))
+    if not 0.8 <= ratio <= 1.25:
+        raise DataError(
+            f"wheel speed × tyre radius ({tyre_radius:.3f} m) is {ratio:.3g}× the vehicle "
+            f"speed, expected ≈1: {_ratio_cause(ratio)}", path=path, channel=name)
+
+
+def check_pressure(pressure: np.ndarray, path: Path | None = None,
+                   source: str = "brake_pressure_front") -> None:
+    """Brake pressure: some braking, not mostly negative.
+
+    Parameters
+    ----------
+    pressure : ndarray — Pa
+    """
+    p = _finite(pressure)
+    if p.size == 0 or (p.max() < 1e5 and abs(p.min()) < 1e5):
+        raise DataError("never above 1 bar: the signal is zeroed (or in a unit 1000× too "
+                        "small); the session has no braking to work on",
+                        path=path, channel=source)
+    if abs(p.min()) > p.max() and np.median(p[np.abs(p) > 1e5]) < 0.0:
+        raise DataError("mostly negative: the pressure is logged with the other sign; "
+                        "negate it in the export", path=path, channel=source)
+
+
+def check_pyrometer(temps: np.ndarray, braking: np.ndarray, ambient_c: float,
+                    dt: float, path: Path | None = None, source: str = "disc_temp"
+                    ) -> list[str]:
+    """One IR channel: not negated, not in kelvin labelled degC, not stuck.
+
+    Parameters
+    ----------
+    temps : ndarray — degC, on the grid
+    braking : ndarray of bool — grid points with the brake applied
+    ambient_c : float — degC
+    dt : float — s, grid step
+
+    Returns
+    -------
+    list of str — warnings (a stuck span shorter than the whole session)
+    """
+    t = _finite(temps)
+    if t.size == 0:
+        return []
+    if np.median(t) < -50.0:
+        raise DataError(f"reads {np.median(t):.0f} °C typically: the signal is negated or "
+                        "in a wrong unit", path=path, channel=source)
+    if t.size * dt >= STUCK_SPAN_S and np.ptp(t) <= STUCK_TOLERANCE_C:
+        raise DataError(f"constant at {t[0]:.1f} °C for the whole session: the pyrometer is "
+                        "stuck or frozen; drop the channel or fix the sensor",
+                        path=path, channel=source)
+    first = int(np.argmax(braking)) if braking.any() else temps.size
+    before = temps[:first]
+    before = before[np.isfinite(before)]
+    if before.size and np.median(before) > ambient_c + PRE_BRAKE_EXCESS_C:
+        hint = ("the values look like kelvin labelled degC: set the unit to K"
+                if abs(np.median(before) - KELVIN_OFFSET - ambient_c) < 150.0
+                else "check the unit and the sensor")
+        raise DataError(
+            f"reads {np.median(before):.0f} °C before the first stop with ambient at "
+            f"{ambient_c:.0f} °C: {hint}", path=path, channel=source)
+    return _stuck_spans(temps, dt, source)
+
+
+def _stuck_spans(temps: np.ndarray, dt: float, source: str) -> list[str]:
+    """Warn about the longest span where a channel does not move (sensor frozen)."""
+    flat = np.abs(np.diff(temps)) <= STUCK_TOLERANCE_C
+    if not flat.any():
+        return []
+    edges = np.diff(np.concatenate(([0], flat.astype(np.int8), [0])))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    longest = int(np.argmax(ends - starts))
+    span = (ends[longest] - starts[longest]) * dt
+    if span < STUCK_SPAN_S:
+        return []
+    return [f"{source}: constant at {temps[starts[longest]]:.1f} °C for {span:.0f} s from "
+            f"t = {starts[longest] * dt:.0f} s (sensor frozen?); those readings weigh as "
+            "measurements"]
