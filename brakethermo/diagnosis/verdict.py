@@ -11,8 +11,10 @@ hands over the sum of squared errors per unit. Everything here resamples those u
 - **significant**: the lower end of that interval above ``min_shrink_pct``;
 - **set verdict**: the best significant candidate, joined by every other significant one
   it does not beat clearly — the lower end of the bootstrap interval of the shrink
-  *difference* (percentage points, same resamples) not above ``clear_margin_pct``. A
-  single name is given only when it beats every other significant candidate clearly;
+  *difference* (percentage points, same resamples) not above ``clear_margin_pct``, or
+  whose correction correlates with the best's above ``correlated`` while the two shrink
+  intervals overlap (look-alikes). A single name is given only when it beats every other
+  significant candidate clearly;
 - **undecided**: candidates whose interval straddles the threshold (the data can neither
   confirm nor rule them out) are listed with what would decide them.
 """
@@ -204,7 +206,9 @@ class Decision:
                 f" of held-out shrink exceeds {r.min_shrink_pct:g} %; the best significant"
                 f" effect stands alone only when it beats each other significant one by more"
                 f" than {r.clear_margin_pct:g} percentage points (lower end of the paired"
-                f" interval), else the verdict is the set of those it does not beat"
+                f" interval) and is no look-alike (corrections correlated above"
+                f" {r.correlated:g} with overlapping shrink intervals), else the verdict is"
+                f" the set of those it does not beat"
                 f" (at most {r.max_set}); none when no effect is significant"),
         }
 
@@ -246,13 +250,20 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
             alike = f", corrections correlated {r:.2f}" if np.isfinite(r) else ""
             row = next(x for x in rows if x["name"] == name)
             row["vs_first_pp"] = {"point": d, "ci95": [lo, hi], "correlation": r}
-            if lo > rule.clear_margin_pct:
+            top_ci = next(x for x in rows if x["name"] == top)["shrink_ci95_pct"]
+            look_alike = (np.isfinite(r) and r > rule.correlated
+                          and row["shrink_ci95_pct"][1] >= top_ci[0])
+            if lo > rule.clear_margin_pct and not look_alike:
                 reasons.append(f"{top} beats {name} by {d:.1f} points (95 % interval"
                                f" {lo:.1f} to {hi:.1f}{alike})")
             else:
                 verdict_set.append(name)
+                why = (f"their corrections are alike ({r:.2f} > {rule.correlated:g}) and"
+                       " their shrink intervals overlap" if look_alike and
+                       lo > rule.clear_margin_pct else "")
                 reasons.append(f"{top} does not beat {name} clearly: {d:.1f} points (95 %"
-                               f" interval {lo:.1f} to {hi:.1f}{alike})")
+                               f" interval {lo:.1f} to {hi:.1f}{alike})"
+                               + (f"; {why}" if why else ""))
         if len(verdict_set) > rule.max_set:
             reasons.append("also significant, not separated: "
                            + ", ".join(verdict_set[rule.max_set:]))
