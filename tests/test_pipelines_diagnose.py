@@ -103,7 +103,7 @@ def test_bad_input_is_one_clear_message(lag_session: Path, tmp_path: Path) -> No
     spot1_only = tmp_path / "spot1.csv"
     spot1_only.write_text("time [s],speed [km/h],brake_pressure_front [bar],"
                           "disc_temp_spot1 [degC]\n"
-                          + "".join(f"{t / 10},100,0,300\n" for t in range(50)))
+                          + "".join(f"{t / 10},100,20,300\n" for t in range(50)))
     result = runner.invoke(app, ["diagnose", str(spot1_only), "--out", str(tmp_path),
                                  "--ambient", "20"])
     assert result.exit_code == 1 and "race sensor" in result.output
