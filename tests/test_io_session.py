@@ -93,7 +93,7 @@ def test_require_names_channel_aliases_and_file(tmp_path: Path) -> None:
 
 def test_gap_limit_must_be_positive(tmp_path: Path) -> None:
     path = write_csv(tmp_path / "p.csv", np.arange(0, 2.0, 0.1), {"vFront": np.ones(20)})
-    with pytest.raises(DataError, match="positive"):
+    with pytest.raises(DataError, match="finite number of seconds > 0"):
         load_session(path, gap_limit_s=0.0)
 
 
