@@ -106,7 +106,6 @@ CASES = [
     ("pressure_zeroed", _scaled("brake_pressure_front", 0.0), "zeroed"),
     ("pressure_negated", _scaled("brake_pressure_front", -1.0), "other sign"),
     ("pressure_x1e-3", _scaled("brake_pressure_front", 1e-3), "never above 1 bar"),
-    ("pyrometer_kelvin_as_degc", _spots_plus(273.15), "kelvin labelled degC"),
     ("pyrometer_stuck", _stuck, "stuck"),
     ("duplicate_columns", _duplicate_columns, "more than once"),
     ("unit_not_utf8", _bad_unit_bytes, "not UTF-8"),
@@ -328,3 +327,18 @@ def test_short_fast_burst_does_not_set_the_grid(tmp_path):
                            rate_hz=None)  # the fastest rate, as the rig commands ask
     assert time.perf_counter() - t0 < 20.0
     assert len(session.frame) < 20 * len(frame)
+
+
+def test_pyrometer_in_kelvin_labelled_degc_is_said(tmp_path):
+    """Refused when the disc rests steady at air + 273 before the first stop; otherwise (a
+    session may start on a hot disc) a loud warning naming the kelvin possibility."""
+    path = _spots_plus(273.15)(tmp_path / "k.parquet")
+    res, elapsed = _run("estimate", path, "--out", tmp_path / "o", "--no-smoother",
+                        "--no-reports", "--json")
+    assert elapsed < CASE_BUDGET_S and "Traceback" not in res.output
+    if res.exit_code == 1:
+        assert "kelvin labelled degC" in res.output
+    else:
+        assert res.exit_code == 0, res.output
+        assert any("kelvin labelled degC" in w
+                   for w in json.loads(res.stdout)["run"]["warnings"]), res.stdout

@@ -138,14 +138,24 @@ def check_pyrometer(temps: np.ndarray, braking: np.ndarray, ambient_c: float,
     first = int(np.argmax(braking)) if braking.any() else temps.size
     before = temps[:first]
     before = before[np.isfinite(before)]
+    warnings: list[str] = []
     if before.size and np.median(before) > ambient_c + PRE_BRAKE_EXCESS_C:
-        hint = ("the values look like kelvin labelled degC: set the unit to K"
-                if abs(np.median(before) - KELVIN_OFFSET - ambient_c) < 150.0
-                else "check the unit and the sensor")
-        raise DataError(
-            f"reads {np.median(before):.0f} °C before the first stop with ambient at "
-            f"{ambient_c:.0f} °C: {hint}", path=path, channel=source)
-    return _stuck_spans(temps, dt, source)
+        if (abs(np.median(before) - KELVIN_OFFSET - ambient_c) < 30.0
+                and np.ptp(before) < 15.0 and before.size * dt >= 10.0):
+            # a disc resting at the air's temperature, read in kelvin: steady at air + 273
+            # (a hot disc before its first stop cools visibly: that is a genuine session)
+            raise DataError(
+                f"reads {np.median(before):.0f} °C before the first stop with ambient at"
+                f" {ambient_c:.0f} °C: the values look like kelvin labelled degC: set the"
+                " unit to K", path=path, channel=source)
+        # a session that starts on a hot disc (logger started on track) is genuine
+        kelvin = abs(np.median(before) - KELVIN_OFFSET - ambient_c) < 150.0
+        warnings.append(
+            f"{source}: reads {np.median(before):.0f} °C before the first stop with ambient"
+            f" at {ambient_c:.0f} °C: a session started on a hot disc, or "
+            + ("the values are kelvin labelled degC (then set the unit to K)" if kelvin
+               else "a unit or sensor problem") + "; check the channel if the disc was cold")
+    return warnings + _stuck_spans(temps, dt, source)
 
 
 def _stuck_spans(temps: np.ndarray, dt: float, source: str) -> list[str]:
