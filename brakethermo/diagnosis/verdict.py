@@ -16,12 +16,15 @@ hands over the sum of squared errors per unit. Everything here resamples those u
   intervals overlap (look-alikes). A single name is given only when it beats every other
   significant candidate clearly;
 - **undecided**: candidates whose interval straddles the threshold (the data can neither
-  confirm nor rule them out) are listed with what would decide them.
+  confirm nor rule them out) are listed with what would decide them;
+- **untestable**: candidates the caller knows the data hardly contain the signature of
+  (a model-specific check) are, when not significant, listed with why rather than left
+  to read as absent.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -185,6 +188,7 @@ class Decision:
     next_steps: list[str]
     reasons: list[str]
     rule: VerdictRule
+    untestable: dict[str, str] = field(default_factory=dict)
 
     @property
     def kind(self) -> str:
@@ -201,6 +205,7 @@ class Decision:
             "undecided": list(self.undecided),
             "next_steps": list(self.next_steps),
             "verdict_reasons": list(self.reasons),
+            "untestable": [{"name": n, "why": why} for n, why in self.untestable.items()],
             "verdict_rule": (
                 f"an effect is significant when the lower end of its 95 % bootstrap interval"
                 f" of held-out shrink exceeds {r.min_shrink_pct:g} %; the best significant"
@@ -214,7 +219,8 @@ class Decision:
 
 
 def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
-           rule: VerdictRule | None = None) -> Decision:
+           rule: VerdictRule | None = None,
+           untestable: Mapping[str, str] | None = None) -> Decision:
     """Rank the candidates and give the verdict (module docstring).
 
     Parameters
@@ -222,6 +228,8 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
     sse_before : numpy.ndarray — (U,) or (U, m) held-out SSE per unit of the reference.
     candidates : sequence of CandidateEvidence — each with the same units.
     rule : VerdictRule, optional.
+    untestable : mapping, optional — candidate name -> why the data hardly hold its
+        signature (and what would); kept for the candidates that are not significant.
     """
     rule = rule or VerdictRule()
     by_name = {c.name: c for c in candidates}
@@ -283,8 +291,12 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
     for name in undecided:
         row = next(x for x in rows if x["name"] == name)
         lo, hi = row["shrink_ci95_pct"]
-        hint = by_name[name].separate_by or "more held-out laps"
+        hint = (untestable or {}).get(name) or by_name[name].separate_by or "more held-out laps"
         next_steps.append(f"{name} undecided (held-out shrink {lo:.0f} to {hi:.0f} %): "
                           f"{hint}")
+    unseen = {n: why for n, why in (untestable or {}).items()
+              if n in by_name and n not in significant}
+    next_steps += [f"{n} cannot be told on this data: {why}" for n, why in unseen.items()
+                   if n not in undecided]
     return Decision(verdict_set[0] if verdict_set else "none", verdict_set, rows, undecided,
-                    next_steps, reasons, rule)
+                    next_steps, reasons, rule, unseen)

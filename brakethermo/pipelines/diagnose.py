@@ -55,6 +55,7 @@ from brakethermo.models.disc import DiscStateSpace
 from brakethermo.models.disc_effects import N_REFERENCE, ExtendedDisc, Segments
 from brakethermo.models.effects import EFFECTS, mu_ratio, parse_effects
 from brakethermo.pipelines import scoring
+from brakethermo.pipelines.data_power import disc_data_power
 from brakethermo.pipelines.estimate import SIGMA_MEAS_FLOOR_C
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import disc_for, shipped_h_law
@@ -782,7 +783,9 @@ def diagnose_session(
                           next_step=carry_command(session.path, c.name),
                           outputs=tuple(s_ - 1 for s_ in c.scored_spots))
         for c in candidates]
-    decision = decide(ref_sse, evidence, RULE)
+    blind = disc_data_power(inputs.speed, y, inputs.t_amb, layout.braking,
+                            layout.train | layout.held, disc.v_ref, SENSOR_FLOOR_C)
+    decision = decide(ref_sse, evidence, RULE, untestable=blind)
     effects_out = []
     for c in candidates:
         c.scores = describe(c, ref_pred)
@@ -1147,7 +1150,11 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
                           separate_by=by_session[0][n].separate_by,
                           next_step=by_session[0][n].next_step, outputs=by_session[0][n].outputs)
         for n in names if all(n in b for b in by_session)]
-    decision = decide(ref, evidence, RULE)
+    blind_sets = [{u["name"]: u["why"] for u in r.summary.get("untestable", [])}
+                  for r in results]
+    blind = {n: f"in every session — {why}" for n, why in blind_sets[0].items()
+             if all(n in b for b in blind_sets)}
+    decision = decide(ref, evidence, RULE, untestable=blind)
     stems = [r.stem for r in results]
     seen_in = {n: [r.stem for r in results for e in r.summary["effects"]
                    if e["name"] == n and e["significant"]] for n in names}

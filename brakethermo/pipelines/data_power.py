@@ -1,0 +1,89 @@
+"""What a disc session can test: the effects whose signature the session barely contains.
+
+An effect the diagnosis cannot confirm is not thereby absent. Some signatures need data a
+session may simply not hold: a knee of h(V) needs time above the knee speed, a wrong
+emissivity needs readings near the air temperature (above it, the error is a power scale
+and an offset that the h law absorbs), a friction level that changes with temperature
+needs stops at different disc temperatures. This module measures how much of each
+signature a session holds and says, for those below the threshold, why the verdict cannot
+speak of them and what data would.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from brakethermo.models.disc_effects import KNEE
+
+MIN_ABOVE_KNEE = 0.03  # share of off-brake flying time above the knee speed
+MAX_COLD_GAP_C = 100.0  # degC: lowest reading above the air a wrong emissivity can show at
+MIN_ONSET_SPREAD_C = 80.0  # degC: spread (10-90 %) of contact temperature at brake onset
+
+
+def disc_data_power(
+    speed: np.ndarray,
+    y: np.ndarray,
+    t_amb: np.ndarray,
+    braking: np.ndarray,
+    flying: np.ndarray,
+    v_ref: float,
+    floor_c: float,
+) -> dict[str, str]:
+    """Effects the session can hardly test, each with why and what would test it.
+
+    Parameters
+    ----------
+    speed : numpy.ndarray — (K,) road speed, m/s.
+    y : numpy.ndarray — (K, m) pyrometer readings, degC (NaN where none).
+    t_amb : numpy.ndarray — (K,) air temperature, degC.
+    braking : numpy.ndarray — (K,) bool, on the brakes.
+    flying : numpy.ndarray — (K,) bool, flying laps (the ones the diagnosis scores).
+    v_ref : float — m/s, the h law's reference speed (the knee sits at ``KNEE v_ref``).
+    floor_c : float — degC, the pyrometer's floor (nothing is read below it).
+
+    Returns
+    -------
+    dict
+        Effect name -> one sentence: what the session lacks and what would test it.
+    """
+    out: dict[str, str] = {}
+    off = flying & ~braking
+    v_knee = KNEE * v_ref
+    if off.any():
+        share = float(np.mean(np.abs(speed[off]) > v_knee))
+        top = float(np.nanpercentile(np.abs(speed[flying]), 99.5)) * 3.6
+        if share < MIN_ABOVE_KNEE:
+            out["h_speed_knee"] = (
+                f"only {100 * share:.1f} % of the flying laps' off-brake time is above the"
+                f" knee speed ({v_knee * 3.6:.0f} km/h; top speed {top:.0f} km/h): too little"
+                " to see a knee of h(V) — laps with long straights above"
+                f" {v_knee * 3.6:.0f} km/h, or a steady run at top speed with the brakes off,"
+                " would test it")
+    mean_read = np.nanmean(np.where(np.isfinite(y), y, np.nan), axis=1) if y.size else y
+    read = mean_read[flying] if y.size else np.zeros(0)
+    read = read[np.isfinite(read)]
+    if read.size:
+        air = float(np.nanmedian(t_amb[flying]))
+        lo, hi = float(np.percentile(read, 1)), float(np.percentile(read, 99))
+        if lo - air > MAX_COLD_GAP_C:
+            out["emissivity_error"] = (
+                f"the readings span {lo:.0f}–{hi:.0f} °C, never within"
+                f" {MAX_COLD_GAP_C:.0f} °C of the air ({air:.0f} °C; the pyrometer reads"
+                f" nothing below {floor_c:.0f} °C): there a wrong emissivity is mostly a power"
+                " scale and an offset the h law absorbs, so a weak one cannot show — a"
+                " contact thermocouple on a cold and a hot disc, or a pyrometer of known"
+                " emissivity, would test it")
+    onsets = np.flatnonzero(np.diff(braking.astype(int)) == 1) + 1
+    onsets = onsets[flying[onsets]]
+    if onsets.size >= 4 and y.size:
+        t_on = mean_read[onsets]
+        t_on = t_on[np.isfinite(t_on)]
+        if t_on.size >= 4:
+            p10, p90 = np.percentile(t_on, [10, 90])
+            if p90 - p10 < MIN_ONSET_SPREAD_C:
+                out["friction_temperature"] = (
+                    f"the stops start within {p90 - p10:.0f} °C of each other (10–90 %:"
+                    f" {p10:.0f}–{p90:.0f} °C): too narrow a range to see friction change"
+                    " with temperature — the cold first stops of a run against hot laps,"
+                    " or a brake-torque measurement, would test it")
+    return out

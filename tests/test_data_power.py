@@ -1,0 +1,56 @@
+"""What a disc session can test: the knee, the emissivity and μ(T) power checks."""
+
+import numpy as np
+import pytest
+
+from brakethermo.diagnosis.verdict import CandidateEvidence, decide
+from brakethermo.pipelines.data_power import disc_data_power
+
+V_REF = 350 / 3.6
+
+
+def _session(top_kmh: float, low_c: float, onset_spread_c: float, n: int = 6000):
+    phase = (np.arange(n) % 600) / 600  # 60 s laps at 10 Hz
+    ramp = np.clip((phase - 0.5) / 0.1, 0, 1) * (phase < 0.6)  # a 6 s straight to top speed
+    speed = (200 + (top_kmh - 200) * ramp) / 3.6
+    braking = (phase >= 0.6) & (phase < 0.65)
+    lap_mix = (np.arange(n) // 600) % 2  # every other lap hotter at the stops
+    y = (low_c + 200 * phase + onset_spread_c * lap_mix)[:, None]
+    return speed, np.repeat(y, 4, axis=1), np.full(n, 25.0), braking, np.ones(n, bool)
+
+
+def test_a_slow_track_cannot_show_a_knee_a_fast_one_can():
+    slow = disc_data_power(*_session(290, 30, 200), V_REF, 101.0)
+    fast = disc_data_power(*_session(345, 30, 200), V_REF, 101.0)
+    assert "h_speed_knee" in slow and "280 km/h" in slow["h_speed_knee"]
+    assert "h_speed_knee" not in fast
+
+
+def test_emissivity_needs_readings_near_the_air():
+    hot = disc_data_power(*_session(345, 300, 200), V_REF, 101.0)
+    cool = disc_data_power(*_session(345, 60, 200), V_REF, 101.0)
+    assert "emissivity_error" in hot and "101 °C" in hot["emissivity_error"]
+    assert "emissivity_error" not in cool
+
+
+def test_friction_needs_stops_at_different_temperatures():
+    narrow = disc_data_power(*_session(345, 60, 20), V_REF, 101.0)
+    wide = disc_data_power(*_session(345, 60, 200), V_REF, 101.0)
+    assert "friction_temperature" in narrow
+    assert "friction_temperature" not in wide
+
+
+@pytest.mark.parametrize("significant", [False, True])
+def test_the_verdict_lists_an_untestable_effect_only_when_it_did_not_show(significant):
+    rng = np.random.default_rng(0)
+    before = rng.uniform(1, 2, 40)
+    after = before * (0.3 if significant else 1.0)
+    d = decide(before, [CandidateEvidence("knee", after, separate_by="fast laps")],
+               untestable={"knee": "no fast laps", "absent": "not a candidate"})
+    s = d.summary()
+    names = [u["name"] for u in s["untestable"]]
+    if significant:
+        assert s["verdict"] == "knee" and names == []
+    else:
+        assert s["verdict"] == "none" and names == ["knee"]
+        assert any("cannot be told on this data: no fast laps" in n for n in s["next_steps"])
