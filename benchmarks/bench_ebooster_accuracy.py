@@ -10,8 +10,12 @@ with min and max.
 ``--pedal-state chi_square`` runs both observers on the literal chi-square pedal model
 (F = F_scale w^2 with w a state) instead of the shipped Gaussian force state.
 
+``--pv-shift 0.35`` moves each session's p-V curve along the stroke (a dead stroke longer
+by that many mm than the training bench's: seal and fluid state), as a real booster's
+curve moves between sessions.
+
 Run: ``python benchmarks/bench_ebooster_accuracy.py [--seeds 11 12 13 14 15]
-[--scenarios open closed vehicle] [--pedal-state force|chi_square]``
+[--scenarios open closed vehicle] [--pedal-state force|chi_square] [--pv-shift MM ...]``
 """
 
 from __future__ import annotations
@@ -39,6 +43,8 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, nargs="+", default=[11, 12, 13, 14, 15])
     ap.add_argument("--scenarios", nargs="+", default=["open", "closed", "vehicle"])
     ap.add_argument("--pedal-state", choices=PEDAL_STATES, default="force")
+    ap.add_argument("--pv-shift", type=float, nargs="+", default=[0.0],
+                    help="p-V shift of the observed sessions, mm (one row block each)")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         text = (config_dir() / "rigs" / "ebooster.toml").read_text()
@@ -46,10 +52,10 @@ def main() -> None:
         bench.write_text(text.replace('pedal_state = "force"',
                                       f'pedal_state = "{args.pedal_state}"'))
         print(f"pedal state: {args.pedal_state}")
-        for scenario in args.scenarios:
+        for scenario, shift in ((sc, sh) for sc in args.scenarios for sh in args.pv_shift):
             rows: dict[str, list[float]] = {}
             for seed in args.seeds:
-                cfg = EboosterSimConfig(scenario, seed=seed)
+                cfg = EboosterSimConfig(scenario, seed=seed, pv_shift_mm=shift)
                 path, _ = write_ebooster_session(simulate_ebooster(cfg),
                                                  Path(tmp) / f"{scenario}{seed}.mcap")
                 s = observe(path, bench=bench).summary
@@ -62,7 +68,8 @@ def main() -> None:
                     for state, v in s["outside_1sigma"][w].items():
                         rows.setdefault(f"{state} outside 1σ {w} %", []).append(100 * v)
                 rows.setdefault("UKF improvement over EKF %", []).append(s["improvement_pct"])
-            print(f"\n{scenario}: seeds {args.seeds} (mean ± sd [min, max])")
+            print(f"\n{scenario}, p-V shift {shift:+.2f} mm: seeds {args.seeds}"
+                  " (mean ± sd [min, max])")
             for name, values in rows.items():
                 fmt = ".4f" if "residual" in name else (".3f" if "MPa" in name else ".1f")
                 print(f"  {name:34s} {_stat(values, fmt)}")

@@ -51,3 +51,25 @@ def test_ukf_residual_is_not_above_the_ekfs(summary):
     assert 0.0 < res["ukf"] <= res["ekf"] < 0.05, res
     expected = 100.0 * (res["ekf"] - res["ukf"]) / res["ekf"]
     assert summary["improvement_pct"] == pytest.approx(expected)
+
+
+@pytest.mark.parametrize("scenario, seed, shift", [("open", 23, 0.3), ("vehicle", 24, -0.3)])
+def test_band_admits_a_pv_curve_that_moved_since_training(tmp_path, scenario, seed, shift):
+    """A session whose p-V curve sits 0.3 mm off the training bench's (seals, fluid): the
+    pressures carry the offset (delta cannot tell it from the pedal force), the band says
+    so — before the band admitted it, it covered 22 % (open) and 60 % (vehicle)."""
+    cfg = EboosterSimConfig(scenario, seed=seed, rate_hz=500.0, duration_s=12.0,
+                            pv_shift_mm=shift)
+    path, _ = write_ebooster_session(simulate_ebooster(cfg), tmp_path / "s.mcap")
+    s = observe(path).summary
+    for observer in ("ukf", "ekf"):
+        assert s["pressure_rmse_mpa"][observer]["p_m"] > 0.05  # the shift is there
+        assert 0.85 <= s["coverage_95"][observer] <= 1.0, s["coverage_95"]
+    assert s["band"]["pv_shift_sd_mm"] == pytest.approx(0.25)
+
+
+def test_pv_shift_out_of_range_is_refused():
+    from brakethermo.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="pv_shift_mm"):
+        simulate_ebooster(EboosterSimConfig("open", pv_shift_mm=3.0))

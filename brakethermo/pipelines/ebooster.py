@@ -38,6 +38,7 @@ from brakethermo.rigs.booster import (
     disk_quasi_static,
     disk_transfer,
     leverage_force,
+    pv_pressure,
 )
 from brakethermo.rigs.booster_datasheet import BoosterSpec, load_booster
 
@@ -176,6 +177,22 @@ def default_fit_path() -> Path:
     return config_dir() / "rigs" / f"{DEFAULT_FIT}.toml"
 
 
+def pv_position_var(model: EboosterModel) -> Array:
+    """MPa^2 per step: what not knowing where the session's p-V curve sits adds.
+
+    The curve's slope at the screw position times the datasheet's 1 sigma of the curve's
+    shift along the stroke (``pv_shift_sd_mm``); delta cannot resolve the shift (it trades
+    against the pedal force), so it widens the pressure bands instead of being a state.
+    """
+    eps = 0.05  # mm
+    coeffs, stroke = np.array(model.fit.pv_coeffs), model.fit.stroke_mm
+    s2 = np.clip(model.s2, 0.0, None)
+    slope = (pv_pressure(s2 + eps, coeffs, stroke)
+             - pv_pressure(np.clip(s2 - eps, 0.0, None), coeffs, stroke)) / (
+        s2 + eps - np.clip(s2 - eps, 0.0, None))
+    return (slope * model.spec.pv_shift_sd_mm) ** 2
+
+
 def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTrack:
     s = model.spec
     Q, R = model.Q_of_step(), model.R()
@@ -194,8 +211,10 @@ def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTr
     else:
         x, var = res.x_filt, res.var_filt
     seconds = time.perf_counter() - t0
+    var = np.clip(var[:, :5], 0.0, None)
+    var[:, :3] += pv_position_var(model)[:, None]
     return ObserverTrack(
-        x=x[:, :5], std=np.sqrt(np.clip(var[:, :5], 0.0, None)),
+        x=x[:, :5], std=np.sqrt(var),
         residual=res.innovation[:, 0], filt=res, smoothed=smooth, seconds=seconds,
     )
 
@@ -289,6 +308,13 @@ def _summary(
         "pressure_rmse_mpa": p_rmse,
         "coverage_95": cov95,
         "outside_1sigma": out1,
+        "band": {
+            "pv_shift_sd_mm": spec.pv_shift_sd_mm,
+            "contains": "the filter's (smoother's) own spread, widened for the pressures by"
+                        " the p-V curve's slope times pv_shift_sd_mm: where this session's"
+                        " curve sits against the training session's, which delta cannot"
+                        " resolve (it trades against the pedal force)",
+        },
         "smoothed": smooth,
         "pv_fit": {
             "coefficients_mpa": list(fit.pv_coeffs),

@@ -31,6 +31,8 @@ way.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -88,9 +90,13 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     part = head(session, min(DECISION_LAPS, flying[-1]))
     off = {ONLINE_FLAGS[c]: False for c in candidates}
     quick = replace(base, smoother=False, score=False, online_auto=False)
-    runs = {"reference": estimate_from_session(part, replace(quick, **off))}
-    for c in candidates:
-        runs[c] = estimate_from_session(part, replace(quick, **{**off, ONLINE_FLAGS[c]: True}))
+    variants = {"reference": replace(quick, **off)}
+    variants.update({c: replace(quick, **{**off, ONLINE_FLAGS[c]: True}) for c in candidates})
+    # The filter's kernels release the GIL: the variants run side by side on the cores.
+    with ThreadPoolExecutor(min(len(variants), os.cpu_count() or 1)) as pool:
+        futures = {name: pool.submit(estimate_from_session, part, opts)
+                   for name, opts in variants.items()}
+        runs = {name: f.result() for name, f in futures.items()}
     lap = part.frame["lap"].to_numpy()
     zones = detect_zones(part.time, np.nan_to_num(part.values("brake_pressure_front")))
     cycles = np.full(lap.size, -1)

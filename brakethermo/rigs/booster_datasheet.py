@@ -38,6 +38,9 @@ class BoosterSpec:
     q_pm_speed : float — MPa^2 per ms, extra p_m noise at a screw speed of 50 mm/s
         (proportional to the speed).
     pv_relax_s : float — s, relaxation of p_m towards the p-V curve.
+    pv_shift_sd_mm : float — mm, 1 sigma of where a session's p-V curve sits along the
+        stroke against the training session's (seal, rubber and fluid state move it
+        between sessions); widens the pressure bands by the curve's slope times it.
     alpha, beta, kappa : float — sigma-point scaling.
     p0_pressure_mpa : float — MPa, prior 1 sigma of the pressures.
     p0_zeta : tuple of float — mm and mm/s, prior 1 sigma of zeta1, zeta2.
@@ -64,6 +67,7 @@ class BoosterSpec:
     q_zeta: tuple[float, float]
     q_pm_speed: float
     pv_relax_s: float
+    pv_shift_sd_mm: float
     alpha: float
     beta: float
     kappa: float
@@ -83,7 +87,7 @@ class BoosterSpec:
 _POSITIVE = (
     "area_mm2", "stroke_mm", "discharge_coeff", "fluid_density", "input_area_mm2",
     "servo_area_mm2", "delta_noise_mm", "pedal_tau_s", "pv_relax_s", "alpha", "p0_pressure_mpa",
-    "rls_delta", "min_travel_mm", "q_pm_speed",
+    "rls_delta", "min_travel_mm", "q_pm_speed", "pv_shift_sd_mm",
 )
 
 
@@ -160,6 +164,7 @@ def load_booster(name_or_path: str | Path = DEFAULT_BENCH) -> BoosterSpec:
         q_zeta=_get(raw, ob, "q_zeta", path, 2),
         q_pm_speed=_get(raw, ob, "q_pm_speed", path),
         pv_relax_s=_get(raw, ob, "pv_relax_s", path),
+        pv_shift_sd_mm=_get(raw, ob, "pv_shift_sd_mm", path),
         alpha=_get(raw, ob, "alpha", path),
         beta=_get(raw, ob, "beta", path),
         kappa=_get(raw, ob, "kappa", path),

@@ -26,7 +26,7 @@ of brake applications, closed loop).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numba
@@ -103,6 +103,7 @@ class EboosterSimConfig:
     rate_hz: float = 1000.0
     duration_s: float | None = None
     truth: BenchTruth = BenchTruth()
+    pv_shift_mm: float = 0.0  # mm, this session's dead stroke against the truth's (seals, fluid)
 
 
 @dataclass(frozen=True)
@@ -350,7 +351,11 @@ def simulate_ebooster(cfg: EboosterSimConfig) -> EboosterSim:
     if cfg.duration_s is not None and not cfg.duration_s * cfg.rate_hz >= 10:
         raise ConfigError(f"duration must give at least 10 samples at {cfg.rate_hz:g} Hz, got "
                           f"{cfg.duration_s} s; set duration_s to a positive number of seconds")
-    tr = cfg.truth
+    if not -2.0 <= cfg.pv_shift_mm <= 2.0:
+        raise ConfigError(f"pv_shift_mm must be within ±2 mm, got {cfg.pv_shift_mm}")
+    # the p-V curve of a real booster moves between sessions (seal and rubber state,
+    # fluid): the dead stroke before the central valve closes shifts by tenths of a mm
+    tr = replace(cfg.truth, dead_stroke_mm=cfg.truth.dead_stroke_mm + cfg.pv_shift_mm)
     dt = 1.0 / cfg.rate_hz
     duration = cfg.duration_s or DEFAULT_DURATION_S[cfg.scenario]
     K = round(duration * cfg.rate_hz) + 1
@@ -464,6 +469,8 @@ class EboosterRigConfig:
     rate_hz : float — Hz, logging rate.
     duration_s : float or None — s (default per scenario).
     production : bool — log only s2 and delta (no pressure or pedal-force sensors).
+    pv_shift_mm : float — mm, the session's p-V curve shifted along the stroke (a dead
+        stroke longer by this much: seal and fluid state differ from the training day's).
     """
 
     scenario: str = "vehicle"
@@ -471,6 +478,7 @@ class EboosterRigConfig:
     rate_hz: float = 1000.0
     duration_s: float | None = None
     production: bool = False
+    pv_shift_mm: float = 0.0
 
 
 PRODUCTION_CHANNELS = ("pushrod_displacement", "reaction_disk_delta")
@@ -486,6 +494,7 @@ def write_ebooster_simulation(
     (session path, truth path) — the truth is ``<stem>.truth.parquet`` beside it.
     """
     sim = simulate_ebooster(EboosterSimConfig(
-        scenario=cfg.scenario, seed=cfg.seed, rate_hz=cfg.rate_hz, duration_s=cfg.duration_s))
+        scenario=cfg.scenario, seed=cfg.seed, rate_hz=cfg.rate_hz, duration_s=cfg.duration_s,
+        pv_shift_mm=cfg.pv_shift_mm))
     channels = PRODUCTION_CHANNELS if cfg.production else tuple(UNITS)
     return write_ebooster_session(sim, path, fmt, channels=channels)
