@@ -63,13 +63,14 @@ def run_row(track: str, test_effect: str, race_effects: tuple[str, ...], seed: i
             rows.append({
                 "track": track, "seed": seed, "test": test_effect, "race": race_effect,
                 "carried": carried, "online": res.summary["run"]["online_choice"].get("chosen"),
+                "dropped": res.summary["run"]["online_choice"].get("law_effects_dropped"),
                 "ratio": sc["contact_ratio"]["smoother"],
                 "coverage_pct": 100.0 * float(np.mean(cov)),
             })
             r = rows[-1]
             print(f"{track} seed {seed}: test {test_effect:20s} (carried {carried})  race"
                   f" {race_effect:20s} {r['ratio']:.2f}x  coverage {r['coverage_pct']:3.0f} %"
-                  f"  online {r['online']}", flush=True)
+                  f"  online {r['online']} dropped {r['dropped']}", flush=True)
     return rows
 
 
@@ -79,13 +80,15 @@ def main() -> None:
     ap.add_argument("--test-effects", default=",".join(("none", *EFFECT_NAMES)))
     ap.add_argument("--race-effects", default=",".join(("none", *EFFECT_NAMES)))
     ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument("--seed-base", type=int, default=SEED_BASE,
+                    help="first seed (development runs: use another than the reporting one)")
     ap.add_argument("--test-laps", type=int, default=2)
     ap.add_argument("--race-laps", type=int, default=3)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     tests, races = args.test_effects.split(","), tuple(args.race_effects.split(","))
-    jobs = [(track, t, races, SEED_BASE + 1000 * k + 100 * i + 50 * r, args.test_laps,
+    jobs = [(track, t, races, args.seed_base + 1000 * k + 100 * i + 50 * r, args.test_laps,
              args.race_laps)
             for k, track in enumerate(args.tracks.split(",")) for i, t in enumerate(tests)
             for r in range(args.seeds)]

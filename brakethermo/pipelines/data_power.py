@@ -59,8 +59,11 @@ def disc_data_power(
                 " to see a knee of h(V) — laps with long straights above"
                 f" {v_knee * 3.6:.0f} km/h, or a steady run at top speed with the brakes off,"
                 " would test it")
-    mean_read = np.nanmean(np.where(np.isfinite(y), y, np.nan), axis=1) if y.size else y
-    read = mean_read[flying] if y.size else np.zeros(0)
+    finite = np.isfinite(y)
+    counts = finite.sum(axis=1)
+    mean_read = np.where(counts > 0, np.where(finite, y, 0.0).sum(axis=1)
+                         / np.maximum(counts, 1), np.nan)
+    read = mean_read[flying]
     read = read[np.isfinite(read)]
     if read.size:
         air = float(np.nanmedian(t_amb[flying]))
@@ -75,7 +78,7 @@ def disc_data_power(
                 " emissivity, would test it")
     onsets = np.flatnonzero(np.diff(braking.astype(int)) == 1) + 1
     onsets = onsets[flying[onsets]]
-    if onsets.size >= 4 and y.size:
+    if onsets.size >= 4:
         t_on = mean_read[onsets]
         t_on = t_on[np.isfinite(t_on)]
         if t_on.size >= 4:

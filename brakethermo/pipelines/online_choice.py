@@ -22,6 +22,14 @@ by default. Instead the race decides:
    bootstrap interval over braking cycles (the diagnosis engine's rule). Of two effects
    one spot cannot tell apart (k_z and the crown balance) only the better is kept.
 
+5. **an effect the h law carries** and whose value a race may not share (the test
+   session's μ(T): pads bed, a compound changes) is tested the other way round: the
+   filter runs with the law as written and without that effect; from each run's own
+   filtered state at the start of every flying lap after the first, its model predicts
+   the lap open loop, and the effect is dropped only when the lap-ahead error without it
+   shrinks by the same rule. A race whose friction behaves like the test session's keeps
+   it.
+
 The crown balance is not a candidate: on the measured spot it does what a k_z change
 does, and on races where neither the test session's split nor its k_z held, letting the
 race pick it moved the unmeasured spots the wrong way (README, accuracy); it stays off
@@ -44,6 +52,7 @@ from brakethermo.report.braking_zones import detect_zones
 
 if TYPE_CHECKING:
     from brakethermo.pipelines.estimate import EstimateOptions
+    from brakethermo.pipelines.models import DiscCalibration
 
 DECISION_LAPS = 8  # flying laps the decision runs on (a disc's k_z shows in a few)
 MIN_SHRINK_PCT = 5.0  # % — lower bootstrap bound of the innovation shrink
@@ -55,12 +64,18 @@ STRUCTURAL = {"thickness_gradient": "kz_factor", "power_distribution": "crown_ba
 NEUTRAL = {"kz_factor": 1.0, "crown_balance": 0.0}
 
 
+# effects of the h law the race may drop (the rest are the disc's or the sensor's)
+DROPPABLE = ("friction_temperature",)
+
+
 @dataclass(frozen=True)
 class OnlineChoice:
-    """The flags the race chose and why (the ``run.online_choice`` facts)."""
+    """The flags the race chose, the law's effects it dropped, and why
+    (the ``run.online_choice`` facts)."""
 
     flags: dict[str, bool]
     facts: dict[str, Any]
+    dropped: tuple[str, ...] = ()
 
 
 def head(session: Session, laps: int) -> Session:
@@ -73,29 +88,36 @@ def head(session: Session, laps: int) -> Session:
                    laps=tuple(lap for lap in session.laps if lap.lap <= laps))
 
 
-def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str, ...]
-                  ) -> OnlineChoice:
+def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str, ...],
+                  carried: dict[str, DiscCalibration] | None = None) -> OnlineChoice:
     """Run the decision (module docstring) for ``candidates`` (effect names).
 
     ``base`` is the estimate's options with every candidate's flag unset; the decision
-    runs filter-only passes with each flag forced.
+    runs filter-only passes with each flag forced. ``carried`` maps each effect of the h
+    law the race may drop to the law's calibration without it.
     """
     from brakethermo.pipelines.estimate import estimate_from_session
 
+    carried = carried or {}
     flying = sorted({lap.lap for lap in session.laps if lap.lap >= 1})
-    if not candidates or len(flying) < 2:
+    if not (candidates or carried) or len(flying) < 2:
         return OnlineChoice({ONLINE_FLAGS[c]: False for c in candidates}, {
-            "rule": "not decided: fewer than two flying laps; online effects left off",
+            "rule": "not decided: fewer than two flying laps; online effects left off, the"
+                    " h law's effects kept",
             "candidates": list(candidates)})
     part = head(session, min(DECISION_LAPS, flying[-1]))
     off = {ONLINE_FLAGS[c]: False for c in candidates}
     quick = replace(base, smoother=False, score=False, online_auto=False)
-    variants = {"reference": replace(quick, **off)}
-    variants.update({c: replace(quick, **{**off, ONLINE_FLAGS[c]: True}) for c in candidates})
+    variants: dict[str, tuple[EstimateOptions, DiscCalibration | None]] = {
+        "reference": (replace(quick, **off), None)}
+    variants.update({c: (replace(quick, **{**off, ONLINE_FLAGS[c]: True}), None)
+                     for c in candidates})
+    variants.update({f"without {name}": (replace(quick, **off), cal)
+                     for name, cal in carried.items()})
     # The filter's kernels release the GIL: the variants run side by side on the cores.
     with ThreadPoolExecutor(min(len(variants), os.cpu_count() or 1)) as pool:
-        futures = {name: pool.submit(estimate_from_session, part, opts)
-                   for name, opts in variants.items()}
+        futures = {name: pool.submit(estimate_from_session, part, opts, cal)
+                   for name, (opts, cal) in variants.items()}
         runs = {name: f.result() for name, f in futures.items()}
     lap = part.frame["lap"].to_numpy()
     zones = detect_zones(part.time, np.nan_to_num(part.values("brake_pressure_front")))
@@ -123,6 +145,23 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     alike = [c for c in chosen if c in CONFOUNDED]
     chosen = [c for c in chosen if c not in alike[1:]]
     flags = {ONLINE_FLAGS[c]: c in chosen for c in candidates}
+    if carried and chosen:
+        # the law's effects are judged under the online states the race chose
+        on = {**off, **{ONLINE_FLAGS[c]: True for c in chosen}}
+        again = {"reference": (replace(quick, **on), None)}
+        again.update({f"without {name}": (replace(quick, **on), cal)
+                      for name, cal in carried.items()})
+        with ThreadPoolExecutor(min(len(again), os.cpu_count() or 1)) as pool:
+            futures = {name: pool.submit(estimate_from_session, part, opts, cal)
+                       for name, (opts, cal) in again.items()}
+            runs.update({name: f.result() for name, f in futures.items()})
+            ref = runs["reference"]
+    kept = []
+    for name in carried:
+        row = _lap_ahead_test(ref, runs[f"without {name}"], lap, cycles, rule)
+        row["name"] = f"without {name}"
+        kept.append(row)
+    dropped = tuple(r["name"].removeprefix("without ") for r in kept if r["significant"])
     return OnlineChoice(flags, {
         "rule": (f"switched on when the measured spot's one-step-ahead innovation RMSE"
                  f" shrinks by more than {MIN_SHRINK_PCT:g} % (lower end of a 95 % bootstrap"
@@ -132,7 +171,9 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
         "laps": [int(v) for v in np.unique(lap[lap >= 1])],
         "chosen": chosen,
         "scores": rows,
-    })
+        "law_effects_tested": kept,
+        "law_effects_dropped": list(dropped),
+    }, dropped)
 
 
 def _structural_test(run: Any, param: str, lap: np.ndarray, cycles: np.ndarray,
@@ -160,6 +201,35 @@ def _structural_test(run: Any, param: str, lap: np.ndarray, cycles: np.ndarray,
                [CandidateEvidence(param, unit_sse(err[:, 1], units)[0])], rule)
     return {**d.rows[0], "test": "learned on odd flying laps, a whole lap ahead on even ones",
             "learned": learned, "neutral": neutral}
+
+
+def _lap_ahead(run: Any, lap: np.ndarray, laps: np.ndarray) -> np.ndarray:
+    """The measured spot predicted open loop through each of ``laps`` from the run's own
+    filtered state at the lap's start (its model, its online states frozen)."""
+    ssm, X = run.state_space, run.states
+    H = ssm.H_measured(run.spot_radius)[0]
+    pred = np.full(lap.size, np.nan)
+    for n in laps:
+        idx = np.flatnonzero(lap == n)
+        x = X[idx[0]][None, :]
+        for k in idx:
+            pred[k] = (x @ H)[0]
+            x = ssm.f(x, k) if k + 1 < lap.size else x
+    return pred
+
+
+def _lap_ahead_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
+                    rule: VerdictRule) -> dict[str, Any]:
+    """Does ``other``'s model predict the flying laps after the first better, a lap ahead?"""
+    laps = np.unique(lap[lap >= 2])
+    held = np.isin(lap, laps)
+    units = np.where(held, cycles, -1)
+    y = ref.y_measured
+    before = unit_sse(_lap_ahead(ref, lap, laps) - y, units)[0]
+    after = unit_sse(_lap_ahead(other, lap, laps) - y, units)[0]
+    d = decide(before, [CandidateEvidence("other", after)], rule)
+    return {**d.rows[0], "test": "each model a whole lap ahead from its own filtered state,"
+            f" flying laps {', '.join(str(int(v)) for v in laps)}"}
 
 
 def _loglik(result: Any) -> np.ndarray:
