@@ -36,6 +36,7 @@ from brakethermo.pipelines.estimate import (
     disc_model,
     estimate_from_session,
 )
+from brakethermo.pipelines.h_evidence import law_level, straight_factors
 from brakethermo.pipelines.inputs import MULTI_SPOT, DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, disc_for, shipped_h_law
 from brakethermo.pipelines.outputs import write_json, write_parquet
@@ -100,6 +101,7 @@ class IdentifyResult:
     fit_mask: np.ndarray
     summary: dict[str, Any]
     timings: dict[str, float] = field(default_factory=dict)
+    straights: pd.DataFrame | None = None  # per straight, h under the layered model
 
     @property
     def stem(self) -> str:
@@ -524,6 +526,11 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         "braking": braking,
     })
     residual = h_mean[fit_mask] - (law_ukf or law)(inputs.speed[fit_mask])
+    straights = level = None
+    if structure is not None:
+        straights = straight_factors(inputs, y, disc, calibration, est_tuning,
+                                     off_brake_mask(braking))
+        level = law_level(straights)
     timings = {"ukf_s": t_ukf - t0, "law_s": t_law - t_ukf, "structure_s": t_struct - t_law,
                "calibration_s": t_end - t_struct, "total_s": t_end - t0}
     summary = {
@@ -546,6 +553,12 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             "open_loop_rmse_c": structure.rmse_c,
             "open_loop_rmse_uniform_c": structure.rmse_uniform_c,
             "effects": structure.effects,
+        },
+        "evidence": None if level is None else {
+            **level,
+            "what": "per off-brake straight, the factor on the written law that makes the"
+                    " layered model's cooling match the measured one (h_law.png); 1 = the"
+                    " law holds; the interval from the straight-to-straight scatter",
         },
         "with_effects": list(effects),
         "effect_selection": selection,
@@ -570,7 +583,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         },
     }
     return IdentifyResult(session, law, law_ukf, calibration, samples, structure, fit_mask,
-                          summary, timings)
+                          summary, timings, straights)
 
 
 def identify_h(path: str | Path, options: IdentifyOptions | None = None) -> IdentifyResult:
@@ -625,5 +638,6 @@ def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
     )  # fmt: skip
     write_json(folder / "identify.json", result.summary)
     plot_h_law(result.samples, result.fit_mask, result.law, folder / "h_law.png",
-               title=result.stem, law_ukf=result.law_ukf if result.structure else None)
+               title=result.stem, law_ukf=result.law_ukf if result.structure else None,
+               straights=result.straights, level=result.summary.get("evidence"))
     return folder

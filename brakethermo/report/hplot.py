@@ -1,8 +1,9 @@
-"""The identify-h picture: h samples against speed with the fitted law."""
+"""The identify-h picture: the written h(V) law and the evidence it rests on."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -10,6 +11,7 @@ matplotlib.use("Agg")
 
 import numpy as np
 import pandas as pd
+from matplotlib.colors import BoundaryNorm
 from matplotlib.figure import Figure
 
 from brakethermo.io.atomic import atomic_path
@@ -20,60 +22,96 @@ KMH = 3.6
 
 def plot_h_law(
     samples: pd.DataFrame, fit_mask: np.ndarray, law: HLaw, path: Path, title: str = "",
-    law_ukf: HLaw | None = None,
+    law_ukf: HLaw | None = None, straights: pd.DataFrame | None = None,
+    level: dict[str, Any] | None = None,
 ) -> Path:
-    """Scatter of UKF h samples (off-brake ones used by the fit) and the fitted law.
+    """The written h(V) law and the evidence it was fitted to.
+
+    With ``straights`` (the law refined with the layered model): each off-brake straight's
+    own h under that model (points with 1-sigma bars, see
+    :mod:`brakethermo.pipelines.h_evidence`) and the law with the 95 % range of its level
+    from the straights' scatter; the paper's one-layer UKF samples stay in the background,
+    explained, as the method the law does not rest on. Without: the UKF samples the law
+    was fitted to (paper §5.1).
 
     Parameters
     ----------
     samples : pandas.DataFrame
         ``speed`` (m/s), ``h`` and ``h_std`` (W/(m² K)), ``braking`` (bool).
     fit_mask : ndarray of bool
-        Samples the law was fitted on.
+        Off-brake samples (the ones a paper-style fit uses).
     law : HLaw
         The law written to ``h_law.toml``.
     path : Path
         PNG to write (atomically).
     law_ukf : HLaw, optional
-        The law fitted to the samples alone (paper §5.1), when ``law`` was refined
-        afterwards with the layered model.
+        The law fitted to the samples alone, when ``law`` was refined afterwards.
+    straights : pandas.DataFrame, optional
+        ``speed_kmh``, ``h``, ``h_sd``, ``lap`` per straight.
+    level : dict, optional
+        ``factor`` and ``ci95`` of the law's level from the straights, ``scatter_pct``.
     """
     fig = Figure(figsize=(9.0, 5.5), dpi=110)
     ax = fig.add_subplot()
     v = samples["speed"].to_numpy() * KMH
     h = samples["h"].to_numpy()
     braking = samples["braking"].to_numpy(dtype=bool)
-    other = ~fit_mask & ~braking
-    ax.scatter(v[braking], h[braking], s=3, c="#d62728", alpha=0.25, lw=0,
-               label="braking (not fitted)")
-    ax.scatter(v[other], h[other], s=3, c="#9e9e9e", alpha=0.3, lw=0,
-               label="settling after release (not fitted)")
-    sc = ax.scatter(v[fit_mask], h[fit_mask], s=4, c=samples["h_std"].to_numpy()[fit_mask],
-                    cmap="viridis_r", lw=0, alpha=0.8, label="off-brake (fitted)")
-    grid_v = np.linspace(0.0, max(360.0, float(np.nanmax(v)) if v.size else 360.0), 400)
-    if law_ukf is not None:
-        ax.plot(grid_v, law_ukf(grid_v / KMH), c="k", lw=1.4, ls=":",
-                label="fit to these samples (1-layer UKF, paper §5.1)")
-        ax.plot(grid_v, law(grid_v / KMH), c="k", lw=2.2,
-                label="h(V) refined with the layered model (written)")
+    top = max(360.0, float(np.nanmax(v)) if v.size else 360.0)
+    grid_v = np.linspace(0.0, top, 400)
+    h_law = law(grid_v / KMH)
+    evidence = straights is not None and len(straights) > 0
+    if evidence:
+        ax.scatter(v[fit_mask], h[fit_mask], s=2, c="#b0b0b0", alpha=0.35, lw=0,
+                   label="paper §5.1 samples (1-layer UKF, off-brake): one layer folds the"
+                         "\nskin-to-bulk flow after each stop into h, so they sit low;"
+                         " not used")
+        if level is not None and np.isfinite(level.get("factor", np.nan)):
+            lo, hi = level["ci95"]
+            ax.fill_between(grid_v, h_law * lo, h_law * hi, color="k", alpha=0.12, lw=0,
+                            label=f"straights' verdict on its level: x{level['factor']:.2f}"
+                                  f" ({lo:.2f}–{hi:.2f}, 95 %), scatter"
+                                  f" {level['scatter_pct']:.0f} %")
+        laps = straights["lap"].to_numpy()
+        bounds = np.arange(laps.min(), laps.max() + 2) - 0.5
+        sc = ax.scatter(straights["speed_kmh"], straights["h"], c=laps,
+                        cmap=matplotlib.colormaps["viridis"].resampled(bounds.size - 1),
+                        norm=BoundaryNorm(bounds, bounds.size - 1),
+                        s=26, zorder=3, edgecolors="k", linewidths=0.4,
+                        label="each off-brake straight through the layered model (±1σ)")
+        ax.errorbar(straights["speed_kmh"], straights["h"], yerr=straights["h_sd"], fmt="none",
+                    ecolor="k", elinewidth=0.8, alpha=0.6, zorder=2)
+        ax.plot(grid_v, h_law, c="k", lw=2.2, label="h(V) written (layered model, output error)")
+        shown = np.r_[straights["h"].to_numpy(), h_law[grid_v <= np.nanmax(v, initial=0.0)]]
+        lo_y, hi_y = np.nanpercentile(shown, [0.0, 100.0])
+        ax.set_ylim(max(0.0, 0.5 * lo_y), 1.35 * hi_y)
+        cb = fig.colorbar(sc, ax=ax, pad=0.01, ticks=np.unique(laps))
+        cb.set_label("lap")
+        ax.set_title(f"Convection h(V) and the straights it rests on — {title}".rstrip(" —"))
     else:
-        ax.plot(grid_v, law(grid_v / KMH), c="k", lw=2.2, label="fitted h(V)")
+        other = ~fit_mask & ~braking
+        ax.scatter(v[braking], h[braking], s=3, c="#d62728", alpha=0.25, lw=0,
+                   label="braking (not fitted)")
+        ax.scatter(v[other], h[other], s=3, c="#9e9e9e", alpha=0.3, lw=0,
+                   label="settling after release (not fitted)")
+        sc = ax.scatter(v[fit_mask], h[fit_mask], s=4, c=samples["h_std"].to_numpy()[fit_mask],
+                        cmap="viridis_r", lw=0, alpha=0.8, label="off-brake (fitted)")
+        ax.plot(grid_v, h_law, c="k", lw=2.2, label="fitted h(V) (paper §5.1)")
+        fitted = h[fit_mask]
+        if fitted.size:
+            lo, hi = np.nanpercentile(fitted, [0.5, 99.5])
+            span = hi - lo
+            ax.set_ylim(max(0.0, lo - 0.3 * span), hi + 0.3 * span)
+        cb = fig.colorbar(sc, ax=ax, pad=0.01)
+        cb.set_label("posterior σ of h [W/(m² K)]")
+        ax.set_title(f"Convection coefficient identified by the UKF — {title}".rstrip(" —"))
     knee_kmh = law.knee * law.v_ref * KMH
     ax.axvline(knee_kmh, c="k", ls="--", lw=1)
     ax.text(knee_kmh, 0.02, f"knee {law.knee:.2f}·V_ref = {knee_kmh:.0f} km/h ",
             transform=ax.get_xaxis_transform(), va="bottom", ha="right", fontsize=9)
-    fitted = h[fit_mask]
-    if fitted.size:
-        lo, hi = np.nanpercentile(fitted, [0.5, 99.5])
-        span = hi - lo
-        ax.set_ylim(max(0.0, lo - 0.3 * span), hi + 0.3 * span)
     ax.set_xlabel("speed [km/h]")
     ax.set_ylabel("h [W/(m² K)]")
-    ax.set_title(f"Convection coefficient identified by the UKF — {title}".rstrip(" —"))
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper left", markerscale=3, fontsize=9)
-    cb = fig.colorbar(sc, ax=ax, pad=0.01)
-    cb.set_label("posterior σ of h [W/(m² K)]")
+    ax.legend(loc="upper left", markerscale=2, fontsize=8)
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png")
