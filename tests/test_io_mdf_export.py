@@ -31,6 +31,14 @@ def estimate_frame(n: int = 600, nodes: int = 12) -> pd.DataFrame:
     return pd.DataFrame(cols)
 
 
+def test_mdf_header_takes_the_sessions_date_when_time_is_relative(tmp_path: Path) -> None:
+    path = write_estimate_mdf(estimate_frame(), tmp_path / "e.mf4", source="race.mcap",
+                              date="2026-05-30")
+    with MDF(path) as mdf:
+        assert mdf.header.start_time == dt.datetime(2026, 5, 30, tzinfo=dt.UTC)
+        assert "2026-05-30" in mdf.header.comment and "time of day unknown" in mdf.header.comment
+
+
 @pytest.mark.parametrize("epoch", [EPOCH, None], ids=["epoch", "relative"])
 def test_mdf_export_round_trip(epoch: float | None, tmp_path: Path) -> None:
     frame = estimate_frame()

@@ -37,7 +37,7 @@ def render_laps(result: EstimateResult) -> None:
 
     Sized for 80 columns (CI logs, pipes): short headers, no wrapping inside cells.
     """
-    from brakethermo.results.laps import lap_label, temp_text
+    from brakethermo.results.laps import lap_label, lap_time_text, temp_text
 
     run = result.summary["run"]
     lo, hi = run["window_c"]
@@ -63,11 +63,10 @@ def render_laps(result: EstimateResult) -> None:
         peaks = [lap["peak"].get(f"spot{i}", {}).get("temp_c") for i in range(1, 5)]
         hot = lap.get("hottest") or {}
         radius = hot.get("radius_mm")
-        m, s = divmod(lap["lap_time_s"], 60.0)
         hot_text = temp_text(hot.get("temp_c")) + (f"@{radius:.0f}" if radius is not None else "")
         above_hot = hot.get("time_above_window_s", 0.0)
         table.add_row(
-            lap_label(lap["lap"]), f"{int(m)}:{s:04.1f}", *[temp_text(p) for p in peaks],
+            lap_label(lap["lap"]), lap_time_text(lap["lap_time_s"]), *[temp_text(p) for p in peaks],
             f"[bold red]{hot_text}[/]" if above_hot > 0 else hot_text,
             f"{lap['time_below_window_s']:.0f}/{lap['time_in_window_s']:.0f}/"
             f"{lap['time_above_window_s']:.0f}",
@@ -222,7 +221,8 @@ def estimate_command(
             write_estimate_mdf(result.frame, stage / "estimate.mf4",
                                node_radii=result.node_radii, spot_radii=result.disc.spot_radii,
                                start_epoch_s=result.session.start_epoch_s,
-                               source=result.session.path.name)
+                               source=result.session.path.name,
+                               date=result.session.metadata.get("date"))
         if reports:
             from brakethermo.report.lap_report import write_session_report
 

@@ -61,6 +61,7 @@ def summary(session: Session) -> dict[str, Any]:
 def _render(session: Session) -> None:
     from brakethermo.io.aliases import resolve
     from brakethermo.io.units import si_unit
+    from brakethermo.results.laps import lap_time_text
 
     found = resolve(session.aliases, session.available)
     channels = Table(title=escape(f"{session.path.name} ({session.format}): channels"),
@@ -90,9 +91,8 @@ def _render(session: Session) -> None:
     laps.add_column("start s", justify="right")
     laps.add_column("lap time", justify="right")
     for lap in session.laps:
-        minutes, seconds = divmod(lap.duration_s, 60.0)
         label = "out-lap" if lap.lap == 0 else str(lap.lap)
-        laps.add_row(label, f"{lap.start_s:.2f}", f"{int(minutes)}:{seconds:06.3f}")
+        laps.add_row(label, f"{lap.start_s:.2f}", lap_time_text(lap.duration_s))
     console.print(laps)
 
     facts = Table(title="session", title_justify="left", show_header=False)

@@ -177,7 +177,7 @@ def _simulate_rig(
     tab.add_row("session", summary["session"])
     tab.add_row("truth", summary["truth"])
     for key, value in summary["config"].items():
-        tab.add_row(key, str(value))
+        tab.add_row(key, "scenario's default" if value is None else str(value))
     for key, value in truth_facts.items():
         tab.add_row(f"{key} (truth)", f"{value:.4f}")
     tab.add_row("time", f"{summary['simulate_s']:.1f} s")

@@ -575,7 +575,8 @@ def _write_outputs(
             from brakethermo.report.mdf_export import write_estimate_mdf
 
             t = time.perf_counter()
-            write_estimate_mdf(run.frame, stage / "estimate.mf4", **export_kw)
+            write_estimate_mdf(run.frame, stage / "estimate.mf4", **export_kw,
+                               date=session.metadata.get("date"))
             outcome.timings["mdf_s"] = time.perf_counter() - t
         outcome.laps = flying_laps(laps)
         outcome.peaks = _peaks(run.frame)

@@ -193,6 +193,17 @@ def pv_position_var(model: EboosterModel) -> Array:
     return (slope * model.spec.pv_shift_sd_mm) ** 2
 
 
+def gauge_pressure(mean: Array, var: Array) -> tuple[Array, Array]:
+    """The filter's pressure estimate constrained to a gauge pressure >= 0, MPa and MPa^2.
+
+    A brake circuit holds no negative gauge pressure worth the name; where the filter's
+    Gaussian mean sits below zero (after a release, when delta says little) the reported
+    pressure is the most probable value of that Gaussian truncated at zero — zero — and
+    the band keeps the filter's spread.
+    """
+    return np.maximum(mean, 0.0), var
+
+
 def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTrack:
     s = model.spec
     Q, R = model.Q_of_step(), model.R()
@@ -213,8 +224,10 @@ def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTr
     seconds = time.perf_counter() - t0
     var = np.clip(var[:, :5], 0.0, None)
     var[:, :3] += pv_position_var(model)[:, None]
+    x = x[:, :5].copy()
+    x[:, :3], var[:, :3] = gauge_pressure(x[:, :3], var[:, :3])
     return ObserverTrack(
-        x=x[:, :5], std=np.sqrt(var),
+        x=x, std=np.sqrt(var),
         residual=res.innovation[:, 0], filt=res, smoothed=smooth, seconds=seconds,
     )
 

@@ -44,6 +44,7 @@ from brakethermo.results.laps import (
     lap_folder,
     lap_label,
     lap_name,
+    lap_time_text,
     node_columns,
     temp_text,
 )
@@ -212,6 +213,7 @@ def _colour_range(nodes: np.ndarray, step: float = 50.0) -> tuple[float, float]:
 def _environment() -> Environment:
     env = template_environment(keep_trailing_newline=True)
     env.filters["temp"] = temp_text
+    env.filters["laptime"] = lap_time_text
     return env
 
 
@@ -337,6 +339,11 @@ def write_session_report(
     zones = detect_zones(time, pressure, detection)
     zones_df = zone_table(estimate, speed, pressure, zones, disc.window_c)
     stats = lap_stats(estimate, disc.window_c, node_radii)
+    if session is not None and session.laps:
+        # the beacon's lap time, as inspect, estimate and summary.json give it (the grid's
+        # count of steps differs by up to a step)
+        beacon = {lap.lap: lap.duration_s for lap in session.laps}
+        stats["lap_time_s"] = [beacon.get(int(n), t) for n, t in stats["lap_time_s"].items()]
     stats["zones"] = zones_df.groupby("lap").size().reindex(stats.index, fill_value=0)
     # What the sensors read beats any estimate: a measured spot above the window counts
     # even when the model (e.g. with unmodelled pad asymmetry) keeps its estimate inside.
@@ -351,6 +358,13 @@ def write_session_report(
             stats[f"meas_peak_{s}"] = reading.groupby(laps_col).max().reindex(stats.index)
     for s, above in measured_above.items():
         stats[f"meas_above_{s}_s"] = above
+    # the hottest radius is the estimate's; a reading above it is said beside it
+    meas = [c for c in stats.columns if c.startswith("meas_peak_")]
+    if meas:
+        peaks = stats[meas].astype(float)
+        best = peaks.fillna(-np.inf).idxmax(axis=1)
+        stats["meas_peak_max"] = peaks.max(axis=1)
+        stats["meas_peak_spot"] = best.str.removeprefix("meas_peak_spot")
 
     env = _environment()
     lap_tpl = env.get_template("lap.html.j2")

@@ -42,14 +42,23 @@ from brakethermo.report.mcap_export import (
 PREFIX = "BT_"
 
 
-def _header_comment(source: str, start_epoch_s: float | None) -> str:
-    base = "epoch" if start_epoch_s is not None else "session start"
+def _header_comment(source: str, start_epoch_s: float | None, date: str | None = None) -> str:
+    base = ("epoch" if start_epoch_s is not None else
+            f"session start on {date} (time of day unknown: 00:00 UTC)" if date else
+            "session start")
     props = {"source": source, "time_base": base, "writer": f"brakethermo {__version__}"}
     entries = "".join(
         f'<e name="{k}">{xml_escape(str(v))}</e>' for k, v in props.items()
     )
     text = xml_escape(f"brakethermo {__version__} disc temperature estimate of {source}")
     return f"<HDcomment><TX>{text}</TX><common_properties>{entries}</common_properties></HDcomment>"
+
+
+def _iso_date(text: str | None) -> dt.date | None:
+    try:
+        return dt.date.fromisoformat(str(text).strip()[:10]) if text else None
+    except ValueError:
+        return None
 
 
 def write_estimate_mdf(
@@ -60,6 +69,7 @@ def write_estimate_mdf(
     spot_radii: Sequence[float] = SPOT_RADII_DEFAULT,
     start_epoch_s: float | None = None,
     source: str = "",
+    date: str | None = None,
 ) -> Path:
     """Write an estimate frame to ``path`` as MDF 4.10, atomically.
 
@@ -78,6 +88,9 @@ def write_estimate_mdf(
         Epoch time of grid point 0 when the source log carried absolute time.
     source : str
         Name of the source log, recorded in the header.
+    date : str, optional
+        The session's date (ISO ``YYYY-MM-DD``, from its metadata) when the log carries
+        relative time only: the header starts at 00:00 UTC of that day, and says so.
     """
     from asammdf import MDF, Signal
 
@@ -117,9 +130,15 @@ def write_estimate_mdf(
                 f"1-sigma of {PREFIX}{col}")
 
     mdf = MDF(version="4.10")
-    epoch = 0.0 if start_epoch_s is None else float(start_epoch_s)
-    mdf.header.start_time = dt.datetime.fromtimestamp(epoch, tz=dt.UTC)
-    mdf.header.comment = _header_comment(source, start_epoch_s)
+    day = _iso_date(date) if start_epoch_s is None else None
+    if start_epoch_s is not None:
+        mdf.header.start_time = dt.datetime.fromtimestamp(float(start_epoch_s), tz=dt.UTC)
+    elif day is not None:
+        mdf.header.start_time = dt.datetime.combine(day, dt.time(), tzinfo=dt.UTC)
+    else:
+        mdf.header.start_time = dt.datetime.fromtimestamp(0.0, tz=dt.UTC)
+    mdf.header.comment = _header_comment(source, start_epoch_s,
+                                         day.isoformat() if day else None)
     mdf.append(signals, comment="brakethermo estimate, 10 Hz")
     with atomic_path(path) as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -59,6 +59,15 @@ def temp_text(x: float | None) -> str:
     return "–" if r is None else str(int(math.copysign(math.floor(abs(r) + 0.5), r)))
 
 
+def lap_time_text(seconds: float | None) -> str:
+    """A lap time as every output shows it: ``m:ss.sss`` from the beacon's lap duration."""
+    if seconds is None or not math.isfinite(seconds):
+        return "–"
+    ms = math.floor(float(seconds) * 1000.0 + 0.5)
+    minutes, rest = divmod(ms, 60_000)
+    return f"{minutes}:{rest / 1000.0:06.3f}"
+
+
 def _finite_or_none(x: float) -> float | None:
     return round(float(x), 3) if np.isfinite(x) else None
 
