@@ -59,3 +59,26 @@ def test_a_matching_disc_is_not_made_worse_and_flags_force(races) -> None:
     none = estimate_session(path, EstimateOptions(smoother=False, adapt_kz=False,
                                                   adapt_slipstream=False))
     assert "every online effect" in none.summary["run"]["online_choice"]["rule"]
+
+
+def test_the_race_judges_the_laws_mu_t_a_lap_ahead(races, tmp_path) -> None:
+    """A law carrying a μ(T) far stronger than the race's pads: the race tests the law with
+    and without it, each model a whole lap ahead from its own filtered state, and the
+    decision and its evidence are in the run facts; without the race's say it is kept."""
+    shipped = Path(__file__).parents[1] / "configs" / "hlaw" / "cc-340-8.toml"
+    law = tmp_path / "law.toml"
+    law.write_text(shipped.read_text()
+                   + "\n[effects.friction_temperature]\nbeta = 0.45\nt_mid = 380.0\n")
+    path, _ = races["normal"]
+    auto = estimate_session(path, EstimateOptions(h_law=law, smoother=False))
+    choice = auto.summary["run"]["online_choice"]
+    (tested,) = choice["law_effects_tested"]
+    assert tested["name"] == "without friction_temperature"
+    assert "a whole lap ahead" in tested["test"]
+    assert choice["law_effects_dropped"] == (
+        ["friction_temperature"] if tested["significant"] else [])
+    assert tested["significant"], tested  # μ/μ_nom 0.55..1.45: the race's pads say no
+    used = auto.summary["run"]["effects"]
+    assert "friction_temperature" not in used
+    kept = estimate_session(path, EstimateOptions(h_law=law, smoother=False, online_auto=False))
+    assert "friction_temperature" in kept.summary["run"]["effects"]

@@ -256,6 +256,29 @@ def _scores_view(summary: dict[str, Any] | None) -> dict[str, Any] | None:
     }
 
 
+def _decisions(summary: dict[str, Any] | None) -> list[str]:
+    """The race's own choices (online states, the law's effects kept or dropped), in words."""
+    choice = ((summary or {}).get("run") or {}).get("online_choice") or {}
+    lines = []
+    for row in choice.get("scores", []):
+        lo, hi = row.get("shrink_ci95_pct", [float("nan")] * 2)
+        verdict = "switched on" if row.get("name") in choice.get("chosen", []) else "left off"
+        lines.append(f"online {row.get('name')}: {verdict} — {row.get('test', '')}, shrink"
+                     f" {row.get('shrink_pct', float('nan')):.0f} % (95 % {lo:.0f} to {hi:.0f} %)")
+    for row in choice.get("law_effects_tested", []):
+        name = str(row.get("name", "")).removeprefix("without ")
+        lo, hi = row.get("shrink_ci95_pct", [float("nan")] * 2)
+        verdict = ("dropped" if name in choice.get("law_effects_dropped", []) else
+                   "kept")
+        lines.append(f"the h law's {name}: {verdict} — {row.get('test', '')}, error without it"
+                     f" {-row.get('shrink_pct', float('nan')):+.0f} % (95 % {-hi:+.0f} to"
+                     f" {-lo:+.0f} %)")
+    if choice.get("forced_or_from_law"):
+        lines.append("forced by option or carried by the law: " + ", ".join(
+            f"{k} {'on' if v else 'off'}" for k, v in choice["forced_or_from_law"].items()))
+    return lines
+
+
 def _law_view(summary: dict[str, Any] | None, out_dir: Path) -> dict[str, Any] | None:
     """The h law the estimate used (and its plot when identify-h wrote it here)."""
     run = (summary or {}).get("run", {})
@@ -466,7 +489,8 @@ def write_session_report(
     index = _write_index(
         env, out_dir, name, facts, window, footer, stats, disc,
         extras={"spot_roles": spot_roles, "scores": _scores_view(summary),
-                "law": _law_view(summary, out_dir), "back_href": back_href},
+                "law": _law_view(summary, out_dir), "back_href": back_href,
+                "decisions": _decisions(summary)},
     )  # fmt: skip
     total = _time.perf_counter() - t_start
     return ReportResult(
