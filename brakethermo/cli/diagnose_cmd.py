@@ -47,9 +47,28 @@ def diagnose_command(
     tuning: TuningOpt = None,
     aliases: AliasesOpt = None,
     ambient: AmbientOpt = None,
+    rig: Annotated[
+        str | None,
+        typer.Option(help="Diagnose a rig session: 'ebooster' (found from the channels when"
+                     " not given)."),
+    ] = None,
+    train: Annotated[
+        Path | None,
+        typer.Option(help="Rig: training session whose fit is the reference (else --fit, else"
+                     " the shipped fit)."),
+    ] = None,
+    fit: Annotated[
+        Path | None, typer.Option(help="Rig: a saved training result (TOML).")
+    ] = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """Where the model parts from the disc, which effect causes it, how far the gap shrinks."""
+    """Where the model parts from the disc (or rig), which effect causes it, how far the gap
+    shrinks."""
+    if rig is None and len(sessions) == 1 and not sessions[0].suffix.lower() == ".toml":
+        rig = _detect_rig(sessions[0], aliases)
+    if rig is not None:
+        _diagnose_rig(rig, sessions, out, effects, train, fit, aliases, as_json)
+        return
     from brakethermo.pipelines.diagnose import (
         DiagnoseOptions,
         diagnose,
@@ -92,6 +111,57 @@ def diagnose_command(
         for note in pooled["notes"]:
             console.print(f"  [yellow]note:[/] {escape(note)}")
         console.print(f"wrote {escape(str(pooled_path))}")
+
+
+RIGS = ("ebooster",)
+
+
+def _detect_rig(session: Path, aliases: Path | None) -> str | None:
+    """``ebooster`` when the file holds the booster's channels and no disc temperature."""
+    from brakethermo.errors import BrakethermoError
+    from brakethermo.pipelines.ebooster import load_booster_session
+
+    try:
+        s = load_booster_session(session, aliases)
+    except BrakethermoError:
+        return None
+    return None if any(c.startswith("disc_temp") for c in s.available) else "ebooster"
+
+
+def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
+                  train: Path | None, fit: Path | None, aliases: Path | None,
+                  as_json: bool) -> None:
+    from brakethermo.pipelines.outputs import to_json
+    from brakethermo.pipelines.rig_diagnose import diagnose_booster, write_rig_diagnosis
+
+    if rig not in RIGS:
+        raise ConfigError(f"--rig {rig!r}: diagnose reads rig sessions of {', '.join(RIGS)}"
+                          " (the roller rig, clamp-force and mu-slip pipelines have their own"
+                          " checks but no diagnosis yet)")
+    if len(sessions) != 1:
+        raise ConfigError("a rig diagnosis takes one session at a time")
+    result = diagnose_booster(sessions[0], train_path=train, fit_path=fit, aliases=aliases,
+                              effects=effects)
+    folder = write_rig_diagnosis(result, out)
+    s = result.summary
+    if as_json:
+        print(to_json({**s, "output": str(folder)}))
+        return
+    console.print(f"[bold]{escape(result.stem)}[/] (E-Booster): training p-V curve held-out"
+                  f" RMSE {s['gap']['rmse_mpa']:.3f} MPa, bias {s['gap']['bias_mpa']:+.3f} MPa"
+                  f" ({s['units']}s {s['heldout_units']} held out)")
+    table = Table(title="Effects ranked by held-out shrink", title_justify="left")
+    for col in ("effect", "before MPa", "after MPa", "shrink %", "95 % interval"):
+        table.add_column(col, justify="left" if col == "effect" else "right", no_wrap=True)
+    for e in s["effects"]:
+        lo, hi = e["shrink_ci95_pct"]
+        table.add_row(e["name"], f"{e['rmse_before']:.3f}", f"{e['rmse_after']:.3f}",
+                      f"{e['shrink_pct']:+.1f}", f"{lo:+.0f} … {hi:+.0f}")
+    console.print(table)
+    console.print(f"verdict: [bold]{escape(_verdict_text(s))}[/]")
+    _next_steps(s)
+    console.print(f"wrote {escape(str(folder / 'diagnosis.json'))} and "
+                  f"{escape(str(folder / 'diagnosis' / 'index.html'))}")
 
 
 def _next_steps(s: dict) -> None:

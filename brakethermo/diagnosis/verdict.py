@@ -70,6 +70,9 @@ class CandidateEvidence:
     outputs : tuple of int, optional — the output columns of ``sse`` this candidate is
         scored on (e.g. not the spot its latent values were fitted to); ``None`` = all.
         Two candidates are compared on the outputs both are scored on.
+    n_params : int, optional — parameters the candidate adds; of the effects a set
+        verdict cannot tell apart the one with fewer comes first (a drift whose rate
+        comes out nil is the plain shift). 0: not known, no reordering.
     """
 
     name: str
@@ -78,6 +81,7 @@ class CandidateEvidence:
     separate_by: str = ""
     next_step: str = ""
     outputs: tuple[int, ...] | None = None
+    n_params: int = 0
 
     def total(self, cols: tuple[int, ...] | None = None) -> np.ndarray:
         """(U,) SSE per unit over ``cols`` (default: its own outputs)."""
@@ -272,6 +276,13 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
                 reasons.append(f"{top} does not beat {name} clearly: {d:.1f} points (95 %"
                                f" interval {lo:.1f} to {hi:.1f}{alike})"
                                + (f"; {why}" if why else ""))
+        if len(verdict_set) > 1 and all(by_name[n].n_params for n in verdict_set):
+            simplest = min(verdict_set, key=lambda n: by_name[n].n_params)
+            if by_name[simplest].n_params < by_name[verdict_set[0]].n_params:
+                reasons.append(f"{simplest} first: of those the data cannot tell apart, it"
+                               f" adds the fewest parameters ({by_name[simplest].n_params})")
+                verdict_set.remove(simplest)
+                verdict_set.insert(0, simplest)
         if len(verdict_set) > rule.max_set:
             reasons.append("also significant, not separated: "
                            + ", ".join(verdict_set[rule.max_set:]))

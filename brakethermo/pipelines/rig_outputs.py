@@ -3,8 +3,10 @@
 Every rig command writes ``DIR/<stem>/<pipeline>.parquet`` (``time`` in s from the
 session start, then its named columns, each with its unit in the field metadata),
 ``DIR/<stem>/summary.json`` and a report page ``DIR/<stem>/index.html`` with its PNGs.
-The folder is staged and swapped in whole, so a re-run never leaves files of an
-earlier run beside new ones and a failure leaves the previous results untouched.
+The files are staged and swapped in together; the command owns its parquet, its summary,
+its page and PNGs, so a re-run never leaves files of an earlier run beside new ones, a
+failure leaves the previous results untouched, and what another command wrote into the
+same folder (``diagnose``'s ``diagnosis.json`` and ``diagnosis/``) stays.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from typing import Any
 
 import pandas as pd
 
-from brakethermo.io.atomic import atomic_dir, write_bytes_atomic
+from brakethermo.io.atomic import atomic_entries, write_bytes_atomic
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.report.page import Page, write_page
 
@@ -58,7 +60,9 @@ def write_rig_outputs(
     """
     folder = Path(out) / stem
     meta = {name: {"unit": unit} for name, unit in (units or {}).items() if name in frame}
-    with atomic_dir(folder) as tmp:
+    owned = (f"{pipeline}.parquet", "summary.json", "index.html", "*.png",
+             *(attachments or {}))
+    with atomic_entries(folder, owned) as tmp:
         write_parquet(tmp / f"{pipeline}.parquet", frame, field_meta=meta)
         write_json(tmp / "summary.json", dict(summary))
         write_page(page, tmp)

@@ -1,0 +1,87 @@
+"""The rig diagnosis page: the training p–V curve against this session, and the verdict."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
+
+from brakethermo.report.page import Card, Page, Section, TableBlock
+
+if TYPE_CHECKING:
+    from brakethermo.pipelines.rig_diagnose import RigDiagnosis
+
+
+def _pv_figure(r: RigDiagnosis) -> Figure:
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    step = max(1, r.s2.size // 4000)
+    ax.plot(r.s2[::step], r.measured[::step], ".", ms=1.5, color="#1f77b4", alpha=0.5,
+            label="this session (pressure sensor)")
+    order = np.argsort(r.s2)
+    ax.plot(r.s2[order], r.reference[order], color="k", lw=1.8,
+            label="training p–V curve (reference)")
+    if r.best is not None:
+        ax.plot(r.s2[::step], r.best[::step], ".", ms=1.2, color="#d62728", alpha=0.5,
+                label=f"with {r.summary['verdict']} (fitted on other cycles)")
+    ax.set_xlabel("screw travel s2 [mm]")
+    ax.set_ylabel("master-cylinder pressure [MPa]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, markerscale=5)
+    fig.tight_layout()
+    return fig
+
+
+def _residual_figure(r: RigDiagnosis) -> Figure:
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    t = r.time - r.time[0]
+    ax.plot(t, r.reference - r.measured, lw=0.8, color="k", label="reference")
+    if r.best is not None:
+        ax.plot(t, r.best - r.measured, lw=0.8, color="#d62728",
+                label=f"with {r.summary['verdict']}")
+    ax.axhline(0.0, color="0.5", lw=0.6)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("model − sensor [MPa]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def rig_diagnosis_page(r: RigDiagnosis) -> Page:
+    """The page of an E-Booster diagnosis."""
+    s = r.summary
+    verdict = (" / ".join(s["verdict_set"]) + " (the data cannot tell them apart)"
+               if s["verdict_kind"] == "set" else s["verdict"])
+    top = s["effects"][0] if s["effects"] else None
+    rows = []
+    for e in s["effects"]:
+        lo, hi = e["shrink_ci95_pct"]
+        params = ", ".join(f"{k} {v:+.3g} {e['units'][k]}" for k, v in e["params"].items())
+        rows.append([e["name"], f"{e['rmse_before']:.3f}", f"{e['rmse_after']:.3f}",
+                     f"{e['shrink_pct']:+.1f}", f"{lo:+.0f} … {hi:+.0f}", params,
+                     e["evidence"]])
+    return Page(
+        title=f"E-Booster diagnosis — {r.stem}",
+        subtitle=f"held-out {s['units']}s {s['heldout_units']}; reference: "
+                 + s["reference"]["contains"][0],
+        cards=[
+            Card("verdict", verdict),
+            Card("gap, held out", f"{s['gap']['rmse_mpa']:.3f}", "MPa RMS"),
+            Card("mean bias (model − sensor)", f"{s['gap']['bias_mpa']:+.3f}", "MPa"),
+            Card("best shrink", f"{top['shrink_pct']:+.0f}" if top else "–", "%"),
+        ],
+        sections=[
+            Section("Where the training curve parts from this session",
+                    paragraphs=["Held-out RMSE by phase: " + ", ".join(
+                        f"{k} {v:.3f} MPa" for k, v in s["gap"]["per_phase"].items())],
+                    figures={"pv": _pv_figure(r), "residual": _residual_figure(r)}),
+            Section("Which effect", paragraphs=[s["verdict_rule"], *s["verdict_reasons"]],
+                    tables=[TableBlock(["effect", "before MPa", "after MPa", "shrink %",
+                                        "95 % interval", "fitted", "evidence"], rows)]),
+            Section("Next", paragraphs=list(s["next_steps"]) or ["nothing to do: the"
+                    " training curve holds on this session"]),
+        ],
+        footer=f"brakethermo {s['run']['brakethermo']} · bench {s['run']['bench']}",
+    )

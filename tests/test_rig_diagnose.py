@@ -1,0 +1,71 @@
+"""diagnose on an E-Booster session: the training p-V curve against this session's
+pressures, candidates fitted on some apply cycles and scored on the others."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from brakethermo.cli import app
+from brakethermo.errors import DataError
+from brakethermo.pipelines.rig_diagnose import diagnose_booster
+from brakethermo.sim.ebooster import (
+    PRODUCTION_CHANNELS,
+    EboosterSimConfig,
+    simulate_ebooster,
+    write_ebooster_session,
+)
+
+runner = CliRunner()
+
+
+def _session(tmp_path: Path, shift: float, channels=None) -> Path:
+    sim = simulate_ebooster(EboosterSimConfig("vehicle", seed=77, rate_hz=500.0,
+                                              duration_s=30.0, pv_shift_mm=shift))
+    kw = {} if channels is None else {"channels": channels}
+    return write_ebooster_session(sim, tmp_path / f"eb_{shift}.mcap", **kw)[0]
+
+
+def test_a_moved_pv_curve_is_named_and_sized(tmp_path):
+    s = diagnose_booster(_session(tmp_path, 0.35)).summary
+    assert s["verdict_set"][0] == "pv_shift" and s["verdict_kind"] in ("single", "set")
+    shift = next(e for e in s["effects"] if e["name"] == "pv_shift")
+    assert shift["params"]["shift_mm"] == pytest.approx(0.35, abs=0.1)
+    assert shift["shrink_ci95_pct"][0] > 30.0
+    assert s["gap"]["bias_mpa"] > 0.05  # the training curve reads high on a longer dead stroke
+    assert any("--train" in step for step in s["next_steps"])
+
+
+def test_a_booster_like_its_training_day_gets_none(tmp_path):
+    s = diagnose_booster(_session(tmp_path, 0.0)).summary
+    assert s["verdict"] == "none" and s["verdict_set"] == []
+    # what the candidates would correct is below a pressure sensor's accuracy: said, not named
+    assert set(s["negligible"]) >= {"pv_shift", "hysteresis"}
+    assert all(e["correction_rms_mpa"] < s["negligible_below_mpa"] for e in s["effects"])
+
+
+def test_the_cli_finds_the_rig_and_keeps_the_rig_commands_results(tmp_path):
+    path = _session(tmp_path, 0.35)
+    out = tmp_path / "out"
+    r = runner.invoke(app, ["diagnose", str(path), "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    folder = out / path.stem
+    assert (folder / "diagnosis" / "index.html").is_file()
+    r = runner.invoke(app, ["ebooster", str(path), "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    assert json.loads((folder / "diagnosis.json").read_text())["rig"] == "ebooster"
+    assert (folder / "diagnosis.parquet").is_file() and (folder / "ebooster.parquet").is_file()
+
+
+def test_a_production_session_is_refused_in_one_line(tmp_path):
+    path = _session(tmp_path, 0.0, channels=PRODUCTION_CHANNELS)
+    with pytest.raises(DataError, match="master-cylinder pressure"):
+        diagnose_booster(path)
+    r = runner.invoke(app, ["diagnose", str(path), "--out", str(tmp_path / "o")])
+    assert r.exit_code == 1 and "master-cylinder pressure" in r.output
+    assert "Traceback" not in r.output
+    r = runner.invoke(app, ["diagnose", str(path), "--rig", "emb", "--out", str(tmp_path)])
+    assert r.exit_code == 1 and "ebooster" in r.output
