@@ -150,18 +150,24 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
     console.print(f"[bold]{escape(result.stem)}[/] (E-Booster): training p-V curve held-out"
                   f" RMSE {s['gap']['rmse_mpa']:.3f} MPa, bias {s['gap']['bias_mpa']:+.3f} MPa"
                   f" ({s['units']}s {s['heldout_units']} held out)")
-    table = Table(title="Effects ranked by held-out shrink", title_justify="left")
-    for col in ("effect", "before MPa", "after MPa", "shrink %", "95 % interval"):
-        table.add_column(col, justify="left" if col == "effect" else "right", no_wrap=True)
-    for e in s["effects"]:
-        lo, hi = e["shrink_ci95_pct"]
-        table.add_row(e["name"], f"{e['rmse_before']:.3f}", f"{e['rmse_after']:.3f}",
-                      f"{e['shrink_pct']:+.1f}", f"{lo:+.0f} … {hi:+.0f}")
-    console.print(table)
+    console.print(_effects_table(s["effects"], "MPa", 3))
     console.print(f"verdict: [bold]{escape(_verdict_text(s))}[/]")
     _next_steps(s)
     console.print(f"wrote {escape(str(folder / 'diagnosis.json'))} and "
                   f"{escape(str(folder / 'diagnosis' / 'index.html'))}")
+
+
+def _effects_table(effects: list[dict], unit: str, digits: int) -> Table:
+    """The candidates ranked by held-out shrink, as a console table."""
+    table = Table(title="Effects ranked by held-out shrink", title_justify="left")
+    for col in ("effect", f"before {unit}", f"after {unit}", "shrink %", "95 % interval"):
+        table.add_column(col, justify="left" if col == "effect" else "right", no_wrap=True)
+    for e in effects:
+        lo, hi = e["shrink_ci95_pct"]
+        table.add_row(e["name"], f"{e['rmse_before']:.{digits}f}",
+                      f"{e['rmse_after']:.{digits}f}", f"{e['shrink_pct']:+.1f}",
+                      f"{lo:+.0f} … {hi:+.0f}")
+    return table
 
 
 def _next_steps(s: dict) -> None:
@@ -181,14 +187,7 @@ def _render(result: Any, folder: Path) -> None:  # a DiagnoseResult (imported la
                   f"{s['gap']['rmse_c']:.1f} °C (train laps {s['train_laps']}, held-out "
                   f"{s['heldout_laps']})")
     console.print(escape(s["consistency"]["summary"]))
-    table = Table(title="Effects ranked by held-out shrink", title_justify="left")
-    for col in ("effect", "before °C", "after °C", "shrink %", "95 % interval"):
-        table.add_column(col, justify="left" if col == "effect" else "right", no_wrap=True)
-    for e in s["effects"]:
-        lo, hi = e["shrink_ci95_pct"]
-        table.add_row(e["name"], f"{e['rmse_before']:.1f}", f"{e['rmse_after']:.1f}",
-                      f"{e['shrink_pct']:+.1f}", f"{lo:+.0f} … {hi:+.0f}")
-    console.print(table)
+    console.print(_effects_table(s["effects"], "°C", 1))
     for e in s["effects"][:3]:
         console.print(f"  {e['name']}: {escape(e['evidence'])}", highlight=False)
     for e in s.get("not_identifiable_from_one_spot", []):
