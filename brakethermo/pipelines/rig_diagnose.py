@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import itertools
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -41,7 +40,6 @@ from brakethermo.diagnosis.verdict import (
     unit_sse,
 )
 from brakethermo.errors import ConfigError, DataError
-from brakethermo.io.session import Session
 from brakethermo.models.booster_effects import BOOSTER_EFFECTS, BoosterContext
 from brakethermo.models.ebooster import BoosterFit, load_fit
 from brakethermo.pipelines.ebooster import (
@@ -54,6 +52,7 @@ from brakethermo.pipelines.ebooster import (
     train,
 )
 from brakethermo.results.ebooster import PRESSURES
+from brakethermo.results.rig_diagnosis import RigDiagnosis
 from brakethermo.rigs.booster import pv_pressure
 from brakethermo.rigs.booster_datasheet import load_booster
 
@@ -67,23 +66,6 @@ RULE = VerdictRule(min_shrink_pct=10.0)
 # sensor's offset between two sessions: it is reported, never named.
 SENSOR_ACCURACY_MPA = 0.05
 RIG_FILES = ("diagnosis.json", "diagnosis.parquet", "diagnosis")
-
-
-@dataclass
-class RigDiagnosis:
-    """What ``diagnose`` found on a rig session; :attr:`summary` is ``diagnosis.json``."""
-
-    session: Session
-    summary: dict[str, Any]
-    time: np.ndarray
-    s2: np.ndarray
-    measured: np.ndarray
-    reference: np.ndarray
-    best: np.ndarray | None
-
-    @property
-    def stem(self) -> str:
-        return self.session.path.stem
 
 
 def _speed(s2: np.ndarray, dt: float) -> np.ndarray:

@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 from brakethermo.report.page import Card, Page, Section, TableBlock
 
 if TYPE_CHECKING:
-    from brakethermo.pipelines.rig_diagnose import RigDiagnosis
+    from brakethermo.results.rig_diagnosis import RigDiagnosis
 
 
 def _pv_figure(r: RigDiagnosis) -> Figure:
