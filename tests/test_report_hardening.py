@@ -130,7 +130,7 @@ def test_session_page_says_which_spot_fed_the_filter_and_shows_self_scores(repor
     assert "How well the estimate did" in index and "0.29x" in index
     assert "over 7 of 8 braking zones" in index and "spot4 97 %" in index
     assert "identified from this session by identify-h" in index
-    assert 'alt="identified h(V) law' in index
+    assert 'alt="the h(V) law and the straights it rests on' in index
     assert '<a href="../index.html">&larr; all sessions</a>' in index
     lap = (out / "lap_01" / "index.html").read_text()
     assert "held out" in lap and 'href="../index.html"' in lap
