@@ -13,7 +13,9 @@
 
 from __future__ import annotations
 
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -411,10 +413,12 @@ def validate_filter(
     sigma_temp0 = load_tuning(options.tuning)[0].sigma_temp
     grid = [(sigma, factor * sigma_temp0, adapt) for sigma in SIGMA_CROWN_GRID
             for factor in NODE_NOISE_FACTORS for adapt in (True, False)]
-    for sigma, sigma_temp, adapt in grid:
-        variant = replace(calibration, sigma_crown=sigma, adapt_power=adapt,
-                          sigma_temp=sigma_temp)
-        e, s, noise = _held_out(session, variant, options, spot)
+    variants = [replace(calibration, sigma_crown=sigma, adapt_power=adapt,
+                        sigma_temp=sigma_temp) for sigma, sigma_temp, adapt in grid]
+    # the estimator's compiled kernels release the GIL: the variants share the cores
+    with ThreadPoolExecutor(os.cpu_count() or 1) as pool:
+        held = list(pool.map(lambda v: _held_out(session, v, options, spot), variants))
+    for (sigma, sigma_temp, adapt), (e, s, noise) in zip(grid, held, strict=True):
         key = (f"sigma_crown={sigma:g}, sigma_temp={sigma_temp:g},"
                f" adapt_power={str(adapt).lower()}")
         # Held-out predictive log-likelihood per reading: the process noise that
