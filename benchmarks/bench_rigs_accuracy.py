@@ -68,14 +68,20 @@ def clamp(seeds: int, d: Path) -> None:
         rows.setdefault("nominal KF / ML fusion", []).append(
             kf / rows["nominal ml_fusion (kN)"][-1]
         )
+        rows.setdefault("KF fell back to one input (share of seeds)", []).append(
+            float(nom.est.kf_source != "kf"))
         worn = cf.clamp_force(wv, tr, retrain_path=wt)
         stale = rmse(worn.est.kf / 1e3, t_wv)
         fresh = rmse(worn.est_retrained.kf / 1e3, t_wv)
         rows.setdefault("worn KF not re-trained (kN)", []).append(stale)
         rows.setdefault("worn KF re-trained on 20 s (kN)", []).append(fresh)
         rows.setdefault("worn re-trained / nominal KF", []).append(fresh / kf)
+        rows.setdefault("worn torque balance not re-trained (kN)", []).append(
+            rmse(worn.est.torque_balance / 1e3, t_wv))
         hot = cf.clamp_force(hv, tr)
         rows.setdefault("heating KF (kN)", []).append(rmse(hot.est.kf / 1e3, t_hv))
+        rows.setdefault("heating torque balance (kN)", []).append(
+            rmse(hot.est.torque_balance / 1e3, t_hv))
         rows.setdefault("heating adaptive KF (kN)", []).append(rmse(hot.est.adaptive / 1e3, t_hv))
         rows.setdefault("heating final stiffness factor", []).append(
             float(hot.est.stiffness_factor[-1])

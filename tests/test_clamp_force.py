@@ -111,26 +111,31 @@ def test_targets_on_unseen_sessions(trained) -> None:
         thw, cw, Fw = _arrays(simulate_emb("worn", seed=seed + 50, duration_s=20.0))
         worn = simulate_emb("worn", seed=seed + 60, duration_s=30.0)
         thv, cv, _ = _arrays(worn)
-        stale = rmse(estimate(trained, thv, cv, TS).kf, _truth(worn))
+        e_stale = estimate(trained, thv, cv, TS)
+        stale = rmse(e_stale.kf, _truth(worn))
         fresh = rmse(
             estimate(train(thw, cw, Fw, TS, structure=trained), thv, cv, TS).kf, _truth(worn)
         )
         # the stale models' fixed filter is over-confident on worn pads (mean NIS ~60), so
-        # the matched filter leans on the torque balance (it was 3x worse than re-trained)
-        assert fresh < 0.5 * stale
+        # the session reports the adaptive-stiffness filter: below both of its inputs (the
+        # noise-matched filter stayed above the torque balance), re-training still halves it
+        assert e_stale.kf_switched
+        assert stale < min(rmse(e_stale.torque_balance, _truth(worn)),
+                           rmse(e_stale.stiffness, _truth(worn)))
+        assert fresh < 0.6 * stale
         ratios.append(fresh / kf)
     assert np.mean(ratios) <= 1.3
     assert max(ratios) <= 1.45
     # heating pads: the fixed filter is over-confident there, the reported one switches to
-    # matched noise and stays within 10 % of its best input (it was 2.3x the torque balance);
-    # the adaptive-stiffness filter holds the error down too
+    # the adaptive-stiffness filter, below its best input (the fixed one was 2.3x the torque
+    # balance)
     hot = simulate_emb("heating", seed=6171, duration_s=40.0)
     th_h, c_h, _ = _arrays(hot)
     eh = estimate(trained, th_h, c_h, TS)
     truth_h = _truth(hot)
-    assert eh.kf_matched and eh.kf_paper_nis > 1.5
+    assert eh.kf_switched and eh.kf_paper_nis > 1.5
     best = min(rmse(eh.stiffness, truth_h), rmse(eh.torque_balance, truth_h))
-    assert rmse(eh.kf, truth_h) <= 1.1 * best  # 431 vs 410 N here
+    assert rmse(eh.kf, truth_h) < best
     assert rmse(eh.kf, truth_h) < 0.8 * rmse(eh.kf_paper, truth_h)
     assert rmse(eh.adaptive, truth_h) < 1.3 * kf
 

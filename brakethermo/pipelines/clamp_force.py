@@ -24,7 +24,14 @@ import pandas as pd
 from brakethermo.errors import DataError
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
-from brakethermo.models.clamp_force import ClampForceEstimates, ClampForceModels, estimate, train
+from brakethermo.models.clamp_force import (
+    ClampForceEstimates,
+    ClampForceModels,
+    FusionCheck,
+    estimate,
+    fusion_check,
+    train,
+)
 from brakethermo.report.page import Card, Page, Section, TableBlock
 from brakethermo.rigs.emb import rmse
 
@@ -97,6 +104,7 @@ class ClampForceResult:
     retrain: EmbData | None
     models_retrained: ClampForceModels | None
     est_retrained: ClampForceEstimates | None
+    check: FusionCheck | None = None  # the fusion against its inputs, held out in training
 
 
 def clamp_force(
@@ -111,13 +119,17 @@ def clamp_force(
     tr = load_emb(train_path, need_sensor=True, role="training", aliases=aliases)
     data = load_emb(path, need_sensor=False, role="estimation", aliases=aliases)
     models = train(tr.theta, tr.current, tr.force, tr.ts)
-    est = estimate(models, data.theta, data.current, data.ts, factor_walk=factor_walk)
+    check = fusion_check(tr.theta, tr.current, tr.force, tr.ts, factor_walk=factor_walk)
+    est = estimate(models, data.theta, data.current, data.ts, factor_walk=factor_walk,
+                   fallback=check)
     rt = mr = er = None
     if retrain_path is not None:
         rt = load_emb(retrain_path, need_sensor=True, role="re-training", aliases=aliases)
         mr = train(rt.theta, rt.current, rt.force, rt.ts, structure=models)
-        er = estimate(mr, data.theta, data.current, data.ts, factor_walk=factor_walk)
-    return ClampForceResult(data, tr, models, est, rt, mr, er)
+        er = estimate(mr, data.theta, data.current, data.ts, factor_walk=factor_walk,
+                      fallback=fusion_check(rt.theta, rt.current, rt.force, rt.ts,
+                                            factor_walk=factor_walk) or check)
+    return ClampForceResult(data, tr, models, est, rt, mr, er, check)
 
 
 def estimator_series(est: ClampForceEstimates) -> dict[str, np.ndarray]:
@@ -221,12 +233,21 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         "rmse_kn_adaptive": r["kf_adaptive"],
         "estimate_kn": estimate_figures(res.est),
         "rmse_kn_kf_paper": r["kf_paper"],
-        "kf_noise": (f"matched to the innovations: the fixed filter's mean NIS is"
+        "kf_noise": (f"the adaptive-stiffness filter: the fixed filter's mean NIS is"
                      f" {res.est.kf_paper_nis:.2f}, its stiffness model no longer holds for"
-                     " these pads" if res.est.kf_matched else
+                     " these pads" if res.est.kf_switched else
                      f"the paper's fixed Q (its mean NIS {res.est.kf_paper_nis:.2f} is"
                      " consistent)"),
         "kf_paper_mean_nis": res.est.kf_paper_nis,
+        "kf_source": res.est.kf_source,
+        "fusion_check": None if res.check is None else {
+            "heldout_rmse_kn": {k: v / 1e3 for k, v in res.check.rmse_n.items()},
+            "best_input": res.check.best_single,
+            "fusion_holds": res.check.fusion_holds,
+            "what": "trained on one half of the training session, estimated on the other,"
+                    " both ways; where the filter did worse than its best input, kf is that"
+                    " input (its band the held-out RMSE)",
+        },
         "kf_vs_stiffness_pct": None if force is None else 100.0 * (1 - r["kf"] / r["stiffness"]),
         "stiffness_factor_final": float(res.est.stiffness_factor[-1]),
         "fitted": _model_dict(res.models, res.train.session.path),
