@@ -79,3 +79,10 @@ def test_rig_registry_resolves_each_config_on_demand(rig: str) -> None:
     cls = RIG_SIMULATORS[rig].config
     assert dataclasses.is_dataclass(cls) and cls.__module__ == RIG_SIMULATORS[rig].module
     assert isinstance(rig_config(rig, [], seed=3), cls)
+
+
+def test_the_help_names_every_format_the_readers_take() -> None:
+    from brakethermo.cli._options import SESSION_FORMATS
+    from brakethermo.io.formats import SUFFIXES
+
+    assert all(s in SESSION_FORMATS for s in SUFFIXES), SESSION_FORMATS

@@ -31,6 +31,10 @@ def positive_finite(value: float) -> float:
     return value
 
 
+# what the readers take (io.formats.SUFFIXES; a test keeps the two in step without
+# importing every reader at start-up)
+SESSION_FORMATS = ".mcap, .parquet, .csv, .mf4/.mdf/.mf3 (MDF), .xrk/.xrz (AiM)"
+
 OutDir = Annotated[Path, typer.Option("--out", "-o", help="Output folder.")]
 DiscOpt = Annotated[str | None, typer.Option(help="Disc datasheet id or TOML file.")]
 TuningOpt = Annotated[Path | None, typer.Option(help="Filter tuning TOML.")]

@@ -13,7 +13,14 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
-from brakethermo.cli._options import AliasesOpt, JsonOpt, LegacyReportOpt, NodesOpt, NoReportsOpt
+from brakethermo.cli._options import (
+    SESSION_FORMATS,
+    AliasesOpt,
+    JsonOpt,
+    LegacyReportOpt,
+    NodesOpt,
+    NoReportsOpt,
+)
 
 if TYPE_CHECKING:
     from brakethermo.pipelines.batch import BatchOptions, BatchResult
@@ -73,7 +80,7 @@ def batch(
     folder: Annotated[
         Path,
         typer.Argument(
-            metavar="FOLDER", help="Folder searched recursively for .mcap, .parquet, .csv sessions."
+            metavar="FOLDER", help=f"Folder searched recursively for sessions ({SESSION_FORMATS})."
         ),
     ],
     out: Annotated[

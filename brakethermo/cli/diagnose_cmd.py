@@ -11,7 +11,15 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
-from brakethermo.cli._options import AliasesOpt, AmbientOpt, DiscOpt, JsonOpt, OutDir, TuningOpt
+from brakethermo.cli._options import (
+    SESSION_FORMATS,
+    AliasesOpt,
+    AmbientOpt,
+    DiscOpt,
+    JsonOpt,
+    OutDir,
+    TuningOpt,
+)
 from brakethermo.errors import ConfigError
 from brakethermo.models.effects import EFFECT_NAMES
 
@@ -29,7 +37,8 @@ def _laps(text: str | None) -> tuple[int, ...] | None:
 def diagnose_command(
     sessions: Annotated[
         list[Path],
-        typer.Argument(help="Four-spot test session file(s) (or a single-spot race); several"
+        typer.Argument(help=f"Four-spot test session file(s) ({SESSION_FORMATS}), a"
+                       " single-spot race or an E-Booster bench session; several"
                        " sessions of one bike and disc are also pooled."),
     ],
     out: OutDir = Path("out"),

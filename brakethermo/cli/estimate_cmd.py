@@ -12,6 +12,7 @@ from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
 from brakethermo.cli._options import (
+    SESSION_FORMATS,
     AliasesOpt,
     AmbientOpt,
     DiscOpt,
@@ -127,7 +128,7 @@ def preflight(
 
 @app.command("estimate")
 def estimate_command(
-    session: Annotated[Path, typer.Argument(help="Session file (.mcap, .parquet, .csv).")],
+    session: Annotated[Path, typer.Argument(help=f"Session file ({SESSION_FORMATS}).")],
     out: OutDir = Path("out"),
     spot: Annotated[int, typer.Option(min=1, max=4, help="Spot used as measurement.")] = 3,
     h_law: Annotated[

@@ -11,6 +11,7 @@ from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
 from brakethermo.cli._options import (
+    SESSION_FORMATS,
     AliasesOpt,
     AmbientOpt,
     DiscOpt,
@@ -23,7 +24,9 @@ from brakethermo.cli._options import (
 
 @app.command("identify-h")
 def identify_command(
-    session: Annotated[Path, typer.Argument(help="Four-spot test session file.")],
+    session: Annotated[
+        Path, typer.Argument(help=f"Four-spot test session file ({SESSION_FORMATS}).")
+    ],
     out: OutDir = Path("out"),
     nodes: NodesOpt = None,
     structure: Annotated[

@@ -65,15 +65,22 @@ def _render(session: Session) -> None:
 
     found = resolve(session.aliases, session.available)
     channels = Table(title=escape(f"{session.path.name} ({session.format}): channels"),
-                     title_justify="left")
+                     title_justify="left",
+                     caption="source '=': logged under the canonical name; gaps: count,"
+                             " then the longest (s) and where it starts (t, s)",
+                     caption_justify="left")
     channels.add_column("channel", no_wrap=True)
-    channels.add_column("source", overflow="fold")
+    channels.add_column("source", overflow="fold", min_width=6)
     channels.add_column("unit", no_wrap=True)
     for col in ("rate Hz", "samples", "gaps", "spikes"):
-        channels.add_column(col, justify="right", no_wrap=True)
+        channels.add_column(col, justify="right", no_wrap=col != "gaps")
     for c in session.channels.values():
-        gap_text = "-" if not c.gaps else f"{len(c.gaps)} ({sum(d for _, d in c.gaps):.1f} s)"
-        channels.add_row(c.name, escape(c.source), escape(c.unit), f"{c.rate_hz:.1f}",
+        gap_text = "-"
+        if c.gaps:
+            start, longest = max(c.gaps, key=lambda g: g[1])
+            gap_text = f"{len(c.gaps)}: {longest:.1f} @ {start:.1f}"
+        source = "=" if c.source == c.name else escape(c.source)
+        channels.add_row(c.name, source, escape(c.unit), f"{c.rate_hz:.1f}",
                          str(c.samples), gap_text, str(c.spikes))
     for name, value in session.constants.items():
         channels.add_row(name, escape(found.get(name, "")), si_unit(name), "once",

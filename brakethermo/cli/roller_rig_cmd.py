@@ -9,7 +9,7 @@ import typer
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
-from brakethermo.cli._options import AliasesOpt, JsonOpt, OutDir
+from brakethermo.cli._options import SESSION_FORMATS, AliasesOpt, JsonOpt, OutDir
 from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS
 
 if TYPE_CHECKING:
@@ -53,7 +53,7 @@ def render(result: RollerRigResult, folder: Path) -> None:
 
 @app.command("roller-rig")
 def roller_rig_cmd(
-    session: Annotated[Path, typer.Argument(help="Roller-rig session (.mcap, .parquet, .csv).")],
+    session: Annotated[Path, typer.Argument(help=f"Roller-rig session ({SESSION_FORMATS}).")],
     out: OutDir = Path("out"),
     r0: Annotated[
         list[float] | None,

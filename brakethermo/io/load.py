@@ -212,9 +212,11 @@ def load_session(
         )
         if res.gaps:
             total = sum(d for _, d in res.gaps)
+            start, longest = max(res.gaps, key=lambda g: g[1])
             warnings.append(
                 f"channel '{canonical}' ({src.name}): {len(res.gaps)} gap(s) longer than"
-                f" {gap_limit_s:g} s left empty, {total:.1f} s in total"
+                f" {gap_limit_s:g} s left empty, {total:.1f} s in total (the longest"
+                f" {longest:.1f} s from t = {start:.1f} s)"
             )
 
     if "lap_beacon" in found:
