@@ -35,7 +35,7 @@ def test_a_moved_pv_curve_is_named_and_sized(tmp_path):
     shift = next(e for e in s["effects"] if e["name"] == "pv_shift")
     assert shift["params"]["shift_mm"] == pytest.approx(0.35, abs=0.1)
     assert shift["shrink_ci95_pct"][0] > 30.0
-    assert s["gap"]["bias_mpa"] > 0.05  # the training curve reads high on a longer dead stroke
+    assert s["gap"]["bias"] > 0.05  # the training curve reads high on a longer dead stroke
     assert any("--train" in step for step in s["next_steps"])
 
 
@@ -44,7 +44,7 @@ def test_a_booster_like_its_training_day_gets_none(tmp_path):
     assert s["verdict"] == "none" and s["verdict_set"] == []
     # what the candidates would correct is below a pressure sensor's accuracy: said, not named
     assert set(s["negligible"]) >= {"pv_shift", "hysteresis"}
-    assert all(e["correction_rms_mpa"] < s["negligible_below_mpa"] for e in s["effects"])
+    assert all(e["correction_rms"] < s["negligible_below"] for e in s["effects"])
 
 
 def test_the_cli_finds_the_rig_and_keeps_the_rig_commands_results(tmp_path):
@@ -67,5 +67,40 @@ def test_a_production_session_is_refused_in_one_line(tmp_path):
     r = runner.invoke(app, ["diagnose", str(path), "--out", str(tmp_path / "o")])
     assert r.exit_code == 1 and "master-cylinder pressure" in r.output
     assert "Traceback" not in r.output
-    r = runner.invoke(app, ["diagnose", str(path), "--rig", "emb", "--out", str(tmp_path)])
+    r = runner.invoke(app, ["diagnose", str(path), "--rig", "tyre", "--out", str(tmp_path)])
     assert r.exit_code == 1 and "ebooster" in r.output
+
+
+@pytest.fixture(scope="module")
+def caliper(tmp_path_factory):
+    from brakethermo.sim.emb import simulate_emb, write_emb_simulation
+
+    d = tmp_path_factory.mktemp("emb")
+    tr = write_emb_simulation(simulate_emb("nominal", seed=7101, duration_s=40), d / "tr.mcap")
+    runs = {name: write_emb_simulation(simulate_emb(name, seed=seed, duration_s=40),
+                                       d / f"{name}.mcap")[0]
+            for name, seed in (("nominal", 7102), ("worn", 7103), ("heating", 7104))}
+    return tr[0], runs
+
+
+@pytest.mark.parametrize("pads, verdict", [("nominal", "none"), ("worn", "gap_shift"),
+                                           ("heating", "stiffness_drift")])
+def test_the_caliper_diagnosis_names_what_the_pads_did(caliper, pads, verdict):
+    """Worn pads move the contact angle (the stiffness curve shifts), heating pads soften
+    through the session (the scale drifts); the trained pads are 'none'."""
+    from brakethermo.pipelines.rig_diagnose import diagnose_emb
+
+    train_path, runs = caliper
+    s = diagnose_emb(runs[pads], train_path=train_path).summary
+    assert s["verdict"] == verdict and s["verdict_kind"] in ("single", "none")
+    assert s["rig"] == "emb" and s["unit"] == "kN"
+
+
+def test_the_cli_finds_the_caliper_and_needs_its_training(caliper, tmp_path):
+    train_path, runs = caliper
+    r = runner.invoke(app, ["diagnose", str(runs["worn"]), "--out", str(tmp_path)])
+    assert r.exit_code == 1 and "--train" in r.output
+    r = runner.invoke(app, ["diagnose", str(runs["worn"]), "--train", str(train_path),
+                            "--out", str(tmp_path), "--json"])
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.output)["verdict"] == "gap_shift"

@@ -122,44 +122,62 @@ def diagnose_command(
         console.print(f"wrote {escape(str(pooled_path))}")
 
 
-RIGS = ("ebooster",)
+RIGS = ("ebooster", "emb")
 
 
 def _detect_rig(session: Path, aliases: Path | None) -> str | None:
-    """``ebooster`` when the file holds the booster's channels and no disc temperature."""
+    """The rig a session comes from, from its channels (None: a disc session)."""
     from brakethermo.errors import BrakethermoError
-    from brakethermo.pipelines.ebooster import load_booster_session
+    from brakethermo.io.load import load_session
 
     try:
-        s = load_booster_session(session, aliases)
+        s = load_session(session, rate_hz=None, aliases=aliases, channels=(
+            "pushrod_displacement", "reaction_disk_delta", "motor_angle", "motor_current"))
     except BrakethermoError:
         return None
-    return None if any(c.startswith("disc_temp") for c in s.available) else "ebooster"
+    if any(c.startswith("disc_temp") for c in s.available):
+        return None
+    if s.has("pushrod_displacement") and s.has("reaction_disk_delta"):
+        return "ebooster"
+    if s.has("motor_angle") and s.has("motor_current"):
+        return "emb"
+    return None
 
 
 def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
                   train: Path | None, fit: Path | None, aliases: Path | None,
                   as_json: bool) -> None:
     from brakethermo.pipelines.outputs import to_json
-    from brakethermo.pipelines.rig_diagnose import diagnose_booster, write_rig_diagnosis
+    from brakethermo.pipelines.rig_diagnose import (
+        diagnose_booster,
+        diagnose_emb,
+        write_rig_diagnosis,
+    )
 
     if rig not in RIGS:
         raise ConfigError(f"--rig {rig!r}: diagnose reads rig sessions of {', '.join(RIGS)}"
-                          " (the roller rig, clamp-force and mu-slip pipelines have their own"
-                          " checks but no diagnosis yet)")
+                          " (the roller-rig and mu-slip pipelines have their own checks but no"
+                          " diagnosis yet)")
     if len(sessions) != 1:
         raise ConfigError("a rig diagnosis takes one session at a time")
-    result = diagnose_booster(sessions[0], train_path=train, fit_path=fit, aliases=aliases,
-                              effects=effects)
+    if rig == "emb":
+        if train is None:
+            raise ConfigError("--rig emb needs --train SESSION: the caliper session the"
+                              " stiffness model is trained on (with the clamp-force sensor)")
+        result = diagnose_emb(sessions[0], train_path=train, aliases=aliases, effects=effects)
+    else:
+        result = diagnose_booster(sessions[0], train_path=train, fit_path=fit,
+                                  aliases=aliases, effects=effects)
     folder = write_rig_diagnosis(result, out)
     s = result.summary
     if as_json:
         print(to_json({**s, "output": str(folder)}))
         return
-    console.print(f"[bold]{escape(result.stem)}[/] (E-Booster): training p-V curve held-out"
-                  f" RMSE {s['gap']['rmse_mpa']:.3f} MPa, bias {s['gap']['bias_mpa']:+.3f} MPa"
+    u = s["unit"]
+    console.print(f"[bold]{escape(result.stem)}[/] ({rig}): the trained relation's held-out"
+                  f" RMSE {s['gap']['rmse']:.3f} {u}, bias {s['gap']['bias']:+.3f} {u}"
                   f" ({s['units']}s {s['heldout_units']} held out)")
-    console.print(_effects_table(s["effects"], "MPa", 3))
+    console.print(_effects_table(s["effects"], u, 3))
     console.print(f"verdict: [bold]{escape(_verdict_text(s))}[/]")
     _next_steps(s)
     console.print(f"wrote {escape(str(folder / 'diagnosis.json'))} and "

@@ -1,29 +1,33 @@
-"""``diagnose`` on an E-Booster session: where the training p–V curve parts from this
-session's pressures, which unmodelled effect causes it, and how far the gap shrinks — on
+"""``diagnose`` on a rig session: where the rig's trained relation parts from this
+session's sensor, which unmodelled effect causes it, and how far the gap shrinks — on
 held-out apply cycles, with the same verdict engine as the disc.
 
-1. **Reference model**: the p–V curve of the training session (``--train``, ``--fit`` or
-   the shipped fit), as the observer uses it: p_m = f(s2). Nothing of it is refitted here:
-   the question is whether this session's booster still follows the training day's.
-2. **Split**: the session's apply cycles (the screw leaving rest and returning)
+Rigs: the E-Booster (the training p–V curve against the master-cylinder pressure) and the
+EMB caliper (the trained dynamic stiffness, eq. 6, against the clamp-force sensor).
+
+1. **Reference model**: the rig's relation from its training session, as its estimator
+   uses it. Nothing of it is refitted here: the question is whether this session's rig
+   still follows the training day's.
+2. **Split**: the session's apply cycles (the input leaving rest and returning)
    alternate between fitting and held out; a session of fewer than
    :data:`MIN_CYCLES` cycles is cut into :data:`BLOCK_S` blocks instead.
-3. **Which**: each candidate of :mod:`brakethermo.models.booster_effects` fitted on the
+3. **Which**: each candidate of :mod:`brakethermo.models.rig_effects` fitted on the
    fitting cycles, scored on the held-out ones (RMSE shrink, bootstrap over cycles).
 4. **Verdict**: :func:`brakethermo.diagnosis.verdict.decide` — a single name only when it
    beats every other clearly and is no look-alike, else the set, or ``"none"``. A
-   candidate whose correction is smaller than a pressure sensor's accuracy (or twice the
-   training curve's own residual) is reported but never named: between two sessions the
-   sensor's own offset could do as much.
+   candidate whose correction is smaller than the output sensor's accuracy (or twice the
+   trained relation's own residual) is reported but never named: between two sessions
+   the sensor's own offset could do as much.
 
-Needs the master-cylinder pressure channel (a bench or validation session): a production
-session without it cannot be compared with anything and is refused with one line.
+Needs the output's sensor (a bench or validation session): a production session without
+it cannot be compared with anything and is refused with one line.
 """
 
 from __future__ import annotations
 
 import itertools
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -40,8 +44,9 @@ from brakethermo.diagnosis.verdict import (
     unit_sse,
 )
 from brakethermo.errors import ConfigError, DataError
-from brakethermo.models.booster_effects import BOOSTER_EFFECTS, BoosterContext
+from brakethermo.io.session import Session
 from brakethermo.models.ebooster import BoosterFit, load_fit
+from brakethermo.models.rig_effects import BOOSTER_EFFECTS, EMB_EFFECTS, RigContext, RigEffect
 from brakethermo.pipelines.ebooster import (
     MM,
     MPA,
@@ -58,14 +63,28 @@ from brakethermo.rigs.booster_datasheet import load_booster
 
 MIN_CYCLES = 12  # apply cycles for a cycle-wise split (6 held out); fewer: time blocks
 BLOCK_S = 1.0  # s, unit length when the session holds too few cycles
-REST_MM = 0.5  # mm of screw travel below which the booster is at rest
-SPEED_WINDOW_S = 0.02  # s, moving average of the screw speed (encoder quantisation)
+SPEED_WINDOW_S = 0.02  # s, moving average of the input's rate (encoder quantisation)
 RULE = VerdictRule(min_shrink_pct=10.0)
-# MPa: a pressure transducer's accuracy (0.5 % of a 10 MPa range). A correction smaller
-# than this, or than twice the training curve's own residual, could as well be the
-# sensor's offset between two sessions: it is reported, never named.
-SENSOR_ACCURACY_MPA = 0.05
 RIG_FILES = ("diagnosis.json", "diagnosis.parquet", "diagnosis")
+
+
+@dataclass(frozen=True)
+class RigCase:
+    """One rig's diagnosis problem, in the rig's own units."""
+
+    rig: str
+    session: Session
+    effects: dict[str, RigEffect]
+    ctx: RigContext
+    measured: np.ndarray
+    rest: float  # input below which the rig is at rest
+    floor: float  # correction size below which a candidate is never named
+    unit: str  # of the output
+    input_name: str
+    input_unit: str
+    reference_text: str
+    reference_fit: dict[str, Any]
+    next_step: Any  # callable(name) -> str
 
 
 def _speed(s2: np.ndarray, dt: float) -> np.ndarray:
@@ -75,25 +94,24 @@ def _speed(s2: np.ndarray, dt: float) -> np.ndarray:
     return np.gradient(smooth, dt)
 
 
-def apply_units(s2: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, str]:
+def apply_units(x: np.ndarray, t: np.ndarray, rest: float) -> tuple[np.ndarray, str]:
     """Unit id per sample (-1 at rest) and what a unit is."""
-    active = s2 > REST_MM
+    active = x > rest
     starts = np.flatnonzero(np.diff(active.astype(np.int8)) == 1) + 1
     if active[0]:
         starts = np.r_[0, starts]
     if starts.size >= MIN_CYCLES:
-        ids = np.searchsorted(starts, np.arange(s2.size), side="right") - 1
+        ids = np.searchsorted(starts, np.arange(x.size), side="right") - 1
         return np.where(active & (ids >= 0), ids, -1), "apply cycle"
     blocks = np.floor((t - t[0]) / BLOCK_S).astype(int)
     return np.where(active, blocks, -1), f"{BLOCK_S:g} s block"
 
 
-def _fit_effect(name: str, ctx: BoosterContext, p: np.ndarray, mask: np.ndarray
-                ) -> np.ndarray:
-    e = BOOSTER_EFFECTS[name]
-    sol = least_squares(lambda th: (e.predict(th, ctx) - p)[mask], np.array(e.start),
+def _fit_effect(e: RigEffect, ctx: RigContext, y: np.ndarray, mask: np.ndarray,
+                scale: float) -> np.ndarray:
+    sol = least_squares(lambda th: (e.predict(th, ctx) - y)[mask], np.array(e.start),
                         bounds=(np.array(e.lower), np.array(e.upper)), method="trf",
-                        loss="soft_l1", f_scale=0.05)
+                        loss="soft_l1", f_scale=scale)
     return sol.x
 
 
@@ -108,7 +126,7 @@ def diagnose_booster(
 ) -> RigDiagnosis:
     """Diagnose an E-Booster session with a pressure sensor (module docstring)."""
     t_start = time.perf_counter()
-    names = _effect_names(effects)
+    names = _effect_names(effects, BOOSTER_EFFECTS, "E-Booster")
     spec = load_booster(bench)
     fit: BoosterFit = (train(train_path, spec, aliases) if train_path is not None
                        else load_fit(fit_path or default_fit_path()))
@@ -121,40 +139,99 @@ def diagnose_booster(
             " them (a production session can only be observed: brakethermo ebooster)",
             path=session.path, channel=channel)
     s2 = _series(session, S2, MM, gaps=False)
-    p = _series(session, channel, MPA, gaps=True)
-    t = session.time - session.time[0]
     coeffs = np.array(fit.pv_coeffs)
-    ctx = BoosterContext(s2, _speed(s2, session.dt), t,
-                         lambda s: pv_pressure(s, coeffs, fit.stroke_mm))
-    units, unit_kind = apply_units(s2, t)
-    units = np.where(np.isfinite(p), units, -1)
+    case = RigCase(
+        "ebooster", session, {n: BOOSTER_EFFECTS[n] for n in names},
+        RigContext(s2, _speed(s2, session.dt), session.time - session.time[0],
+                   lambda s: pv_pressure(s, coeffs, fit.stroke_mm)),
+        _series(session, channel, MPA, gaps=True), rest=0.5,
+        # a pressure transducer's accuracy: 0.5 % of a 10 MPa range
+        floor=max(0.05, 2.0 * fit.pv_rmse_mpa), unit="MPa", input_name="s2",
+        input_unit="mm",
+        reference_text=f"the p-V curve of the training session {fit.train_session},"
+                       " p_m = f(s2), as the observer uses it (not refitted here)",
+        reference_fit={"pv_coeffs_mpa": list(fit.pv_coeffs), "stroke_mm": fit.stroke_mm},
+        next_step=lambda n: _booster_step(n, path))
+    return _diagnose(case, t_start)
+
+
+def diagnose_emb(
+    path: str | Path,
+    *,
+    train_path: str | Path,
+    aliases: str | Path | None = None,
+    effects: str | None = "all",
+) -> RigDiagnosis:
+    """Diagnose an EMB caliper session with the clamp-force sensor (module docstring)."""
+    from brakethermo.models.clamp_force import train as train_emb
+    from brakethermo.pipelines.clamp_force import load_emb
+
+    t_start = time.perf_counter()
+    names = _effect_names(effects, EMB_EFFECTS, "EMB")
+    tr = load_emb(train_path, need_sensor=True, role="training", aliases=aliases)
+    data = load_emb(path, need_sensor=False, role="diagnosed", aliases=aliases)
+    if data.force is None:
+        raise DataError(
+            "has no clamp-force sensor: diagnose compares the trained stiffness model with"
+            " this session's clamp force, so it needs a session that logs it (one without"
+            " can only be estimated: brakethermo clamp-force)",
+            path=data.session.path, channel="clamp_force")
+    models = train_emb(tr.theta, tr.current, tr.force, tr.ts)
+    ds = models.stiffness
+    theta = data.theta
+    rest = float(np.percentile(theta, 5) + 0.05 * np.ptp(theta))
+    case = RigCase(
+        "emb", data.session, {n: EMB_EFFECTS[n] for n in names},
+        RigContext(theta, _speed(theta, data.ts), data.session.time - data.session.time[0],
+                   ds.simulate),
+        data.force / 1e3, rest=rest,
+        # a load cell's accuracy (0.5 % of a 40 kN range), or the model's own residual
+        floor=max(0.2, 2.0 * models.sigma_ds / 1e3), unit="kN", input_name="motor angle",
+        input_unit="rad",
+        reference_text=f"the dynamic stiffness (eq. 6) of the training session"
+                       f" {tr.session.path}, as the clamp-force filter uses it (not refitted"
+                       " here)",
+        reference_fit={"alpha0": ds.alpha0, "beta": list(ds.beta)},
+        next_step=lambda n: (f"re-train on a session of these pads: brakethermo clamp-force"
+                             f" SESSION --train {train_path} --retrain {path}  (the adaptive"
+                             " filter follows a stiffness scale on its own)"))
+    case = RigCase(**{**case.__dict__,
+                      "ctx": RigContext(theta, case.ctx.v, case.ctx.t,
+                                        lambda x: ds.simulate(x) / 1e3)})
+    return _diagnose(case, t_start)
+
+
+def _diagnose(case: RigCase, t_start: float) -> RigDiagnosis:
+    """The diagnosis proper, whatever the rig (module docstring, steps 2-4)."""
+    ctx, y, session = case.ctx, case.measured, case.session
+    units, unit_kind = apply_units(ctx.x, ctx.t, case.rest)
+    units = np.where(np.isfinite(y), units, -1)
     ids = np.unique(units[units >= 0])
     if ids.size < 4:
         raise DataError(
-            f"holds {ids.size} {unit_kind}(s) with the screw off rest and a pressure reading;"
-            " the diagnosis fits on half of them and scores on the other half: record a"
-            " session with at least 4", path=session.path, channel=S2)
+            f"holds {ids.size} {unit_kind}(s) off rest with a sensor reading; the diagnosis"
+            " fits on half of them and scores on the other half: record a session with at"
+            " least 4", path=session.path)
     held_ids = ids[1::2]
     held = np.isin(units, held_ids)
     fitting = (units >= 0) & ~held
-    ref = ctx.curve(s2)
+    ref = ctx.curve(ctx.x)
     scored = np.where(held, units, -1)
-    ref_sse = unit_sse(ref - p, scored)[0]
+    ref_sse = unit_sse(ref - y, scored)[0]
     preds: dict[str, np.ndarray] = {}
     params: dict[str, dict[str, float]] = {}
-    for name in names:
-        theta = _fit_effect(name, ctx, p, fitting)
-        preds[name] = BOOSTER_EFFECTS[name].predict(theta, ctx)
-        params[name] = {k: float(v) for k, v in
-                        zip(BOOSTER_EFFECTS[name].params, theta, strict=True)}
+    for name, e in case.effects.items():
+        theta = _fit_effect(e, ctx, y, fitting, case.floor)
+        preds[name] = e.predict(theta, ctx)
+        params[name] = {k: float(v) for k, v in zip(e.params, theta, strict=True)}
+    names = tuple(case.effects)
     evidence = [CandidateEvidence(
-        name, unit_sse(preds[name] - p, scored)[0], correction=(preds[name] - ref)[held],
-        separate_by=BOOSTER_EFFECTS[name].separate_by, next_step=_next_step(name, path),
-        n_params=len(BOOSTER_EFFECTS[name].params))
+        name, unit_sse(preds[name] - y, scored)[0], correction=(preds[name] - ref)[held],
+        separate_by=case.effects[name].separate_by, next_step=case.next_step(name),
+        n_params=len(case.effects[name].params))
         for name in names]
-    floor = max(SENSOR_ACCURACY_MPA, 2.0 * fit.pv_rmse_mpa)
     size = {name: _rmse((preds[name] - ref)[held]) for name in names}
-    negligible = {n for n in names if not size[n] >= floor}
+    negligible = {n for n in names if not size[n] >= case.floor}
     decision = decide(ref_sse, [e for e in evidence if e.name not in negligible], RULE)
     rows = {r["name"]: r for r in decision.rows}
     for e in evidence:
@@ -165,59 +242,58 @@ def diagnose_booster(
     best = decision.verdict if decision.verdict != "none" else None
     effects_out = []
     for name in sorted(names, key=lambda n: rows[n]["rank"]):
-        e, r = BOOSTER_EFFECTS[name], rows[name]
+        e, r = case.effects[name], rows[name]
         effects_out.append({
             "name": name, "rank": r["rank"],
-            "rmse_before": _rmse((ref - p)[held]), "rmse_after": _rmse((preds[name] - p)[held]),
+            "rmse_before": _rmse((ref - y)[held]), "rmse_after": _rmse((preds[name] - y)[held]),
             "shrink_pct": r["shrink_pct"], "shrink_ci95_pct": r["shrink_ci95_pct"],
             "significant": r["significant"], "params": params[name],
-            "correction_rms_mpa": size[name],
+            "correction_rms": size[name],
             "negligible": name in negligible,
             "units": dict(zip(e.params, e.units, strict=True)),
             "extension": e.extension, "separate_by": e.separate_by,
-            "evidence": _evidence(name, ref - p, held, ctx),
+            "evidence": _evidence(name, ref - y, held, ctx, case.unit),
             **({"vs_first_pp": r["vs_first_pp"]} if "vs_first_pp" in r else {}),
         })
     summary: dict[str, Any] = {
         "session": str(session.path),
-        "rig": "ebooster",
-        "reference": {
-            "contains": [f"the p-V curve of the training session {fit.train_session},"
-                         " p_m = f(s2), as the observer uses it (not refitted here)"],
-            "fitted": {"pv_coeffs_mpa": list(fit.pv_coeffs), "stroke_mm": fit.stroke_mm},
-        },
+        "rig": case.rig,
+        "unit": case.unit,
+        "input": {"name": case.input_name, "unit": case.input_unit},
+        "reference": {"contains": [case.reference_text], "fitted": case.reference_fit},
         "units": unit_kind,
         "train_units": [int(v) for v in ids[0::2]],
         "heldout_units": [int(v) for v in held_ids],
-        "gap": {"rmse_mpa": _rmse((ref - p)[held]), **_phases(ref - p, held, ctx)},
-        "where": _where(ref - p, held, ctx),
-        "consistency": {"summary": "no filter runs here: the training p-V curve is compared"
-                        " with the pressure channel directly"},
+        "gap": {"rmse": _rmse((ref - y)[held]), **_phases(ref - y, held, ctx)},
+        "where": _where(ref - y, held, ctx, case.rest),
+        "consistency": {"summary": "no filter runs here: the trained relation is compared"
+                        " with the sensor directly"},
         "effects": effects_out,
         **decision.summary(),
-        "negligible_below_mpa": floor,
+        "negligible_below": case.floor,
         "negligible": sorted(negligible),
         "combined": {"effects": [best] if best else []},
         "warnings": list(session.warnings),
-        "run": {"brakethermo": __version__, "bench": spec.id, "effects_tried": list(names),
+        "run": {"brakethermo": __version__, "effects_tried": list(names),
                 "wall_time_s": time.perf_counter() - t_start},
     }
-    return RigDiagnosis(session, summary, session.time, s2, p, ref,
+    return RigDiagnosis(session, summary, session.time, ctx.x, y, ref,
                         preds[best] if best else None)
 
 
-def _effect_names(text: str | None) -> tuple[str, ...]:
+def _effect_names(text: str | None, registry: dict[str, RigEffect], rig: str
+                  ) -> tuple[str, ...]:
     if text is None or text.strip().lower() in ("", "all"):
-        return tuple(BOOSTER_EFFECTS)
+        return tuple(registry)
     names = tuple(dict.fromkeys(s.strip() for s in text.split(",") if s.strip()))
-    unknown = [n for n in names if n not in BOOSTER_EFFECTS]
+    unknown = [n for n in names if n not in registry]
     if unknown or not names:
-        raise ConfigError(f"unknown E-Booster effect(s) {', '.join(unknown) or '(none)'};"
-                          f" use 'all' or some of: {', '.join(BOOSTER_EFFECTS)}")
+        raise ConfigError(f"unknown {rig} effect(s) {', '.join(unknown) or '(none)'};"
+                          f" use 'all' or some of: {', '.join(registry)}")
     return names
 
 
-def _next_step(name: str, path: str | Path) -> str:
+def _booster_step(name: str, path: str | Path) -> str:
     if name in ("pv_shift", "pv_scale", "pv_drift"):
         return (f"retrain the p-V curve on a session of this day: brakethermo ebooster"
                 f" SESSION --train {path}  (the observer's band admits a shift of the"
@@ -232,44 +308,48 @@ def _rmse(e: np.ndarray) -> float:
     return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
 
 
-def _phases(err: np.ndarray, held: np.ndarray, ctx: BoosterContext) -> dict[str, Any]:
-    phase = {"applying": ctx.v > 0.5, "releasing": ctx.v < -0.5,
-             "holding": np.abs(ctx.v) <= 0.5}
+def _phases(err: np.ndarray, held: np.ndarray, ctx: RigContext) -> dict[str, Any]:
+    moving = 0.05 * float(np.nanpercentile(np.abs(ctx.v), 95))
+    phase = {"applying": ctx.v > moving, "releasing": ctx.v < -moving,
+             "holding": np.abs(ctx.v) <= moving}
     return {"per_phase": {k: _rmse(err[held & m]) for k, m in phase.items()},
-            "bias_mpa": float(np.nanmean(err[held]))}
+            "bias": float(np.nanmean(err[held]))}
 
 
-def _where(err: np.ndarray, held: np.ndarray, ctx: BoosterContext) -> dict[str, Any]:
-    top = float(np.nanmax(ctx.s2[held])) if held.any() else 0.0
-    edges = np.linspace(REST_MM, max(top, REST_MM + 1e-6), 5)
+def _where(err: np.ndarray, held: np.ndarray, ctx: RigContext, rest: float
+           ) -> dict[str, Any]:
+    top = float(np.nanmax(ctx.x[held])) if held.any() else rest
+    edges = np.linspace(rest, max(top, rest + 1e-6), 5)
     bands = []
     for a, b in itertools.pairwise(edges):
-        m = held & (ctx.s2 >= a) & (ctx.s2 <= b)
-        bands.append({"s2_mm": [float(a), float(b)], "rmse_mpa": _rmse(err[m]),
-                      "bias_mpa": float(np.nanmean(err[m])) if m.any() else float("nan")})
-    return {"by_travel": bands}
+        m = held & (ctx.x >= a) & (ctx.x <= b)
+        bands.append({"input": [float(a), float(b)], "rmse": _rmse(err[m]),
+                      "bias": float(np.nanmean(err[m])) if m.any() else float("nan")})
+    return {"by_input": bands}
 
 
-def _evidence(name: str, res: np.ndarray, held: np.ndarray, ctx: BoosterContext) -> str:
+def _evidence(name: str, res: np.ndarray, held: np.ndarray, ctx: RigContext, unit: str
+              ) -> str:
     """A sentence computed from the reference's held-out residual (model minus sensor)."""
-    r, s2, v = res[held], ctx.s2[held], ctx.v[held]
+    r, x, v = res[held], ctx.x[held], ctx.v[held]
     ok = np.isfinite(r)
-    r, s2, v = r[ok], s2[ok], v[ok]
+    r, x, v = r[ok], x[ok], v[ok]
     if r.size < 3:
         return "too few held-out samples"
-    if name in ("pv_shift", "pv_scale"):
-        lo, hi = np.percentile(s2, [25, 75])
-        return (f"model minus sensor {np.mean(r[s2 <= lo]):+.3f} MPa at low travel,"
-                f" {np.mean(r[s2 >= hi]):+.3f} MPa at high travel")
-    if name == "pv_drift":
+    if "drift" in name:
         half = r.size // 2
-        return (f"model minus sensor {np.mean(r[:half]):+.3f} MPa in the first half of the"
-                f" held-out cycles, {np.mean(r[half:]):+.3f} MPa in the second")
-    up, down = v > 0.5, v < -0.5
-    return (f"model minus sensor {np.mean(r[up]) if up.any() else float('nan'):+.3f} MPa"
-            f" applying, {np.mean(r[down]) if down.any() else float('nan'):+.3f} MPa"
-            f" releasing; correlation with the screw speed"
-            f" {np.corrcoef(r, v)[0, 1] if np.std(v) > 0 else float('nan'):+.2f}")
+        return (f"model minus sensor {np.mean(r[:half]):+.3f} {unit} in the first half of the"
+                f" held-out cycles, {np.mean(r[half:]):+.3f} {unit} in the second")
+    if name in ("rate_dependent", "hysteresis"):
+        moving = 0.05 * float(np.percentile(np.abs(v), 95))
+        up, down = v > moving, v < -moving
+        corr = np.corrcoef(r, v)[0, 1] if np.std(v) > 0 else float("nan")
+        return (f"model minus sensor {np.mean(r[up]) if up.any() else float('nan'):+.3f}"
+                f" {unit} applying, {np.mean(r[down]) if down.any() else float('nan'):+.3f}"
+                f" {unit} releasing; correlation with the input's speed {corr:+.2f}")
+    lo, hi = np.percentile(x, [25, 75])
+    return (f"model minus sensor {np.mean(r[x <= lo]):+.3f} {unit} at low input,"
+            f" {np.mean(r[x >= hi]):+.3f} {unit} at high input")
 
 
 def write_rig_diagnosis(result: RigDiagnosis, out_dir: str | Path) -> Path:
@@ -281,12 +361,13 @@ def write_rig_diagnosis(result: RigDiagnosis, out_dir: str | Path) -> Path:
     from brakethermo.report.rig_diagnosis_page import rig_diagnosis_page
 
     folder = Path(out_dir) / result.stem
-    cols = {"time": result.time, "s2": result.s2, "p_m": result.measured,
-            "reference_p_m": result.reference}
+    s = result.summary
+    cols = {"time": result.time, "input": result.x, "measured": result.measured,
+            "reference": result.reference}
     if result.best is not None:
-        cols["best_p_m"] = result.best
-    units = {"time": {"unit": "s"}, "s2": {"unit": "mm"},
-             **{c: {"unit": "MPa"} for c in cols if "p_m" in c}}
+        cols["best"] = result.best
+    units = {"time": {"unit": "s"}, "input": {"unit": s["input"]["unit"]},
+             **{c: {"unit": s["unit"]} for c in ("measured", "reference", "best")}}
     with replace_session_dir(folder, RIG_FILES) as stage:
         write_parquet(stage / "diagnosis.parquet", pd.DataFrame(cols), units,
                       {"brakethermo": __version__, "session": str(result.session.path)})

@@ -1,14 +1,15 @@
-"""The rig diagnosis page: the training p–V curve against this session, and the verdict."""
+"""The rig diagnosis page: the trained relation against this session, and the verdict."""
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
 import matplotlib.pyplot as plt
-import numpy as np
 from matplotlib.figure import Figure
 
 from brakethermo.report.page import Card, Page, Section, TableBlock
+
+RIG_NAMES = {"ebooster": "E-Booster", "emb": "EMB caliper"}
 
 if TYPE_CHECKING:
     from brakethermo.results.rig_diagnosis import RigDiagnosis
@@ -16,17 +17,17 @@ if TYPE_CHECKING:
 
 def _pv_figure(r: RigDiagnosis) -> Figure:
     fig, ax = plt.subplots(figsize=(7, 4.2))
-    step = max(1, r.s2.size // 4000)
-    ax.plot(r.s2[::step], r.measured[::step], ".", ms=1.5, color="#1f77b4", alpha=0.5,
-            label="this session (pressure sensor)")
-    order = np.argsort(r.s2)
-    ax.plot(r.s2[order], r.reference[order], color="k", lw=1.8,
-            label="training p–V curve (reference)")
+    step = max(1, r.x.size // 4000)
+    s = r.summary
+    ax.plot(r.x[::step], r.measured[::step], ".", ms=1.5, color="#1f77b4", alpha=0.5,
+            label="this session (sensor)")
+    ax.plot(r.x[::step], r.reference[::step], ".", ms=1.2, color="k", alpha=0.6,
+            label="trained relation (reference)")
     if r.best is not None:
-        ax.plot(r.s2[::step], r.best[::step], ".", ms=1.2, color="#d62728", alpha=0.5,
+        ax.plot(r.x[::step], r.best[::step], ".", ms=1.2, color="#d62728", alpha=0.5,
                 label=f"with {r.summary['verdict']} (fitted on other cycles)")
-    ax.set_xlabel("screw travel s2 [mm]")
-    ax.set_ylabel("master-cylinder pressure [MPa]")
+    ax.set_xlabel(f"{s['input']['name']} [{s['input']['unit']}]")
+    ax.set_ylabel(f"output [{s['unit']}]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, markerscale=5)
     fig.tight_layout()
@@ -42,7 +43,7 @@ def _residual_figure(r: RigDiagnosis) -> Figure:
                 label=f"with {r.summary['verdict']}")
     ax.axhline(0.0, color="0.5", lw=0.6)
     ax.set_xlabel("time [s]")
-    ax.set_ylabel("model − sensor [MPa]")
+    ax.set_ylabel(f"model − sensor [{r.summary['unit']}]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -50,7 +51,7 @@ def _residual_figure(r: RigDiagnosis) -> Figure:
 
 
 def rig_diagnosis_page(r: RigDiagnosis) -> Page:
-    """The page of an E-Booster diagnosis."""
+    """The page of a rig diagnosis."""
     s = r.summary
     verdict = (" / ".join(s["verdict_set"]) + " (the data cannot tell them apart)"
                if s["verdict_kind"] == "set" else s["verdict"])
@@ -63,13 +64,13 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
                      f"{e['shrink_pct']:+.1f}", f"{lo:+.0f} … {hi:+.0f}", params,
                      e["evidence"]])
     return Page(
-        title=f"E-Booster diagnosis — {r.stem}",
+        title=f"{RIG_NAMES.get(s['rig'], s['rig'])} diagnosis — {r.stem}",
         subtitle=f"held-out {s['units']}s {s['heldout_units']}; reference: "
                  + s["reference"]["contains"][0],
         cards=[
             Card("verdict", verdict),
-            Card("gap, held out", f"{s['gap']['rmse_mpa']:.3f}", "MPa RMS"),
-            Card("mean bias (model − sensor)", f"{s['gap']['bias_mpa']:+.3f}", "MPa"),
+            Card("gap, held out", f"{s['gap']['rmse']:.3f}", f"{s['unit']} RMS"),
+            Card("mean bias (model − sensor)", f"{s['gap']['bias']:+.3f}", s["unit"]),
             Card("best shrink", f"{top['shrink_pct']:+.0f}" if top else "–", "%"),
         ],
         sections=[
@@ -78,10 +79,11 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
                         f"{k} {v:.3f} MPa" for k, v in s["gap"]["per_phase"].items())],
                     figures={"pv": _pv_figure(r), "residual": _residual_figure(r)}),
             Section("Which effect", paragraphs=[s["verdict_rule"], *s["verdict_reasons"]],
-                    tables=[TableBlock(["effect", "before MPa", "after MPa", "shrink %",
+                    tables=[TableBlock(["effect", f"before {s['unit']}",
+                                        f"after {s['unit']}", "shrink %",
                                         "95 % interval", "fitted", "evidence"], rows)]),
             Section("Next", paragraphs=list(s["next_steps"]) or ["nothing to do: the"
                     " training curve holds on this session"]),
         ],
-        footer=f"brakethermo {s['run']['brakethermo']} · bench {s['run']['bench']}",
+        footer=f"brakethermo {s['run']['brakethermo']}",
     )

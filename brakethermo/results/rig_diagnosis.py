@@ -17,7 +17,7 @@ class RigDiagnosis:
     session: Session
     summary: dict[str, Any]
     time: np.ndarray
-    s2: np.ndarray
+    x: np.ndarray  # the rig's input (s2 mm, motor angle rad)
     measured: np.ndarray
     reference: np.ndarray
     best: np.ndarray | None
