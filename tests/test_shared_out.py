@@ -3,6 +3,7 @@ every link of the pages resolves (issue: "Nothing an engineer saves is lost").""
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 from pathlib import Path
@@ -65,5 +66,10 @@ def test_commands_sharing_an_out_keep_each_others_files(sim_test_session, sim_ra
     assert res.exit_code == 0, res.output
     assert (out / test.stem / "diagnosis.json").exists()
     assert (out / test.stem / "diagnosis" / "index.html").exists()
+    # batch diagnoses a four-spot session itself (identify-h's effect selection did) and
+    # its index links the verdict
+    tried = json.loads((out / test.stem / "diagnosis.json").read_text())["run"]["effects_tried"]
+    assert len(tried) == 7
+    assert f"{test.stem}/diagnosis/index.html" in (out / "index.html").read_text()
     for page in out.rglob("index.html"):
         _links_resolve(page)

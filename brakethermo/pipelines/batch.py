@@ -647,6 +647,11 @@ class PipelineRunner:
             timings["identify_s"] = time.perf_counter() - t
             t = time.perf_counter()
             _flatten(write_identify(ident, stage), stage)
+            if ident.diagnosis is not None:
+                # the effect selection diagnosed the session: its verdict is a page too
+                from brakethermo.pipelines.diagnose import write_diagnosis
+
+                _flatten(write_diagnosis(ident.diagnosis, stage), stage)
             timings["write_s"] = time.perf_counter() - t
             law_out = stage / "h_law.toml"
             h_law = law_out

@@ -104,6 +104,7 @@ class IdentifyResult:
     summary: dict[str, Any]
     timings: dict[str, float] = field(default_factory=dict)
     straights: pd.DataFrame | None = None  # per straight, h under the layered model
+    diagnosis: Any = None  # the effect selection's DiagnoseResult (batch writes it)
 
     @property
     def stem(self) -> str:
@@ -320,8 +321,9 @@ def fit_with_effects(
 
 
 def auto_effects(session: Session, options: IdentifyOptions
-                 ) -> tuple[tuple[str, ...], dict[str, Any]]:
-    """The effects the diagnosis's forward selection keeps on this session, and why.
+                 ) -> tuple[tuple[str, ...], dict[str, Any], Any]:
+    """The effects the diagnosis's forward selection keeps on this session, why, and the
+    diagnosis itself (``None`` when it could not run; batch writes it beside the law).
 
     A session the diagnosis cannot split into training and held-out laps (fewer than two
     flying laps) carries no effect, and says so.
@@ -334,14 +336,14 @@ def auto_effects(session: Session, options: IdentifyOptions
             ambient_c=options.ambient_c))
     except DataError as exc:
         return (), {"mode": "auto", "selected": [],
-                    "why": f"no selection: the diagnosis could not run ({exc.detail})"}
+                    "why": f"no selection: the diagnosis could not run ({exc.detail})"}, None
     s = result.summary
     chosen = tuple(s["combined"]["effects"])
     why = (f"diagnosis verdict {s['verdict']} ({s['verdict_kind']}); forward selection on"
            f" held-out laps {s['heldout_laps']} keeps {', '.join(chosen) or 'none'}")
     return chosen, {"mode": "auto", "selected": list(chosen), "why": why,
                     "verdict": s["verdict"], "verdict_set": s["verdict_set"],
-                    "next_steps": s["next_steps"]}
+                    "next_steps": s["next_steps"]}, result
 
 
 SIGMA_CROWN_GRID = (0.1, 0.2, 0.4)  # relative crown-share noise tried by validation
@@ -465,10 +467,11 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
     braking = inputs.braking
     fit_mask = off_brake_mask(braking) & np.isfinite(y).all(axis=1) & (inputs.speed > 1.0)
     effects: tuple[str, ...] = ()
+    diagnosis = None
     selection: dict[str, Any] = {"mode": "none", "selected": [],
                                  "why": "--with-effect none: the plain law"}
     if options.with_effects and options.with_effects.strip() == "auto":
-        effects, selection = auto_effects(session, options)
+        effects, selection, diagnosis = auto_effects(session, options)
     elif options.with_effects and options.with_effects.strip().lower() != "none":
         effects = parse_effects(options.with_effects)
         selection = {"mode": "given", "selected": list(effects), "why": "--with-effect"}
@@ -587,7 +590,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         },
     }
     return IdentifyResult(session, law, law_ukf, calibration, samples, structure, fit_mask,
-                          summary, timings, straights)
+                          summary, timings, straights, diagnosis)
 
 
 def identify_h(path: str | Path, options: IdentifyOptions | None = None) -> IdentifyResult:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -10,6 +11,19 @@ from brakethermo import __version__
 from brakethermo.io.atomic import write_text_atomic
 from brakethermo.report.page import template_environment
 from brakethermo.results.laps import temp_text
+
+
+def _diagnosis_cell(folder: Path) -> str | None:
+    """The verdict of the diagnosis beside a session's results, in a few words (or None)."""
+    try:
+        d = json.loads((folder / "diagnosis.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not (folder / "diagnosis" / "index.html").is_file():
+        return None
+    if d.get("verdict_kind") == "set":
+        return "one of " + " / ".join(d.get("verdict_set", []))
+    return str(d.get("verdict", "none"))
 
 
 def write_batch_index(
@@ -31,6 +45,7 @@ def write_batch_index(
     rows = []
     for s in sessions:
         page = out / str(s["name"]) / "index.html"
+        diagnosis = _diagnosis_cell(out / str(s["name"]))
         rows.append(
             {
                 "name": s["name"],
@@ -42,6 +57,8 @@ def write_batch_index(
                 "h_law": s.get("h_law") or "–",
                 "h_law_reason": s.get("h_law_reason", ""),
                 "href": f"{s['name']}/index.html" if page.is_file() else None,
+                "diagnosis": diagnosis,
+                "diagnosis_href": f"{s['name']}/diagnosis/index.html" if diagnosis else None,
             }
         )
     env = template_environment()
