@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from brakethermo.diagnosis.verdict import CandidateEvidence, decide
-from brakethermo.pipelines.data_power import disc_data_power
+from brakethermo.pipelines.diagnose.data_power import disc_data_power
 
 V_REF = 350 / 3.6
 

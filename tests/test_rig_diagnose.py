@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from brakethermo.cli import app
 from brakethermo.errors import DataError
-from brakethermo.pipelines.rig_diagnose import diagnose_booster
+from brakethermo.pipelines.diagnose.rig import diagnose_booster
 from brakethermo.sim.ebooster import (
     PRODUCTION_CHANNELS,
     EboosterSimConfig,
@@ -88,7 +88,7 @@ def caliper(tmp_path_factory):
 def test_the_caliper_diagnosis_names_what_the_pads_did(caliper, pads, verdict):
     """Worn pads move the contact angle (the stiffness curve shifts), heating pads soften
     through the session (the scale drifts); the trained pads are 'none'."""
-    from brakethermo.pipelines.rig_diagnose import diagnose_emb
+    from brakethermo.pipelines.diagnose.rig import diagnose_emb
 
     train_path, runs = caliper
     s = diagnose_emb(runs[pads], train_path=train_path).summary

@@ -147,12 +147,12 @@ def _detect_rig(session: Path, aliases: Path | None) -> str | None:
 def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
                   train: Path | None, fit: Path | None, aliases: Path | None,
                   as_json: bool) -> None:
-    from brakethermo.pipelines.outputs import to_json
-    from brakethermo.pipelines.rig_diagnose import (
+    from brakethermo.pipelines.diagnose.rig import (
         diagnose_booster,
         diagnose_emb,
         write_rig_diagnosis,
     )
+    from brakethermo.pipelines.outputs import to_json
 
     if rig not in RIGS:
         raise ConfigError(f"--rig {rig!r}: diagnose reads rig sessions of {', '.join(RIGS)}"

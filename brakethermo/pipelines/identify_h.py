@@ -286,7 +286,8 @@ def fit_with_effects(
     spots — so that an unmodelled μ(T), lag or slipstream is not folded into h(V).
     """
     from brakethermo.models.disc_effects import ExtendedDisc
-    from brakethermo.pipelines.diagnose import _fit, session_segments
+    from brakethermo.pipelines.diagnose.fit import _fit
+    from brakethermo.pipelines.diagnose.layout import session_segments
 
     spot_radii = np.asarray(disc.spot_radii)
     model = disc_model(disc, est)

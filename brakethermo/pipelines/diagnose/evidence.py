@@ -1,0 +1,167 @@
+"""The evidence behind each effect: residual signatures, their sentences, and each
+effect's size in physical units."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from brakethermo.models.disc_effects import Segments
+from brakethermo.models.effects import mu_ratio
+from brakethermo.pipelines.diagnose.fit import _nanmean
+from brakethermo.pipelines.diagnose.layout import Layout
+from brakethermo.pipelines.diagnose.where import zone_label
+from brakethermo.pipelines.inputs import DiscInputs
+from brakethermo.thermal.disc import DiscSpec
+
+
+def _corr(a: np.ndarray, b: np.ndarray) -> float:
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 3 or np.std(a[ok]) == 0 or np.std(b[ok]) == 0:
+        return float("nan")
+    return float(np.corrcoef(a[ok], b[ok])[0, 1])
+
+
+def signatures(res: np.ndarray, y: np.ndarray, inputs: DiscInputs, layout: Layout,
+               segments: Segments, v_ref: float, dt: float) -> dict[str, dict[str, float]]:
+    """Residual statistics behind each effect's signature (reference model, all laps).
+
+    ``res`` is measurement minus model, degC (K, 4).
+    """
+    flying = layout.train | layout.held
+    br, cool = layout.braking & flying, ~layout.braking & flying
+    dTdt = np.gradient(y, dt, axis=0)
+    fast = np.abs(inputs.speed) >= 0.8 * v_ref
+    lapwise = []
+    for s in range(segments.n_straights):
+        m = (segments.straight == s) & cool
+        if m.sum() > 20:
+            lapwise.append(float(_nanmean(res[m])))
+    contact = _nanmean(y[:, 1:4], axis=1)
+    return {
+        "sensor_lag": {"corr_residual_dTdt": _corr(res[flying].ravel(), dTdt[flying].ravel())},
+        "emissivity_error": {
+            "slope_braking_c_per_100c": 100.0 * _slope(y[br].ravel(), res[br].ravel()),
+            "slope_cooling_c_per_100c": 100.0 * _slope(y[cool].ravel(), res[cool].ravel()),
+        },
+        "h_speed_knee": {
+            "cooling_bias_fast_c": float(_nanmean(res[cool & fast])) if (cool & fast).any()
+            else float("nan"),
+            "cooling_bias_slow_c": float(_nanmean(res[cool & ~fast])),
+        },
+        "friction_temperature": {
+            "corr_braking_residual_temperature": _corr(_nanmean(res[br], axis=1),
+                                                       contact[br]),
+        },
+        "power_distribution": {
+            "braking_bias_spot2_c": float(_nanmean(res[br, 1])),
+            "braking_bias_spot4_c": float(_nanmean(res[br, 3])),
+        },
+        "slipstream": {"lap_to_lap_sd_straight_bias_c": float(np.std(lapwise))
+                       if len(lapwise) > 2 else float("nan")},
+        "thickness_gradient": {
+            "braking_bias_c": float(_nanmean(res[br])),
+            "release_bias_c": float(_nanmean(res[layout.release & flying])),
+        },
+    }
+
+
+def _slope(x: np.ndarray, r: np.ndarray) -> float:
+    ok = np.isfinite(x) & np.isfinite(r)
+    if ok.sum() < 3 or np.std(x[ok]) == 0:
+        return float("nan")
+    return float(np.polyfit(x[ok], r[ok], 1)[0])
+
+
+EVIDENCE: dict[str, Callable[[dict[str, float]], str]] = {
+    "sensor_lag": lambda s: (
+        f"residual vs dT/dt correlation {s['corr_residual_dTdt']:+.2f} (a lagging sensor"
+        " reads low while heating, high while cooling: negative)"),
+    "emissivity_error": lambda s: (
+        f"bias slope {s['slope_braking_c_per_100c']:+.1f} °C per 100 °C braking,"
+        f" {s['slope_cooling_c_per_100c']:+.1f} cooling (same sign in every phase for a"
+        " wrong emissivity)"),
+    "h_speed_knee": lambda s: (
+        f"cooling bias {s['cooling_bias_fast_c']:+.1f} °C above 0.8 V_ref vs"
+        f" {s['cooling_bias_slow_c']:+.1f} °C below (measured minus model)"),
+    "friction_temperature": lambda s: (
+        "braking residual vs contact temperature correlation"
+        f" {s['corr_braking_residual_temperature']:+.2f}"),
+    "power_distribution": lambda s: (
+        f"braking bias spot 2 {s['braking_bias_spot2_c']:+.1f} °C, spot 4"
+        f" {s['braking_bias_spot4_c']:+.1f} °C"
+        + (" (opposite signs: the heat split over the radius is not the model's)"
+           if s["braking_bias_spot2_c"] * s["braking_bias_spot4_c"] < 0 else
+           " (same sign: the whole band, not its split, departs)")),
+    "slipstream": lambda s: (
+        f"lap-to-lap spread of the straights' cooling bias {s['lap_to_lap_sd_straight_bias_c']:.1f}"
+        " °C"),
+    "thickness_gradient": lambda s: (
+        f"braking bias {s['braking_bias_c']:+.1f} °C, just after release"
+        f" {s['release_bias_c']:+.1f} °C"),
+}
+
+
+def carry_command(session: Path, name: str) -> str:
+    """The command that carries an effect into the law the race estimate uses."""
+    return f"brakethermo identify-h {session} --with-effect {name} --out OUT"
+
+
+def _spread(values: Sequence[float]) -> str:
+    v = np.asarray(values, float)
+    return f"median {np.median(v):.2f}, range {v.min():.2f}-{v.max():.2f}"
+
+
+def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int
+                ) -> tuple[dict[str, Any], str]:
+    """An effect's fitted size in physical units, and the sentence the page shows."""
+    if name == "thickness_gradient":
+        f = float(params["kz_factor"])
+        k_z = f * disc.k_z if disc.k_z else float("nan")
+        return ({"kz_over_nominal": f, "k_z_w_mk": k_z, "k_z_nominal_w_mk": disc.k_z},
+                f"through-thickness conductivity k_z = {k_z:.1f} W/(m K), {f:.2f} x the"
+                f" datasheet's {disc.k_z:g} W/(m K) ({layers} layers)")
+    if name == "sensor_lag":
+        tau = float(params["tau_s"])
+        return {"tau_s": tau}, f"pyrometer time constant {tau:.2f} s"
+    if name == "emissivity_error":
+        r = float(params["ratio"])
+        eps_set = disc.emissivity / r
+        err600 = (600.0 + 273.15) * (r**0.25 - 1.0)
+        return ({"eps_disc_over_set": r, "eps_set": eps_set, "eps_disc": disc.emissivity,
+                 "reading_error_at_600c": err600},
+                f"pyrometer set to emissivity {eps_set:.2f} on a {disc.emissivity:g} disc:"
+                f" reads {err600:+.0f} °C at 600 °C")
+    if name == "friction_temperature":
+        points = {f"{t:.0f}": float(mu_ratio(np.array(t), params["beta"], params["t_mid"]))
+                  for t in (200.0, 400.0, 600.0, 800.0)}
+        return ({"mu_over_ref_at_c": points, "beta": params["beta"],
+                 "t_mid_c": params["t_mid"]},
+                "μ/μ_ref " + ", ".join(f"{v:.2f} at {t} °C" for t, v in points.items()))
+    if name == "h_speed_knee":
+        g = float(params["gain"])
+        knee = 0.8 * disc.v_ref * 3.6
+        return ({"knee_kmh": knee, "gain_at_v_ref": g},
+                f"h {100 * g:+.0f} % at {disc.v_ref * 3.6:.0f} km/h, growing from the knee"
+                f" at {knee:.0f} km/h")
+    if name == "slipstream":
+        f = np.asarray(params.get("straight_factor", [1.0]), float)
+        off = int(np.sum(np.abs(f - 1.0) > 0.1))
+        return ({"h_factor_per_straight": f.tolist(), "straights_off_10pct": off},
+                f"h factor per straight {_spread(f)}; {off} of {f.size} straights more than"
+                " 10 % off")
+    if name == "power_distribution":
+        b = np.asarray(params.get("zone_balance", []), float)
+        m = np.asarray(params.get("zone_middle", []), float)
+        zones = {zone_label(z): {"inner_vs_outer": float(np.exp(2 * b[z])),
+                                 "middle_factor": float(np.exp(m[z]))} for z in range(b.size)}
+        worst = int(np.argmax(np.abs(b))) if b.size else -1
+        text = ("no zone" if worst < 0 else
+                f"inner/outer crown power ratio per zone {_spread(np.exp(2 * b))}; most"
+                f" uneven {zone_label(worst)}: {np.exp(2 * b[worst]):.2f}")
+        return {"per_zone": zones}, text
+    return dict(params), ""
+

@@ -1,0 +1,322 @@
+"""The diagnosis of a four-spot session: reference model, candidates fitted on training
+laps and scored on held-out laps, the verdict and the forward selection."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from brakethermo import __version__
+from brakethermo.diagnosis.verdict import (
+    CandidateEvidence,
+    decide,
+    unit_sse,
+)
+from brakethermo.errors import DataError
+from brakethermo.io.session import Session
+from brakethermo.models.disc_effects import N_REFERENCE, ExtendedDisc
+from brakethermo.models.effects import EFFECTS, parse_effects
+from brakethermo.pipelines import scoring
+from brakethermo.pipelines.diagnose._common import (
+    CORRELATED,
+    MIN_SHRINK_PCT,
+    RACE_SPOT,
+    RULE,
+    SENSOR_FLOOR_C,
+    SETTLE_S,
+    Candidate,
+    DiagnoseOptions,
+    DiagnoseResult,
+)
+from brakethermo.pipelines.diagnose.data_power import disc_data_power
+from brakethermo.pipelines.diagnose.evidence import (
+    EVIDENCE,
+    _corr,
+    carry_command,
+    effect_size,
+    signatures,
+)
+from brakethermo.pipelines.diagnose.fit import _fit, _initial_nodes, _reference_start
+from brakethermo.pipelines.diagnose.layout import Layout, session_segments, split_laps, zone_masks
+from brakethermo.pipelines.diagnose.scores import (
+    bootstrap_shrink,
+    consistency,
+    heldout_loglik,
+    score,
+)
+from brakethermo.pipelines.diagnose.single_spot import diagnose_single_spot
+from brakethermo.pipelines.diagnose.where import _marginals, where_table
+from brakethermo.pipelines.estimate import SIGMA_MEAS_FLOOR_C
+from brakethermo.pipelines.inputs import disc_inputs
+from brakethermo.pipelines.models import disc_for
+from brakethermo.pipelines.tuning import load_tuning
+from brakethermo.thermal.model import DiscFEModel
+
+
+def diagnose_session(
+    session: Session,
+    options: DiagnoseOptions | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> DiagnoseResult:
+    """Diagnose a four-spot session (module docstring). ``progress(label, done, total)``."""
+    options = options or DiagnoseOptions()
+    t_start = time.perf_counter()
+    names = parse_effects(options.effects)
+    est_tuning, _ = load_tuning(options.tuning)
+    disc = disc_for(session, options.disc)
+    inputs = disc_inputs(session, disc, options.ambient_c)
+    if not inputs.is_multi_spot:
+        if RACE_SPOT not in inputs.measured:
+            raise DataError(
+                "diagnose needs the four-spot sensor or the race sensor at the spot-3 radius;"
+                f" this session logs spot(s) {', '.join(map(str, inputs.measured))}",
+                path=session.path)
+        return diagnose_single_spot(session, options, inputs, disc, progress)
+    y = inputs.spots.copy()
+    y[y <= SENSOR_FLOOR_C] = np.nan
+    spot_radii = np.asarray(disc.spot_radii)
+    zones, dist, segments = session_segments(session, inputs)
+    train_laps, held_laps = split_laps(session, inputs, options.holdout_laps)
+    braking, release, cycles = zone_masks(zones, inputs.time.size, round(SETTLE_S / session.dt))
+    layout = Layout(train=np.isin(inputs.lap, train_laps), held=np.isin(inputs.lap, held_laps),
+                    braking=braking, release=release, cycles=cycles)
+    train_mask = layout.train[:, None] & np.isfinite(y)
+
+    model = DiscFEModel(disc, est_tuning.nodes, est_tuning.layers,
+                        layer_growth=est_tuning.layer_growth, k_z=disc.k_z)
+    T0 = _initial_nodes(model, spot_radii, y, float(inputs.t_amb[0]))
+    a0, b0, w0 = _reference_start(disc, options.h_law)
+
+    def make(effects: tuple[str, ...]) -> ExtendedDisc:
+        return ExtendedDisc(model, inputs.speed, inputs.q_brk, inputs.t_amb, T0, spot_radii,
+                            disc.v_ref, effects, segments)
+
+    total_steps = len(names) + 3
+    done = 0
+
+    def tick(label: str) -> None:
+        nonlocal done
+        done += 1
+        if progress:
+            progress(label, done, total_steps)
+
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    ref = make(())
+    p_ref = ref.neutral()
+    p_ref[0], p_ref[1] = np.log(max(a0, 1.0)), b0
+    w0 = np.maximum(w0, 1e-3)
+    p_ref[3:5] = np.log(w0[:2] / w0[2])
+    p_ref = _fit(ref, p_ref, y, train_mask, np.ones(ref.size, bool), options.max_nfev)
+    ref_pred = ref.predict(p_ref)[0]
+    timings["reference_s"] = time.perf_counter() - t0
+    tick("reference model")
+
+    def fit_candidate(effects: tuple[str, ...], start: Candidate | None = None) -> Candidate:
+        t = time.perf_counter()
+        ext = make(effects)
+        p0 = ext.neutral()
+        p0[:N_REFERENCE] = p_ref[:N_REFERENCE]
+        if start is not None:
+            start_ext = make(start.effects)
+            for s in ext.slots:
+                for s0 in start_ext.slots:
+                    if (s0.effect, s0.param.name, s0.segment) == (s.effect, s.param.name,
+                                                                  s.segment):
+                        p0[s.index] = start.p[s0.index]
+        # Latent per-straight values of held-out laps are not fitted on training laps, and
+        # with per-straight values the reference stays as fitted: dozens of local factors
+        # would otherwise bend the global law to absorb whatever else is wrong.
+        free = np.ones(ext.size, bool)
+        if any(EFFECTS[e].latent == "straight" for e in effects):
+            free[:N_REFERENCE] = False
+        held_latent = np.zeros(ext.size, bool)
+        for s in ext.slots:
+            if s.segment >= 0 and EFFECTS[s.effect].latent == "straight":
+                if segments.straight_lap[s.segment] not in train_laps:
+                    free[s.index] = False
+                    held_latent[s.index] = segments.straight_lap[s.segment] in held_laps
+        p = _fit(ext, p0, y, train_mask, free, options.max_nfev)
+        spots: tuple[int, ...] = (1, 2, 3, 4)
+        if held_latent.any():
+            # Held-out straights: their latent values from the race sensor alone.
+            race = np.zeros_like(train_mask)
+            race[:, RACE_SPOT - 1] = layout.held & np.isfinite(y[:, RACE_SPOT - 1])
+            p = _fit(ext, p, y, race, held_latent, options.max_nfev)
+            spots = tuple(s for s in spots if s != RACE_SPOT)
+        return Candidate(",".join(effects), effects, p, ext.predict(p)[0], spots,
+                         time.perf_counter() - t)
+
+    candidates: list[Candidate] = []
+    for name in names:
+        cand = fit_candidate((name,))
+        candidates.append(cand)
+        timings[f"{name}_s"] = cand.fit_s
+        tick(name)
+
+    def describe(c: Candidate, base_pred: np.ndarray) -> dict[str, Any]:
+        before = score(base_pred, y, layout, c.scored_spots)
+        after = score(c.pred, y, layout, c.scored_spots)
+        shrink, lo, hi = bootstrap_shrink(base_pred, c.pred, y, layout, c.scored_spots)
+        ll_before = heldout_loglik(base_pred, y, layout, c.scored_spots)
+        ll_after = heldout_loglik(c.pred, y, layout, c.scored_spots)
+        return {
+            "rmse_before": before["overall"], "rmse_after": after["overall"],
+            "shrink_pct": shrink, "shrink_ci95_pct": [lo, hi],
+            "significant": bool(np.isfinite(lo) and lo > MIN_SHRINK_PCT),
+            "heldout_loglik_gain": ll_after - ll_before,
+            "scored_spots": [f"spot{s}" for s in c.scored_spots],
+            "per_spot": {k: {"before": before["per_spot"][k], "after": after["per_spot"][k]}
+                         for k in after["per_spot"]},
+            "per_phase": {k: {"before": before["per_phase"][k], "after": after["per_phase"][k]}
+                          for k in after["per_phase"]},
+        }
+
+    res_ref = y - ref_pred
+    sig = signatures(res_ref, y, inputs, layout, segments, disc.v_ref, session.dt)
+    units = np.where(layout.held, layout.cycles, -1)
+    ref_sse = unit_sse(ref_pred - y, units, per_output=True)[0]
+    evidence = [
+        CandidateEvidence(c.name, unit_sse(c.pred - y, units, per_output=True)[0],
+                          correction=(c.pred - ref_pred)[layout.held],
+                          separate_by=EFFECTS[c.name].separate_by,
+                          next_step=carry_command(session.path, c.name),
+                          outputs=tuple(s_ - 1 for s_ in c.scored_spots))
+        for c in candidates]
+    blind = disc_data_power(inputs.speed, y, inputs.t_amb, layout.braking,
+                            layout.train | layout.held, disc.v_ref, SENSOR_FLOOR_C)
+    decision = decide(ref_sse, evidence, RULE, untestable=blind)
+    effects_out = []
+    for c in candidates:
+        c.scores = describe(c, ref_pred)
+        row = next(r for r in decision.rows if r["name"] == c.name)
+        c.scores.update(shrink_pct=row["shrink_pct"], shrink_ci95_pct=row["shrink_ci95_pct"],
+                        significant=row["significant"])
+        params = make(c.effects).values(c.p, c.name)
+        size, sentence = effect_size(c.name, params, disc, est_tuning.layers)
+        if "kz_factor" in params:  # in h_law.toml kz_factor is relative to k(T), not k_z
+            params = {"kz_over_nominal": params.pop("kz_factor"), **params}
+        effects_out.append({
+            "name": c.name,
+            **c.scores,  # describe()'s keys, in its order
+            "params": params,
+            "size": size,
+            "size_text": sentence,
+            "evidence": EVIDENCE[c.name](sig[c.name]),
+            "signature": EFFECTS[c.name].signature,
+            "extension": EFFECTS[c.name].extension,
+            "separate_by": EFFECTS[c.name].separate_by,
+            "fit_s": c.fit_s,
+            **({"vs_first_pp": row["vs_first_pp"]} if "vs_first_pp" in row else {}),
+        })
+    rank_of = {r["name"]: r["rank"] for r in decision.rows}
+    effects_out.sort(key=lambda e: rank_of[e["name"]])
+    ranked = sorted(candidates, key=lambda c: rank_of[c.name])
+    for e in effects_out:
+        e["rank"] = rank_of[e["name"]]
+
+    significant = [c for c in ranked if c.scores["significant"]]
+    verdict = decision.verdict
+
+    # Correlated corrections: two significant effects moving the prediction alike.
+    warnings: list[str] = []
+    held = layout.held
+    for i, a in enumerate(significant):
+        for b in significant[i + 1:]:
+            r = _corr((a.pred - ref_pred)[held].ravel(), (b.pred - ref_pred)[held].ravel())
+            if np.isfinite(r) and r > CORRELATED:
+                alone = decision.kind == "single" and verdict in (a.name, b.name)
+                warnings.append(
+                    f"{a.name} and {b.name} correct the held-out residual alike (correlation"
+                    f" {r:.2f})" + ("; the first still beats the other clearly on held-out"
+                                    " cycles" if alone else
+                                    ": the data cannot tell them apart, the verdict names"
+                                    " the set"))
+    t0 = time.perf_counter()
+    selection = _forward_selection(significant, fit_candidate, describe, y, layout)
+    timings["forward_selection_s"] = time.perf_counter() - t0
+    tick("forward selection")
+
+    sigma_meas = np.array([max(scoring.reading_noise(y[:, i]), SIGMA_MEAS_FLOOR_C)
+                           for i in range(4)])
+    cons, nis = consistency(model, inputs, y, ref.law(p_ref)(inputs.speed),
+                            float(np.exp(p_ref[2])), T0, spot_radii, sigma_meas,
+                            est_tuning.sigma_temp, est_tuning.init_sigma_temp,
+                            layout.train | layout.held)
+    tick("consistency and where")
+    ref_scores = score(ref_pred, y, layout, (1, 2, 3, 4))
+    best = ranked[0] if ranked else None
+    law = ref.law(p_ref)
+    summary: dict[str, Any] = {
+        "session": str(session.path),
+        "metadata": session.metadata,
+        "reference": {
+            "contains": [
+                f"datasheet structure of disc {disc.id}: {est_tuning.nodes} radial nodes x"
+                f" {est_tuning.layers} graded layers, through-thickness conductivity"
+                + (f" k_z = {disc.k_z:g} W/(m K) (nominal)" if disc.k_z else
+                   " = radial k(T) (the datasheet gives no k_z)"),
+                "one mean pad-crown weighting for every stop (w1..w3 fitted; the datasheet's"
+                " uniform pressure misses the radial heat split of any real disc)",
+                "constant friction: braking power = datasheet formula x one fitted scale",
+                "power-law h(V) = a (V/V_ref)^b, no knee, no slipstream",
+                "ideal pyrometer (no lag, correct emissivity)",
+            ],
+            "fitted": {"h_a": law.a, "h_b": law.b, "power_scale": float(np.exp(p_ref[2])),
+                       "crown_weights": list(ref.weights(p_ref))},
+        },
+        "train_laps": list(train_laps),
+        "heldout_laps": list(held_laps),
+        "gap": {
+            "rmse_c": ref_scores["overall"],
+            "per_spot": ref_scores["per_spot"],
+            "per_phase": ref_scores["per_phase"],
+            "per_spot_phase": ref_scores["per_spot_phase"],
+        },
+        "where": {"ranked_cells": where_table(res_ref, layout, inputs, segments, y),
+                  **_marginals(res_ref, layout, inputs, segments, y),
+                  "braking_zones": segments.n_zones},
+        "consistency": cons,
+        "effects": effects_out,
+        **decision.summary(),
+        "combined": selection,
+        "warnings": warnings,
+        "run": {
+            "brakethermo": __version__,
+            "disc": disc.id,
+            "effects_tried": list(names),
+            "timings_s": timings,
+            "wall_time_s": time.perf_counter() - t_start,
+            "input_warnings": list(session.warnings) + list(inputs.warnings),
+        },
+    }
+    return DiagnoseResult(session, summary, inputs.time, inputs.lap, y, ref_pred,
+                          best.pred if best else None, dist, nis, timings, ref_sse, evidence)
+
+
+def _forward_selection(
+    significant: list[Candidate],
+    fit_candidate: Callable[[tuple[str, ...], Candidate | None], Candidate],
+    describe: Callable[[Candidate, np.ndarray], dict[str, Any]],
+    y: np.ndarray,
+    layout: Layout,
+) -> dict[str, Any]:
+    """Greedy forward selection over the significant effects, on held-out laps."""
+    if not significant:
+        return {"effects": [], "steps": []}
+    current = significant[0]
+    steps = [{"added": current.name, "rmse_after": current.scores["rmse_after"],
+              "shrink_pct": current.scores["shrink_pct"]}]
+    for cand in significant[1:]:
+        trial = fit_candidate((*current.effects, *cand.effects), current)
+        gain = describe(trial, current.pred)
+        if gain["significant"]:
+            trial.scores = gain
+            steps.append({"added": cand.name, "rmse_after": gain["rmse_after"],
+                          "shrink_pct": gain["shrink_pct"]})
+            current = trial
+    return {"effects": list(current.effects), "steps": steps}
+

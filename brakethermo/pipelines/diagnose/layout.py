@@ -1,0 +1,137 @@
+"""The session's layout for the diagnosis: lap distance, braking zones and straights, the
+lap split into training and held-out laps, and the masks of the phases."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from brakethermo.errors import DataError
+from brakethermo.io.session import Session
+from brakethermo.models.disc_effects import Segments
+from brakethermo.pipelines.diagnose._common import MIN_STRAIGHT_S, ZONE_MATCH_M
+from brakethermo.pipelines.inputs import DiscInputs
+from brakethermo.report.braking_zones import detect_zones
+
+
+def lap_distance(inputs: DiscInputs, session: Session) -> np.ndarray:
+    """Distance along the lap, m: the ``distance`` channel, else integrated speed."""
+    if session.has("distance"):
+        d = session.values("distance")
+        if np.isfinite(d).all():
+            laps, which = np.unique(inputs.lap, return_inverse=True)
+            start = np.array([d[which == j].min() for j in range(laps.size)])
+            return d - start[which]  # each lap from its own least distance
+    dt = session.dt
+    out = np.zeros(inputs.speed.size)
+    for lap in np.unique(inputs.lap):
+        m = inputs.lap == lap
+        out[m] = np.cumsum(np.abs(inputs.speed[m])) * dt
+    return out
+
+
+def build_segments(inputs: DiscInputs, zones: np.ndarray, dist: np.ndarray) -> Segments:
+    """Braking zones matched across laps by lap distance; straights per lap."""
+    K = inputs.speed.size
+    starts = zones[:, 0] if zones.size else np.empty(0, int)
+    flying = inputs.lap[starts] >= 1 if starts.size else np.empty(0, bool)
+    # One zone = a cluster of braking starts at nearly the same lap distance.
+    centres: list[float] = []
+    for d in np.sort(dist[starts[flying]]):
+        if not centres or d - centres[-1] > ZONE_MATCH_M:
+            centres.append(float(d))
+    zone = np.full(K, -1)
+    for start in starts:
+        if centres:
+            z = int(np.argmin(np.abs(np.asarray(centres) - dist[start])))
+            if abs(centres[z] - dist[start]) <= ZONE_MATCH_M:
+                zone[start:] = z  # the zone owns its cycle until the next start
+                continue
+        zone[start:] = -1
+    braking = np.zeros(K, bool)
+    for a, b in zones:
+        braking[a:b] = True
+    straight = np.full(K, -1)
+    laps: list[int] = []
+    edges = np.diff(np.concatenate(([1], braking.astype(np.int8), [1])))
+    run_starts, run_stops = np.flatnonzero(edges == -1), np.flatnonzero(edges == 1)
+    for a, b in zip(run_starts, run_stops, strict=True):
+        if (b - a) * 0.1 < MIN_STRAIGHT_S and laps:
+            straight[a:b] = len(laps) - 1
+            continue
+        straight[a:b] = len(laps)
+        laps.append(int(inputs.lap[a]))
+    return Segments(zone=zone, n_zones=len(centres), straight=straight,
+                    n_straights=len(laps), straight_lap=np.asarray(laps, int))
+
+
+def session_segments(session: Session, inputs: DiscInputs
+                     ) -> tuple[np.ndarray, np.ndarray, Segments]:
+    """The session's braking zones (``[start, stop)`` rows), lap distance (m) and segments."""
+    pressure = np.nan_to_num(session.values("brake_pressure_front"), nan=0.0)
+    zones = detect_zones(inputs.time, pressure)
+    dist = lap_distance(inputs, session)
+    return zones, dist, build_segments(inputs, zones, dist)
+
+
+def split_laps(session: Session, inputs: DiscInputs, holdout: Sequence[int] | None
+               ) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """Training and held-out flying laps (out-lap and partial last lap excluded)."""
+    present = sorted(int(v) for v in np.unique(inputs.lap) if v >= 1)
+    durations = {lap.lap: lap.duration_s for lap in session.laps}
+    full = [lap for lap in present if durations.get(lap, 0.0) > 0]
+    if len(full) >= 3:
+        typical = float(np.median([durations[lap] for lap in full]))
+        full = [lap for lap in full if durations[lap] >= 0.8 * typical]
+    if len(full) < 2:
+        raise DataError(
+            f"diagnose needs at least two flying laps to fit on some and check on others; the"
+            f" session has {len(full)} (lap_beacon marks laps; the out-lap is lap 0)",
+            path=session.path, channel="lap_beacon",
+        )
+    if holdout:
+        bad = [lap for lap in holdout if lap not in full]
+        if bad:
+            raise DataError(
+                f"--holdout-laps {', '.join(map(str, bad))}: not flying laps of this session"
+                f" (flying laps: {', '.join(map(str, full))})", path=session.path,
+            )
+        held = tuple(sorted(holdout))
+        train = tuple(lap for lap in full if lap not in held)
+        if not train:
+            raise DataError("--holdout-laps leaves no lap to fit on", path=session.path)
+        return train, held
+    return tuple(full[0::2]), tuple(full[1::2])
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Masks of the grid used for fitting, scoring and the phase splits."""
+
+    train: np.ndarray  # (K,)
+    held: np.ndarray  # (K,)
+    braking: np.ndarray  # (K,)
+    release: np.ndarray  # (K,) first seconds after a release
+    cycles: np.ndarray  # (K,) id of the braking cycle (bootstrap unit), -1 outside
+
+
+def zone_masks(zones: np.ndarray, K: int, settle: int
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per step from the ``[start, stop)`` braking zones: braking, release (the ``settle``
+    steps after a release, off the brakes) and the braking cycle's id (-1 before the first).
+    """
+    braking = np.zeros(K, bool)
+    release = np.zeros(K, bool)
+    cycles = np.full(K, -1)
+    for j, (a, b) in enumerate(zones):
+        braking[a:b] = True
+        release[b: b + settle] = True
+        cycles[a:] = j
+    return braking, release & ~braking, cycles
+
+
+def _phase_masks(layout: Layout) -> dict[str, np.ndarray]:
+    return {"braking": layout.braking, "cooling": ~layout.braking}
+

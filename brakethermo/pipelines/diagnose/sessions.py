@@ -1,0 +1,162 @@
+"""Entry points: one session, several pooled, and the writers of diagnosis.json, the
+parquet and the page."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from brakethermo import __version__
+from brakethermo.diagnosis.verdict import (
+    CandidateEvidence,
+    decide,
+)
+from brakethermo.errors import DataError
+from brakethermo.pipelines.diagnose._common import RULE, DiagnoseOptions, DiagnoseResult
+from brakethermo.pipelines.diagnose.four_spot import diagnose_session
+from brakethermo.pipelines.inputs import load_timed
+from brakethermo.pipelines.models import disc_for
+
+
+def diagnose(path: str | Path, options: DiagnoseOptions | None = None,
+             progress: Callable[[str, int, int], None] | None = None) -> DiagnoseResult:
+    """Load a session file and diagnose it (:func:`diagnose_session`)."""
+    options = options or DiagnoseOptions()
+    session, read_s = load_timed(path, options.aliases)
+    result = diagnose_session(session, options, progress)
+    result.timings["read_s"] = read_s
+    return result
+
+
+def diagnose_many(paths: Sequence[str | Path], options: DiagnoseOptions | None = None,
+                  progress: Callable[[str, int, int], None] | None = None
+                  ) -> tuple[list[DiagnoseResult], dict[str, Any]]:
+    """Diagnose several sessions of one bike and disc, then pool their evidence.
+
+    Raises
+    ------
+    DataError
+        Sessions of different discs, or a session without the four spots pooling needs.
+    """
+    options = options or DiagnoseOptions()
+    sessions = [load_timed(p, options.aliases)[0] for p in paths]
+    discs = {s.path.name: disc_for(s, options.disc).id for s in sessions}
+    if len(set(discs.values())) > 1:
+        listing = ", ".join(f"{n}: {d}" for n, d in discs.items())
+        raise DataError(f"diagnose pools sessions of one disc; these run {listing}: diagnose"
+                        " each disc's sessions in their own call")
+    for s in sessions:
+        have = [i for i in range(1, 5) if s.has(f"disc_temp_spot{i}")]
+        if len(have) < 4:
+            raise DataError(
+                "pooling several sessions needs the four-spot sensor in each; this one logs"
+                f" {len(have)} spot(s): diagnose it alone", path=s.path)
+    results = []
+    for i, s in enumerate(sessions):
+        def tick(label: str, done: int, total: int, i: int = i, name: str = s.path.name
+                 ) -> None:
+            if progress:
+                progress(f"{name} ({i + 1}/{len(sessions)}): {label}", done, total)
+        results.append(diagnose_session(s, options, tick))
+    return results, pool(results)
+
+
+def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
+    """One verdict from several sessions: their held-out braking cycles resampled together.
+
+    Per-session verdicts stay beside the pooled one; an effect significant in one run only
+    is said so (a one-off — a gusty session, one set of pads — is not the disc).
+    """
+    names = [e.name for e in results[0].evidence]
+    by_session = [{e.name: e for e in r.evidence} for r in results]
+    ref = np.concatenate([r.reference_sse for r in results if r.reference_sse is not None])
+    evidence = [
+        CandidateEvidence(n, np.concatenate([b[n].sse for b in by_session]),
+                          correction=np.concatenate([np.ravel(b[n].correction)
+                                                     for b in by_session]),
+                          separate_by=by_session[0][n].separate_by,
+                          next_step=by_session[0][n].next_step, outputs=by_session[0][n].outputs)
+        for n in names if all(n in b for b in by_session)]
+    blind_sets = [{u["name"]: u["why"] for u in r.summary.get("untestable", [])}
+                  for r in results]
+    blind = {n: f"in every session — {why}" for n, why in blind_sets[0].items()
+             if all(n in b for b in blind_sets)}
+    decision = decide(ref, evidence, RULE, untestable=blind)
+    stems = [r.stem for r in results]
+    seen_in = {n: [r.stem for r in results for e in r.summary["effects"]
+                   if e["name"] == n and e["significant"]] for n in names}
+    rows = []
+    for row in decision.rows:
+        per = {r.stem: next(e["shrink_pct"] for e in r.summary["effects"]
+                            if e["name"] == row["name"]) for r in results}
+        rows.append({**row, "per_session_shrink_pct": per, "significant_in": seen_in[row["name"]]})
+    notes = [f"{n} is significant in {seen_in[n][0]} only: a one-off of that run, or an effect"
+             " the other runs cannot show" for n in names if len(seen_in[n]) == 1]
+    gaps = [r.summary["gap"]["rmse_c"] for r in results]
+    first = results[0].summary
+    return {
+        "sessions": [str(r.session.path) for r in results],
+        "reference": first["reference"],
+        "train_laps": {r.stem: r.summary["train_laps"] for r in results},
+        "heldout_laps": {r.stem: r.summary["heldout_laps"] for r in results},
+        "gap": {"rmse_c": float(np.sqrt(np.mean(np.square(gaps)))),
+                "per_session": dict(zip(stems, gaps, strict=True))},
+        "where": {r.stem: r.summary["where"]["by_spot_phase"] for r in results},
+        "consistency": {r.stem: r.summary["consistency"] for r in results},
+        "effects": rows,
+        **decision.summary(),
+        "per_session": [{"session": r.stem, "verdict": r.summary["verdict"],
+                         "verdict_set": r.summary["verdict_set"]} for r in results],
+        "notes": notes,
+        "run": {"brakethermo": __version__, "disc": first["run"]["disc"],
+                "pooled_units": int(ref.shape[0])},
+    }
+
+
+def write_pooled(summary: dict[str, Any], out_dir: str | Path) -> Path:
+    """``<out>/pooled/diagnosis.json``; returns its path."""
+    from brakethermo.pipelines.outputs import write_json
+
+    return write_json(Path(out_dir) / "pooled" / "diagnosis.json", summary)
+
+
+def write_diagnosis(result: DiagnoseResult, out_dir: str | Path) -> Path:
+    """Write ``<out>/<stem>/diagnosis.json``, ``diagnosis.parquet`` and the report page.
+
+    The page and its PNGs go to ``<out>/<stem>/diagnosis/`` (staged and swapped in whole)
+    so they never mix with the estimate's per-lap reports in the same session folder.
+    """
+    import pandas as pd
+
+    from brakethermo.io.atomic import atomic_dir
+    from brakethermo.pipelines.outputs import write_json, write_parquet
+    from brakethermo.report.diagnose_report import diagnosis_page
+    from brakethermo.report.page import write_page
+    from brakethermo.report.session_links import refresh_page_links
+
+    folder = Path(out_dir) / result.stem
+    folder.mkdir(parents=True, exist_ok=True)
+    cols: dict[str, np.ndarray] = {"time": result.time, "lap": result.lap.astype(np.int64),
+                                   "lap_distance": result.lap_distance}
+    for i in range(4):
+        cols[f"spot{i + 1}"] = result.y[:, i]
+        cols[f"reference_spot{i + 1}"] = result.reference_pred[:, i]
+        if result.best_pred is not None:
+            cols[f"best_spot{i + 1}"] = result.best_pred[:, i]
+    cols["nis"] = result.nis
+    units = {c: {"unit": "degC"} for c in cols if "spot" in c}
+    units.update(time={"unit": "s"}, lap_distance={"unit": "m"})
+    write_parquet(folder / "diagnosis.parquet", pd.DataFrame(cols), units,
+                  {"brakethermo": __version__, "session": str(result.session.path)})
+    write_json(folder / "diagnosis.json", result.summary)
+    page = diagnosis_page(result.summary, result.time, result.lap, result.y,
+                          result.reference_pred, result.best_pred, result.lap_distance,
+                          result.nis, result.stem)
+    with atomic_dir(folder / "diagnosis") as tmp:
+        write_page(page, tmp)
+    refresh_page_links(folder)  # the session index links the page (or a small one does)
+    return folder
+

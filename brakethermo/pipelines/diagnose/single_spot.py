@@ -1,0 +1,206 @@
+"""The diagnosis of a single-spot race: the innovations' "where" and the online effects
+one spot can follow."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from scipy.stats import chi2
+
+from brakethermo import __version__
+from brakethermo.diagnosis.verdict import (
+    CandidateEvidence,
+    decide,
+    unit_sse,
+)
+from brakethermo.errors import DataError
+from brakethermo.io.session import Session
+from brakethermo.models.effects import EFFECTS, parse_effects
+from brakethermo.pipelines.diagnose._common import (
+    RACE_SPOT,
+    RULE,
+    SENSOR_FLOOR_C,
+    SETTLE_S,
+    DiagnoseOptions,
+    DiagnoseResult,
+)
+from brakethermo.pipelines.diagnose.evidence import _corr
+from brakethermo.pipelines.diagnose.fit import _gauss_ll
+from brakethermo.pipelines.diagnose.layout import Layout, session_segments, zone_masks
+from brakethermo.pipelines.diagnose.scores import score
+from brakethermo.pipelines.diagnose.where import _marginals, where_table
+from brakethermo.pipelines.inputs import DiscInputs
+from brakethermo.thermal.disc import DiscSpec
+
+# estimate.parquet's online columns are relative to the law's structure: their names here
+ONLINE_KEY = {"kz_factor": "kz_over_test_session", "h_factor": "h_factor",
+              "crown_balance": "crown_balance"}
+
+
+# effect -> (estimate option that adapts it online, its state column, its test-session value)
+SINGLE_SPOT_ONLINE = {"thickness_gradient": ("adapt_kz", "kz_factor", 1.0),
+                      "slipstream": ("adapt_slipstream", "h_factor", 1.0),
+                      "power_distribution": ("adapt_balance", "crown_balance", 0.0)}
+
+
+def diagnose_single_spot(
+    session: Session,
+    options: DiagnoseOptions,
+    inputs: DiscInputs,
+    disc: DiscSpec,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> DiagnoseResult:
+    """What one race pyrometer can tell: innovation-based "where" and the online effects.
+
+    The race filter (identified law, spot 3 measured) runs without online effects (the
+    reference) and with each effect one spot can follow online; its one-step-ahead
+    innovations are predictions from past readings only, so every flying lap is scored.
+    The other effects need the four-spot test session and are listed as such.
+    """
+    from brakethermo.pipelines.estimate import EstimateOptions, estimate_from_session
+
+    t_start = time.perf_counter()
+    names = parse_effects(options.effects)
+    flying = tuple(int(v) for v in np.unique(inputs.lap) if v >= 1)
+    if not flying:
+        raise DataError("diagnose needs at least one flying lap (lap_beacon >= 1)",
+                        path=session.path, channel="lap_beacon")
+    online = [n for n in names if n in SINGLE_SPOT_ONLINE]
+    off = {flag: False for flag, _, _ in SINGLE_SPOT_ONLINE.values()}
+    base = EstimateOptions(spot=RACE_SPOT, h_law=options.h_law, disc=options.disc,
+                           tuning=options.tuning, aliases=options.aliases,
+                           ambient_c=options.ambient_c, smoother=False, score=False)
+    runs = {}
+    for i, label in enumerate(["reference", *online], start=1):
+        flags = dict(off)
+        if label != "reference":
+            flags[SINGLE_SPOT_ONLINE[label][0]] = True
+        runs[label] = estimate_from_session(session, replace(base, **flags))
+        if progress:
+            progress(label, i, len(online) + 1)
+    y = np.full((inputs.time.size, 4), np.nan)
+    y[:, RACE_SPOT - 1] = inputs.spots[:, RACE_SPOT - 1]
+    y[y <= SENSOR_FLOOR_C] = np.nan
+
+    def prediction(label: str) -> np.ndarray:
+        pred = np.full_like(y, np.nan)
+        pred[:, RACE_SPOT - 1] = y[:, RACE_SPOT - 1] - runs[label].innovation
+        return pred
+
+    zones, dist, segments = session_segments(session, inputs)
+    braking, release, cycles = zone_masks(zones, inputs.time.size, round(SETTLE_S / session.dt))
+    scored = np.isin(inputs.lap, flying)
+    layout = Layout(train=np.zeros_like(scored), held=scored, braking=braking,
+                    release=release, cycles=cycles)
+    ref_pred = prediction("reference")
+    spots = (RACE_SPOT,)
+    units = np.where(layout.held, layout.cycles, -1)
+    ref_sse = unit_sse(ref_pred - y, units, per_output=True)[0]
+    evidence = [
+        CandidateEvidence(label, unit_sse(prediction(label) - y, units, per_output=True)[0],
+                          correction=(prediction(label) - ref_pred)[layout.held],
+                          separate_by=EFFECTS[label].separate_by,
+                          next_step=(f"brakethermo estimate {session.path} --"
+                                     f"{SINGLE_SPOT_ONLINE[label][0].replace('_', '-')}"),
+                          outputs=(RACE_SPOT - 1,))
+        for label in online]
+    decision = decide(ref_sse, evidence, RULE)
+    rows = {r["name"]: r for r in decision.rows}
+    effects_out = []
+    best_pred = None
+    for label in online:
+        pred = prediction(label)
+        before, after = score(ref_pred, y, layout, spots), score(pred, y, layout, spots)
+        row = rows[label]
+        frame = runs[label].frame
+        _, column, nominal = SINGLE_SPOT_ONLINE[label]
+        track = frame[column].to_numpy()[scored]
+        key = ONLINE_KEY[column]
+        effects_out.append({
+            "name": label, "rmse_before": before["overall"], "rmse_after": after["overall"],
+            "shrink_pct": row["shrink_pct"], "shrink_ci95_pct": row["shrink_ci95_pct"],
+            "significant": row["significant"], "rank": row["rank"],
+            "heldout_loglik_gain": float(np.nanmean(_gauss_ll(runs[label]))
+                                         - np.nanmean(_gauss_ll(runs["reference"]))),
+            "scored_spots": [f"spot{RACE_SPOT}"],
+            "per_spot": {f"spot{RACE_SPOT}": {"before": before["overall"],
+                                              "after": after["overall"]}},
+            "per_phase": {k: {"before": before["per_phase"][k], "after": after["per_phase"][k]}
+                          for k in after["per_phase"]},
+            "params": {f"{key}_median": float(np.median(track)),
+                       f"{key}_p05": float(np.percentile(track, 5)),
+                       f"{key}_p95": float(np.percentile(track, 95))},
+            "evidence": (f"online {key} over the flying laps: median"
+                         f" {np.median(track):.2f}, 5-95 % {np.percentile(track, 5):.2f}-"
+                         f"{np.percentile(track, 95):.2f} ({nominal:g} = the test-session disc)"),
+            "signature": EFFECTS[label].signature,
+            "extension": EFFECTS[label].extension,
+            "separate_by": EFFECTS[label].separate_by,
+            "identifiable_from_one_spot": True,
+        })
+    effects_out.sort(key=lambda e: e["rank"])
+    not_observable = [
+        {"name": n, "identifiable_from_one_spot": False,
+         "reason": ("one pyrometer cannot tell its own bias from the disc: only the test"
+                    " session's four spots can") if n == "emissivity_error" else
+                   "needs the four-spot test session (diagnose it there, then estimate with"
+                   " its h_law.toml)"}
+        for n in names if n not in SINGLE_SPOT_ONLINE]
+    verdict = decision.verdict
+    if verdict != "none":
+        best_pred = prediction(verdict)
+    ref_scores = score(ref_pred, y, layout, spots)
+    nis = runs["reference"].innovation**2 / runs["reference"].innovation_var
+    v = nis[scored & np.isfinite(nis)]
+    lo_b, hi_b = chi2.ppf([0.025, 0.975], max(v.size, 1)) / max(v.size, 1)
+    mean = float(np.mean(v)) if v.size else float("nan")
+    state = "over-confident" if mean > hi_b else "under-confident" if mean < lo_b else \
+        "consistent"
+    nu = runs["reference"].innovation[scored]
+    nu = nu[np.isfinite(nu)]
+    res = y - ref_pred
+    summary: dict[str, Any] = {
+        "session": str(session.path),
+        "metadata": session.metadata,
+        "mode": "single-spot race session: innovation-based, spot 3 only",
+        "reference": {
+            "contains": [
+                f"the race estimator of disc {disc.id} with the h law "
+                f"{runs['reference'].summary['run']['h_law'] or 'shipped for the disc'}",
+                "no online effects (k_z and slipstream factors fixed at 1)",
+                "scored by its one-step-ahead innovations at spot 3: predictions from past"
+                " readings only, so no lap needs to be held out",
+            ],
+            "fitted": {},
+        },
+        "train_laps": [],
+        "heldout_laps": list(flying),
+        "gap": {"rmse_c": ref_scores["overall"], "per_spot": ref_scores["per_spot"],
+                "per_phase": ref_scores["per_phase"],
+                "per_spot_phase": ref_scores["per_spot_phase"]},
+        "where": {"ranked_cells": where_table(res, layout, inputs, segments, y),
+                  **_marginals(res, layout, inputs, segments, y),
+                  "braking_zones": segments.n_zones},
+        "consistency": {
+            "per_spot": {f"spot{RACE_SPOT}": {
+                "mean_nis": mean, "chi2_band": [float(lo_b), float(hi_b)],
+                "lag1_autocorrelation": _corr(nu[:-1], nu[1:]) if nu.size > 3 else
+                float("nan"), "state": state}},
+            "summary": f"the race filter is {state} at spot {RACE_SPOT} (mean NIS {mean:.2f})",
+        },
+        "effects": effects_out,
+        "not_identifiable_from_one_spot": not_observable,
+        **decision.summary(),
+        "combined": {"effects": [verdict] if verdict != "none" else [], "steps": []},
+        "warnings": [],
+        "run": {"brakethermo": __version__, "disc": disc.id, "effects_tried": list(names),
+                "timings_s": {}, "wall_time_s": time.perf_counter() - t_start,
+                "input_warnings": list(session.warnings) + list(inputs.warnings)},
+    }
+    return DiagnoseResult(session, summary, inputs.time, inputs.lap, y, ref_pred, best_pred,
+                          dist, nis, {}, ref_sse, evidence)
+
