@@ -12,6 +12,7 @@ import numpy as np
 from brakethermo import __version__
 from brakethermo.diagnosis.verdict import (
     CandidateEvidence,
+    Decision,
     decide,
     unit_sse,
 )
@@ -50,9 +51,10 @@ from brakethermo.pipelines.diagnose.scores import (
 from brakethermo.pipelines.diagnose.single_spot import diagnose_single_spot
 from brakethermo.pipelines.diagnose.where import _marginals, where_table
 from brakethermo.pipelines.estimate import SIGMA_MEAS_FLOOR_C
-from brakethermo.pipelines.inputs import disc_inputs
+from brakethermo.pipelines.inputs import DiscInputs, disc_inputs
 from brakethermo.pipelines.models import disc_for
-from brakethermo.pipelines.tuning import load_tuning
+from brakethermo.pipelines.tuning import EstimateTuning, load_tuning
+from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
 
 
@@ -75,53 +77,93 @@ def diagnose_session(
                 f" this session logs spot(s) {', '.join(map(str, inputs.measured))}",
                 path=session.path)
         return diagnose_single_spot(session, options, inputs, disc, progress)
-    y = inputs.spots.copy()
-    y[y <= SENSOR_FLOOR_C] = np.nan
-    spot_radii = np.asarray(disc.spot_radii)
-    zones, dist, segments = session_segments(session, inputs)
-    train_laps, held_laps = split_laps(session, inputs, options.holdout_laps)
-    braking, release, cycles = zone_masks(zones, inputs.time.size, round(SETTLE_S / session.dt))
-    layout = Layout(train=np.isin(inputs.lap, train_laps), held=np.isin(inputs.lap, held_laps),
-                    braking=braking, release=release, cycles=cycles)
-    train_mask = layout.train[:, None] & np.isfinite(y)
-
-    model = DiscFEModel(disc, est_tuning.nodes, est_tuning.layers,
-                        layer_growth=est_tuning.layer_growth, k_z=disc.k_z)
-    T0 = _initial_nodes(model, spot_radii, y, float(inputs.t_amb[0]))
-    a0, b0, w0 = _reference_start(disc, options.h_law)
-
-    def make(effects: tuple[str, ...]) -> ExtendedDisc:
-        return ExtendedDisc(model, inputs.speed, inputs.q_brk, inputs.t_amb, T0, spot_radii,
-                            disc.v_ref, effects, segments)
-
-    total_steps = len(names) + 3
-    done = 0
-
-    def tick(label: str) -> None:
-        nonlocal done
-        done += 1
-        if progress:
-            progress(label, done, total_steps)
-
-    timings: dict[str, float] = {}
+    d = _FourSpot(session, options, inputs, disc, est_tuning, names, progress)
+    d.fit_reference()
+    candidates = [d.fit_one(name) for name in names]
+    decision, evidence, ranked = d.decide(candidates)
+    significant = [c for c in ranked if c.scores["significant"]]
     t0 = time.perf_counter()
-    ref = make(())
-    p_ref = ref.neutral()
-    p_ref[0], p_ref[1] = np.log(max(a0, 1.0)), b0
-    w0 = np.maximum(w0, 1e-3)
-    p_ref[3:5] = np.log(w0[:2] / w0[2])
-    p_ref = _fit(ref, p_ref, y, train_mask, np.ones(ref.size, bool), options.max_nfev)
-    ref_pred = ref.predict(p_ref)[0]
-    timings["reference_s"] = time.perf_counter() - t0
-    tick("reference model")
+    selection = _forward_selection(significant, d.fit_candidate, d.describe, d.y, d.layout)
+    d.timings["forward_selection_s"] = time.perf_counter() - t0
+    d.tick("forward selection")
+    summary = d.summary(decision, ranked, significant, selection, t_start)
+    best = ranked[0] if ranked else None
+    return DiagnoseResult(session, summary, inputs.time, inputs.lap, d.y, d.ref_pred,
+                          best.pred if best else None, d.dist, d.nis, d.timings, d.ref_sse,
+                          evidence)
 
-    def fit_candidate(effects: tuple[str, ...], start: Candidate | None = None) -> Candidate:
+
+class _FourSpot:
+    """One four-spot diagnosis: the session's layout, the reference fit and the candidates.
+
+    Each method is one step of the module docstring; the state they share (the readings,
+    the lap split, the model, the reference parameters) lives here.
+    """
+
+    def __init__(self, session: Session, options: DiagnoseOptions, inputs: DiscInputs,
+                 disc: DiscSpec, est_tuning: EstimateTuning, names: tuple[str, ...],
+                 progress: Callable[[str, int, int], None] | None) -> None:
+        self.session, self.options, self.inputs, self.disc = session, options, inputs, disc
+        self.est_tuning, self.names, self.progress = est_tuning, names, progress
+        y = inputs.spots.copy()
+        y[y <= SENSOR_FLOOR_C] = np.nan
+        self.y = y
+        self.spot_radii = np.asarray(disc.spot_radii)
+        zones, self.dist, self.segments = session_segments(session, inputs)
+        self.train_laps, self.held_laps = split_laps(session, inputs, options.holdout_laps)
+        braking, release, cycles = zone_masks(zones, inputs.time.size,
+                                              round(SETTLE_S / session.dt))
+        self.layout = Layout(train=np.isin(inputs.lap, self.train_laps),
+                             held=np.isin(inputs.lap, self.held_laps),
+                             braking=braking, release=release, cycles=cycles)
+        self.train_mask = self.layout.train[:, None] & np.isfinite(y)
+        self.model = DiscFEModel(disc, est_tuning.nodes, est_tuning.layers,
+                                 layer_growth=est_tuning.layer_growth, k_z=disc.k_z)
+        self.T0 = _initial_nodes(self.model, self.spot_radii, y, float(inputs.t_amb[0]))
+        self.timings: dict[str, float] = {}
+        self.done = 0
+        self.total_steps = len(names) + 3
+
+    def tick(self, label: str) -> None:
+        self.done += 1
+        if self.progress:
+            self.progress(label, self.done, self.total_steps)
+
+    def make(self, effects: tuple[str, ...]) -> ExtendedDisc:
+        i = self.inputs
+        return ExtendedDisc(self.model, i.speed, i.q_brk, i.t_amb, self.T0, self.spot_radii,
+                            self.disc.v_ref, effects, self.segments)
+
+    def fit_reference(self) -> None:
+        """Step 1: the reference model fitted on the training laps (all four spots)."""
+        t0 = time.perf_counter()
+        a0, b0, w0 = _reference_start(self.disc, self.options.h_law)
+        self.ref = ref = self.make(())
+        p_ref = ref.neutral()
+        p_ref[0], p_ref[1] = np.log(max(a0, 1.0)), b0
+        w0 = np.maximum(w0, 1e-3)
+        p_ref[3:5] = np.log(w0[:2] / w0[2])
+        self.p_ref = _fit(ref, p_ref, self.y, self.train_mask, np.ones(ref.size, bool),
+                          self.options.max_nfev)
+        self.ref_pred = ref.predict(self.p_ref)[0]
+        self.timings["reference_s"] = time.perf_counter() - t0
+        self.tick("reference model")
+
+    def fit_one(self, name: str) -> Candidate:
+        cand = self.fit_candidate((name,))
+        self.timings[f"{name}_s"] = cand.fit_s
+        self.tick(name)
+        return cand
+
+    def fit_candidate(self, effects: tuple[str, ...], start: Candidate | None = None
+                      ) -> Candidate:
+        """Step 4: an extension fitted on the training laps (from ``start``'s values)."""
         t = time.perf_counter()
-        ext = make(effects)
+        ext = self.make(effects)
         p0 = ext.neutral()
-        p0[:N_REFERENCE] = p_ref[:N_REFERENCE]
+        p0[:N_REFERENCE] = self.p_ref[:N_REFERENCE]
         if start is not None:
-            start_ext = make(start.effects)
+            start_ext = self.make(start.effects)
             for s in ext.slots:
                 for s0 in start_ext.slots:
                     if (s0.effect, s0.param.name, s0.segment) == (s.effect, s.param.name,
@@ -134,30 +176,26 @@ def diagnose_session(
         if any(EFFECTS[e].latent == "straight" for e in effects):
             free[:N_REFERENCE] = False
         held_latent = np.zeros(ext.size, bool)
+        straight_lap = self.segments.straight_lap
         for s in ext.slots:
             if s.segment >= 0 and EFFECTS[s.effect].latent == "straight":
-                if segments.straight_lap[s.segment] not in train_laps:
+                if straight_lap[s.segment] not in self.train_laps:
                     free[s.index] = False
-                    held_latent[s.index] = segments.straight_lap[s.segment] in held_laps
-        p = _fit(ext, p0, y, train_mask, free, options.max_nfev)
+                    held_latent[s.index] = straight_lap[s.segment] in self.held_laps
+        p = _fit(ext, p0, self.y, self.train_mask, free, self.options.max_nfev)
         spots: tuple[int, ...] = (1, 2, 3, 4)
         if held_latent.any():
             # Held-out straights: their latent values from the race sensor alone.
-            race = np.zeros_like(train_mask)
-            race[:, RACE_SPOT - 1] = layout.held & np.isfinite(y[:, RACE_SPOT - 1])
-            p = _fit(ext, p, y, race, held_latent, options.max_nfev)
+            race = np.zeros_like(self.train_mask)
+            race[:, RACE_SPOT - 1] = self.layout.held & np.isfinite(self.y[:, RACE_SPOT - 1])
+            p = _fit(ext, p, self.y, race, held_latent, self.options.max_nfev)
             spots = tuple(s for s in spots if s != RACE_SPOT)
         return Candidate(",".join(effects), effects, p, ext.predict(p)[0], spots,
                          time.perf_counter() - t)
 
-    candidates: list[Candidate] = []
-    for name in names:
-        cand = fit_candidate((name,))
-        candidates.append(cand)
-        timings[f"{name}_s"] = cand.fit_s
-        tick(name)
-
-    def describe(c: Candidate, base_pred: np.ndarray) -> dict[str, Any]:
+    def describe(self, c: Candidate, base_pred: np.ndarray) -> dict[str, Any]:
+        """A candidate's held-out scores against ``base_pred``."""
+        y, layout = self.y, self.layout
         before = score(base_pred, y, layout, c.scored_spots)
         after = score(c.pred, y, layout, c.scored_spots)
         shrink, lo, hi = bootstrap_shrink(base_pred, c.pred, y, layout, c.scored_spots)
@@ -175,88 +213,85 @@ def diagnose_session(
                           for k in after["per_phase"]},
         }
 
-    res_ref = y - ref_pred
-    sig = signatures(res_ref, y, inputs, layout, segments, disc.v_ref, session.dt)
-    units = np.where(layout.held, layout.cycles, -1)
-    ref_sse = unit_sse(ref_pred - y, units, per_output=True)[0]
-    evidence = [
-        CandidateEvidence(c.name, unit_sse(c.pred - y, units, per_output=True)[0],
-                          correction=(c.pred - ref_pred)[layout.held],
-                          separate_by=EFFECTS[c.name].separate_by,
-                          next_step=carry_command(session.path, c.name),
-                          outputs=tuple(s_ - 1 for s_ in c.scored_spots))
-        for c in candidates]
-    blind = disc_data_power(inputs.speed, y, inputs.t_amb, layout.braking,
-                            layout.train | layout.held, disc.v_ref, SENSOR_FLOOR_C)
-    decision = decide(ref_sse, evidence, RULE, untestable=blind)
-    effects_out = []
-    for c in candidates:
-        c.scores = describe(c, ref_pred)
-        row = next(r for r in decision.rows if r["name"] == c.name)
-        c.scores.update(shrink_pct=row["shrink_pct"], shrink_ci95_pct=row["shrink_ci95_pct"],
-                        significant=row["significant"])
-        params = make(c.effects).values(c.p, c.name)
-        size, sentence = effect_size(c.name, params, disc, est_tuning.layers)
-        if "kz_factor" in params:  # in h_law.toml kz_factor is relative to k(T), not k_z
-            params = {"kz_over_nominal": params.pop("kz_factor"), **params}
-        effects_out.append({
-            "name": c.name,
-            **c.scores,  # describe()'s keys, in its order
-            "params": params,
-            "size": size,
-            "size_text": sentence,
-            "evidence": EVIDENCE[c.name](sig[c.name]),
-            "signature": EFFECTS[c.name].signature,
-            "extension": EFFECTS[c.name].extension,
-            "separate_by": EFFECTS[c.name].separate_by,
-            "fit_s": c.fit_s,
-            **({"vs_first_pp": row["vs_first_pp"]} if "vs_first_pp" in row else {}),
-        })
-    rank_of = {r["name"]: r["rank"] for r in decision.rows}
-    effects_out.sort(key=lambda e: rank_of[e["name"]])
-    ranked = sorted(candidates, key=lambda c: rank_of[c.name])
-    for e in effects_out:
-        e["rank"] = rank_of[e["name"]]
+    def decide(self, candidates: list[Candidate]
+               ) -> tuple[Decision, list[CandidateEvidence], list[Candidate]]:
+        """Step 5: the engine's verdict over held-out braking cycles; ranked candidates."""
+        y, layout = self.y, self.layout
+        units = np.where(layout.held, layout.cycles, -1)
+        self.ref_sse = unit_sse(self.ref_pred - y, units, per_output=True)[0]
+        evidence = [
+            CandidateEvidence(c.name, unit_sse(c.pred - y, units, per_output=True)[0],
+                              correction=(c.pred - self.ref_pred)[layout.held],
+                              separate_by=EFFECTS[c.name].separate_by,
+                              next_step=carry_command(self.session.path, c.name),
+                              outputs=tuple(s_ - 1 for s_ in c.scored_spots))
+            for c in candidates]
+        blind = disc_data_power(self.inputs.speed, y, self.inputs.t_amb, layout.braking,
+                                layout.train | layout.held, self.disc.v_ref, SENSOR_FLOOR_C)
+        decision = decide(self.ref_sse, evidence, RULE, untestable=blind)
+        for c in candidates:
+            c.scores = self.describe(c, self.ref_pred)
+            row = next(r for r in decision.rows if r["name"] == c.name)
+            c.scores.update(shrink_pct=row["shrink_pct"], shrink_ci95_pct=row["shrink_ci95_pct"],
+                            significant=row["significant"])
+        self.candidates = candidates
+        rank_of = {r["name"]: r["rank"] for r in decision.rows}
+        return decision, evidence, sorted(candidates, key=lambda c: rank_of[c.name])
 
-    significant = [c for c in ranked if c.scores["significant"]]
-    verdict = decision.verdict
+    def effects_out(self, decision: Decision) -> list[dict[str, Any]]:
+        """``effects`` of diagnosis.json: scores, size, evidence, ranked."""
+        sig = signatures(self.y - self.ref_pred, self.y, self.inputs, self.layout,
+                         self.segments, self.disc.v_ref, self.session.dt)
+        rows = {r["name"]: r for r in decision.rows}
+        out = []
+        for c in self.candidates:
+            row = rows[c.name]
+            params = self.make(c.effects).values(c.p, c.name)
+            size, sentence = effect_size(c.name, params, self.disc, self.est_tuning.layers)
+            if "kz_factor" in params:  # in h_law.toml kz_factor is relative to k(T), not k_z
+                params = {"kz_over_nominal": params.pop("kz_factor"), **params}
+            out.append({
+                "name": c.name,
+                **c.scores,  # describe()'s keys, in its order
+                "params": params,
+                "size": size,
+                "size_text": sentence,
+                "evidence": EVIDENCE[c.name](sig[c.name]),
+                "signature": EFFECTS[c.name].signature,
+                "extension": EFFECTS[c.name].extension,
+                "separate_by": EFFECTS[c.name].separate_by,
+                "fit_s": c.fit_s,
+                **({"vs_first_pp": row["vs_first_pp"]} if "vs_first_pp" in row else {}),
+                "rank": row["rank"],
+            })
+        return sorted(out, key=lambda e: e["rank"])
 
-    # Correlated corrections: two significant effects moving the prediction alike.
-    warnings: list[str] = []
-    held = layout.held
-    for i, a in enumerate(significant):
-        for b in significant[i + 1:]:
-            r = _corr((a.pred - ref_pred)[held].ravel(), (b.pred - ref_pred)[held].ravel())
-            if np.isfinite(r) and r > CORRELATED:
-                alone = decision.kind == "single" and verdict in (a.name, b.name)
-                warnings.append(
-                    f"{a.name} and {b.name} correct the held-out residual alike (correlation"
-                    f" {r:.2f})" + ("; the first still beats the other clearly on held-out"
-                                    " cycles" if alone else
-                                    ": the data cannot tell them apart, the verdict names"
-                                    " the set"))
-    t0 = time.perf_counter()
-    selection = _forward_selection(significant, fit_candidate, describe, y, layout)
-    timings["forward_selection_s"] = time.perf_counter() - t0
-    tick("forward selection")
+    def alike(self, decision: Decision, significant: list[Candidate]) -> list[str]:
+        """Warnings for two significant effects whose corrections move the prediction alike."""
+        warnings: list[str] = []
+        held = self.layout.held
+        for i, a in enumerate(significant):
+            for b in significant[i + 1:]:
+                r = _corr((a.pred - self.ref_pred)[held].ravel(),
+                          (b.pred - self.ref_pred)[held].ravel())
+                if np.isfinite(r) and r > CORRELATED:
+                    alone = decision.kind == "single" and decision.verdict in (a.name, b.name)
+                    warnings.append(
+                        f"{a.name} and {b.name} correct the held-out residual alike"
+                        f" (correlation {r:.2f})"
+                        + ("; the first still beats the other clearly on held-out cycles"
+                           if alone else ": the data cannot tell them apart, the verdict"
+                           " names the set"))
+        return warnings
 
-    sigma_meas = np.array([max(scoring.reading_noise(y[:, i]), SIGMA_MEAS_FLOOR_C)
-                           for i in range(4)])
-    cons, nis = consistency(model, inputs, y, ref.law(p_ref)(inputs.speed),
-                            float(np.exp(p_ref[2])), T0, spot_radii, sigma_meas,
-                            est_tuning.sigma_temp, est_tuning.init_sigma_temp,
-                            layout.train | layout.held)
-    tick("consistency and where")
-    ref_scores = score(ref_pred, y, layout, (1, 2, 3, 4))
-    best = ranked[0] if ranked else None
-    law = ref.law(p_ref)
-    summary: dict[str, Any] = {
-        "session": str(session.path),
-        "metadata": session.metadata,
-        "reference": {
+    def reference_facts(self) -> dict[str, Any]:
+        """``reference`` of diagnosis.json: what the model contains and what was fitted."""
+        disc, tun, ref, p_ref = self.disc, self.est_tuning, self.ref, self.p_ref
+        law = ref.law(p_ref)
+        return {
             "contains": [
-                f"datasheet structure of disc {disc.id}: {est_tuning.nodes} radial nodes x"
-                f" {est_tuning.layers} graded layers, through-thickness conductivity"
+                f"datasheet structure of disc {disc.id}: {tun.nodes} radial nodes x"
+                f" {tun.layers} graded layers, through-thickness conductivity"
                 + (f" k_z = {disc.k_z:g} W/(m K) (nominal)" if disc.k_z else
                    " = radial k(T) (the datasheet gives no k_z)"),
                 "one mean pad-crown weighting for every stop (w1..w3 fitted; the datasheet's"
@@ -267,34 +302,52 @@ def diagnose_session(
             ],
             "fitted": {"h_a": law.a, "h_b": law.b, "power_scale": float(np.exp(p_ref[2])),
                        "crown_weights": list(ref.weights(p_ref))},
-        },
-        "train_laps": list(train_laps),
-        "heldout_laps": list(held_laps),
-        "gap": {
-            "rmse_c": ref_scores["overall"],
-            "per_spot": ref_scores["per_spot"],
-            "per_phase": ref_scores["per_phase"],
-            "per_spot_phase": ref_scores["per_spot_phase"],
-        },
-        "where": {"ranked_cells": where_table(res_ref, layout, inputs, segments, y),
-                  **_marginals(res_ref, layout, inputs, segments, y),
-                  "braking_zones": segments.n_zones},
-        "consistency": cons,
-        "effects": effects_out,
-        **decision.summary(),
-        "combined": selection,
-        "warnings": warnings,
-        "run": {
-            "brakethermo": __version__,
-            "disc": disc.id,
-            "effects_tried": list(names),
-            "timings_s": timings,
-            "wall_time_s": time.perf_counter() - t_start,
-            "input_warnings": list(session.warnings) + list(inputs.warnings),
-        },
-    }
-    return DiagnoseResult(session, summary, inputs.time, inputs.lap, y, ref_pred,
-                          best.pred if best else None, dist, nis, timings, ref_sse, evidence)
+        }
+
+    def summary(self, decision: Decision, ranked: list[Candidate],
+                significant: list[Candidate], selection: dict[str, Any], t_start: float
+                ) -> dict[str, Any]:
+        """diagnosis.json (with the consistency header and the 'where' tables)."""
+        y, layout, inputs = self.y, self.layout, self.inputs
+        sigma_meas = np.array([max(scoring.reading_noise(y[:, i]), SIGMA_MEAS_FLOOR_C)
+                               for i in range(4)])
+        cons, self.nis = consistency(
+            self.model, inputs, y, self.ref.law(self.p_ref)(inputs.speed),
+            float(np.exp(self.p_ref[2])), self.T0, self.spot_radii, sigma_meas,
+            self.est_tuning.sigma_temp, self.est_tuning.init_sigma_temp,
+            layout.train | layout.held)
+        self.tick("consistency and where")
+        ref_scores = score(self.ref_pred, y, layout, (1, 2, 3, 4))
+        res_ref = y - self.ref_pred
+        return {
+            "session": str(self.session.path),
+            "metadata": self.session.metadata,
+            "reference": self.reference_facts(),
+            "train_laps": list(self.train_laps),
+            "heldout_laps": list(self.held_laps),
+            "gap": {
+                "rmse_c": ref_scores["overall"],
+                "per_spot": ref_scores["per_spot"],
+                "per_phase": ref_scores["per_phase"],
+                "per_spot_phase": ref_scores["per_spot_phase"],
+            },
+            "where": {"ranked_cells": where_table(res_ref, layout, inputs, self.segments, y),
+                      **_marginals(res_ref, layout, inputs, self.segments, y),
+                      "braking_zones": self.segments.n_zones},
+            "consistency": cons,
+            "effects": self.effects_out(decision),
+            **decision.summary(),
+            "combined": selection,
+            "warnings": self.alike(decision, significant),
+            "run": {
+                "brakethermo": __version__,
+                "disc": self.disc.id,
+                "effects_tried": list(self.names),
+                "timings_s": self.timings,
+                "wall_time_s": time.perf_counter() - t_start,
+                "input_warnings": list(self.session.warnings) + list(inputs.warnings),
+            },
+        }
 
 
 def _forward_selection(
