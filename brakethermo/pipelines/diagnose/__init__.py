@@ -35,7 +35,6 @@ verdict engine is :mod:`brakethermo.diagnosis.verdict`.
 
 from brakethermo.pipelines.diagnose._common import (
     RACE_SPOT,
-    SENSOR_FLOOR_C,
     DiagnoseOptions,
     DiagnoseResult,
 )
@@ -47,6 +46,7 @@ from brakethermo.pipelines.diagnose.sessions import (
     write_diagnosis,
     write_pooled,
 )
+from brakethermo.pipelines.estimate import SENSOR_FLOOR_C  # one floor for every command
 
 __all__ = [
     "RACE_SPOT",

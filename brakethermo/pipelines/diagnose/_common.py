@@ -14,9 +14,6 @@ from brakethermo.diagnosis.verdict import (
 )
 from brakethermo.io.session import Session
 
-SENSOR_FLOOR_C = 101.0  # degC: readings at the pyrometer's floor carry no information
-
-
 MIN_SHRINK_PCT = 10.0  # % — lower bootstrap bound a verdict needs
 
 

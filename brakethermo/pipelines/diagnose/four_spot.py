@@ -26,7 +26,6 @@ from brakethermo.pipelines.diagnose._common import (
     MIN_SHRINK_PCT,
     RACE_SPOT,
     RULE,
-    SENSOR_FLOOR_C,
     SETTLE_S,
     Candidate,
     DiagnoseOptions,
@@ -50,7 +49,7 @@ from brakethermo.pipelines.diagnose.scores import (
 )
 from brakethermo.pipelines.diagnose.single_spot import diagnose_single_spot
 from brakethermo.pipelines.diagnose.where import _marginals, where_table
-from brakethermo.pipelines.estimate import SIGMA_MEAS_FLOOR_C
+from brakethermo.pipelines.estimate import SENSOR_FLOOR_C, SIGMA_MEAS_FLOOR_C
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs
 from brakethermo.pipelines.models import disc_for
 from brakethermo.pipelines.tuning import EstimateTuning, load_tuning

@@ -23,7 +23,6 @@ from brakethermo.models.effects import EFFECTS, parse_effects
 from brakethermo.pipelines.diagnose._common import (
     RACE_SPOT,
     RULE,
-    SENSOR_FLOOR_C,
     SETTLE_S,
     DiagnoseOptions,
     DiagnoseResult,
@@ -33,6 +32,7 @@ from brakethermo.pipelines.diagnose.fit import _gauss_ll
 from brakethermo.pipelines.diagnose.layout import Layout, session_segments, zone_masks
 from brakethermo.pipelines.diagnose.scores import score
 from brakethermo.pipelines.diagnose.where import _marginals, where_table
+from brakethermo.pipelines.estimate import SENSOR_FLOOR_C
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.thermal.disc import DiscSpec
 
