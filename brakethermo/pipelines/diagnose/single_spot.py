@@ -61,8 +61,6 @@ def diagnose_single_spot(
     innovations are predictions from past readings only, so every flying lap is scored.
     The other effects need the four-spot test session and are listed as such.
     """
-    from brakethermo.pipelines.estimate import EstimateOptions, estimate_from_session
-
     t_start = time.perf_counter()
     names = parse_effects(options.effects)
     flying = tuple(int(v) for v in np.unique(inputs.lap) if v >= 1)
@@ -70,18 +68,7 @@ def diagnose_single_spot(
         raise DataError("diagnose needs at least one flying lap (lap_beacon >= 1)",
                         path=session.path, channel="lap_beacon")
     online = [n for n in names if n in SINGLE_SPOT_ONLINE]
-    off = {flag: False for flag, _, _ in SINGLE_SPOT_ONLINE.values()}
-    base = EstimateOptions(spot=RACE_SPOT, h_law=options.h_law, disc=options.disc,
-                           tuning=options.tuning, aliases=options.aliases,
-                           ambient_c=options.ambient_c, smoother=False, score=False)
-    runs = {}
-    for i, label in enumerate(["reference", *online], start=1):
-        flags = dict(off)
-        if label != "reference":
-            flags[SINGLE_SPOT_ONLINE[label][0]] = True
-        runs[label] = estimate_from_session(session, replace(base, **flags))
-        if progress:
-            progress(label, i, len(online) + 1)
+    runs = _race_runs(session, options, online, progress)
     y = np.full((inputs.time.size, 4), np.nan)
     y[:, RACE_SPOT - 1] = inputs.spots[:, RACE_SPOT - 1]
     y[y <= SENSOR_FLOOR_C] = np.nan
@@ -110,58 +97,16 @@ def diagnose_single_spot(
         for label in online]
     decision = decide(ref_sse, evidence, RULE)
     rows = {r["name"]: r for r in decision.rows}
-    effects_out = []
     best_pred = None
-    for label in online:
-        pred = prediction(label)
-        before, after = score(ref_pred, y, layout, spots), score(pred, y, layout, spots)
-        row = rows[label]
-        frame = runs[label].frame
-        _, column, nominal = SINGLE_SPOT_ONLINE[label]
-        track = frame[column].to_numpy()[scored]
-        key = ONLINE_KEY[column]
-        effects_out.append({
-            "name": label, "rmse_before": before["overall"], "rmse_after": after["overall"],
-            "shrink_pct": row["shrink_pct"], "shrink_ci95_pct": row["shrink_ci95_pct"],
-            "significant": row["significant"], "rank": row["rank"],
-            "heldout_loglik_gain": float(np.nanmean(_gauss_ll(runs[label]))
-                                         - np.nanmean(_gauss_ll(runs["reference"]))),
-            "scored_spots": [f"spot{RACE_SPOT}"],
-            "per_spot": {f"spot{RACE_SPOT}": {"before": before["overall"],
-                                              "after": after["overall"]}},
-            "per_phase": {k: {"before": before["per_phase"][k], "after": after["per_phase"][k]}
-                          for k in after["per_phase"]},
-            "params": {f"{key}_median": float(np.median(track)),
-                       f"{key}_p05": float(np.percentile(track, 5)),
-                       f"{key}_p95": float(np.percentile(track, 95))},
-            "evidence": (f"online {key} over the flying laps: median"
-                         f" {np.median(track):.2f}, 5-95 % {np.percentile(track, 5):.2f}-"
-                         f"{np.percentile(track, 95):.2f} ({nominal:g} = the test-session disc)"),
-            "signature": EFFECTS[label].signature,
-            "extension": EFFECTS[label].extension,
-            "separate_by": EFFECTS[label].separate_by,
-            "identifiable_from_one_spot": True,
-        })
-    effects_out.sort(key=lambda e: e["rank"])
-    not_observable = [
-        {"name": n, "identifiable_from_one_spot": False,
-         "reason": ("one pyrometer cannot tell its own bias from the disc: only the test"
-                    " session's four spots can") if n == "emissivity_error" else
-                   "needs the four-spot test session (diagnose it there, then estimate with"
-                   " its h_law.toml)"}
-        for n in names if n not in SINGLE_SPOT_ONLINE]
+    effects_out = sorted(
+        (_online_record(label, rows[label], runs, score(ref_pred, y, layout, spots),
+                        score(prediction(label), y, layout, spots), scored)
+         for label in online), key=lambda e: e["rank"])
     verdict = decision.verdict
     if verdict != "none":
         best_pred = prediction(verdict)
     ref_scores = score(ref_pred, y, layout, spots)
     nis = runs["reference"].innovation**2 / runs["reference"].innovation_var
-    v = nis[scored & np.isfinite(nis)]
-    lo_b, hi_b = chi2.ppf([0.025, 0.975], max(v.size, 1)) / max(v.size, 1)
-    mean = float(np.mean(v)) if v.size else float("nan")
-    state = "over-confident" if mean > hi_b else "under-confident" if mean < lo_b else \
-        "consistent"
-    nu = runs["reference"].innovation[scored]
-    nu = nu[np.isfinite(nu)]
     res = y - ref_pred
     summary: dict[str, Any] = {
         "session": str(session.path),
@@ -185,15 +130,11 @@ def diagnose_single_spot(
         "where": {"ranked_cells": where_table(res, layout, inputs, segments, y),
                   **_marginals(res, layout, inputs, segments, y),
                   "braking_zones": segments.n_zones},
-        "consistency": {
-            "per_spot": {f"spot{RACE_SPOT}": {
-                "mean_nis": mean, "chi2_band": [float(lo_b), float(hi_b)],
-                "lag1_autocorrelation": _corr(nu[:-1], nu[1:]) if nu.size > 3 else
-                float("nan"), "state": state}},
-            "summary": f"the race filter is {state} at spot {RACE_SPOT} (mean NIS {mean:.2f})",
-        },
+        "consistency": _race_consistency(nis, runs["reference"].innovation, scored),
         "effects": effects_out,
-        "not_identifiable_from_one_spot": not_observable,
+        "not_identifiable_from_one_spot": [
+            {"name": n, "identifiable_from_one_spot": False, "reason": _why_not(n)}
+            for n in names if n not in SINGLE_SPOT_ONLINE],
         **decision.summary(),
         "combined": {"effects": [verdict] if verdict != "none" else [], "steps": []},
         "warnings": [],
@@ -204,3 +145,82 @@ def diagnose_single_spot(
     return DiagnoseResult(session, summary, inputs.time, inputs.lap, y, ref_pred, best_pred,
                           dist, nis, {}, ref_sse, evidence)
 
+
+def _online_record(label: str, row: dict[str, Any], runs: dict[str, Any],
+                   before: dict[str, Any], after: dict[str, Any], scored: np.ndarray
+                   ) -> dict[str, Any]:
+    """One online effect's entry of ``effects``: scores, and its online state's range."""
+    _, column, nominal = SINGLE_SPOT_ONLINE[label]
+    track = runs[label].frame[column].to_numpy()[scored]
+    key = ONLINE_KEY[column]
+    return {
+        "name": label, "rmse_before": before["overall"], "rmse_after": after["overall"],
+        "shrink_pct": row["shrink_pct"], "shrink_ci95_pct": row["shrink_ci95_pct"],
+        "significant": row["significant"], "rank": row["rank"],
+        "heldout_loglik_gain": float(np.nanmean(_gauss_ll(runs[label]))
+                                     - np.nanmean(_gauss_ll(runs["reference"]))),
+        "scored_spots": [f"spot{RACE_SPOT}"],
+        "per_spot": {f"spot{RACE_SPOT}": {"before": before["overall"],
+                                          "after": after["overall"]}},
+        "per_phase": {k: {"before": before["per_phase"][k], "after": after["per_phase"][k]}
+                      for k in after["per_phase"]},
+        "params": {f"{key}_median": float(np.median(track)),
+                   f"{key}_p05": float(np.percentile(track, 5)),
+                   f"{key}_p95": float(np.percentile(track, 95))},
+        "evidence": (f"online {key} over the flying laps: median"
+                     f" {np.median(track):.2f}, 5-95 % {np.percentile(track, 5):.2f}-"
+                     f"{np.percentile(track, 95):.2f} ({nominal:g} = the test-session disc)"),
+        "signature": EFFECTS[label].signature,
+        "extension": EFFECTS[label].extension,
+        "separate_by": EFFECTS[label].separate_by,
+        "identifiable_from_one_spot": True,
+    }
+
+
+def _race_consistency(nis: np.ndarray, innovation: np.ndarray, scored: np.ndarray
+                      ) -> dict[str, Any]:
+    """The race filter's mean NIS at spot 3 against its χ² band, and its innovations'
+    lag-1 autocorrelation."""
+    v = nis[scored & np.isfinite(nis)]
+    lo_b, hi_b = chi2.ppf([0.025, 0.975], max(v.size, 1)) / max(v.size, 1)
+    mean = float(np.mean(v)) if v.size else float("nan")
+    state = ("over-confident" if mean > hi_b else "under-confident" if mean < lo_b else
+             "consistent")
+    nu = innovation[scored]
+    nu = nu[np.isfinite(nu)]
+    return {
+        "per_spot": {f"spot{RACE_SPOT}": {
+            "mean_nis": mean, "chi2_band": [float(lo_b), float(hi_b)],
+            "lag1_autocorrelation": _corr(nu[:-1], nu[1:]) if nu.size > 3 else float("nan"),
+            "state": state}},
+        "summary": f"the race filter is {state} at spot {RACE_SPOT} (mean NIS {mean:.2f})",
+    }
+
+
+def _race_runs(session: Session, options: DiagnoseOptions, online: list[str],
+               progress: Callable[[str, int, int], None] | None) -> dict[str, Any]:
+    """The race filter without online effects (the reference) and with each one alone."""
+    from brakethermo.pipelines.estimate import EstimateOptions, estimate_from_session
+
+    off = {flag: False for flag, _, _ in SINGLE_SPOT_ONLINE.values()}
+    base = EstimateOptions(spot=RACE_SPOT, h_law=options.h_law, disc=options.disc,
+                           tuning=options.tuning, aliases=options.aliases,
+                           ambient_c=options.ambient_c, smoother=False, score=False)
+    runs = {}
+    for i, label in enumerate(["reference", *online], start=1):
+        flags = dict(off)
+        if label != "reference":
+            flags[SINGLE_SPOT_ONLINE[label][0]] = True
+        runs[label] = estimate_from_session(session, replace(base, **flags))
+        if progress:
+            progress(label, i, len(online) + 1)
+    return runs
+
+
+def _why_not(name: str) -> str:
+    """Why one race pyrometer cannot diagnose ``name``."""
+    if name == "emissivity_error":
+        return ("one pyrometer cannot tell its own bias from the disc: only the test"
+                " session's four spots can")
+    return ("needs the four-spot test session (diagnose it there, then estimate with its"
+            " h_law.toml)")
