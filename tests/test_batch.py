@@ -321,3 +321,23 @@ def test_output_key_covers_options_and_shipped_configs(tmp_path: Path, monkeypat
     assert key != BatchOptions(out=tmp_path, mcap_out=True).output_key()
     (shipped / "hlaw" / "cc-340-8.toml").write_text("a = 2\n")
     assert base.output_key() != key
+
+
+def test_folders_not_read_are_said(tmp_path):
+    """A sub-folder that cannot be read and a link to a folder are named, not skipped
+    silently; the sessions found elsewhere still run."""
+    import os
+
+    root = tmp_path / "sessions"
+    (root / "locked").mkdir(parents=True)
+    (root / "elsewhere").mkdir()
+    os.symlink(root / "elsewhere", root / "link")
+    os.chmod(root / "locked", 0)
+    try:
+        notes: list[str] = []
+        discover_sessions(root, not_read=notes)
+        assert any("link" in n and "not followed" in n for n in notes)
+        if os.geteuid() != 0:  # root reads any folder
+            assert any("locked" in n and "cannot be read" in n for n in notes)
+    finally:
+        os.chmod(root / "locked", 0o755)

@@ -143,6 +143,8 @@ def batch(
         print(json.dumps(result.to_json(), indent=2))
     else:
         result = _run_with_progress(folder, options)
+        for note in result.not_read:
+            console.print(f"[yellow]not read:[/] {escape(note)}", highlight=False)
         if not result.outcomes:
             console.print(
                 f"[yellow]no session files ({', '.join(SESSION_SUFFIXES)}) under"

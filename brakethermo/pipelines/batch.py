@@ -280,6 +280,7 @@ class BatchResult:
 
     outcomes: list[SessionOutcome]
     wall_s: float
+    not_read: list[str] = field(default_factory=list)  # folders discovery did not enter
 
     @property
     def failed(self) -> list[SessionOutcome]:
@@ -314,6 +315,7 @@ class BatchResult:
             "exit_code": self.exit_code,
             "timings_s": {k: round(v, 3) for k, v in self.timing_totals().items()},
             "sessions": [o.to_json() for o in self.outcomes],
+            "not_read": list(self.not_read),
         }
 
 
@@ -336,28 +338,46 @@ def file_sha256(path: str | Path) -> str:
     return digest.hexdigest()
 
 
-def discover_sessions(folder: str | Path, exclude: Iterable[Path] = ()) -> list[Path]:
+def discover_sessions(folder: str | Path, exclude: Iterable[Path] = (),
+                      not_read: list[str] | None = None) -> list[Path]:
     """Session files under ``folder``, recursively, sorted.
 
-    MCAP, Parquet and CSV files (extension case-insensitive); simulator truth files
-    (``*.truth.parquet``), hidden files and directories, and anything under
-    ``exclude`` (the output root when it lies inside the folder) are left out.
+    Files of every registered reader (extension case-insensitive); simulator truth files
+    (``*.truth.parquet``), hidden files and directories, and anything under ``exclude``
+    (the output root when it lies inside the folder) are left out. Sub-folders that
+    cannot be read, and links to folders (a link can loop or lead out of the folder), are
+    not entered; each is said in ``not_read`` (one sentence per folder) when given.
     """
     folder = Path(folder)
     if not folder.is_dir():
         raise ConfigError("is not a folder; give the folder holding the session files", path=folder)
     excluded = [Path(e).resolve() for e in exclude]
+    said = not_read if not_read is not None else []
+
+    def unreadable(exc: OSError) -> None:
+        said.append(f"{exc.filename}: cannot be read ({exc.strerror}); its sessions are"
+                    " not in this batch")
+
     found = []
-    for path in folder.rglob("*"):
-        rel = path.relative_to(folder)
-        if any(part.startswith(".") for part in rel.parts):
-            continue
-        if path.suffix.lower() not in SESSION_SUFFIXES or path.name.lower().endswith(TRUTH_SUFFIX):
-            continue
-        resolved = path.resolve()
-        if any(resolved.is_relative_to(e) for e in excluded) or not path.is_file():
-            continue
-        found.append(path)
+    for top, dirs, files in os.walk(folder, onerror=unreadable):
+        here = Path(top)
+        for d in list(dirs):
+            if d.startswith("."):
+                dirs.remove(d)
+            elif (here / d).is_symlink():
+                dirs.remove(d)
+                said.append(f"{here / d}: a link to a folder, not followed (it could loop"
+                            " or lead outside); pass its target as a batch of its own")
+        for name in files:
+            path = here / name
+            if name.startswith(".") or path.suffix.lower() not in SESSION_SUFFIXES:
+                continue
+            if name.lower().endswith(TRUTH_SUFFIX):
+                continue
+            resolved = path.resolve()
+            if any(resolved.is_relative_to(e) for e in excluded) or not path.is_file():
+                continue
+            found.append(path)
     return sorted(found)
 
 
@@ -913,7 +933,8 @@ def run_batch(
     folder = Path(folder)
     out = Path(options.out)
     _check_places(folder, out)
-    files = discover_sessions(folder, exclude=[out])
+    not_read: list[str] = []
+    files = discover_sessions(folder, exclude=[out], not_read=not_read)
     preflight(options)
     names = output_names(files, folder)
     if on_event is not None:
@@ -997,7 +1018,7 @@ def run_batch(
                 done[o.path] = o
     except KeyboardInterrupt:
         raise _interrupted(files, names, done) from None
-    result = BatchResult([done[p] for p in files], time.perf_counter() - t0)
+    result = BatchResult([done[p] for p in files], time.perf_counter() - t0, not_read)
     if options.reports and files:
         from brakethermo.report.index import write_batch_index
 
