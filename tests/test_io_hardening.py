@@ -100,10 +100,18 @@ def test_implausible_span_is_refused_before_allocating(tmp_path: Path) -> None:
 
 
 def test_grid_too_large_for_the_rate_is_refused(tmp_path: Path) -> None:
-    path = parquet(tmp_path / "s.parquet", pa.array(np.arange(100) * 10.0),
-                   {"vFront": np.ones(100)})
+    path = parquet(tmp_path / "s.parquet", pa.array(np.arange(1000) * 1.0),
+                   {"vFront": np.ones(1000)})
     with pytest.raises(DataError, match="grid points"):
         load_session(path, rate_hz=1e6)
+
+
+def test_milliseconds_labelled_seconds_are_refused_before_any_work(tmp_path: Path) -> None:
+    """A 200 Hz log whose time column is in ms but says s: every step 5 s, 3 days long."""
+    path = parquet(tmp_path / "s.parquet", pa.array(np.arange(5000) * 5.0),
+                   {"vFront": np.ones(5000)})
+    with pytest.raises(DataError, match="milliseconds labelled seconds.*200 Hz"):
+        load_session(path, rate_hz=None)
 
 
 @pytest.mark.parametrize(("unit", "scale"), [("s", 1), ("ms", 10**3), ("µs", 10**6),

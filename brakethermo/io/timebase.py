@@ -144,6 +144,16 @@ def settle(raw: RawSession) -> RawSession:
             " says, or the logger clock jumped; check the time column / log times",
             path=raw.path,
         )
+    steps = [float(np.median(np.diff(np.sort(c.t)))) for c in channels if c.t.size > 2]
+    fastest = min((d for d in steps if d > 0), default=0.0)
+    if fastest > MAX_STEP_S:
+        raise DataError(
+            f"its fastest channel is logged every {_fmt_s(fastest)} and the samples span"
+            f" {_fmt_s(t1 - t0)}: no brake log is that slow; the time stamps are likely in"
+            f" milliseconds labelled seconds (that would be {1e3 / fastest:.0f} Hz over"
+            f" {_fmt_s((t1 - t0) / 1e3)}); fix the time column's unit",
+            path=raw.path,
+        )
     if t0 != 0.0:
         channels = [RawChannel(c.name, c.t - t0, c.v, c.unit) for c in channels]
     origin = None if raw.origin_s is None else raw.origin_s + t0
