@@ -110,7 +110,7 @@ def test_milliseconds_labelled_seconds_are_refused_before_any_work(tmp_path: Pat
     """A 200 Hz log whose time column is in ms but says s: every step 5 s, 3 days long."""
     path = parquet(tmp_path / "s.parquet", pa.array(np.arange(5000) * 5.0),
                    {"vFront": np.ones(5000)})
-    with pytest.raises(DataError, match="milliseconds labelled seconds.*200 Hz"):
+    with pytest.raises(DataError, match=r"milliseconds labelled seconds.*200 Hz"):
         load_session(path, rate_hz=None)
 
 
