@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -43,8 +44,8 @@ def clamp_force_cmd(
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.rig_outputs import write_rig_outputs
 
-    if not factor_walk > 0:
-        raise ConfigError(f"--factor-walk must be positive, got {factor_walk}")
+    if not (math.isfinite(factor_walk) and factor_walk > 0):
+        raise ConfigError(f"--factor-walk must be a finite number > 0, got {factor_walk}")
     res = run_with_status(
         as_json,
         "clamp-force…",

@@ -63,10 +63,12 @@ class MuSlipOptions:
     points: bool = False
 
     def __post_init__(self) -> None:
-        for name, (lo, hi) in (("mu_range", self.mu_range), ("slip_range", self.slip_range)):
-            if not 0.0 < lo < hi:
-                raise ConfigError(f"{name} must be 0 < low < high, got {lo}, {hi}")
-        if self.inflation < 1.0:
+        for name, option, (lo, hi), top in (("mu_range", "--mu-max", self.mu_range, 3.0),
+                                            ("slip_range", "--slip-max", self.slip_range, 1.0)):
+            if not 0.0 < lo < hi <= top:
+                raise ConfigError(f"{name} must be 0 < low < high <= {top:g} (the high end is"
+                                  f" {option}), got {lo}, {hi}")
+        if not 1.0 <= self.inflation < float("inf"):
             raise ConfigError(f"inflation must be at least 1, got {self.inflation}")
         if self.radius_m is not None and not self.radius_m > 0.0:
             raise ConfigError(f"wheel radius must be positive, got {self.radius_m} m")
