@@ -53,3 +53,36 @@ def test_sigint_during_batch_then_resume(sim_test_session, sim_race_session,
                          capture_output=True, text=True, env=env, timeout=300)
     assert res.returncode == 0, res.stdout + res.stderr
     assert len(list(out.glob("*/batch_manifest.json"))) == 2
+
+
+@pytest.mark.skipif(os.name != "posix", reason="SIGINT semantics of POSIX")
+@pytest.mark.parametrize("after_s", [1.5, 4.0])
+def test_sigint_during_estimate_leaves_the_old_results(sim_race_session, tmp_path: Path,
+                                                       after_s: float) -> None:
+    """Ctrl-C while estimate filters or writes: exit 130, one line, the folder as it was
+    (the earlier run's files intact, no staging folder), and a re-run completes."""
+    race = sim_race_session[0]
+    out = tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    first = subprocess.run([*CMD, "estimate", str(race), "--out", str(out), "--no-report"],
+                           capture_output=True, text=True, env=env, timeout=300)
+    assert first.returncode == 0, first.stdout + first.stderr
+    folder = out / race.stem
+    before = {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
+    proc = subprocess.Popen([*CMD, "estimate", str(race), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    time.sleep(after_s)
+    if proc.poll() is not None:
+        pytest.skip("the estimate finished before it could be interrupted")
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stdout + stderr
+    assert "Traceback" not in stderr and "Exception ignored" not in stderr
+    assert len([line for line in stderr.splitlines() if line.strip()]) == 1, stderr
+    after = {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
+    assert after == before, "the interrupted run changed the earlier results"
+    assert not list(out.rglob(".*stage*")), "no staging folder left behind"
+    again = subprocess.run([*CMD, "estimate", str(race), "--out", str(out)],
+                           capture_output=True, text=True, env=env, timeout=300)
+    assert again.returncode == 0, again.stdout + again.stderr
+    assert (folder / "index.html").is_file()
