@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import math
 import typing
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -96,10 +97,13 @@ def _convert(text: str, kind: Any, key: str) -> Any:
             if text.lower() in ("0", "false", "no", "off"):
                 return False
             raise ValueError(text)
-        return target(text)
+        value = target(text)
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ValueError(text)
+        return value
     except (TypeError, ValueError):
         raise ConfigError(
-            f"--set {key}={text}: expected {getattr(target, '__name__', target)}"
+            f"--set {key}={text}: expected a finite {getattr(target, '__name__', target)}"
         ) from None
 
 
