@@ -89,6 +89,19 @@ class StructureFit:
     rmse_uniform_c: dict[str, float]
     effects: dict[str, dict[str, Any]] = field(default_factory=dict)
 
+    def facts(self) -> dict[str, Any]:
+        """``structure`` of identify.json."""
+        return {
+            "weights": list(self.weights),
+            "kz_ratio": self.kz_ratio,
+            "power_scale": self.power_scale,
+            "nodes": self.nodes,
+            "layers": self.layers,
+            "open_loop_rmse_c": self.rmse_c,
+            "open_loop_rmse_uniform_c": self.rmse_uniform_c,
+            "effects": self.effects,
+        }
+
 
 @dataclass
 class IdentifyResult:
@@ -448,9 +461,68 @@ def validate_filter(
     return sigma_best, temp_best, adapt_best, hi, scores
 
 
+def _filter_facts(forward: Any) -> dict[str, Any]:
+    """The joint UKF's run facts."""
+    return {"filter": "joint UKF + unscented RTS smoother, h as random walk",
+            "covariance_repairs": forward.n_repairs,
+            "mean_nis": float(np.nanmean(forward.nis))}
+
+
 def _law_dict(law: HLaw) -> dict[str, Any]:
     return {"v_ref_kmh": law.v_ref * 3.6, "knee": law.knee, "a": law.a, "b": law.b,
             "c": [law.c0, *law.c]}
+
+
+def _effect_choice(session: Session, options: IdentifyOptions
+                   ) -> tuple[tuple[str, ...], dict[str, Any], Any]:
+    """The effects to carry (``--with-effect``), why, and the diagnosis when it chose them."""
+    text = (options.with_effects or "").strip()
+    if text == "auto":
+        return auto_effects(session, options)
+    if text and text.lower() != "none":
+        effects = parse_effects(options.with_effects)
+        return effects, {"mode": "given", "selected": list(effects), "why": "--with-effect"}, None
+    return (), {"mode": "none", "selected": [], "why": "--with-effect none: the plain law"}, None
+
+
+def _sample_law(inputs: DiscInputs, h_mean: np.ndarray, h_std: np.ndarray,
+                fit_mask: np.ndarray, disc: DiscSpec, tuning: IdentifyTuning, refit: bool,
+                notes: list[str]) -> tuple[HLaw | None, HLaw]:
+    """The paper's law fitted to the UKF's h samples, and where the refit starts from."""
+    try:
+        law_ukf = HLaw.fit(inputs.speed[fit_mask], h_mean[fit_mask], 1.0 / h_std[fit_mask] ** 2,
+                           v_ref=disc.v_ref, knee=tuning.knee)
+        return law_ukf, law_ukf
+    except DataError as exc:
+        # The paper's joint UKF has h as its only free parameter: a braking power far from
+        # nominal or a lagging sensor can drive its h track below zero everywhere. The
+        # output-error refit fits the power scale too, so it can still find the law.
+        shipped = shipped_h_law(disc)
+        if shipped is None or not refit:
+            raise
+        notes.append(f"the joint UKF's h track is unusable ({exc}); the law comes from the"
+                     " output-error refit alone (with the braking-power scale), started from"
+                     f" the shipped law {shipped.name}")
+        return None, read_h_law(shipped).law
+
+
+def _refit(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec, start: HLaw,
+           est_tuning: EstimateTuning, effects: tuple[str, ...]
+           ) -> tuple[HLaw, StructureFit, EstimateTuning]:
+    """The law refitted with the layered model (and the effects); a thin-skin disc is
+    refitted once more on the finer layering it needs."""
+
+    def structure_fit(start: HLaw, tuning_: EstimateTuning) -> tuple[HLaw, StructureFit]:
+        if effects:
+            return fit_with_effects(session, inputs, y, disc, start, tuning_, effects)
+        return fit_structure(inputs, y, disc, start, tuning_)
+
+    law, structure = structure_fit(start, est_tuning)
+    if structure.kz_ratio < est_tuning.thin_skin_kz_ratio:
+        est_tuning = replace(est_tuning, layers=est_tuning.thin_skin_layers,
+                             layer_growth=est_tuning.thin_skin_layer_growth)
+        law, structure = structure_fit(law, est_tuning)
+    return law, structure, est_tuning
 
 
 def identify_from_session(session: Session, options: IdentifyOptions) -> IdentifyResult:
@@ -467,46 +539,15 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
 
     braking = inputs.braking
     fit_mask = off_brake_mask(braking) & np.isfinite(y).all(axis=1) & (inputs.speed > 1.0)
-    effects: tuple[str, ...] = ()
-    diagnosis = None
-    selection: dict[str, Any] = {"mode": "none", "selected": [],
-                                 "why": "--with-effect none: the plain law"}
-    if options.with_effects and options.with_effects.strip() == "auto":
-        effects, selection, diagnosis = auto_effects(session, options)
-    elif options.with_effects and options.with_effects.strip().lower() != "none":
-        effects = parse_effects(options.with_effects)
-        selection = {"mode": "given", "selected": list(effects), "why": "--with-effect"}
+    effects, selection, diagnosis = _effect_choice(session, options)
     notes: list[str] = []
-    try:
-        law_ukf: HLaw | None = HLaw.fit(inputs.speed[fit_mask], h_mean[fit_mask],
-                                        1.0 / h_std[fit_mask] ** 2, v_ref=disc.v_ref,
-                                        knee=tuning.knee)
-        start = law_ukf
-    except DataError as exc:
-        # The paper's joint UKF has h as its only free parameter: a braking power far from
-        # nominal or a lagging sensor can drive its h track below zero everywhere. The
-        # output-error refit fits the power scale too, so it can still find the law.
-        shipped = shipped_h_law(disc)
-        if shipped is None or not (options.fit_structure or effects):
-            raise
-        law_ukf, start = None, read_h_law(shipped).law
-        notes.append(f"the joint UKF's h track is unusable ({exc}); the law comes from the"
-                     " output-error refit alone (with the braking-power scale), started from"
-                     f" the shipped law {shipped.name}")
+    law_ukf, start = _sample_law(inputs, h_mean, h_std, fit_mask, disc, tuning,
+                                 options.fit_structure or bool(effects), notes)
     t_law = time.perf_counter()
     law, structure = start, None
-
-    def structure_fit(start: HLaw, tuning_: EstimateTuning) -> tuple[HLaw, StructureFit]:
-        if effects:
-            return fit_with_effects(session, inputs, y, disc, start, tuning_, effects)
-        return fit_structure(inputs, y, disc, start, tuning_)
-
     if options.fit_structure or effects:
-        law, structure = structure_fit(start, est_tuning)
-        if structure.kz_ratio < est_tuning.thin_skin_kz_ratio:
-            est_tuning = replace(est_tuning, layers=est_tuning.thin_skin_layers,
-                                 layer_growth=est_tuning.thin_skin_layer_growth)
-            law, structure = structure_fit(law, est_tuning)
+        law, structure, est_tuning = _refit(session, inputs, y, disc, start, est_tuning,
+                                            effects)
     t_struct = time.perf_counter()
     calibration = DiscCalibration(
         law=law,
@@ -552,16 +593,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             "ukf_law_residual_rms": float(np.sqrt(np.mean(residual**2))),
             "h_std_median": float(np.median(h_std[fit_mask])),
         },
-        "structure": None if structure is None else {
-            "weights": list(structure.weights),
-            "kz_ratio": structure.kz_ratio,
-            "power_scale": structure.power_scale,
-            "nodes": structure.nodes,
-            "layers": structure.layers,
-            "open_loop_rmse_c": structure.rmse_c,
-            "open_loop_rmse_uniform_c": structure.rmse_uniform_c,
-            "effects": structure.effects,
-        },
+        "structure": None if structure is None else structure.facts(),
         "evidence": None if level is None else {
             **level,
             "what": "per off-brake straight, the factor on the written law that makes the"
@@ -582,9 +614,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             "layers": tuning.layers,
             "estimate_layers": est_tuning.layers,
             "estimate_layer_growth": est_tuning.layer_growth,
-            "filter": "joint UKF + unscented RTS smoother, h as random walk",
-            "covariance_repairs": forward.n_repairs,
-            "mean_nis": float(np.nanmean(forward.nis)),
+            **_filter_facts(forward),
             "timings_s": timings,
             "wall_time_s": timings["total_s"],
             "warnings": list(session.warnings) + list(inputs.warnings) + notes,
