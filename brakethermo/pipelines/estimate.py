@@ -412,19 +412,11 @@ def estimate_from_session(
     plan = effect_plan(cal.effects, tuning)
     if plan.emissivity_ratio is not None:
         y = true_from_reading(y, plan.emissivity_ratio)
-    sigma_meas_source = "tuning file"
-    if "sigma_meas" not in user_tuning_keys(options.tuning, "estimate"):
-        # The reading noise of this very sensor, from the signal itself: a fixed guess
-        # either starves the filter of the measurement or trusts it too much.
-        tuning = replace(tuning, sigma_meas=max(scoring.reading_noise(y), SIGMA_MEAS_FLOOR_C))
-        sigma_meas_source = "measured from the signal (second differences)"
+    tuning, sigma_meas_source = _reading_noise(y, tuning, options)
     ssm = build_state_space(model, inputs, h, tuning, cal.power_scale, plan,
                             float(spot_radii[options.spot - 1]))
 
-    H_spots = ssm.H(spot_radii)
-    readout = np.vstack([H_spots, H_spots[1:4].mean(axis=0, keepdims=True)])
-    if tuning.adapt_power:
-        readout = np.vstack([readout, ssm.selector(SCALE_PARAM)])
+    readout = _readout(ssm, spot_radii, tuning.adapt_power)
     x0, P0 = ssm.prior(model.initial_state(_initial_temperature(y, inputs.t_amb)),
                        tuning.init_sigma_temp)
     ukf = UnscentedKalmanFilter(
@@ -433,19 +425,9 @@ def estimate_from_session(
         alpha=tuning.alpha, beta=tuning.beta, kappa=tuning.kappa,
     )  # fmt: skip
     t_filter = time.perf_counter()
-    windows = 1
-    if tuning.smoother:
-        # windows bound the gains' memory whatever the mesh and session length; the
-        # answer is the whole-session smoother's (estimation.urts)
-        run = urts_smooth_windowed(ukf, x0, P0, y[:, None], readout=readout,
-                                   workers=options.workers)
-        forward, smoothed, windows = run.forward, run.smoothed, len(run.windows)
-        states, out, out_var = smoothed.x_smooth, smoothed.readout, smoothed.readout_var
-        t_smooth = t_filter + run.forward_s
-    else:
-        forward = ukf.run(x0, P0, y[:, None], store="diag", readout=readout)
-        states, out, out_var = forward.x_filt, forward.readout, forward.readout_var
-        t_smooth = time.perf_counter()
+    forward, states, out, out_var, windows, forward_s = _run_filter(
+        ukf, x0, P0, y, readout, tuning.smoother, options.workers)
+    t_smooth = t_filter + forward_s
     t_done = time.perf_counter()
 
     std = np.sqrt(np.maximum(out_var, 0.0))
@@ -453,32 +435,15 @@ def estimate_from_session(
     online = {p.name: ssm.index[p.name] for p in plan.online}
     frame = _estimate_frame(inputs, model, states, out, band_std(out, std, tuning), tuning, h,
                             online)
-    open_loop = None
-    scores = None
+    open_loop = scores = None
     if options.score and len(inputs.measured) > 1:
-        T_ol = model.open_loop(x0[: model.n_state], inputs.q_brk[:-1], h[:-1], inputs.t_amb[:-1],
-                               scale=cal.power_scale)
-        open_loop = T_ol @ model.spot_matrix(spot_radii).T
-        scores = score_estimate(frame, std[:, :4], forward.readout[:, :4], open_loop, inputs,
-                                options.spot, tuning.smoother,
-                                zones=detect_zones(inputs.time,
-                                                   session.values("brake_pressure_front")))
-        in_sample = (cal.identified_on is not None
-                     and Path(cal.identified_on).name == session.path.name)
-        scores["in_sample"] = in_sample
-        scores["reference"] = (
-            "measured spots — in sample: the h law, crown weights and k_z were identified on"
-            " these spots of this very session; score a session the law did not see for a"
-            " held-out figure" if in_sample else
-            "measured spots (the law was identified on another session: held out)")
+        open_loop, scores = _self_scores(session, inputs, model, cal, x0, h, frame, std,
+                                         forward.readout, spot_radii, options.spot,
+                                         tuning.smoother)
     t_end = time.perf_counter()
-    timings = {
-        "setup_s": t_filter - t_start,
-        "filter_s": t_smooth - t_filter,
-        "smoother_s": t_done - t_smooth,
-        "scoring_s": t_end - t_done,
-        "total_s": t_end - t_start,
-    }
+    timings = dict(zip(("setup_s", "filter_s", "smoother_s", "scoring_s", "total_s"),
+                       (t_filter - t_start, t_smooth - t_filter, t_done - t_smooth,
+                        t_end - t_done, t_end - t_start), strict=True))
     mean_nis = float(np.nanmean(forward.nis))
     summary = {
         "session": str(session.path),
@@ -488,24 +453,10 @@ def estimate_from_session(
             "brakethermo": __version__,
             "disc": disc.id,
             "window_c": list(disc.window_c),
-            "h_law": cal.source,
-            "nodes": tuning.nodes,
-            "layers": tuning.layers,
-            "layer_growth": tuning.layer_growth,
-            "sigma_crown": tuning.sigma_crown,
-            "sigma_temp": tuning.sigma_temp,
-            "kz_ratio": cal.kz_ratio,
-            "power_scale_prior": cal.power_scale,
-            "band_scale_check": cal.band_scale,
-            "sigma_meas_c": tuning.sigma_meas,
+            **_model_facts(cal, tuning, model),
             "sigma_meas_source": sigma_meas_source,
-            "ir_calibration_pct": tuning.ir_calibration_pct,
-            "crown_weights": [float(w) for w in model.weights],
-            "filter": "UKF (Merwe scaled sigma points)",
-            "smoother": tuning.smoother,
             "smoother_windows": windows,
             "workers": options.workers,
-            "adapt_power": tuning.adapt_power,
             "measured_spot": options.spot,
             "effects": plan.facts,
             "online_choice": choice.facts if choice is not None else {
@@ -524,6 +475,91 @@ def estimate_from_session(
                           timings, forward.innovation[:, 0], forward.innovation_var[:, 0],
                           std[:, :4], states, ssm, y,
                           float(spot_radii[options.spot - 1]))
+
+
+def _reading_noise(y: np.ndarray, tuning: EstimateTuning, options: EstimateOptions
+                   ) -> tuple[EstimateTuning, str]:
+    """The reading noise of this very sensor, from the signal itself, unless the user's
+    tuning file sets it: a fixed guess either starves the filter of the measurement or
+    trusts it too much."""
+    if "sigma_meas" in user_tuning_keys(options.tuning, "estimate"):
+        return tuning, "tuning file"
+    noise = max(scoring.reading_noise(y), SIGMA_MEAS_FLOOR_C)
+    return (replace(tuning, sigma_meas=noise),
+            "measured from the signal (second differences)")
+
+
+def _readout(ssm: DiscStateSpace, spot_radii: np.ndarray, adapt_power: bool) -> np.ndarray:
+    """What the filter reports beside its state: the four spots, the contact band (the
+    mean of spots 2-4) and, when it is a state, the braking-power scale."""
+    H_spots = ssm.H(spot_radii)
+    readout = np.vstack([H_spots, H_spots[1:4].mean(axis=0, keepdims=True)])
+    if adapt_power:
+        readout = np.vstack([readout, ssm.selector(SCALE_PARAM)])
+    return readout
+
+
+def _run_filter(ukf: UnscentedKalmanFilter, x0: np.ndarray, P0: np.ndarray, y: np.ndarray,
+                readout: np.ndarray, smoother: bool, workers: int) -> tuple[Any, ...]:
+    """Forward filter (and the smoother): the forward result, the states, the readout and
+    its variance, the smoother's windows and the forward pass's seconds."""
+    t0 = time.perf_counter()
+    if smoother:
+        # windows bound the gains' memory whatever the mesh and session length; the
+        # answer is the whole-session smoother's (estimation.urts)
+        run = urts_smooth_windowed(ukf, x0, P0, y[:, None], readout=readout, workers=workers)
+        s = run.smoothed
+        return (run.forward, s.x_smooth, s.readout, s.readout_var, len(run.windows),
+                run.forward_s)
+    forward = ukf.run(x0, P0, y[:, None], store="diag", readout=readout)
+    return (forward, forward.x_filt, forward.readout, forward.readout_var, 1,
+            time.perf_counter() - t0)
+
+
+def _model_facts(cal: DiscCalibration, tuning: EstimateTuning, model: DiscFEModel
+                 ) -> dict[str, Any]:
+    """The run facts of the law, the mesh and the filter settings."""
+    return {
+        "h_law": cal.source,
+        "nodes": tuning.nodes,
+        "layers": tuning.layers,
+        "layer_growth": tuning.layer_growth,
+        "sigma_crown": tuning.sigma_crown,
+        "sigma_temp": tuning.sigma_temp,
+        "kz_ratio": cal.kz_ratio,
+        "power_scale_prior": cal.power_scale,
+        "band_scale_check": cal.band_scale,
+        "sigma_meas_c": tuning.sigma_meas,
+        "ir_calibration_pct": tuning.ir_calibration_pct,
+        "crown_weights": [float(w) for w in model.weights],
+        "filter": "UKF (Merwe scaled sigma points)",
+        "smoother": tuning.smoother,
+        "adapt_power": tuning.adapt_power,
+    }
+
+
+def _self_scores(session: Session, inputs: DiscInputs, model: DiscFEModel,
+                 cal: DiscCalibration, x0: np.ndarray, h: np.ndarray, frame: pd.DataFrame,
+                 std: np.ndarray, readout: np.ndarray, spot_radii: np.ndarray, spot: int,
+                 smoother: bool) -> tuple[np.ndarray, dict[str, Any]]:
+    """A multi-spot session scores its estimate at the spots it did not feed the filter:
+    the open-loop 1D-FE baseline, Tables 3/4, peaks and coverage, and whether that is in
+    sample (the law identified on this very session)."""
+    T_ol = model.open_loop(x0[: model.n_state], inputs.q_brk[:-1], h[:-1], inputs.t_amb[:-1],
+                           scale=cal.power_scale)
+    open_loop = T_ol @ model.spot_matrix(spot_radii).T
+    scores = score_estimate(frame, std[:, :4], readout[:, :4], open_loop, inputs, spot,
+                            smoother, zones=detect_zones(inputs.time,
+                                                         session.values("brake_pressure_front")))
+    in_sample = (cal.identified_on is not None
+                 and Path(cal.identified_on).name == session.path.name)
+    scores["in_sample"] = in_sample
+    scores["reference"] = (
+        "measured spots — in sample: the h law, crown weights and k_z were identified on"
+        " these spots of this very session; score a session the law did not see for a"
+        " held-out figure" if in_sample else
+        "measured spots (the law was identified on another session: held out)")
+    return open_loop, scores
 
 
 def band_std(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning) -> np.ndarray:
