@@ -903,6 +903,36 @@ def _check_places(folder: Path, out: Path) -> None:
                           " folder outside it")
 
 
+def _second_pass(
+    known_single: list[tuple[Path, str, str, dict[str, Any]]], first: list[SessionTask],
+    done: dict[Path, SessionOutcome], options: BatchOptions, out: Path,
+    on_event: Event | None,
+) -> list[SessionTask]:
+    """The single-spot sessions, once the test sessions of this batch have their laws: the
+    ones deferred in the first pass, and the ones up to date unless their law changed
+    (those are skipped here, into ``done``)."""
+    identified = [o for o in done.values() if o.kind == "multi"]
+    second: list[SessionTask] = []
+    for path, name, sha, manifest in known_single:
+        facts = {str(k): str(v) for k, v in dict(manifest["facts"]).items()}
+        choice = choose_law(facts, identified)
+        law_sha = file_sha256(choice.path) if choice.path is not None else DEFAULT_LAW
+        if manifest.get("h_law_sha256") == law_sha:
+            done[path] = _skipped(path, name, manifest, out)
+            if on_event is not None:
+                on_event("done", done[path])
+            continue
+        second.append(SessionTask(path, name, options, sha, choice.path, choice.source,
+                                  h_law_reason=choice.reason))
+    for o in [o for o in done.values() if o.status == "deferred"]:
+        task = next(t for t in first if t.path == o.path)
+        choice = choose_law(o.facts, identified)
+        second.append(replace(task, h_law=choice.path, h_law_source=choice.source,
+                              h_law_reason=choice.reason, defer_single=False,
+                              session=o.session))
+    return second
+
+
 def run_batch(
     folder: str | Path,
     options: BatchOptions,
@@ -986,28 +1016,7 @@ def run_batch(
         with _executor(options) as executor:
             for o in _run_tasks(first, executor, job, on_event):
                 done[o.path] = o
-            identified = [o for o in done.values() if o.kind == "multi"]
-            second: list[SessionTask] = []
-            for path, name, sha, manifest in known_single:
-                facts = {str(k): str(v) for k, v in dict(manifest["facts"]).items()}
-                choice = choose_law(facts, identified)
-                law_sha = file_sha256(choice.path) if choice.path is not None else DEFAULT_LAW
-                if manifest.get("h_law_sha256") == law_sha:
-                    done[path] = _skipped(path, name, manifest, out)
-                    if on_event is not None:
-                        on_event("done", done[path])
-                    continue
-                second.append(SessionTask(path, name, options, sha, choice.path, choice.source,
-                                          h_law_reason=choice.reason))
-            for o in [o for o in done.values() if o.status == "deferred"]:
-                task = next(t for t in first if t.path == o.path)
-                choice = choose_law(o.facts, identified)
-                second.append(
-                    replace(
-                        task, h_law=choice.path, h_law_source=choice.source,
-                        h_law_reason=choice.reason, defer_single=False, session=o.session,
-                    )
-                )  # fmt: skip
+            second = _second_pass(known_single, first, done, options, out, on_event)
             for o in _run_tasks(second, executor, job, on_event):
                 first_pass = done.get(o.path)
                 if first_pass is not None and first_pass.status == "deferred":
