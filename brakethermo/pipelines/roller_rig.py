@@ -206,31 +206,9 @@ def _rmse(x: np.ndarray, ref: float) -> float:
     return float(np.sqrt(np.mean((x[ok] - ref) ** 2)))
 
 
-def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) -> RollerRigResult:
-    """Estimate the rolling radius of the session's wheel from every starting guess.
-
-    Parameters
-    ----------
-    path : str or Path — session file (.mcap, .parquet, .csv) with the channels of
-        CHANNELS.md "Roller rig".
-    options : RollerRigOptions, optional
-
-    Returns
-    -------
-    RollerRigResult
-
-    Raises
-    ------
-    DataError
-        Missing channel, a speed channel that is all zero, no traction at all, an
-        unknown unit (from the reader).
-    ConfigError
-        Bad options or datasheet.
-    """
-    opts = (options or RollerRigOptions()).validated()
-    spec = load_roller_rig(opts.rig)
-    t_start = time.perf_counter()
-    session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=opts.aliases)
+def _rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
+    """The session's speeds (rolling forward), torque and load, checked against physics, and
+    the free-rolling, traction and both-speeds masks."""
     session.require("wheel_omega", "roller_omega", "wheel_torque")
     w_w = _finite_series(session, "wheel_omega")
     w_r = _finite_series(session, "roller_omega")
@@ -270,6 +248,35 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
             channel="wheel_torque",
         )
 
+    return w_w, w_r, torque, normal, warnings, free, traction, both
+
+
+def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) -> RollerRigResult:
+    """Estimate the rolling radius of the session's wheel from every starting guess.
+
+    Parameters
+    ----------
+    path : str or Path — session file (.mcap, .parquet, .csv) with the channels of
+        CHANNELS.md "Roller rig".
+    options : RollerRigOptions, optional
+
+    Returns
+    -------
+    RollerRigResult
+
+    Raises
+    ------
+    DataError
+        Missing channel, a speed channel that is all zero, no traction at all, an
+        unknown unit (from the reader).
+    ConfigError
+        Bad options or datasheet.
+    """
+    opts = (options or RollerRigOptions()).validated()
+    spec = load_roller_rig(opts.rig)
+    t_start = time.perf_counter()
+    session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=opts.aliases)
+    w_w, w_r, torque, normal, warnings, free, traction, both = _rig_inputs(session, spec)
     supply, source = _supply(session, opts, spec, w_w, w_r, free & both)
     dt = session.dt
     t = session.time
