@@ -27,3 +27,19 @@ def test_correlated_corrections_with_overlapping_intervals_are_a_set() -> None:
     assert alike.verdict_set == ["x", "y"]
     assert "alike" in alike.reasons[0]
     assert apart.verdict_set == ["x"]
+
+
+def test_of_look_alikes_the_one_with_fewer_parameters_comes_first() -> None:
+    """Two effects the data cannot tell apart (a wrong emissivity, one parameter, against a
+    μ(T), two): the set names the simpler first; without parameter counts, the order is
+    by shrink alone."""
+    before, a, b = _units(1)
+    corr = np.linspace(-1, 1, 50)
+    rule = VerdictRule(clear_margin_pct=0.0)
+    counted = decide(before, [CandidateEvidence("mu_t", a, corr, n_params=2),
+                              CandidateEvidence("emissivity", b, corr, n_params=1)], rule)
+    assert counted.verdict_set == ["emissivity", "mu_t"]
+    assert any("fewest parameters" in r for r in counted.reasons)
+    plain = decide(before, [CandidateEvidence("mu_t", a, corr),
+                            CandidateEvidence("emissivity", b, corr)], rule)
+    assert plain.verdict_set == ["mu_t", "emissivity"]

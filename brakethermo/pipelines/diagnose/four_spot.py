@@ -223,7 +223,9 @@ class _FourSpot:
                               correction=(c.pred - self.ref_pred)[layout.held],
                               separate_by=EFFECTS[c.name].separate_by,
                               next_step=carry_command(self.session.path, c.name),
-                              outputs=tuple(s_ - 1 for s_ in c.scored_spots))
+                              outputs=tuple(s_ - 1 for s_ in c.scored_spots),
+                              n_params=sum(s.effect != "reference"
+                                           for s in self.make(c.effects).slots))
             for c in candidates]
         blind = disc_data_power(self.inputs.speed, y, self.inputs.t_amb, layout.braking,
                                 layout.train | layout.held, self.disc.v_ref, SENSOR_FLOOR_C)
