@@ -61,6 +61,7 @@ from brakethermo.rigs.booster import (
     pv_pressure,
 )
 from brakethermo.rigs.booster_datasheet import BoosterSpec
+from brakethermo.rigs.signals import smoothed_rate
 
 Array = NDArray[np.float64]
 STATE_NAMES = ("p_m", "p_f", "p_r", "zeta1", "zeta2")
@@ -261,10 +262,7 @@ class EboosterModel:
         quantisation steps).
         """
         base = self.Q()
-        width = max(1, round(0.02 / self.dt))
-        s2 = np.convolve(np.pad(self.s2, (width // 2, width - 1 - width // 2), mode="edge"),
-                         np.ones(width) / width, mode="valid")
-        speed = np.abs(np.gradient(s2, self.dt))
+        speed = np.abs(smoothed_rate(self.s2, self.dt, 0.02))
         extra = self.spec.q_pm_speed * (speed / V_REF_MM_S) * (self.dt / 1e-3)
         stack = base.copy()
 

@@ -96,7 +96,6 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     runs filter-only passes with each flag forced. ``carried`` maps each effect of the h
     law the race may drop to the law's calibration without it.
     """
-    from brakethermo.pipelines.estimate import estimate_from_session
 
     carried = carried or {}
     flying = sorted({lap.lap for lap in session.laps if lap.lap >= 1})
@@ -114,11 +113,7 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
                      for c in candidates})
     variants.update({f"without {name}": (replace(quick, **off), cal)
                      for name, cal in carried.items()})
-    # The filter's kernels release the GIL: the variants run side by side on the cores.
-    with ThreadPoolExecutor(min(len(variants), os.cpu_count() or 1)) as pool:
-        futures = {name: pool.submit(estimate_from_session, part, opts, cal)
-                   for name, (opts, cal) in variants.items()}
-        runs = {name: f.result() for name, f in futures.items()}
+    runs = _run_variants(part, variants)
     lap = part.frame["lap"].to_numpy()
     zones = detect_zones(part.time, np.nan_to_num(part.values("brake_pressure_front")))
     cycles = np.full(lap.size, -1)
@@ -151,11 +146,8 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
         again = {"reference": (replace(quick, **on), None)}
         again.update({f"without {name}": (replace(quick, **on), cal)
                       for name, cal in carried.items()})
-        with ThreadPoolExecutor(min(len(again), os.cpu_count() or 1)) as pool:
-            futures = {name: pool.submit(estimate_from_session, part, opts, cal)
-                       for name, (opts, cal) in again.items()}
-            runs.update({name: f.result() for name, f in futures.items()})
-            ref = runs["reference"]
+        runs.update(_run_variants(part, again))
+        ref = runs["reference"]
     kept = []
     for name in carried:
         row = _lap_ahead_test(ref, runs[f"without {name}"], lap, cycles, rule)
@@ -201,6 +193,17 @@ def _structural_test(run: Any, param: str, lap: np.ndarray, cycles: np.ndarray,
                [CandidateEvidence(param, unit_sse(err[:, 1], units)[0])], rule)
     return {**d.rows[0], "test": "learned on odd flying laps, a whole lap ahead on even ones",
             "learned": learned, "neutral": neutral}
+
+
+def _run_variants(part: Session, variants: dict[str, tuple[Any, Any]]) -> dict[str, Any]:
+    """Filter-only estimates of ``part``, one per (options, calibration) variant. The
+    filter's kernels release the GIL: the variants run side by side on the cores."""
+    from brakethermo.pipelines.estimate import estimate_from_session
+
+    with ThreadPoolExecutor(min(len(variants), os.cpu_count() or 1)) as pool:
+        futures = {name: pool.submit(estimate_from_session, part, opts, cal)
+                   for name, (opts, cal) in variants.items()}
+        return {name: f.result() for name, f in futures.items()}
 
 
 def _lap_ahead(run: Any, lap: np.ndarray, laps: np.ndarray) -> np.ndarray:

@@ -60,6 +60,8 @@ from brakethermo.results.ebooster import PRESSURES
 from brakethermo.results.rig_diagnosis import RigDiagnosis
 from brakethermo.rigs.booster import pv_pressure
 from brakethermo.rigs.booster_datasheet import load_booster
+from brakethermo.rigs.emb import rmse
+from brakethermo.rigs.signals import smoothed_rate
 
 MIN_CYCLES = 12  # apply cycles for a cycle-wise split (6 held out); fewer: time blocks
 BLOCK_S = 1.0  # s, unit length when the session holds too few cycles
@@ -85,13 +87,6 @@ class RigCase:
     reference_text: str
     reference_fit: dict[str, Any]
     next_step: Any  # callable(name) -> str
-
-
-def _speed(s2: np.ndarray, dt: float) -> np.ndarray:
-    width = max(1, round(SPEED_WINDOW_S / dt))
-    smooth = np.convolve(np.pad(s2, (width // 2, width - 1 - width // 2), mode="edge"),
-                         np.ones(width) / width, mode="valid")
-    return np.gradient(smooth, dt)
 
 
 def apply_units(x: np.ndarray, t: np.ndarray, rest: float) -> tuple[np.ndarray, str]:
@@ -142,7 +137,8 @@ def diagnose_booster(
     coeffs = np.array(fit.pv_coeffs)
     case = RigCase(
         "ebooster", session, {n: BOOSTER_EFFECTS[n] for n in names},
-        RigContext(s2, _speed(s2, session.dt), session.time - session.time[0],
+        RigContext(s2, smoothed_rate(s2, session.dt, SPEED_WINDOW_S),
+                   session.time - session.time[0],
                    lambda s: pv_pressure(s, coeffs, fit.stroke_mm)),
         _series(session, channel, MPA, gaps=True), rest=0.5,
         # a pressure transducer's accuracy: 0.5 % of a 10 MPa range
@@ -182,8 +178,8 @@ def diagnose_emb(
     rest = float(np.percentile(theta, 5) + 0.05 * np.ptp(theta))
     case = RigCase(
         "emb", data.session, {n: EMB_EFFECTS[n] for n in names},
-        RigContext(theta, _speed(theta, data.ts), data.session.time - data.session.time[0],
-                   ds.simulate),
+        RigContext(theta, smoothed_rate(theta, data.ts, SPEED_WINDOW_S),
+                   data.session.time - data.session.time[0], lambda x: ds.simulate(x) / 1e3),
         data.force / 1e3, rest=rest,
         # a load cell's accuracy (0.5 % of a 40 kN range), or the model's own residual
         floor=max(0.2, 2.0 * models.sigma_ds / 1e3), unit="kN", input_name="motor angle",
@@ -195,9 +191,6 @@ def diagnose_emb(
         next_step=lambda n: (f"re-train on a session of these pads: brakethermo clamp-force"
                              f" SESSION --train {train_path} --retrain {path}  (the adaptive"
                              " filter follows a stiffness scale on its own)"))
-    case = RigCase(**{**case.__dict__,
-                      "ctx": RigContext(theta, case.ctx.v, case.ctx.t,
-                                        lambda x: ds.simulate(x) / 1e3)})
     return _diagnose(case, t_start)
 
 
@@ -230,7 +223,7 @@ def _diagnose(case: RigCase, t_start: float) -> RigDiagnosis:
         separate_by=case.effects[name].separate_by, next_step=case.next_step(name),
         n_params=len(case.effects[name].params))
         for name in names]
-    size = {name: _rmse((preds[name] - ref)[held]) for name in names}
+    size = {name: rmse((preds[name] - ref)[held], 0.0) for name in names}
     negligible = {n for n in names if not size[n] >= case.floor}
     decision = decide(ref_sse, [e for e in evidence if e.name not in negligible], RULE)
     rows = {r["name"]: r for r in decision.rows}
@@ -245,7 +238,8 @@ def _diagnose(case: RigCase, t_start: float) -> RigDiagnosis:
         e, r = case.effects[name], rows[name]
         effects_out.append({
             "name": name, "rank": r["rank"],
-            "rmse_before": _rmse((ref - y)[held]), "rmse_after": _rmse((preds[name] - y)[held]),
+            "rmse_before": rmse((ref - y)[held], 0.0),
+            "rmse_after": rmse((preds[name] - y)[held], 0.0),
             "shrink_pct": r["shrink_pct"], "shrink_ci95_pct": r["shrink_ci95_pct"],
             "significant": r["significant"], "params": params[name],
             "correction_rms": size[name],
@@ -264,7 +258,7 @@ def _diagnose(case: RigCase, t_start: float) -> RigDiagnosis:
         "units": unit_kind,
         "train_units": [int(v) for v in ids[0::2]],
         "heldout_units": [int(v) for v in held_ids],
-        "gap": {"rmse": _rmse((ref - y)[held]), **_phases(ref - y, held, ctx)},
+        "gap": {"rmse": rmse((ref - y)[held], 0.0), **_phases(ref - y, held, ctx)},
         "where": _where(ref - y, held, ctx, case.rest),
         "consistency": {"summary": "no filter runs here: the trained relation is compared"
                         " with the sensor directly"},
@@ -303,16 +297,11 @@ def _booster_step(name: str, path: str | Path) -> str:
             " use")
 
 
-def _rmse(e: np.ndarray) -> float:
-    e = e[np.isfinite(e)]
-    return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
-
-
 def _phases(err: np.ndarray, held: np.ndarray, ctx: RigContext) -> dict[str, Any]:
     moving = 0.05 * float(np.nanpercentile(np.abs(ctx.v), 95))
     phase = {"applying": ctx.v > moving, "releasing": ctx.v < -moving,
              "holding": np.abs(ctx.v) <= moving}
-    return {"per_phase": {k: _rmse(err[held & m]) for k, m in phase.items()},
+    return {"per_phase": {k: rmse(err[held & m], 0.0) for k, m in phase.items()},
             "bias": float(np.nanmean(err[held]))}
 
 
@@ -323,7 +312,7 @@ def _where(err: np.ndarray, held: np.ndarray, ctx: RigContext, rest: float
     bands = []
     for a, b in itertools.pairwise(edges):
         m = held & (ctx.x >= a) & (ctx.x <= b)
-        bands.append({"input": [float(a), float(b)], "rmse": _rmse(err[m]),
+        bands.append({"input": [float(a), float(b)], "rmse": rmse(err[m], 0.0),
                       "bias": float(np.nanmean(err[m])) if m.any() else float("nan")})
     return {"by_input": bands}
 
