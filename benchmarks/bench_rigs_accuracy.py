@@ -93,7 +93,7 @@ def clamp(seeds: int, d: Path) -> None:
 
 def mu(seeds: int, d: Path) -> None:
     print(f"mu-slip over {seeds} seeds per tyre (mean ± std [min, max]):")
-    for tyre in ("burckhardt", "magic-formula"):
+    for tyre in ("dry", "wet"):
         rows: dict[str, list[float]] = {}
         picks: list[str] = []
         for i in range(seeds):

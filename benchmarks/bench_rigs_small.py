@@ -63,7 +63,7 @@ def main() -> None:
         worn, _ = write_emb_simulation(simulate_emb("worn", seed=12, duration_s=20), d / "w.mcap")
         emb, _ = write_emb_simulation(simulate_emb("nominal", seed=13, duration_s=60), d / "e.mcap")
         tyre, _ = write_tyre_simulation(
-            simulate_tyre_rig("burckhardt", seed=14, duration_s=60.0), d / "m.mcap"
+            simulate_tyre_rig("dry", seed=14, duration_s=60.0), d / "m.mcap"
         )
         jobs = {
             "clamp-force (train 60 s + retrain 20 s + estimate 60 s)": lambda: run_clamp(

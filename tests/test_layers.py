@@ -31,7 +31,6 @@ ALLOWED: dict[str, set[str]] = {
 # when a new one appears.
 KNOWN = {
     ("sim/roller_rig.py", "rigs"),  # issue 17 item 5: an independent contact model
-    ("sim/tyre_rig.py", "rigs"),  # issue 17 item 5: a brush-model tyre
 }
 # Within a layer that may import io, physics must not write files: only these modules of
 # thermal/ models/ rigs/ may import io, and only to read (the datasheet loaders).

@@ -25,7 +25,12 @@ from brakethermo.rigs.tyre import (
     rudd_jacobian,
     rudd_mu,
 )
-from brakethermo.sim.tyre_rig import simulate_tyre_rig, write_tyre_simulation
+from brakethermo.sim.tyre_rig import (
+    TYRE_PRESETS,
+    BrushTyre,
+    simulate_tyre_rig,
+    write_tyre_simulation,
+)
 
 
 def test_magic_formula_oracle() -> None:
@@ -80,9 +85,9 @@ def test_paper_case_ekf_within_one_sigma() -> None:
 @pytest.mark.parametrize(
     ("tyre", "seed", "ext"),
     [
-        ("burckhardt", 8101, "mcap"),
-        ("magic-formula", 8103, "csv"),
-        ("magic-formula", 8104, "parquet"),
+        ("dry", 8101, "mcap"),
+        ("wet", 8103, "csv"),
+        ("wet", 8104, "parquet"),
     ],
 )
 def test_rig_sessions_peak_targets(tmp_path: Path, tyre: str, seed: int, ext: str) -> None:
@@ -92,14 +97,16 @@ def test_rig_sessions_peak_targets(tmp_path: Path, tyre: str, seed: int, ext: st
     summ = summary(mu_slip(path, MuSlipOptions(radius_m=radius)))
     mu_true, s_true = sim.peak
     assert abs(summ["peak"]["mu"] / mu_true - 1.0) < 0.05
-    assert abs(summ["peak"]["slip"] - s_true) < 0.02
+    # The truth is a brush tyre, outside every fitted family: its peak is sharper and
+    # earlier than the families' smooth ones, which put it 0.02-0.03 to the right.
+    assert 0.0 <= summ["peak"]["slip"] - s_true < 0.04
     # the two-parameter curve overshoots and says so
     assert summ["shape_mismatch"]["rudd_mu_peak_minus_best_pct"] > 5.0
 
 
 def test_cli_writes_all_outputs(tmp_path: Path) -> None:
     path, _ = write_tyre_simulation(
-        simulate_tyre_rig("burckhardt", seed=8102), tmp_path / "rig.mcap"
+        simulate_tyre_rig("dry", seed=8102), tmp_path / "rig.mcap"
     )
     res = CliRunner().invoke(app, ["mu-slip", str(path), "--out", str(tmp_path / "o"), "--json"])
     assert res.exit_code == 0, res.output
@@ -129,7 +136,7 @@ def test_cli_writes_all_outputs(tmp_path: Path) -> None:
 
 
 def test_slip_ratio_channel_used(tmp_path: Path) -> None:
-    sim = simulate_tyre_rig("magic-formula", seed=8105, log_slip=True)
+    sim = simulate_tyre_rig("wet", seed=8105, log_slip=True)
     chans = tuple(c for c in sim.session.channels if c.name != "wheel_speed")
     path = write_session(tmp_path / "s.parquet", SessionData(chans, {"rig": "tyre"}))
     assert summary(mu_slip(path))["wheel_radius_m"] is None
@@ -144,7 +151,7 @@ def _bad(tmp_path: Path, channels: tuple[Channel, ...], facts: dict[str, str], *
 
 
 def test_bad_inputs_exit_1(tmp_path: Path) -> None:
-    sim = simulate_tyre_rig("burckhardt", seed=8106)
+    sim = simulate_tyre_rig("dry", seed=8106)
     ch = {c.name: c for c in sim.session.channels}
     facts = dict(sim.session.facts)
     no_drag = tuple(c for n, c in ch.items() if n != "drag_force")
@@ -193,12 +200,16 @@ def test_rudd_curve_peaks_at_its_parameters(mu_p: float, s_p: float) -> None:
 
 def test_simulate_rig_tyre_writes_a_readable_session_and_its_true_peak(tmp_path: Path) -> None:
     out = tmp_path / "t.parquet"
-    args = ["simulate", "--rig", "tyre", "--set", "tyre=rudd", "--set", "log_slip=true"]
+    args = ["simulate", "--rig", "tyre", "--set", "tyre=low-mu", "--set", "log_slip=true"]
     res = CliRunner().invoke(app, [*args, "--seed", "3", "--out", str(out), "--json"])
     assert res.exit_code == 0, res.output
     info = json.loads(res.output)
     assert info["rig"] == "tyre" and info["config"]["log_slip"] is True
-    assert (info["peak_mu"], info["peak_slip"]) == pytest.approx((0.35, 0.15))
+    tyre = TYRE_PRESETS["low-mu"]
+    grid = np.linspace(0.0, 1.0, 100001)
+    mu = np.array([tyre.mu(s, 20.0, 4000.0) for s in grid])
+    assert (info["peak_mu"], info["peak_slip"]) == pytest.approx(
+        (mu.max(), grid[mu.argmax()]), abs=2e-5)
     assert (tmp_path / "t.truth.parquet").exists()
     s = load_session(out, rate_hz=None)
     assert s.has("slip_ratio") and s.has("drag_force")
@@ -207,6 +218,30 @@ def test_simulate_rig_tyre_writes_a_readable_session_and_its_true_peak(tmp_path:
     )
     assert bad.exit_code == 1 and "tyre='slick'" in bad.output
     assert "Traceback" not in bad.output
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    mu_static=st.floats(0.2, 1.6),
+    fall=st.floats(0.05, 0.6),
+    v_stribeck=st.floats(0.5, 10.0),
+    stiffness=st.floats(5.0, 40.0),
+    speed=st.floats(3.0, 40.0),
+)
+def test_brush_truth_tyre_is_a_brush(mu_static: float, fall: float, v_stribeck: float,
+                                     stiffness: float, speed: float) -> None:
+    """Rolling gives no force, lock gives the sliding friction, the curve rises as
+    3x - 3x^2 + x^3 of the brush at small slip, and the stated peak is its maximum."""
+    tyre = BrushTyre(mu_static, mu_static * (1 - fall), v_stribeck, stiffness)
+    assert tyre.mu(0.0, speed, 4000.0) == 0.0
+    sliding = tyre.mu_sliding + (mu_static - tyre.mu_sliding) * np.exp(-speed / v_stribeck)
+    assert tyre.mu(1.0, speed, 4000.0) == pytest.approx(sliding)
+    s = 1e-5  # slope at the origin: the slip stiffness per load
+    assert tyre.mu(s, speed, 4000.0) / s == pytest.approx(stiffness, rel=1e-3)
+    mu_p, s_p = tyre.peak(speed, 4000.0)
+    grid = np.linspace(0.0, 1.0, 20001)
+    assert mu_p >= max(tyre.mu(x, speed, 4000.0) for x in grid) - 1e-6
+    assert tyre.mu(s_p, speed, 4000.0) == pytest.approx(mu_p)
 
 
 def test_rudd_ekf_matches_filterpy_with_the_same_pseudo_noise() -> None:

@@ -1,50 +1,92 @@
 """Tyre μ–slip rig simulator: a braked wheel on a constant-speed carriage, and its truth.
 
-Richer than the estimator's two-parameter curve on purpose: the tyre is Burckhardt's
-(dry asphalt, the reference figures), the Magic Formula (Pacejka book defaults) or
-Rudd's curve; its force builds up over a relaxation length; the wheel has inertia and
-is braked by a torque ramp until it locks; the normal load oscillates; the drag and
-load cells, the speed sensors and the wheel encoder are noisy. The session runs free
-rolling, then the ramp to lock, a short locked slide and the release back to rolling.
+The truth tyre is a brush model (Pacejka, *Tyre and Vehicle Dynamics*, 3rd ed., §3.2:
+parabolic contact pressure, pure longitudinal slip) whose friction falls with the
+sliding speed (a Stribeck-like decay) and with the load. It shares no code and no curve
+family with the estimator's fits (Rudd, Burckhardt, Magic Formula in ``rigs/tyre.py``):
+its μ(s) depends on the carriage speed and the load, its peak comes from the brush
+saturating while the friction decays. The force builds up over a relaxation length; the
+wheel has inertia and is braked by a torque ramp until it locks; the normal load
+oscillates; the drag and load cells, the speed sensors and the wheel encoder are noisy.
+The session runs free rolling, then the ramp to lock, a short locked slide and the
+release back to rolling.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
-from scipy.optimize import brentq
+from scipy.optimize import brentq, minimize_scalar
 
 from brakethermo.errors import ConfigError
 from brakethermo.io.writers import Channel, SessionData
-from brakethermo.rigs.tyre import (
-    burckhardt_mu,
-    burckhardt_peak,
-    magic_formula_mu,
-    magic_formula_peak,
-    rudd_mu,
-)
 from brakethermo.sim.writer import write_session_and_truth
 
-TYRES = ("burckhardt", "magic-formula", "rudd")
-# reference parameters (shared/reference/README.md): Burckhardt dry asphalt, MF book defaults
-BURCKHARDT_DRY = (1.2801, 23.99, 0.52)
-MF_BOOK = (10.0, 1.6, 1.0)
-RUDD_PAPER = (0.35, 0.15)
+
+@dataclass(frozen=True)
+class BrushTyre:
+    """A brush-model tyre with sliding-speed and load dependent friction.
+
+    Attributes
+    ----------
+    mu_static : float — friction coefficient at zero sliding speed and nominal load, –.
+    mu_sliding : float — friction coefficient at high sliding speed, –.
+    v_stribeck : float — sliding speed over which the friction decays, m/s.
+    stiffness_per_load : float — longitudinal slip stiffness C_κ / F_z, –.
+    load_sensitivity : float — relative fall of the friction per relative load rise, –.
+    load_nominal : float — load at which ``mu_static`` holds, N.
+    """
+
+    mu_static: float
+    mu_sliding: float
+    v_stribeck: float
+    stiffness_per_load: float
+    load_sensitivity: float = 0.1
+    load_nominal: float = 4000.0
+
+    def mu(self, s: float, speed: float, load: float) -> float:
+        """F_x / F_z at braking slip ``s`` (0 rolling, 1 locked), carriage ``speed`` (m/s)
+        and normal ``load`` (N)."""
+        s = min(max(s, 0.0), 1.0)
+        mu_f = (self.mu_sliding + (self.mu_static - self.mu_sliding)
+                * math.exp(-s * speed / self.v_stribeck))
+        mu_f *= 1.0 - self.load_sensitivity * (load / self.load_nominal - 1.0)
+        if s >= 1.0:
+            return mu_f
+        sigma = s / (1.0 - s)  # theoretical slip of the brush model
+        x = min(self.stiffness_per_load * sigma / (3.0 * mu_f), 1.0)  # θ σ; 1: all sliding
+        return mu_f * (3.0 * x - 3.0 * x * x + x ** 3)
+
+    def peak(self, speed: float, load: float) -> tuple[float, float]:
+        """The curve's peak (μ, slip) at ``speed`` (m/s) and ``load`` (N)."""
+        res = minimize_scalar(lambda s: -self.mu(s, speed, load), bounds=(1e-4, 0.999),
+                              method="bounded", options={"xatol": 1e-7})
+        return -float(res.fun), float(res.x)
 
 
-def tyre_curve(tyre: str):
-    """μ(s) and its true peak (μ, slip) for a named tyre."""
-    if tyre == "burckhardt":
-        return (lambda s: burckhardt_mu(s, *BURCKHARDT_DRY)), burckhardt_peak(*BURCKHARDT_DRY)
-    if tyre == "magic-formula":
-        return (lambda s: magic_formula_mu(s, *MF_BOOK)), magic_formula_peak(*MF_BOOK)
-    if tyre == "rudd":
-        return (lambda s: rudd_mu(s, *RUDD_PAPER)), RUDD_PAPER
-    raise ConfigError(f"unknown tyre '{tyre}'; use one of {', '.join(TYRES)}")
+# Dry asphalt, a wet road, a low-friction surface: peaks near the reference figures of
+# each (shared/reference/README.md) without being any of the estimator's curve families.
+TYRE_PRESETS: dict[str, BrushTyre] = {
+    "dry": BrushTyre(1.30, 0.90, 6.0, 20.0),
+    "wet": BrushTyre(0.85, 0.55, 4.0, 16.0),
+    "low-mu": BrushTyre(0.40, 0.28, 3.0, 10.0),
+}
+TYRES = tuple(TYRE_PRESETS)
+
+
+def tyre_curve(tyre: str, speed: float = 20.0, load: float = 4000.0
+               ) -> tuple[Callable[[float, float], float], tuple[float, float]]:
+    """μ(s, F_z) of a named truth tyre at carriage ``speed`` (m/s), and its peak (μ, slip)
+    at that speed and the ``load`` (N)."""
+    if tyre not in TYRE_PRESETS:
+        raise ConfigError(f"unknown tyre '{tyre}'; use one of {', '.join(TYRES)}")
+    model = TYRE_PRESETS[tyre]
+    return (lambda s, fz: model.mu(s, speed, fz)), model.peak(speed, load)
 
 
 @dataclass(frozen=True)
@@ -99,7 +141,7 @@ class TyreSimResult:
 
 
 def simulate_tyre_rig(
-    tyre: str = "burckhardt",
+    tyre: str = "dry",
     *,
     seed: int = 0,
     rig: TyreRig | None = None,
@@ -110,20 +152,21 @@ def simulate_tyre_rig(
 
     Parameters
     ----------
-    tyre : str — ``burckhardt``, ``magic-formula`` or ``rudd``.
+    tyre : str — a truth tyre: ``dry``, ``wet`` or ``low-mu`` (brush models).
     seed : int — random seed.
     rig : TyreRig, optional
     duration_s : float, optional — pad the session with free rolling to this length, s.
     log_slip : bool — also log the rig's own ``slip_ratio`` channel.
     """
     rig = rig or TyreRig()
-    mu_of, peak = tyre_curve(tyre)
+    mu_of, peak = tyre_curve(tyre, rig.speed, rig.load)
     rng = np.random.default_rng(seed)
     dt = 1.0 / rig.rate_hz
     h = dt / rig.substeps
     V, R, J = rig.speed, rig.radius, rig.inertia
     # free rolling: the slip at which the tyre force balances the rolling resistance
-    s_free = brentq(lambda x: float(mu_of(x)) - rig.rolling_resistance, 0.0, peak[1])
+    s_free = brentq(lambda x: mu_of(x, rig.load) - rig.rolling_resistance, 0.0,
+                    peak[1])
     omega0 = V * (1.0 - s_free) / R
     phase = rng.uniform(0.0, 2.0 * math.pi)
     # ramp, slide and spin-up integrated; free rolling before and after is steady
@@ -139,7 +182,7 @@ def simulate_tyre_rig(
         )
         for _ in range(rig.substeps):
             s = min((V - w * R) / V, 1.0)
-            mu = float(mu_of(abs(s))) * math.copysign(1.0, s)  # driving slip: odd extension
+            mu = mu_of(abs(s), Fz) * math.copysign(1.0, s)  # driving slip: odd extension
             Fx += (mu * Fz - Fx) * V / rig.relaxation_m * h  # builds over the relaxation length
             Tb = 0.0 if released else Tb + rig.torque_rate * h
             # rolling resistance is a moment at the axle; the brake cannot turn the wheel back
@@ -202,15 +245,14 @@ class TyreRigSimConfig:
 
     Attributes
     ----------
-    tyre : str — ``burckhardt`` (dry asphalt), ``magic-formula`` (book defaults) or ``rudd``
-        (the paper's curve).
+    tyre : str — the truth tyre, a brush model: ``dry`` (asphalt), ``wet`` or ``low-mu``.
     duration_s : float or None — pad the session with free rolling to this length, s
         (default: free rolling, ramp to lock, release and a short tail).
     log_slip : bool — also log the rig's own ``slip_ratio`` channel.
     seed : int
     """
 
-    tyre: str = "burckhardt"
+    tyre: str = "dry"
     duration_s: float | None = None
     log_slip: bool = False
     seed: int = 0
