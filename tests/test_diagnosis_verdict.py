@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from brakethermo.diagnosis.verdict import (
     CandidateEvidence,
+    Signature,
     VerdictRule,
     decide,
     shrink_interval,
@@ -98,3 +99,30 @@ def test_per_output_sse_compares_candidates_on_common_outputs() -> None:
     assert row_b["shrink_pct"] == pytest.approx(100 * (1 - np.sqrt(0.31)), rel=1e-9)
     sse, n, _ids = unit_sse(np.ones((6, 3)), np.array([0, 0, 1, 1, 2, -1]), per_output=True)
     assert sse.shape == (3, 3) and np.all(sse[0] == 2) and np.all(n[2] == 1)
+
+
+def test_signature_names_an_effect_the_whole_data_dilutes_but_never_one_that_harms() -> None:
+    """An effect that lives on a few units (a knee on the fastest straights) is
+    significant by its signature when it clearly shrinks those units and does not harm
+    the whole; a candidate that shrinks its signature units but whose whole-data
+    interval reaches below zero stays unnamed."""
+    rng = np.random.default_rng(11)
+    before = _units(40, rng, 100.0)
+    diluted = before * rng.uniform(0.84, 0.96, 40)  # ~10 % whole shrink, interval below 10
+    sig_before = _units(12, rng, 50.0)
+    where = "held-out straights above the knee speed"
+    knee = CandidateEvidence("knee", diluted,
+                             signature=Signature(where, sig_before, sig_before * 0.5))
+    d = decide(before, [knee], RULE)
+    row = d.rows[0]
+    assert row["shrink_ci95_pct"][0] < RULE.min_shrink_pct  # not by the whole data
+    assert row["significant"] and row["significant_by"] == "signature"
+    assert d.verdict == "knee" and row["signature_where"] == where
+    harmful = before * rng.uniform(0.6, 1.5, 40)  # helps some cycles, harms others
+    other = CandidateEvidence("other", harmful,
+                              signature=Signature(where, sig_before, sig_before * 0.5))
+    d = decide(before, [other], RULE)
+    assert d.rows[0]["shrink_ci95_pct"][0] <= 0.0
+    assert not d.rows[0]["significant"] and d.verdict == "none"
+    # without the signature the diluted effect is not named
+    assert decide(before, [CandidateEvidence("knee", diluted)], RULE).verdict == "none"

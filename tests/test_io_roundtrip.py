@@ -278,6 +278,24 @@ def test_truncated_mcap_recovers_intact_part(tmp_path: Path) -> None:
     )
 
 
+def test_huge_sparse_tail_is_read_in_moments_not_walked(tmp_path: Path) -> None:
+    """A log cut after 60 % and then padded with 1 GiB of zeros (a sparse file: the
+    recorder preallocated it) is memory-mapped, not read, and the walk stops at the first
+    zeroed record instead of stepping through a billion bytes."""
+    full = write_mcap(tmp_path / "full.mcap", chunk_size=8_192)
+    data = full.read_bytes()
+    padded = tmp_path / "padded.mcap"
+    cut = int(len(data) * 0.6)
+    padded.write_bytes(data[:cut])
+    with padded.open("r+b") as f:
+        f.truncate(1 << 30)
+    session = load_session(padded)
+    warning = next(w for w in session.warnings if "truncated or damaged" in w)
+    at = int(warning.split("at byte ")[1].split()[0])
+    assert at <= cut and f"of {1 << 30}" in warning  # stopped where the zeros begin
+    assert 0.3 * len(load_session(full).frame) < len(session.frame)
+
+
 def test_aliases_override_file(tmp_path: Path) -> None:
     channels = {"VelocityMain": (100.0, "m/s", "speed"), "vFront": (100.0, "km/h", "speed")}
     path = write_mcap(tmp_path / "a.mcap", channels=channels)

@@ -8,7 +8,11 @@ hands over the sum of squared errors per unit. Everything here resamples those u
 
 - **shrink** of a candidate: ``100 (1 - sqrt(SSE_after / SSE_before))`` over all units,
   with a 95 % interval from a paired bootstrap over units;
-- **significant**: the lower end of that interval above ``min_shrink_pct``;
+- **significant**: the lower end of that interval above ``min_shrink_pct``; or, for a
+  candidate that registers where its signature lives (a subset of the held-out data cut
+  into its own units, e.g. the fastest straights for a cooling law's knee), the lower end
+  of the shrink interval on those units above ``min_shrink_pct`` while the whole-data
+  interval stays above zero (it helps where it should and harms nowhere on the whole);
 - **set verdict**: the best significant candidate, joined by every other significant one
   it does not beat clearly — the lower end of the bootstrap interval of the shrink
   *difference* (percentage points, same resamples) not above ``clear_margin_pct``, or
@@ -55,6 +59,21 @@ class VerdictRule:
 
 
 @dataclass(frozen=True)
+class Signature:
+    """Where a candidate's signature lives: held-out SSE per signature unit.
+
+    Parameters
+    ----------
+    where : str — the units in words ("held-out straights above 0.8 V_ref").
+    sse_before, sse_after : numpy.ndarray — (V,) SSE per unit, reference and candidate.
+    """
+
+    where: str
+    sse_before: np.ndarray
+    sse_after: np.ndarray
+
+
+@dataclass(frozen=True)
 class CandidateEvidence:
     """One candidate's held-out errors per unit and what to say about it.
 
@@ -73,6 +92,8 @@ class CandidateEvidence:
     n_params : int, optional — parameters the candidate adds; of the effects a set
         verdict cannot tell apart the one with fewer comes first (a drift whose rate
         comes out nil is the plain shift). 0: not known, no reordering.
+    signature : Signature, optional — the held-out units where the effect's signature
+        lives, scored before and after; a second way to significance (module docstring).
     """
 
     name: str
@@ -82,6 +103,7 @@ class CandidateEvidence:
     next_step: str = ""
     outputs: tuple[int, ...] | None = None
     n_params: int = 0
+    signature: Signature | None = None
 
     def total(self, cols: tuple[int, ...] | None = None) -> np.ndarray:
         """(U,) SSE per unit over ``cols`` (default: its own outputs)."""
@@ -212,7 +234,9 @@ class Decision:
             "untestable": [{"name": n, "why": why} for n, why in self.untestable.items()],
             "verdict_rule": (
                 f"an effect is significant when the lower end of its 95 % bootstrap interval"
-                f" of held-out shrink exceeds {r.min_shrink_pct:g} %; the best significant"
+                f" of held-out shrink exceeds {r.min_shrink_pct:g} % (on all held-out data, or"
+                f" on the units where its signature lives while its whole-data interval stays"
+                f" above 0 %); the best significant"
                 f" effect stands alone only when it beats each other significant one by more"
                 f" than {r.clear_margin_pct:g} percentage points (lower end of the paired"
                 f" interval) and is no look-alike (corrections correlated above"
@@ -220,6 +244,20 @@ class Decision:
                 f" the set of those it does not beat"
                 f" (at most {r.max_set}); none when no effect is significant"),
         }
+
+
+def _signature_test(sig: Signature, whole_lo: float, significant: bool, rule: VerdictRule
+                    ) -> dict[str, Any]:
+    """The signature's shrink and whether it makes a candidate significant."""
+    s_point, s_lo, s_hi = shrink_interval(sig.sse_before, sig.sse_after, rule)
+    out: dict[str, Any] = {"signature_where": sig.where, "signature_shrink_pct": s_point,
+                           "signature_shrink_ci95_pct": [s_lo, s_hi]}
+    by_signature = (not significant and np.isfinite(s_lo) and s_lo > rule.min_shrink_pct
+                    and np.isfinite(whole_lo) and whole_lo > 0.0)
+    if by_signature:
+        out["significant"] = True
+        out["significant_by"] = "signature"
+    return out
 
 
 def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
@@ -240,8 +278,11 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
     rows = []
     for c in candidates:
         point, lo, hi = shrink_interval(_total(sse_before, c.outputs), c.total(), rule)
-        rows.append({"name": c.name, "shrink_pct": point, "shrink_ci95_pct": [lo, hi],
-                     "significant": bool(np.isfinite(lo) and lo > rule.min_shrink_pct)})
+        row = {"name": c.name, "shrink_pct": point, "shrink_ci95_pct": [lo, hi],
+               "significant": bool(np.isfinite(lo) and lo > rule.min_shrink_pct)}
+        if c.signature is not None:
+            row.update(_signature_test(c.signature, lo, row["significant"], rule))
+        rows.append(row)
     rows.sort(key=lambda r: -np.nan_to_num(r["shrink_pct"], nan=-1e9))
     for rank, row in enumerate(rows, start=1):
         row["rank"] = rank

@@ -22,6 +22,7 @@ channel and chunk.
 from __future__ import annotations
 
 import json
+import mmap
 import struct
 import zlib
 from collections import defaultdict
@@ -50,6 +51,7 @@ _OPCODE_CHUNK = 0x06
 _OPCODE_MESSAGE_INDEX = 0x07
 _OPCODE_METADATA = 0x0C
 _OPCODE_DATA_END = 0x0F
+_OPCODE_INVALID = 0x00  # reserved by the MCAP spec: no writer emits it (zeroed bytes do)
 _RECORD_HEAD = struct.Struct("<BQ")  # every record: opcode u8, body length u64
 # Message record: opcode u8, length u64, channel_id u16, sequence u32, log_time u64,
 # publish_time u64, then the payload.
@@ -383,8 +385,8 @@ def _walk(
     while pos + 9 <= end:
         opcode, length = unpack(data, pos)
         nxt = pos + 9 + length
-        if nxt > end:
-            break
+        if nxt > end or opcode == _OPCODE_INVALID:
+            break  # cut, or zeroed (a sparse or overwritten tail): the rest is unreadable
         if opcode == _OPCODE_MESSAGE:
             messages.append(pos)
         elif opcode == _OPCODE_CHUNK:
@@ -403,8 +405,16 @@ def _walk(
 
 
 def _read_sequential(path: Path, out: _Collector) -> tuple[dict[str, str], list[str]]:
-    """Record-by-record path; recovers the intact part of a truncated file."""
-    data = path.read_bytes()
+    """Record-by-record path; recovers the intact part of a truncated file.
+
+    The file is memory-mapped, not read: a huge, mostly empty file costs only the pages
+    the walk touches.
+    """
+    with path.open("rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
+        return _read_mapped(path, data, out)
+
+
+def _read_mapped(path: Path, data: Any, out: _Collector) -> tuple[dict[str, str], list[str]]:
     size = len(data)
     channels = out.known
     metadata: dict[str, str] = {}

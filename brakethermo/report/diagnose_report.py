@@ -79,6 +79,17 @@ def nis_figure(time: np.ndarray, nis: np.ndarray, window_s: float = 10.0) -> Fig
     return fig
 
 
+def _significant_text(e: dict[str, Any]) -> str:
+    """'yes'/'no', and where the effect's signature lives, its shrink there."""
+    text = "yes" if e["significant"] else "no"
+    if "signature_where" not in e:
+        return text
+    lo, hi = e["signature_shrink_ci95_pct"]
+    how = "by its signature" if e.get("significant_by") == "signature" else "signature"
+    return (f"{text} ({how}: {_f(e['signature_shrink_pct'], '{:+.0f}')} %"
+            f" [{_f(lo, '{:.0f}')} … {_f(hi, '{:.0f}')}] on {e['signature_where']})")
+
+
 def effects_figure(effects: list[dict[str, Any]], verdict: str) -> Figure:
     """Held-out RMSE before and after each effect, with the shrink and its interval."""
     fig = Figure(figsize=(11.0, 3.6), dpi=110)
@@ -182,7 +193,7 @@ def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
     which_rows = [[e["rank"], e["name"], _f(e["rmse_before"]), _f(e["rmse_after"]),
                    _f(e["shrink_pct"], "{:+.1f}"),
                    f"{_f(e['shrink_ci95_pct'][0])} … {_f(e['shrink_ci95_pct'][1])}",
-                   _f(e["heldout_loglik_gain"], "{:+.3f}"), "yes" if e["significant"] else "no",
+                   _f(e["heldout_loglik_gain"], "{:+.3f}"), _significant_text(e),
                    e["evidence"]] for e in effects]
     combined = summary["combined"]
     sizes = [[e["name"], e.get("size_text", "")] for e in effects if e["name"] in vset]

@@ -13,6 +13,7 @@ from brakethermo import __version__
 from brakethermo.diagnosis.verdict import (
     CandidateEvidence,
     Decision,
+    Signature,
     decide,
     unit_sse,
 )
@@ -40,7 +41,13 @@ from brakethermo.pipelines.diagnose.evidence import (
     signatures,
 )
 from brakethermo.pipelines.diagnose.fit import _fit, _initial_nodes, _reference_start
-from brakethermo.pipelines.diagnose.layout import Layout, session_segments, split_laps, zone_masks
+from brakethermo.pipelines.diagnose.layout import (
+    Layout,
+    session_segments,
+    signature_units,
+    split_laps,
+    zone_masks,
+)
 from brakethermo.pipelines.diagnose.scores import (
     bootstrap_shrink,
     consistency,
@@ -212,6 +219,18 @@ class _FourSpot:
                           for k in after["per_phase"]},
         }
 
+    def signature(self, c: Candidate) -> Signature | None:
+        """The held-out units where ``c``'s signature lives, scored (layout.signature_units)."""
+        found = signature_units(c.name, self.layout, self.inputs.speed, self.segments,
+                                self.disc.v_ref)
+        if found is None:
+            return None
+        where, units = found
+        cols = [s - 1 for s in c.scored_spots]
+        before = unit_sse(self.ref_pred - self.y, units, per_output=True)[0][:, cols]
+        after = unit_sse(c.pred - self.y, units, per_output=True)[0][:, cols]
+        return Signature(where, before.sum(axis=1), after.sum(axis=1))
+
     def decide(self, candidates: list[Candidate]
                ) -> tuple[Decision, list[CandidateEvidence], list[Candidate]]:
         """Step 5: the engine's verdict over held-out braking cycles; ranked candidates."""
@@ -225,7 +244,8 @@ class _FourSpot:
                               next_step=carry_command(self.session.path, c.name),
                               outputs=tuple(s_ - 1 for s_ in c.scored_spots),
                               n_params=sum(s.effect != "reference"
-                                           for s in self.make(c.effects).slots))
+                                           for s in self.make(c.effects).slots),
+                              signature=self.signature(c))
             for c in candidates]
         blind = disc_data_power(self.inputs.speed, y, self.inputs.t_amb, layout.braking,
                                 layout.train | layout.held, self.disc.v_ref, SENSOR_FLOOR_C)
@@ -234,7 +254,9 @@ class _FourSpot:
             c.scores = self.describe(c, self.ref_pred)
             row = next(r for r in decision.rows if r["name"] == c.name)
             c.scores.update(shrink_pct=row["shrink_pct"], shrink_ci95_pct=row["shrink_ci95_pct"],
-                            significant=row["significant"])
+                            significant=row["significant"],
+                            **{k: v for k, v in row.items() if k.startswith("signature")
+                               or k == "significant_by"})
         self.candidates = candidates
         rank_of = {r["name"]: r["rank"] for r in decision.rows}
         return decision, evidence, sorted(candidates, key=lambda c: rank_of[c.name])

@@ -10,7 +10,7 @@ import numpy as np
 
 from brakethermo.errors import DataError
 from brakethermo.io.session import Session
-from brakethermo.models.disc_effects import Segments
+from brakethermo.models.disc_effects import KNEE, Segments
 from brakethermo.pipelines.diagnose._common import MIN_STRAIGHT_S, ZONE_MATCH_M
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.report.braking_zones import detect_zones
@@ -135,3 +135,37 @@ def zone_masks(zones: np.ndarray, K: int, settle: int
 def _phase_masks(layout: Layout) -> dict[str, np.ndarray]:
     return {"braking": layout.braking, "cooling": ~layout.braking}
 
+
+
+
+def _fast_straights(layout: Layout, speed: np.ndarray, segments: Segments, v_ref: float
+                    ) -> np.ndarray:
+    """Held-out straights that pass the knee speed, from the first crossing to the next
+    braking, as units (the straight's id, -1 elsewhere)."""
+    units = np.full(speed.size, -1)
+    st = segments.straight
+    for j in np.unique(st[st >= 0]):
+        idx = np.flatnonzero((st == j) & layout.held & ~layout.braking)
+        above = idx[speed[idx] >= KNEE * v_ref]
+        if above.size:
+            units[idx[idx >= above[0]]] = j
+    return units
+
+
+# Where an effect's signature lives, as held-out units: the effect registered here is
+# also tested on those units (diagnosis.verdict.Signature). An effect not listed is
+# tested on whole held-out braking cycles only.
+SIGNATURE_UNITS = {
+    "h_speed_knee": ("held-out straights above the knee speed, to the next braking",
+                     _fast_straights),
+}
+
+
+def signature_units(name: str, layout: Layout, speed: np.ndarray, segments: Segments,
+                    v_ref: float) -> tuple[str, np.ndarray] | None:
+    """The units (per step, -1 outside) where ``name``'s signature lives, and their words;
+    ``None`` for an effect tested on whole cycles only."""
+    if name not in SIGNATURE_UNITS:
+        return None
+    where, units_of = SIGNATURE_UNITS[name]
+    return where, units_of(layout, speed, segments, v_ref)
