@@ -19,10 +19,10 @@ import numpy as np
 
 from brakethermo.models.effects import (
     EFFECTS,
+    MU_SPAN_C,
     EffectParam,
     knee_factor,
     lag_alpha,
-    mu_ratio,
     pyrometer_reading,
 )
 from brakethermo.thermal.hlaw import HLaw
@@ -240,17 +240,11 @@ class ExtendedDisc:
         kz = np.ones(B) if kz is None else kz
         beta = self._col(P, "friction_temperature", "beta")
         t_mid = self._col(P, "friction_temperature", "t_mid")
-        T = np.tile(self.T0, (B, 1))
-        K = self.q.size
-        face = np.empty((K + 1, B, 4))
-        face[0] = T @ self.H.T
-        for k in range(K):
-            scale = scale0
-            if beta is not None and t_mid is not None:
-                scale = scale0 * mu_ratio(T[:, self._contact_face].mean(axis=1), beta, t_mid)
-            T = self.model.step(T, self.q[k], h[:, k], self.t_amb[k], scale, kz_ratio=kz,
-                                load=loads[zone_of_step[k]])
-            face[k + 1] = T @ self.H.T
+        mu = None
+        if beta is not None and t_mid is not None:  # mu_ratio of the contact-band face
+            mu = (beta, t_mid, MU_SPAN_C, self._contact_face)
+        face = self.model.run_readout(np.tile(self.T0, (B, 1)), self.q[:, None] * scale0,
+                                      h.T, self.t_amb, kz, loads, zone_of_step, self.H, mu)
         return self._measure(P, face).transpose(1, 0, 2)
 
     def _measure(self, P: np.ndarray, face: np.ndarray) -> np.ndarray:

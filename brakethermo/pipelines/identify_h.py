@@ -224,13 +224,9 @@ def fit_structure(
         laws, ws, kzs, scales = zip(*(unpack(p) for p in P), strict=True)
         h = np.stack([law(v) for law in laws])
         load = np.stack(ws) @ basis
-        kz, scale = np.asarray(kzs), np.asarray(scales)
-        T = np.tile(T0, (len(P), 1))
-        out = np.empty((q.size + 1, len(P), 4))
-        out[0] = T @ H.T
-        for k in range(q.size):
-            T = model.step(T, q[k], h[:, k], t_amb[k], scale, kz_ratio=kz, load=load)
-            out[k + 1] = T @ H.T
+        out = model.run_readout(np.tile(T0, (len(P), 1)), q[:, None] * np.asarray(scales),
+                                h.T, t_amb, np.asarray(kzs), load[None],
+                                np.zeros(q.size, int), H)
         return out.transpose(1, 0, 2)
 
     def run(p: np.ndarray) -> np.ndarray:

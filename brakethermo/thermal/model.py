@@ -260,6 +260,43 @@ if HAVE_NUMBA:
         return out
 
 
+    @numba.njit(cache=True, nogil=True)
+    def _run_nb(  # pragma: no cover - compiled
+        T0: np.ndarray,
+        Qs: np.ndarray,
+        ta: np.ndarray,
+        h: np.ndarray,
+        kz: np.ndarray,
+        loads: np.ndarray,
+        zone: np.ndarray,
+        HT: np.ndarray,
+        fb: np.ndarray,
+        fb_at: np.ndarray,
+        *geometry: Any,
+    ) -> np.ndarray:
+        """:func:`_step_nb` through all K steps, the readout ``T HT`` kept per step.
+
+        ``fb`` (B, 3) = (gain, centre, span) scales each member's power by
+        ``1 + gain clip((T_c - centre)/span, -1, 1)``, ``T_c`` the mean of the state at
+        ``fb_at`` (:meth:`DiscFEModel.run_readout`).
+        """
+        K, B = Qs.shape
+        out = np.empty((K + 1, B, HT.shape[1]))
+        T = T0.copy()
+        Qk = np.empty(B)
+        out[0] = T @ HT
+        for k in range(K):
+            for b in range(B):
+                t_c = 0.0
+                for i in fb_at:
+                    t_c += T[b, i]
+                x = (t_c / fb_at.size - fb[b, 1]) / fb[b, 2]
+                Qk[b] = Qs[k, b] * (1.0 + fb[b, 0] * min(max(x, -1.0), 1.0))
+            T = _step_nb(T, T, Qk, ta[k], h[k], kz, loads[zone[k]], *geometry)
+            out[k + 1] = T @ HT
+        return out
+
+
 def _owned(a: np.ndarray) -> np.ndarray:
     """C-contiguous, writeable float64 (one numba signature for every caller)."""
     if a.dtype == np.float64 and a.flags.c_contiguous and a.flags.writeable:
@@ -698,6 +735,63 @@ class DiscFEModel:
             rhs = self._rhs(T2.reshape(B, N, L), Mdt, h_b, ta, Qs, rows)
             out = solve_factored(factor_banded(ab, use_numba=False), rhs, use_numba=False)
         return out[0] if single else out
+
+    def run_readout(
+        self,
+        T0: np.ndarray,
+        q: np.ndarray,
+        h: np.ndarray,
+        t_amb: np.ndarray,
+        kz_ratio: np.ndarray,
+        loads: np.ndarray,
+        zone: np.ndarray,
+        H: np.ndarray,
+        feedback: tuple[np.ndarray, np.ndarray, float, np.ndarray] | None = None,
+    ) -> np.ndarray:
+        """Open loop of B members through K steps, only a readout ``H T`` kept per step.
+
+        The same steps as :meth:`step` called K times (one compiled loop instead).
+
+        Parameters
+        ----------
+        T0 : ndarray (B, n_state) — degC
+        q : ndarray (K, B) — W, braking power per member and step (scale applied)
+        h : ndarray (K, B) — W/(m^2 K)
+        t_amb : ndarray (K,) — degC
+        kz_ratio : ndarray (B,)
+        loads : ndarray (Z, B, N) — nodal shares of ``q`` (see :meth:`step`'s ``load``)
+        zone : ndarray (K,) of int — which of the Z loads each step uses
+        H : ndarray (m, n_state) — readout (e.g. face temperatures at the spots)
+        feedback : tuple of (ndarray (B,), ndarray (B,), float, ndarray of int), optional
+            A braking power that follows the temperature it makes (a friction
+            coefficient μ(T)): ``(gain, centre, span, at)`` scales member b's power by
+            ``1 + gain_b clip((T_c - centre_b)/span, -1, 1)``, ``T_c`` (degC) the mean
+            of the state entries ``at`` before the step.
+
+        Returns
+        -------
+        ndarray, shape (K + 1, B, m) — row 0 from ``T0``
+        """
+        T0 = _owned(np.atleast_2d(T0))
+        B, K = T0.shape[0], len(zone)
+        ta = _owned(np.broadcast_to(np.asarray(t_amb, float)[:K, None], (K, B)))
+        gain, centre, span, at = feedback or (np.zeros(B), np.zeros(B), 1.0, np.arange(1))
+        fb = np.column_stack([self._per_member(gain, B), self._per_member(centre, B),
+                              np.full(B, float(span))])
+        if not self.use_numba:
+            out = np.empty((K + 1, B, H.shape[0]))
+            T = T0
+            out[0] = T @ H.T
+            for k in range(K):
+                x = np.clip((T[:, at].mean(axis=1) - fb[:, 1]) / fb[:, 2], -1.0, 1.0)
+                T = self.step(T, q[k], h[k], ta[k], 1.0 + fb[:, 0] * x, kz_ratio=kz_ratio,
+                              load=loads[zone[k]])
+                out[k + 1] = T @ H.T
+            return out
+        return _run_nb(T0, _owned(q), ta, _owned(h), self._per_member(kz_ratio, B),
+                       _owned(loads), np.ascontiguousarray(zone, dtype=np.int64),
+                       _owned(np.asarray(H, float).T), fb,
+                       np.ascontiguousarray(at, dtype=np.int64), *self._kernel_args)
 
     def open_loop(
         self,
