@@ -70,8 +70,9 @@ class MuSlipOptions:
                                   f" {option}), got {lo}, {hi}")
         if not 1.0 <= self.inflation < float("inf"):
             raise ConfigError(f"inflation must be at least 1, got {self.inflation}")
-        if self.radius_m is not None and not self.radius_m > 0.0:
-            raise ConfigError(f"wheel radius must be positive, got {self.radius_m} m")
+        if self.radius_m is not None and not 0.05 <= self.radius_m <= 2.0:
+            raise ConfigError(f"--radius {self.radius_m} m is not a wheel radius; give metres,"
+                              " 0.05 to 2 (a tyre rig's wheel is some 0.2-0.4 m)")
 
 
 @dataclass(frozen=True)
