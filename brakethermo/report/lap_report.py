@@ -295,6 +295,139 @@ def _law_view(summary: dict[str, Any] | None, out_dir: Path) -> dict[str, Any] |
     }
 
 
+def _stats_with_readings(estimate: pd.DataFrame, session: Session | None, disc: DiscSpec,
+                         node_radii: np.ndarray, measured: np.ndarray, zones_df: pd.DataFrame
+                         ) -> pd.DataFrame:
+    """Per-lap figures of the estimate, the beacon's lap times, the zone counts, and what
+    the sensors read (peaks and time above the window per measured spot)."""
+    stats = lap_stats(estimate, disc.window_c, node_radii)
+    if session is not None and session.laps:
+        # the beacon's lap time, as inspect, estimate and summary.json give it (the grid's
+        # count of steps differs by up to a step)
+        beacon = {lap.lap: lap.duration_s for lap in session.laps}
+        stats["lap_time_s"] = [beacon.get(int(n), t) for n, t in stats["lap_time_s"].items()]
+    stats["zones"] = zones_df.groupby("lap").size().reindex(stats.index, fill_value=0)
+    # What the sensors read beats any estimate: a measured spot above the window counts
+    # even when the model (e.g. with unmodelled pad asymmetry) keeps its estimate inside.
+    time = estimate["time"].to_numpy(dtype=float)
+    laps_col = estimate["lap"].to_numpy()
+    dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
+    for i, s in enumerate(SPOTS):
+        if np.isfinite(measured[i]).any():
+            reading = pd.Series(measured[i])
+            stats[f"meas_peak_{s}"] = reading.groupby(laps_col).max().reindex(stats.index)
+            stats[f"meas_above_{s}_s"] = (
+                (reading > disc.window_c[1]).groupby(laps_col).sum().reindex(stats.index) * dt
+            )
+    # the hottest radius is the estimate's; a reading above it is said beside it
+    meas = [c for c in stats.columns if c.startswith("meas_peak_")]
+    if meas:
+        peaks = stats[meas].astype(float)
+        best = peaks.fillna(-np.inf).idxmax(axis=1)
+        stats["meas_peak_max"] = peaks.max(axis=1)
+        stats["meas_peak_spot"] = best.str.removeprefix("meas_peak_spot")
+    return stats
+
+
+def _lap_data(arrays: dict[str, np.ndarray], zones: np.ndarray, a: int, b: int) -> LapData:
+    """One lap's slice ``[a, b)`` of the session arrays, times from the lap's start."""
+    time = arrays["time"]
+    t0 = time[a]
+    in_lap = (zones[:, 0] >= a) & (zones[:, 0] < b) if len(zones) else np.zeros(0, bool)
+    lap_zones = zones[in_lap]
+    zones_t = (
+        np.column_stack((time[lap_zones[:, 0]] - t0, time[np.minimum(lap_zones[:, 1], b - 1)] - t0))
+        if len(lap_zones) else np.empty((0, 2))
+    )
+    return LapData(
+        t=time[a:b] - t0,
+        spot=arrays["spot"][:, a:b],
+        spot_std=arrays["spot_std"][:, a:b],
+        measured=arrays["measured"][:, a:b],
+        contact=arrays["contact"][a:b],
+        contact_std=arrays["contact_std"][a:b],
+        nodes=arrays["nodes"][:, a:b],
+        speed_kmh=arrays["speed"][a:b] * KMH,
+        pressure_bar=arrays["pressure"][a:b] / BAR,
+        zones_t=zones_t,
+    )
+
+
+def _lap_figures(arrays: dict[str, np.ndarray], laps_col: np.ndarray, disc: DiscSpec,
+                 node_radii: np.ndarray, measured_spots: tuple[int, ...]) -> LapFigures:
+    """The lap figures with one set of axes for the whole session."""
+    # Ranges from the estimate and the readings, not the bands: a wide start-up band
+    # would drag the axis far below anything the disc does.
+    contact_lo, contact_hi = padded_range(arrays["contact"])
+    scales = AxisScales(
+        spots=padded_range(arrays["spot"], arrays["measured"]),
+        contact=(min(contact_lo, disc.window_c[0] - 50.0),
+                 max(contact_hi, disc.window_c[1] + 50.0)),
+        speed_kmh=max(padded_range(arrays["speed"] * KMH)[1], 10.0),
+        pressure_bar=max(padded_range(arrays["pressure"] / BAR)[1], 1.0),
+    )
+    nodes = arrays["nodes"]
+    return LapFigures(
+        node_radii, disc.spot_radii, disc.window_c, disc.r_int, disc.r_est, scales,
+        # The flying laps set the scale; a cold out-lap shows at the bottom colour.
+        temp_range_c=_colour_range(nodes[:, laps_col >= 1] if (laps_col >= 1).any() else nodes),
+        measured_spots=measured_spots,
+    )
+
+
+def _neighbours(lap_numbers: list[int], k: int) -> dict[str, str | None]:
+    """Links of lap page ``k`` to the previous and the next lap."""
+    prev = lap_numbers[k - 1] if k else None
+    nxt = lap_numbers[k + 1] if k + 1 < len(lap_numbers) else None
+    return {
+        "prev_href": f"../{lap_folder(prev)}/index.html" if prev is not None else None,
+        "prev_label": lap_name(prev) if prev is not None else None,
+        "next_href": f"../{lap_folder(nxt)}/index.html" if nxt is not None else None,
+        "next_label": lap_name(nxt) if nxt is not None else None,
+    }
+
+
+def _write_lap_pages(
+    figs: LapFigures, arrays: dict[str, np.ndarray], zones: np.ndarray, stats: pd.DataFrame,
+    zones_df: pd.DataFrame, out_dir: Path, lap_tpl: Any, common: dict[str, Any],
+    progress: Callable[[int, int], None] | None,
+) -> tuple[dict[int, Path], float]:
+    """One page and its figures per lap (``common``: what every page shows); the pages
+    and the seconds spent drawing."""
+    lap_numbers = [int(v) for v in stats.index]
+    lap_of_step = arrays["lap"]
+    slices = pd.Series(np.arange(len(lap_of_step))).groupby(lap_of_step).agg(["min", "max"])
+    render_s = 0.0
+    pages: dict[int, Path] = {}
+    try:
+        for k, lap in enumerate(lap_numbers):
+            a, b = int(slices.loc[lap, "min"]), int(slices.loc[lap, "max"]) + 1
+            r0 = _time.perf_counter()
+            pngs = figs.render(_lap_data(arrays, zones, a, b))
+            render_s += _time.perf_counter() - r0
+            lap_dir = out_dir / lap_folder(lap)
+            for fig_name, png in pngs.items():
+                write_bytes_atomic(lap_dir / f"{fig_name}.png", png)
+            html = lap_tpl.render(
+                **common,
+                lap_title=lap_name(lap),
+                stats=stats.loc[lap],
+                zones=zones_df[zones_df["lap"] == lap].to_dict("records"),
+                figures=[
+                    {"alt": FIGURE_ALT[n], "b64": base64.b64encode(p).decode("ascii")}
+                    for n, p in pngs.items()
+                ],
+                **_neighbours(lap_numbers, k),
+            )
+            pages[lap] = lap_dir / "index.html"
+            write_text_atomic(pages[lap], html)
+            if progress is not None:
+                progress(k + 1, len(lap_numbers))
+    finally:
+        figs.close()
+    return pages, render_s
+
+
 def write_session_report(
     estimate: pd.DataFrame,
     session: Session | None,
@@ -353,138 +486,32 @@ def write_session_report(
     speed = _aligned(session, time, "speed")
     pressure = _aligned(session, time, "brake_pressure_front")
     measured = _measured(session, time)
-    spot = estimate[list(SPOTS)].to_numpy(dtype=float).T
-    spot_std = estimate[[f"{s}_std" for s in SPOTS]].to_numpy(dtype=float).T
-    contact = estimate["contact_avg"].to_numpy(dtype=float)
-    contact_std = estimate["contact_avg_std"].to_numpy(dtype=float)
-    nodes = estimate[nodes_cols].to_numpy(dtype=float).T
 
     zones = detect_zones(time, pressure, detection)
     zones_df = zone_table(estimate, speed, pressure, zones, disc.window_c)
-    stats = lap_stats(estimate, disc.window_c, node_radii)
-    if session is not None and session.laps:
-        # the beacon's lap time, as inspect, estimate and summary.json give it (the grid's
-        # count of steps differs by up to a step)
-        beacon = {lap.lap: lap.duration_s for lap in session.laps}
-        stats["lap_time_s"] = [beacon.get(int(n), t) for n, t in stats["lap_time_s"].items()]
-    stats["zones"] = zones_df.groupby("lap").size().reindex(stats.index, fill_value=0)
-    # What the sensors read beats any estimate: a measured spot above the window counts
-    # even when the model (e.g. with unmodelled pad asymmetry) keeps its estimate inside.
-    dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
-    measured_above = {}
-    for i, s in enumerate(SPOTS):
-        if np.isfinite(measured[i]).any():
-            reading = pd.Series(measured[i])
-            measured_above[s] = (
-                (reading > disc.window_c[1]).groupby(laps_col).sum().reindex(stats.index) * dt
-            )
-            stats[f"meas_peak_{s}"] = reading.groupby(laps_col).max().reindex(stats.index)
-    for s, above in measured_above.items():
-        stats[f"meas_above_{s}_s"] = above
-    # the hottest radius is the estimate's; a reading above it is said beside it
-    meas = [c for c in stats.columns if c.startswith("meas_peak_")]
-    if meas:
-        peaks = stats[meas].astype(float)
-        best = peaks.fillna(-np.inf).idxmax(axis=1)
-        stats["meas_peak_max"] = peaks.max(axis=1)
-        stats["meas_peak_spot"] = best.str.removeprefix("meas_peak_spot")
+    stats = _stats_with_readings(estimate, session, disc, node_radii, measured, zones_df)
 
     env = _environment()
-    lap_tpl = env.get_template("lap.html.j2")
     window = f"{disc.window_c[0]:.0f}–{disc.window_c[1]:.0f} °C"
     facts = _facts(session)
     measured_spots = tuple(int(i) + 1 for i in np.flatnonzero(np.isfinite(measured).any(axis=1)))
     spot_roles = _spot_roles(summary, measured_spots)
     footer = f"brakethermo {__version__} · disc {disc.id} · {len(nodes_cols)} nodes"
-    lap_numbers = [int(v) for v in stats.index]
-    lap_slices = pd.Series(np.arange(len(laps_col))).groupby(laps_col).agg(["min", "max"])
+    arrays = {"time": time, "lap": laps_col, "measured": measured, "speed": speed,
+              "pressure": pressure,
+              "spot": estimate[list(SPOTS)].to_numpy(dtype=float).T,
+              "spot_std": estimate[[f"{s}_std" for s in SPOTS]].to_numpy(dtype=float).T,
+              "contact": estimate["contact_avg"].to_numpy(dtype=float),
+              "contact_std": estimate["contact_avg_std"].to_numpy(dtype=float),
+              "nodes": estimate[nodes_cols].to_numpy(dtype=float).T}
 
-    # Ranges from the estimate and the readings, not the bands: a wide start-up band
-    # would drag the axis far below anything the disc does.
-    contact_lo, contact_hi = padded_range(contact)
-    scales = AxisScales(
-        spots=padded_range(spot, measured),
-        contact=(
-            min(contact_lo, disc.window_c[0] - 50.0),
-            max(contact_hi, disc.window_c[1] + 50.0),
-        ),
-        speed_kmh=max(padded_range(speed * KMH)[1], 10.0),
-        pressure_bar=max(padded_range(pressure / BAR)[1], 1.0),
-    )
-    figs = LapFigures(
-        node_radii,
-        disc.spot_radii,
-        disc.window_c,
-        disc.r_int,
-        disc.r_est,
-        scales,
-        # The flying laps set the scale; a cold out-lap shows at the bottom colour.
-        temp_range_c=_colour_range(nodes[:, laps_col >= 1] if (laps_col >= 1).any() else nodes),
-        measured_spots=measured_spots,
-    )
-    render_s = 0.0
-    pages: dict[int, Path] = {}
-    try:
-        for k, lap in enumerate(lap_numbers):
-            a, b = int(lap_slices.loc[lap, "min"]), int(lap_slices.loc[lap, "max"]) + 1
-            t0 = time[a]
-            in_lap = (zones[:, 0] >= a) & (zones[:, 0] < b) if len(zones) else np.zeros(0, bool)
-            lap_zones = zones[in_lap]
-            zones_t = (
-                np.column_stack(
-                    (time[lap_zones[:, 0]] - t0, time[np.minimum(lap_zones[:, 1], b - 1)] - t0)
-                )
-                if len(lap_zones)
-                else np.empty((0, 2))
-            )
-            data = LapData(
-                t=time[a:b] - t0,
-                spot=spot[:, a:b],
-                spot_std=spot_std[:, a:b],
-                measured=measured[:, a:b],
-                contact=contact[a:b],
-                contact_std=contact_std[a:b],
-                nodes=nodes[:, a:b],
-                speed_kmh=speed[a:b] * KMH,
-                pressure_bar=pressure[a:b] / BAR,
-                zones_t=zones_t,
-            )
-            r0 = _time.perf_counter()
-            pngs = figs.render(data)
-            render_s += _time.perf_counter() - r0
-            lap_dir = out_dir / lap_folder(lap)
-            for fig_name, png in pngs.items():
-                write_bytes_atomic(lap_dir / f"{fig_name}.png", png)
-            html = lap_tpl.render(
-                session_name=name,
-                lap_title=lap_name(lap),
-                facts=facts,
-                spot_roles=spot_roles,
-                window=window,
-                stats=stats.loc[lap],
-                measured_keys=[s for s in SPOTS if f"meas_above_{s}_s" in stats],
-                zones=zones_df[zones_df["lap"] == lap].to_dict("records"),
-                zone_threshold_bar=detection.on_pa / BAR,
-                footer=footer,
-                figures=[
-                    {"alt": FIGURE_ALT[n], "b64": base64.b64encode(p).decode("ascii")}
-                    for n, p in pngs.items()
-                ],
-                prev_href=(f"../{lap_folder(lap_numbers[k - 1])}/index.html" if k else None),
-                prev_label=lap_name(lap_numbers[k - 1]) if k else None,
-                next_href=(
-                    f"../{lap_folder(lap_numbers[k + 1])}/index.html"
-                    if k + 1 < len(lap_numbers)
-                    else None
-                ),
-                next_label=lap_name(lap_numbers[k + 1]) if k + 1 < len(lap_numbers) else None,
-            )
-            pages[lap] = lap_dir / "index.html"
-            write_text_atomic(pages[lap], html)
-            if progress is not None:
-                progress(k + 1, len(lap_numbers))
-    finally:
-        figs.close()
+    figs = _lap_figures(arrays, laps_col, disc, node_radii, measured_spots)
+    pages, render_s = _write_lap_pages(
+        figs, arrays, zones, stats, zones_df, out_dir, env.get_template("lap.html.j2"),
+        {"session_name": name, "facts": facts, "spot_roles": spot_roles, "window": window,
+         "zone_threshold_bar": detection.on_pa / BAR, "footer": footer,
+         "measured_keys": [s for s in SPOTS if f"meas_above_{s}_s" in stats]},
+        progress)
 
     index = _write_index(
         env, out_dir, name, facts, window, footer, stats, disc,
