@@ -95,6 +95,93 @@ def _refuse_split_session(series: dict, end_s: float, path: Path) -> None:
             "holds two recordings; split it into one file per session", path=path)
 
 
+_Series = dict[str, tuple[RawChannel, np.ndarray, np.ndarray, str]]
+
+
+def _gather(raw: RawSession, found: dict[str, str], wanted: tuple[str, ...],
+            warnings: list[str]) -> tuple[_Series, dict[str, float], dict[str, str]]:
+    """The wanted channels in SI, finite, sorted: series, single-sample constants and
+    the unusable ones with why (warnings appended)."""
+    path = raw.path
+    by_name = {c.name: c for c in raw.channels}
+    series: _Series = {}
+    constants: dict[str, float] = {}
+    unusable: dict[str, str] = {}
+    for canonical in wanted:
+        if canonical not in found or canonical == "lap_beacon":
+            continue
+        src = by_name[found[canonical]]
+        t, v, n_bad = _finite(src)
+        v, unit = to_si(v, src.unit, canonical, path=path, source=src.name)
+        if t.size == 0:
+            unusable[canonical] = (
+                f"'{src.name}' holds no finite sample"
+                + (f" (all {n_bad} are null, NaN or infinite)" if n_bad else " (it is empty)")
+            )
+            continue
+        if n_bad:
+            warnings.append(
+                f"channel '{canonical}' ({src.name}): {n_bad} non-finite sample(s) (NaN or"
+                " infinite) dropped"
+            )
+        t, v = sort_checked(t, v, path=path, channel=src.name)
+        if t.size == 1:
+            constants[canonical] = float(v[0])
+        else:
+            series[canonical] = (src, t, v, unit)
+    return series, constants, unusable
+
+
+def _grid_step(series: _Series, end_s: float, rate_hz: float | None, path: Path) -> float:
+    """The grid step, s: from ``rate_hz``, else the fastest channel that covers at least
+    half the session; refused when the grid would not fit."""
+    if rate_hz is None:
+        # A short burst (a validation channel logged at 100 kHz for 0.1 s) must not set
+        # the grid of the whole session: only channels covering half the span count.
+        long = [t for _, t, _, _ in series.values()
+                if t.size > 1 and t[-1] - t[0] >= 0.5 * end_s]
+        rates = [1.0 / float(np.median(np.diff(t))) for t in long]
+        rate_hz = max(rates, default=1.0 / GRID_DT)
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise DataError(f"grid rate must be a positive number of Hz, got {rate_hz}", path=path)
+    dt = 1.0 / rate_hz
+    points = end_s * rate_hz
+    if points > MAX_GRID_POINTS:
+        raise DataError(
+            f"the session spans {end_s:.1f} s: at {rate_hz:g} Hz that is {points:.3g} grid"
+            f" points, more than {MAX_GRID_POINTS:.0e}; check the time stamps or use a lower"
+            " grid rate",
+            path=path,
+        )
+    return dt
+
+
+def _on_grid(series: _Series, t_grid: np.ndarray, gap_limit_s: float, warnings: list[str]
+             ) -> tuple[dict[str, np.ndarray], dict[str, ChannelInfo]]:
+    """Each series despiked (pyrometers) and resampled onto ``t_grid``, with its facts."""
+    columns: dict[str, np.ndarray] = {}
+    infos: dict[str, ChannelInfo] = {}
+    for canonical, (src, t, v, unit) in series.items():
+        spikes = 0
+        if canonical.startswith(IR_PREFIX):
+            v, spikes = hampel(v)
+        res = resample(t, v, t_grid, gap_limit_s)
+        columns[canonical] = res.values
+        infos[canonical] = ChannelInfo(
+            canonical, src.name, unit, si_unit(canonical), res.rate_hz, int(t.size),
+            res.gaps, spikes,
+        )
+        if res.gaps:
+            total = sum(d for _, d in res.gaps)
+            start, longest = max(res.gaps, key=lambda g: g[1])
+            warnings.append(
+                f"channel '{canonical}' ({src.name}): {len(res.gaps)} gap(s) longer than"
+                f" {gap_limit_s:g} s left empty, {total:.1f} s in total (the longest"
+                f" {longest:.1f} s from t = {start:.1f} s)"
+            )
+    return columns, infos
+
+
 def load_session(
     path: str | Path,
     *,
@@ -150,75 +237,14 @@ def load_session(
     found = resolve(table, raw.names)
     if not any(c.t.size for c in raw.channels):
         raise DataError("the file holds no samples", path=path)
-    wanted = CANONICAL_CHANNELS if channels is None else channels
-    series: dict[str, tuple[RawChannel, np.ndarray, np.ndarray, str]] = {}
-    constants: dict[str, float] = {}
-    unusable: dict[str, str] = {}
     warnings = list(raw.warnings)
-    for canonical in wanted:
-        if canonical not in found or canonical == "lap_beacon":
-            continue
-        src = by_name[found[canonical]]
-        t, v, n_bad = _finite(src)
-        v, unit = to_si(v, src.unit, canonical, path=path, source=src.name)
-        if t.size == 0:
-            unusable[canonical] = (
-                f"'{src.name}' holds no finite sample"
-                + (f" (all {n_bad} are null, NaN or infinite)" if n_bad else " (it is empty)")
-            )
-            continue
-        if n_bad:
-            warnings.append(
-                f"channel '{canonical}' ({src.name}): {n_bad} non-finite sample(s) (NaN or"
-                " infinite) dropped"
-            )
-        t, v = sort_checked(t, v, path=path, channel=src.name)
-        if t.size == 1:
-            constants[canonical] = float(v[0])
-        else:
-            series[canonical] = (src, t, v, unit)
+    wanted = CANONICAL_CHANNELS if channels is None else channels
+    series, constants, unusable = _gather(raw, found, wanted, warnings)
     _refuse_split_session(series, raw.end_s, path)
-    if rate_hz is None:
-        # A short burst (a validation channel logged at 100 kHz for 0.1 s) must not set
-        # the grid of the whole session: only channels covering half the span count.
-        long = [t for _, t, _, _ in series.values()
-                if t.size > 1 and t[-1] - t[0] >= 0.5 * raw.end_s]
-        rates = [1.0 / float(np.median(np.diff(t))) for t in long]
-        rate_hz = max(rates, default=1.0 / GRID_DT)
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise DataError(f"grid rate must be a positive number of Hz, got {rate_hz}", path=path)
-    dt = 1.0 / rate_hz
-    points = raw.end_s * rate_hz
-    if points > MAX_GRID_POINTS:
-        raise DataError(
-            f"the session spans {raw.end_s:.1f} s: at {rate_hz:g} Hz that is {points:.3g} grid"
-            f" points, more than {MAX_GRID_POINTS:.0e}; check the time stamps or use a lower"
-            " grid rate",
-            path=path,
-        )
+    dt = _grid_step(series, raw.end_s, rate_hz, path)
     t_grid = grid(raw.end_s, dt)
 
-    columns: dict[str, np.ndarray] = {"time": t_grid}
-    infos: dict[str, ChannelInfo] = {}
-    for canonical, (src, t, v, unit) in series.items():
-        spikes = 0
-        if canonical.startswith(IR_PREFIX):
-            v, spikes = hampel(v)
-        res = resample(t, v, t_grid, gap_limit_s)
-        columns[canonical] = res.values
-        infos[canonical] = ChannelInfo(
-            canonical, src.name, unit, si_unit(canonical), res.rate_hz, int(t.size),
-            res.gaps, spikes,
-        )
-        if res.gaps:
-            total = sum(d for _, d in res.gaps)
-            start, longest = max(res.gaps, key=lambda g: g[1])
-            warnings.append(
-                f"channel '{canonical}' ({src.name}): {len(res.gaps)} gap(s) longer than"
-                f" {gap_limit_s:g} s left empty, {total:.1f} s in total (the longest"
-                f" {longest:.1f} s from t = {start:.1f} s)"
-            )
-
+    columns, infos = _on_grid(series, t_grid, gap_limit_s, warnings)
     if "lap_beacon" in found:
         src = by_name[found["lap_beacon"]]
         tb, vb, _ = _finite(src)
@@ -229,7 +255,7 @@ def load_session(
         warnings.extend(lap_length_warnings(laps, src.name))
     else:
         laps, lap = laps_from_beacons(np.empty(0), np.empty(0), t_grid, raw.end_s, path=path)
-    frame = pd.DataFrame({"time": columns.pop("time"), "lap": lap, **columns})
+    frame = pd.DataFrame({"time": t_grid, "lap": lap, **columns})
     return Session(
         path=path,
         frame=frame,
