@@ -42,7 +42,7 @@ from brakethermo.sim.sensors import (
     sample_clock,
 )
 from brakethermo.sim.track import TrackSpec, load_track
-from brakethermo.sim.truth_disc import Boundary, TruthDisc, make_grid
+from brakethermo.sim.truth_disc import Boundary, DiscGrid, TruthDisc, make_grid
 from brakethermo.sim.vehicle import G, RiderRun, VehicleSpec, drive_session
 from brakethermo.sim.writer import write_session_and_truth
 from brakethermo.thermal.disc import BAR, DiscSpec, load_disc
@@ -324,6 +324,175 @@ def _geo(ctx: _Context) -> np.ndarray:
     )
 
 
+def _truth_frame(cfg: SimConfig, thermal: ThermalRun, ride: RiderRun, d: dict[str, np.ndarray],
+                 disc: DiscSpec, spots_face: np.ndarray, spots_mid: np.ndarray,
+                 p_line: np.ndarray, torque: np.ndarray, mu500: np.ndarray,
+                 t_amb500: np.ndarray, rate: float) -> pd.DataFrame:
+    """The truth on the 10 Hz grid (float32 but for the time)."""
+    stride = round(TRUTH_DT / cfg.dt)
+    g = slice(0, None, stride)
+    t_grid = thermal.time[g]
+    i500 = np.round(t_grid * rate).astype(int)
+    lap_grid = np.searchsorted(ride.beacon_times, t_grid + 1e-9, side="right") - 1
+    truth = {
+        "time": t_grid,
+        "lap": lap_grid.astype(np.int64),
+        "speed": ride.v[i500] * KMH,
+    }
+    for i in range(4):
+        truth[f"spot{i + 1}"] = spots_face[g, i]
+    truth["contact_avg"] = spots_face[g, 1:].mean(axis=1)
+    for i in range(4):
+        truth[f"spot{i + 1}_mid"] = spots_mid[g, i]
+    truth["disc_mean"] = thermal.t_mean[g]
+    truth["h"] = d["h"][i500]
+    truth["q_brake"] = d["q"][i500]
+    truth["q_brake_nominal"] = disc.braking_power(p_line * BAR, d["omega"])[i500]
+    truth["mu_ratio"] = mu500[i500]
+    truth["p_line_bar"] = p_line[i500]
+    truth["brake_torque"] = torque[i500]
+    for c_ in range(3):
+        truth[f"w{c_ + 1}"] = d["w"][i500, c_]
+    truth["slipstream"] = d["slip_on"][i500]
+    truth["ambient"] = t_amb500[i500]
+
+    df = pd.DataFrame(truth)
+    # Truth values in float32 (0.1 mK at 1000 degC) keep the shipped files small.
+    floats = [c for c in df.columns if c != "time" and df[c].dtype == np.float64]
+    df[floats] = df[floats].astype(np.float32)
+    return df
+
+
+def _run_params(cfg: SimConfig, track: TrackSpec, disc: DiscSpec, eff: Effects,
+                chain: BrakeChain, h_law: HLaw, kz_ratio: float, mu_law: MuLaw,
+                veh: VehicleSpec, amb0: float, ir: IRSensor, thermal: ThermalRun,
+                ride: RiderRun) -> dict[str, object]:
+    """The run's parameters, stored in the truth file's metadata."""
+    strengths = eff.strength
+    return {
+        "track": track.name,
+        "laps": cfg.laps,
+        "seed": cfg.seed,
+        "bike_seed": cfg.bike_seed,
+        "sensor": cfg.sensor,
+        "disc": disc.id,
+        "date": cfg.date,
+        "effects": list(eff.active),
+        "effect_strengths": strengths,
+        "effect_params": eff.params(),
+        "effect_mild": dict(eff.mild),
+        "model_errors": chain.as_dict(),
+        "h_law": {
+            **h_law.as_dict(),
+            "knee_gain": eff.knee_gain,
+            "knee_frac": eff.knee_frac,
+            "knee_exponent": eff.knee_exponent,
+            "v_ref_m_s": disc.v_ref,
+            "formula": "(h0 + a*V^n) * (1 + knee_gain*(max(V - knee_frac*V_ref, 0)"
+            " / ((1 - knee_frac)*V_ref))^knee_exponent), V in m/s",
+        },
+        "k_z_w_mk": eff.k_z,
+        "k_z_ref_c": KZ_REF_C,
+        "k_z_ratio": kz_ratio,
+        "mu_law": {
+            **asdict(mu_law),
+            "formula": "1 - deficit + (deficit + gain) / (1 + exp(-(T - t_mid) / t_width))",
+        },
+        "grid": {"nr": cfg.nr, "nz": cfg.nz, "dt_s": cfg.dt},
+        "vehicle": asdict(veh),
+        "ambient_temp_c": amb0,
+        "ir_sensor": ir.as_dict(),
+        "logger_rates": LoggerRates().as_dict(),
+        "energy_J": thermal.energy,
+        "beacon_times_s": ride.beacon_times.tolist(),
+        "following_laps": np.flatnonzero(ride.following).tolist(),
+    }
+
+
+@dataclass(frozen=True)
+class _Coupled:
+    """The ride and the disc heated by it (:func:`_ride_and_heat`)."""
+
+    thermal: ThermalRun
+    out: np.ndarray  # (5, n500) chain outputs at the rider rate
+    mu_step: np.ndarray  # mu(T)/mu_nom per thermal step
+    n_steps: int
+    grid: DiscGrid
+    kz_ratio: float
+    mu_law: MuLaw
+
+
+def _ride_and_heat(cfg: SimConfig, ctx: _Context, plan: RiderRun, t_amb500: np.ndarray,
+                   h_scale: float, n_max: int, rng_chain: np.random.Generator) -> _Coupled:
+    """Rider, brake chain and disc, coupled through mu(T) of the rubbed face: mu is
+    frozen over one thermal step at the face temperature of its start."""
+    disc, eff = ctx.disc, ctx.eff
+    rate = plan.rate
+    per = round(cfg.dt * rate)
+    n500 = n_max * per + 1
+    grid = make_grid(disc.r_int, disc.r_est, disc.thickness, cfg.nr, cfg.nz)
+    crown_area = np.pi * np.diff(disc.crown_edges**2)
+    overlap = crown_overlap(grid.r_edges, disc.crown_edges)
+    kz_ratio = eff.k_z / float(disc.conductivity(KZ_REF_C))
+    model = TruthDisc(
+        grid, disc.density, disc.specific_heat, disc.conductivity, kz_ratio, disc.emissivity
+    )
+    stepper = ThermalStepper(model, ctx.h_law, float(t_amb500[0]), n_max)
+    mu_law = MuLaw(eff.mu_deficit, eff.mu_gain, eff.mu_t_mid, eff.mu_t_width)
+    pad = (grid.r_centres >= disc.pad_r1) & (grid.r_centres <= disc.pad_r4)
+    pad_area = grid.ring_areas[pad]
+
+    prm = chain_params(ctx.chain, ctx.veh, disc, rate)
+    mod = hand_modulation(ctx.chain, n500, rate, rng_chain)
+    plan_s, plan_v, plan_a = plan.s, plan.v, plan.a
+    plan_f = plan.brake_force
+    out = np.zeros((5, n500))
+    state = np.array([plan_v[0], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    out[OUT_V, 0] = plan_v[0]
+    mu_step = np.empty(n_max)
+    total = (cfg.laps + 1) * ctx.track.length
+    n_steps = n_max
+    kernel_args = (
+        _geo(ctx),
+        ctx.corner_ends,
+        ctx.seg_ends,
+        ctx.seg_straight,
+        ctx.following,
+        ctx.slip_red,
+        ctx.w_event,
+    )
+    for k in range(n_max):
+        j0 = k * per
+        mu = float(mu_law.ratio(stepper.t_face[pad] @ pad_area / pad_area.sum()))
+        mu_step[k] = mu
+        advance(state, prm, plan_s, plan_v, plan_a, plan_f, mod, mu, j0, per, out)
+        c = slice(j0, j0 + per + 1)
+        qw, h_step = _step_inputs(out[OUT_V, c], out[OUT_S, c], out[OUT_TORQUE, c], *kernel_args)
+        q_face = (0.5 * qw / crown_area) @ overlap.T  # W/m^2 per face
+        stepper.step(cfg.dt, q_face, h_step * h_scale, float(t_amb500[j0 + per]))
+        if state[S] >= total:
+            n_steps = k + 1
+            break
+    return _Coupled(stepper.result(cfg.dt), out, mu_step, n_steps, grid, kz_ratio, mu_law)
+
+
+def _session_facts(cfg: SimConfig, veh: VehicleSpec, track: TrackSpec, disc: DiscSpec,
+                   amb0: float, eff: Effects) -> dict[str, str]:
+    """The session file's facts (what a team's logger would write beside the data)."""
+    return {
+        "vehicle": veh.name,
+        "track": track.name,
+        "date": cfg.date,
+        "disc": disc.id,
+        "ambient_temp_c": f"{amb0:.1f}",
+        "seed": str(cfg.seed),
+        "effects": ",".join(f"{n_}={eff.strength[n_]:g}" for n_ in eff.active) or "none",
+        "laps": str(cfg.laps),
+        "sensor": cfg.sensor,
+        "simulator": "brakethermo.sim",
+    }
+
+
 def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResult:
     """Simulate one session; see :class:`SimConfig`. Deterministic for a given config.
 
@@ -384,176 +553,36 @@ def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResu
         corner_ends=track.corner_spans()[:, 1],
     )
 
-    grid = make_grid(disc.r_int, disc.r_est, disc.thickness, cfg.nr, cfg.nz)
-    crown_area = np.pi * np.diff(disc.crown_edges**2)
-    overlap = crown_overlap(grid.r_edges, disc.crown_edges)
-    kz_ratio = eff.k_z / float(disc.conductivity(KZ_REF_C))
-    model = TruthDisc(
-        grid, disc.density, disc.specific_heat, disc.conductivity, kz_ratio, disc.emissivity
-    )
-    stepper = ThermalStepper(model, h_law, float(t_amb500[0]), n_max)
-    mu_law = MuLaw(eff.mu_deficit, eff.mu_gain, eff.mu_t_mid, eff.mu_t_width)
-    pad = (grid.r_centres >= disc.pad_r1) & (grid.r_centres <= disc.pad_r4)
-    pad_area = grid.ring_areas[pad]
-
-    # Rider, brake chain and disc, coupled through mu(T) of the rubbed face: mu is
-    # frozen over one thermal step at the face temperature of its start.
-    prm = chain_params(chain, veh, disc, rate)
-    mod = hand_modulation(chain, n500, rate, rng_chain)
-    plan_s, plan_v, plan_a = plan.s, plan.v, plan.a
-    plan_f = plan.brake_force
-    out = np.zeros((5, n500))
-    state = np.array([plan_v[0], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-    out[OUT_V, 0] = plan_v[0]
-    mu_step = np.empty(n_max)
-    total = (cfg.laps + 1) * track.length
-    n_steps = n_max
-    kernel_args = (
-        _geo(ctx),
-        ctx.corner_ends,
-        ctx.seg_ends,
-        ctx.seg_straight,
-        ctx.following,
-        ctx.slip_red,
-        ctx.w_event,
-    )
-    for k in range(n_max):
-        j0 = k * per
-        mu = float(mu_law.ratio(stepper.t_face[pad] @ pad_area / pad_area.sum()))
-        mu_step[k] = mu
-        advance(state, prm, plan_s, plan_v, plan_a, plan_f, mod, mu, j0, per, out)
-        c = slice(j0, j0 + per + 1)
-        qw, h_step = _step_inputs(out[OUT_V, c], out[OUT_S, c], out[OUT_TORQUE, c], *kernel_args)
-        q_face = (0.5 * qw / crown_area) @ overlap.T  # W/m^2 per face
-        stepper.step(cfg.dt, q_face, h_step * h_scale, float(t_amb500[j0 + per]))
-        if state[S] >= total:
-            n_steps = k + 1
-            break
-    thermal = stepper.result(cfg.dt)
+    run = _ride_and_heat(cfg, ctx, plan, t_amb500, h_scale, n_max, rng_chain)
+    thermal = run.thermal
     clock.lap("thermal")
 
-    n = n_steps * per + 1
-    v, s_real, p_line, torque = (out[r, :n] for r in (OUT_V, OUT_S, OUT_P, OUT_TORQUE))
-    t500, t_amb500, mod = t500[:n], t_amb500[:n], mod[:n]
+    n = run.n_steps * per + 1
+    v, s_real, p_line, torque = (run.out[r, :n] for r in (OUT_V, OUT_S, OUT_P, OUT_TORQUE))
+    t_amb500 = t_amb500[:n]
     d = _derive(ctx, v, s_real, torque)
     d["h"] = d["h"] * h_scale
-    ride = _realised_run(plan, track, cfg.laps, rate, v, s_real, out[OUT_FORCE, :n], d)
-    mu500 = np.repeat(mu_step[:n_steps], per)
+    ride = _realised_run(plan, track, cfg.laps, rate, v, s_real, run.out[OUT_FORCE, :n], d)
+    mu500 = np.repeat(run.mu_step[:run.n_steps], per)
     mu500 = np.append(mu500, mu500[-1])
-    duration = n_steps * cfg.dt
 
-    spot_r = np.asarray(disc.spot_radii)
     ir = IRSensor()
-    W = patch_matrix(grid.r_centres, spot_r, ir.patch_radius)
+    W = patch_matrix(run.grid.r_centres, np.asarray(disc.spot_radii), ir.patch_radius)
     spots_face = thermal.t_face @ W.T
-    spots_mid = thermal.t_mid @ W.T
-
-    channels = _logged_channels(
-        cfg,
-        disc,
-        ride,
-        eff,
-        chain,
-        ir,
-        thermal.time,
-        spots_face,
-        p_line,
-        d["omega"],
-        t_amb500,
-        duration,
-        rng_sens,
-    )
+    channels = _logged_channels(cfg, disc, ride, eff, chain, ir, thermal.time, spots_face,
+                                p_line, d["omega"], t_amb500, run.n_steps * cfg.dt, rng_sens)
     clock.lap("sensors")
     groups = (
         {"disc_temp": {f"spot{i}": f"disc_temp_spot{i}" for i in range(1, 5)}}
         if cfg.sensor == "multi"
         else {}
     )
-    strengths = eff.strength
-    facts = {
-        "vehicle": veh.name,
-        "track": track.name,
-        "date": cfg.date,
-        "disc": disc.id,
-        "ambient_temp_c": f"{amb0:.1f}",
-        "seed": str(cfg.seed),
-        "effects": ",".join(f"{n_}={strengths[n_]:g}" for n_ in eff.active) or "none",
-        "laps": str(cfg.laps),
-        "sensor": cfg.sensor,
-        "simulator": "brakethermo.sim",
-    }
-
-    # Truth on the 10 Hz grid.
-    stride = round(TRUTH_DT / cfg.dt)
-    g = slice(0, None, stride)
-    t_grid = thermal.time[g]
-    i500 = np.round(t_grid * rate).astype(int)
-    lap_grid = np.searchsorted(ride.beacon_times, t_grid + 1e-9, side="right") - 1
-    truth = {
-        "time": t_grid,
-        "lap": lap_grid.astype(np.int64),
-        "speed": ride.v[i500] * KMH,
-    }
-    for i in range(4):
-        truth[f"spot{i + 1}"] = spots_face[g, i]
-    truth["contact_avg"] = spots_face[g, 1:].mean(axis=1)
-    for i in range(4):
-        truth[f"spot{i + 1}_mid"] = spots_mid[g, i]
-    truth["disc_mean"] = thermal.t_mean[g]
-    truth["h"] = d["h"][i500]
-    truth["q_brake"] = d["q"][i500]
-    truth["q_brake_nominal"] = disc.braking_power(p_line * BAR, d["omega"])[i500]
-    truth["mu_ratio"] = mu500[i500]
-    truth["p_line_bar"] = p_line[i500]
-    truth["brake_torque"] = torque[i500]
-    for c_ in range(3):
-        truth[f"w{c_ + 1}"] = d["w"][i500, c_]
-    truth["slipstream"] = d["slip_on"][i500]
-    truth["ambient"] = t_amb500[i500]
-
-    params = {
-        "track": track.name,
-        "laps": cfg.laps,
-        "seed": cfg.seed,
-        "bike_seed": cfg.bike_seed,
-        "sensor": cfg.sensor,
-        "disc": disc.id,
-        "date": cfg.date,
-        "effects": list(eff.active),
-        "effect_strengths": strengths,
-        "effect_params": eff.params(),
-        "effect_mild": dict(eff.mild),
-        "model_errors": chain.as_dict(),
-        "h_law": {
-            **h_law.as_dict(),
-            "knee_gain": eff.knee_gain,
-            "knee_frac": eff.knee_frac,
-            "knee_exponent": eff.knee_exponent,
-            "v_ref_m_s": disc.v_ref,
-            "formula": "(h0 + a*V^n) * (1 + knee_gain*(max(V - knee_frac*V_ref, 0)"
-            " / ((1 - knee_frac)*V_ref))^knee_exponent), V in m/s",
-        },
-        "k_z_w_mk": eff.k_z,
-        "k_z_ref_c": KZ_REF_C,
-        "k_z_ratio": kz_ratio,
-        "mu_law": {
-            **asdict(mu_law),
-            "formula": "1 - deficit + (deficit + gain) / (1 + exp(-(T - t_mid) / t_width))",
-        },
-        "grid": {"nr": cfg.nr, "nz": cfg.nz, "dt_s": cfg.dt},
-        "vehicle": asdict(veh),
-        "ambient_temp_c": amb0,
-        "ir_sensor": ir.as_dict(),
-        "logger_rates": LoggerRates().as_dict(),
-        "energy_J": thermal.energy,
-        "beacon_times_s": ride.beacon_times.tolist(),
-        "following_laps": np.flatnonzero(ride.following).tolist(),
-    }
-    df = pd.DataFrame(truth)
-    # Truth values in float32 (0.1 mK at 1000 degC) keep the shipped files small.
-    floats = [c for c in df.columns if c != "time" and df[c].dtype == np.float64]
-    df[floats] = df[floats].astype(np.float32)
-    table = pa.Table.from_pandas(df, preserve_index=False)
+    facts = _session_facts(cfg, veh, track, disc, amb0, eff)
+    truth = _truth_frame(cfg, thermal, ride, d, disc, spots_face, thermal.t_mid @ W.T, p_line,
+                         torque, mu500, t_amb500, rate)
+    params = _run_params(cfg, track, disc, eff, chain, h_law, run.kz_ratio, run.mu_law, veh,
+                         amb0, ir, thermal, ride)
+    table = pa.Table.from_pandas(truth, preserve_index=False)
     table = table.replace_schema_metadata({"brakethermo_truth": json.dumps(params, sort_keys=True)})
     clock.lap("truth")
     return SimResult(
