@@ -126,6 +126,53 @@ def preflight(
         load_disc(disc)
 
 
+def _write_outputs(result: EstimateResult, out: Path, mdf_out: bool, reports: bool) -> Path:
+    """The estimate's folder, swapped in whole: parquet, summary, MDF, lap pages, links."""
+    from brakethermo.pipelines.estimate import disc_of, write_estimate
+    from brakethermo.pipelines.output_dir import replace_session_dir
+    from brakethermo.report.session_links import refresh_page_links
+
+    folder = out / result.stem
+    with replace_session_dir(folder) as stage:
+        write_estimate(result, out, folder=stage)
+        if mdf_out:
+            from brakethermo.report.mdf_export import write_estimate_mdf
+
+            write_estimate_mdf(result.frame, stage / "estimate.mf4",
+                               node_radii=result.node_radii, spot_radii=result.disc.spot_radii,
+                               start_epoch_s=result.session.start_epoch_s,
+                               source=result.session.path.name,
+                               date=result.session.metadata.get("date"))
+        if reports:
+            from brakethermo.report.lap_report import write_session_report
+
+            write_session_report(result.frame, result.session, stage,
+                                 node_radii=result.node_radii, disc=disc_of(result),
+                                 summary=result.summary)
+    refresh_page_links(folder)
+    return folder
+
+
+def _render(result: EstimateResult, folder: Path, law_reason: str, mdf_out: bool,
+            reports: bool) -> None:
+    """The console's lap table, scores, law, warnings and what was written."""
+    run = result.summary["run"]
+    render_laps(result)
+    if result.scores:
+        render_scores(result.scores)
+    console.print(f"h law: {escape(str(run['h_law']))} ({law_reason})", soft_wrap=True)
+    for warning in run["warnings"]:
+        console.print(f"[yellow]warning:[/] {escape(warning)}", soft_wrap=True)
+    console.print(
+        f"wrote {escape(str(folder / 'estimate.parquet'))}"
+        f"{', estimate.mf4' if mdf_out else ''} and summary.json "
+        f"({result.timings['total_s']:.2f} s)"
+        + (f"; open {escape(str(folder / 'index.html'))} for the per-lap reports"
+           if reports else ""),
+        soft_wrap=True,
+    )
+
+
 @app.command("estimate")
 def estimate_command(
     session: Annotated[Path, typer.Argument(help=f"Session file ({SESSION_FORMATS}).")],
@@ -185,13 +232,11 @@ def estimate_command(
     """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
     from brakethermo.pipelines.estimate import (
         EstimateOptions,
-        disc_of,
         estimate_from_session,
-        write_estimate,
     )
     from brakethermo.pipelines.inputs import load_timed
     from brakethermo.pipelines.models import choose_h_law, disc_for
-    from brakethermo.pipelines.output_dir import check_output_dir, replace_session_dir
+    from brakethermo.pipelines.output_dir import check_output_dir
     from brakethermo.pipelines.outputs import to_json
 
     reports = not no_reports and legacy_report is not False
@@ -213,40 +258,8 @@ def estimate_command(
     run["timings_s"]["read_s"] = read_s
     run["wall_time_s"] += read_s
     run["h_law_choice"] = law_reason
-    folder = out / result.stem
-    with replace_session_dir(folder) as stage:
-        write_estimate(result, out, folder=stage)
-        if mdf_out:
-            from brakethermo.report.mdf_export import write_estimate_mdf
-
-            write_estimate_mdf(result.frame, stage / "estimate.mf4",
-                               node_radii=result.node_radii, spot_radii=result.disc.spot_radii,
-                               start_epoch_s=result.session.start_epoch_s,
-                               source=result.session.path.name,
-                               date=result.session.metadata.get("date"))
-        if reports:
-            from brakethermo.report.lap_report import write_session_report
-
-            write_session_report(result.frame, result.session, stage,
-                                 node_radii=result.node_radii, disc=disc_of(result),
-                                 summary=result.summary)
-    from brakethermo.report.session_links import refresh_page_links
-
-    refresh_page_links(folder)
+    folder = _write_outputs(result, out, mdf_out, reports)
     if as_json:
         print(to_json({**result.summary, "output": str(folder)}))
         return
-    render_laps(result)
-    if result.scores:
-        render_scores(result.scores)
-    console.print(f"h law: {escape(str(run['h_law']))} ({law_reason})", soft_wrap=True)
-    for warning in run["warnings"]:
-        console.print(f"[yellow]warning:[/] {escape(warning)}", soft_wrap=True)
-    console.print(
-        f"wrote {escape(str(folder / 'estimate.parquet'))}"
-        f"{', estimate.mf4' if mdf_out else ''} and summary.json "
-        f"({result.timings['total_s']:.2f} s)"
-        + (f"; open {escape(str(folder / 'index.html'))} for the per-lap reports"
-           if reports else ""),
-        soft_wrap=True,
-    )
+    _render(result, folder, law_reason, mdf_out, reports)
