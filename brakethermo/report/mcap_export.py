@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -108,6 +108,73 @@ def log_times_ns(time_s: np.ndarray, start_epoch_s: float | None) -> np.ndarray:
     return start_ns + np.rint(np.asarray(time_s, dtype=float) * 1e9).astype(np.int64)
 
 
+_Channel = Callable[[str, dict, str, dict[str, str]], int]
+_Streams = list[tuple[int, list[str]]]
+
+
+def _band_streams(frame: pd.DataFrame, banded: list[str], spot_radii: Sequence[float],
+                  channel: _Channel) -> _Streams:
+    """One channel per banded column: value, 1-sigma and the band's ends."""
+    streams: _Streams = []
+    for col in banded:
+        value = frame[col].to_numpy(dtype=float)
+        std_col = f"{col}_std"
+        std = (frame[std_col].to_numpy(dtype=float) if std_col in frame
+               else np.full_like(value, np.nan))
+        meta = {"unit": "degC", "description": f"estimated {col} temperature with 1-sigma"}
+        if col.startswith("spot"):
+            meta["radius_m"] = repr(float(spot_radii[int(col[4:]) - 1]))
+        cid = channel(col, _BAND_SCHEMA, "brakethermo.Band", meta)
+        v, s, lo, hi = _fmt(value), _fmt(std), _fmt(value - std), _fmt(value + std)
+        streams.append((cid, [f'{{"value":{a},"std":{b},"lower":{c},"upper":{d}}}'
+                              for a, b, c, d in zip(v, s, lo, hi, strict=True)]))
+    return streams
+
+
+def _array_streams(frame: pd.DataFrame, families: dict[str, list[str]],
+                   node_radii: Sequence[float] | np.ndarray | None, channel: _Channel
+                   ) -> _Streams:
+    """One array channel per family of indexed columns (the nodes first)."""
+    streams: _Streams = []
+    for family, cols in families.items():
+        if not cols:
+            continue
+        radii = ([float(r) for r in node_radii]
+                 if node_radii is not None and len(node_radii) == len(cols)
+                 else [float("nan")] * len(cols))
+        meta = {
+            "unit": ARRAY_UNITS.get(family, ""),
+            "radius_m": json.dumps(radii),
+            "description": f"{family} temperatures, inner to outer radius",
+        }
+        topic = ARRAY_TOPICS.get(family, f"{family}_array")
+        cid = channel(topic, _NODES_SCHEMA, "brakethermo.DiscNodes", meta)
+        cells = np.array([_fmt(frame[c].to_numpy(dtype=float), 2) for c in cols]).T
+        streams.append((cid, ['{"temperature":[' + ",".join(row) + "]}" for row in cells]))
+    return streams
+
+
+def _scalar_streams(frame: pd.DataFrame, extra: list[str], channel: _Channel) -> _Streams:
+    """The lap, then each other scalar column (with its 1-sigma where it has one)."""
+    streams: _Streams = []
+    if "lap" in frame:
+        cid = channel("lap", _VALUE_SCHEMA, "brakethermo.Value", {"unit": ""})
+        streams.append((cid, [f'{{"value":{int(x)}}}' for x in frame["lap"].to_numpy()]))
+    for col in extra:
+        value = _fmt(frame[col].to_numpy(dtype=float), 6)
+        meta = {"unit": SCALAR_UNITS.get(col, "")}
+        std_col = f"{col}_std"
+        if std_col in frame:
+            std = _fmt(frame[std_col].to_numpy(dtype=float), 6)
+            cid = channel(col, _VALUE_STD_SCHEMA, "brakethermo.ValueStd", meta)
+            msgs = [f'{{"value":{a},"std":{b}}}' for a, b in zip(value, std, strict=True)]
+        else:
+            cid = channel(col, _VALUE_SCHEMA, "brakethermo.Value", meta)
+            msgs = [f'{{"value":{a}}}' for a in value]
+        streams.append((cid, msgs))
+    return streams
+
+
 def write_estimate_mcap(
     frame: pd.DataFrame,
     path: str | Path,
@@ -154,62 +221,9 @@ def write_estimate_mcap(
                 topic=PREFIX + topic, message_encoding="json", schema_id=sid, metadata=meta
             )
 
-        streams: list[tuple[int, list[str]]] = []
-        for col in banded:
-            value = frame[col].to_numpy(dtype=float)
-            std_col = f"{col}_std"
-            std = (
-                frame[std_col].to_numpy(dtype=float)
-                if std_col in frame
-                else np.full_like(value, np.nan)
-            )
-            meta = {"unit": "degC", "description": f"estimated {col} temperature with 1-sigma"}
-            if col.startswith("spot"):
-                meta["radius_m"] = repr(float(spot_radii[int(col[4:]) - 1]))
-            cid = channel(col, _BAND_SCHEMA, "brakethermo.Band", meta)
-            v, s, lo, hi = _fmt(value), _fmt(std), _fmt(value - std), _fmt(value + std)
-            streams.append(
-                (
-                    cid,
-                    [
-                        f'{{"value":{a},"std":{b},"lower":{c},"upper":{d}}}'
-                        for a, b, c, d in zip(v, s, lo, hi, strict=True)
-                    ],
-                )
-            )
-        for family, cols in (("node", nodes), *families.items()):
-            if not cols:
-                continue
-            radii = (
-                [float(r) for r in node_radii]
-                if node_radii is not None and len(node_radii) == len(cols)
-                else [float("nan")] * len(cols)
-            )
-            meta = {
-                "unit": ARRAY_UNITS.get(family, ""),
-                "radius_m": json.dumps(radii),
-                "description": f"{family} temperatures, inner to outer radius",
-            }
-            topic = ARRAY_TOPICS.get(family, f"{family}_array")
-            cid = channel(topic, _NODES_SCHEMA, "brakethermo.DiscNodes", meta)
-            cells = np.array([_fmt(frame[c].to_numpy(dtype=float), 2) for c in cols]).T
-            streams.append((cid, ['{"temperature":[' + ",".join(row) + "]}" for row in cells]))
-        if "lap" in frame:
-            cid = channel("lap", _VALUE_SCHEMA, "brakethermo.Value", {"unit": ""})
-            streams.append((cid, [f'{{"value":{int(x)}}}' for x in frame["lap"].to_numpy()]))
-        for col in extra:
-            value = _fmt(frame[col].to_numpy(dtype=float), 6)
-            std_col = f"{col}_std"
-            if std_col in frame:
-                std = _fmt(frame[std_col].to_numpy(dtype=float), 6)
-                meta = {"unit": SCALAR_UNITS.get(col, "")}
-                cid = channel(col, _VALUE_STD_SCHEMA, "brakethermo.ValueStd", meta)
-                msgs = [f'{{"value":{a},"std":{b}}}' for a, b in zip(value, std, strict=True)]
-            else:
-                meta = {"unit": SCALAR_UNITS.get(col, "")}
-                cid = channel(col, _VALUE_SCHEMA, "brakethermo.Value", meta)
-                msgs = [f'{{"value":{a}}}' for a in value]
-            streams.append((cid, msgs))
+        streams = [*_band_streams(frame, banded, spot_radii, channel),
+                   *_array_streams(frame, {"node": nodes, **families}, node_radii, channel),
+                   *_scalar_streams(frame, extra, channel)]
 
         times = t_ns.tolist()
         # Time-ordered interleaving so readers replay without reordering.
