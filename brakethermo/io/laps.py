@@ -77,6 +77,63 @@ def laps_from_beacons(
     return laps, numbers[np.clip(idx, 0, None)]
 
 
+def _drop_bounces(t: np.ndarray, v: np.ndarray, channel: str, warnings: list[str]
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Crossings too soon after the previous one (beacon bounces) dropped, and said."""
+    if t.size < 2:
+        return t, v
+    step = np.diff(t)
+    min_lap = max(MIN_LAP_S, MIN_LAP_FRACTION * float(np.median(step)))
+    keep = np.ones(t.size, dtype=bool)
+    last = t[0]
+    for i in range(1, t.size):  # beacons are few (one per lap): a plain loop
+        if t[i] - last < min_lap:
+            keep[i] = False
+        else:
+            last = t[i]
+    if not keep.all():
+        gone = t[~keep]
+        warnings.append(
+            f"lap beacon '{channel}': {gone.size} crossing(s) less than {min_lap:.1f} s after"
+            " the previous one dropped as beacon bounces (at t = "
+            + ", ".join(f"{x:.2f}" for x in gone[:5]) + (" ..." if gone.size > 5 else "")
+            + " s)"
+        )
+        t, v = t[keep], v[keep]
+    return t, v
+
+
+def _renumbered(t: np.ndarray, v: np.ndarray, valid: np.ndarray, channel: str,
+                warnings: list[str]) -> np.ndarray:
+    """Whole increasing lap numbers: a count-down or a minority of bad values renumbered
+    in crossing order, and said."""
+    increasing = bool(valid.all() and (np.diff(v) > 0).all())
+    if v.size >= 2 and valid.all() and (np.diff(v) < 0).all():
+        warnings.append(
+            f"lap beacon '{channel}': values " + ", ".join(f"{x:g}" for x in v[:12])
+            + (" ..." if v.size > 12 else "") + " count down (laps remaining, not lap"
+            " numbers); laps renumbered 1, 2, ... in crossing order, the out-lap before the"
+            " first crossing is lap 0"
+        )
+        v = 1.0 + np.arange(v.size, dtype=np.float64)
+        increasing = True
+    if v.size and not increasing:
+        first = int(np.argmax(valid))
+        start = max(int(v[first]) - first, 0)
+        fixed = start + np.arange(v.size, dtype=np.float64)
+        changed = np.flatnonzero(fixed != v)
+        warnings.append(
+            f"lap beacon '{channel}': values "
+            + ", ".join(f"{x:g}" for x in v[:12]) + (" ..." if v.size > 12 else "")
+            + " are not increasing lap numbers; laps renumbered in crossing order from"
+            f" {start} ("
+            + ", ".join(f"t = {t[i]:.2f} s: {v[i]:g} -> {int(fixed[i])}" for i in changed[:5])
+            + (" ..." if changed.size > 5 else "") + ")"
+        )
+        v = fixed
+    return v
+
+
 def validate_beacons(
     t_beacon: np.ndarray, lap_number: np.ndarray, *, path: object = None,
     channel: str = "lap_beacon",
@@ -111,25 +168,7 @@ def validate_beacons(
     warnings: list[str] = []
     t = np.asarray(t_beacon, dtype=np.float64)
     v = np.asarray(lap_number, dtype=np.float64)
-    if t.size >= 2:
-        step = np.diff(t)
-        min_lap = max(MIN_LAP_S, MIN_LAP_FRACTION * float(np.median(step)))
-        keep = np.ones(t.size, dtype=bool)
-        last = t[0]
-        for i in range(1, t.size):  # beacons are few (one per lap): a plain loop
-            if t[i] - last < min_lap:
-                keep[i] = False
-            else:
-                last = t[i]
-        if not keep.all():
-            gone = t[~keep]
-            warnings.append(
-                f"lap beacon '{channel}': {gone.size} crossing(s) less than {min_lap:.1f} s after"
-                " the previous one dropped as beacon bounces (at t = "
-                + ", ".join(f"{x:.2f}" for x in gone[:5]) + (" ..." if gone.size > 5 else "")
-                + " s)"
-            )
-            t, v = t[keep], v[keep]
+    t, v = _drop_bounces(t, v, channel, warnings)
     valid = np.isfinite(v) & (v == np.round(v)) & (v >= 0) & (v <= MAX_LAP)
     if v.size and valid.sum() * 2 < v.size:
         bad = v[~valid][0]
@@ -139,30 +178,7 @@ def validate_beacons(
             " beacon? Fix the alias table (--aliases FILE)",
             path=path, channel=channel,
         )
-    increasing = bool(valid.all() and (np.diff(v) > 0).all())
-    if v.size >= 2 and valid.all() and (np.diff(v) < 0).all():
-        warnings.append(
-            f"lap beacon '{channel}': values " + ", ".join(f"{x:g}" for x in v[:12])
-            + (" ..." if v.size > 12 else "") + " count down (laps remaining, not lap"
-            " numbers); laps renumbered 1, 2, ... in crossing order, the out-lap before the"
-            " first crossing is lap 0"
-        )
-        v = 1.0 + np.arange(v.size, dtype=np.float64)
-        increasing = True
-    if v.size and not increasing:
-        first = int(np.argmax(valid))
-        start = max(int(v[first]) - first, 0)
-        fixed = start + np.arange(v.size, dtype=np.float64)
-        changed = np.flatnonzero(fixed != v)
-        warnings.append(
-            f"lap beacon '{channel}': values "
-            + ", ".join(f"{x:g}" for x in v[:12]) + (" ..." if v.size > 12 else "")
-            + " are not increasing lap numbers; laps renumbered in crossing order from"
-            f" {start} ("
-            + ", ".join(f"t = {t[i]:.2f} s: {v[i]:g} -> {int(fixed[i])}" for i in changed[:5])
-            + (" ..." if changed.size > 5 else "") + ")"
-        )
-        v = fixed
+    v = _renumbered(t, v, valid, channel, warnings)
     skipped = np.flatnonzero(np.diff(v) > 1)
     if skipped.size:
         warnings.append(
