@@ -6,7 +6,7 @@ import dataclasses
 import json
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.markup import escape
@@ -112,20 +112,7 @@ def simulate_cmd(
     if as_json:
         typer.echo(json.dumps(summary))
         return
-    tab = Table(title=f"simulated {escape(summary['track'])} — {laps} laps, seed {seed}")
-    tab.add_column("item")
-    tab.add_column("value")
-    tab.add_row("session", escape(summary["session"]))
-    tab.add_row("truth", escape(summary["truth"]))
-    tab.add_row(
-        "effect strengths",
-        ", ".join(f"{n}={v:g}" for n, v in summary["effects"].items()) or "none (all mild)",
-    )
-    tab.add_row("duration", f"{summary['duration_s']:.1f} s")
-    tab.add_row("channels", escape(", ".join(summary["channels"])))
-    tab.add_row("hottest spot (truth)", f"{summary['peak_spot_c']:.0f} °C")
-    tab.add_row("time", f"simulate {summary['simulate_s']:.1f} s, write {summary['write_s']:.1f} s")
-    console.print(tab)
+    _render(summary)
 
 
 DISC_SETTINGS = ("cooling", "ambient_c")
@@ -181,4 +168,23 @@ def _simulate_rig(
     for key, value in truth_facts.items():
         tab.add_row(f"{key} (truth)", f"{value:.4f}")
     tab.add_row("time", f"{summary['simulate_s']:.1f} s")
+    console.print(tab)
+
+
+def _render(summary: dict[str, Any]) -> None:
+    """The disc simulation's summary as a table."""
+    tab = Table(title=f"simulated {escape(summary['track'])} — {summary['laps']} laps,"
+                      f" seed {summary['seed']}")
+    tab.add_column("item")
+    tab.add_column("value")
+    tab.add_row("session", escape(summary["session"]))
+    tab.add_row("truth", escape(summary["truth"]))
+    tab.add_row(
+        "effect strengths",
+        ", ".join(f"{n}={v:g}" for n, v in summary["effects"].items()) or "none (all mild)",
+    )
+    tab.add_row("duration", f"{summary['duration_s']:.1f} s")
+    tab.add_row("channels", escape(", ".join(summary["channels"])))
+    tab.add_row("hottest spot (truth)", f"{summary['peak_spot_c']:.0f} °C")
+    tab.add_row("time", f"simulate {summary['simulate_s']:.1f} s, write {summary['write_s']:.1f} s")
     console.print(tab)
