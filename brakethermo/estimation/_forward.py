@@ -335,6 +335,73 @@ def kernel_setup(
     )
 
 
+def _measurement_update(
+    out: Buffers, k: int, x: Array, P: Array, L: Array | None, y: Array, finite: Array,
+    moments: Moments | None, H_of: Callable[[int], Array] | None, R_of: Callable[[int], Array],
+    thresholds: Array, guard: CovarianceGuard,
+) -> tuple[Array, Array, Array | None, bool]:
+    """The update of step ``k`` with its finite readings (eq. 44-47), innovations and
+    scores written into ``out``. Returns the posterior, the vector ``v`` of a rank-1
+    update (``P_post = P - v v'``, else None) and whether the update was applied."""
+    v_down, updated = None, False
+    R = R_of(k)
+    if moments is None:
+        assert H_of is not None  # a linear update has H (check_model ensured it)
+        H = H_of(k)
+        PHt = P @ H.T
+        mu, S0, Cxy = H @ x, H @ PHt, PHt
+    else:
+        mu, S0, Cxy = moments(x, P, L, k)
+    if finite[k].all():
+        idx = None
+        yk = y[k]
+    else:
+        idx = np.flatnonzero(finite[k])
+        yk = y[k, idx]
+        mu, S0, Cxy, R = mu[idx], S0[np.ix_(idx, idx)], Cxy[:, idx], R[np.ix_(idx, idx)]
+    nu = yk - mu
+    S = S0 + R
+    mk = nu.shape[0]
+    if mk == 1:
+        s = S[0, 0]
+        if not s > 0.0:
+            S = guard.repair(S, k)
+            s = S[0, 0]
+        Kg = Cxy / s
+        nis_k = nu[0] * nu[0] / s
+        logdet = math.log(s)
+    else:
+        try:
+            cf = cho_factor(S, lower=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            S = guard.repair(S, k)
+            cf = cho_factor(S, lower=True, check_finite=False)
+        Kg = cho_solve(cf, Cxy.T, check_finite=False).T  # eq. 45, no inverse
+        nis_k = float(nu @ cho_solve(cf, nu, check_finite=False))
+        logdet = 2.0 * float(np.sum(np.log(np.diagonal(cf[0]))))
+    if idx is None:
+        out.innovation[k] = nu
+        out.innovation_var[k] = np.diagonal(S)
+    else:
+        out.innovation[k, idx] = nu
+        out.innovation_var[k, idx] = np.diagonal(S)
+    if thresholds[mk] > 0.0 and nis_k > thresholds[mk]:
+        out.rejected[k] = True
+    else:
+        x = x + Kg @ nu  # eq. 46
+        updated = True
+        if mk == 1:
+            # eq. 47 as P - v v', v = C_xy / sqrt(S): symmetric as it stands
+            v_down = Cxy[:, 0] / math.sqrt(s)
+            P = P - np.outer(v_down, v_down)
+        else:
+            P = symmetrise(P - Kg @ Cxy.T)  # eq. 47, K S K' = K C_xy'
+        out.n_obs[k] = mk
+        out.nis[k] = nis_k
+        out.loglik[k] = -0.5 * (nis_k + logdet + mk * _LOG_2PI)
+    return x, P, v_down, updated
+
+
 def run_forward(
     predict: Predictor,
     moments: Moments | None,
@@ -358,7 +425,6 @@ def run_forward(
     out = allocate(K, n, m, readout, store, store_dtype)
     M, has_ro, full, gains = out.M, out.M.shape[0] > 0, out.full, out.gains
     finite = np.isfinite(y)
-    all_obs = finite.all(axis=1)
     any_obs = finite.any(axis=1)
     thresholds = gate_thresholds(gate, m)
     # the prior's factor is only needed by a sigma-point measurement update at step 0
@@ -375,63 +441,9 @@ def run_forward(
         out.var_pred[k] = np.diagonal(P)
         if full:
             out.P_pred[k] = P
-        v_down = None  # P_post = P_prior - v v' when the update is rank 1
-        updated = False
-        if any_obs[k]:
-            R = R_of(k)
-            if moments is None:
-                H = H_of(k)
-                PHt = P @ H.T
-                mu, S0, Cxy = H @ x, H @ PHt, PHt
-            else:
-                mu, S0, Cxy = moments(x, P, L, k)
-            if all_obs[k]:
-                idx = None
-                yk = y[k]
-            else:
-                idx = np.flatnonzero(finite[k])
-                yk = y[k, idx]
-                mu, S0, Cxy, R = mu[idx], S0[np.ix_(idx, idx)], Cxy[:, idx], R[np.ix_(idx, idx)]
-            nu = yk - mu
-            S = S0 + R
-            mk = nu.shape[0]
-            if mk == 1:
-                s = S[0, 0]
-                if not s > 0.0:
-                    S = guard.repair(S, k)
-                    s = S[0, 0]
-                Kg = Cxy / s
-                nis_k = nu[0] * nu[0] / s
-                logdet = math.log(s)
-            else:
-                try:
-                    cf = cho_factor(S, lower=True, check_finite=False)
-                except np.linalg.LinAlgError:
-                    S = guard.repair(S, k)
-                    cf = cho_factor(S, lower=True, check_finite=False)
-                Kg = cho_solve(cf, Cxy.T, check_finite=False).T  # eq. 45, no inverse
-                nis_k = float(nu @ cho_solve(cf, nu, check_finite=False))
-                logdet = 2.0 * float(np.sum(np.log(np.diagonal(cf[0]))))
-            if idx is None:
-                out.innovation[k] = nu
-                out.innovation_var[k] = np.diagonal(S)
-            else:
-                out.innovation[k, idx] = nu
-                out.innovation_var[k, idx] = np.diagonal(S)
-            if thresholds[mk] > 0.0 and nis_k > thresholds[mk]:
-                out.rejected[k] = True
-            else:
-                x = x + Kg @ nu  # eq. 46
-                updated = True
-                if mk == 1:
-                    # eq. 47 as P - v v', v = C_xy / sqrt(S): symmetric as it stands
-                    v_down = Cxy[:, 0] / math.sqrt(s)
-                    P = P - np.outer(v_down, v_down)
-                else:
-                    P = symmetrise(P - Kg @ Cxy.T)  # eq. 47, K S K' = K C_xy'
-                out.n_obs[k] = mk
-                out.nis[k] = nis_k
-                out.loglik[k] = -0.5 * (nis_k + logdet + mk * _LOG_2PI)
+        x, P, v_down, updated = (
+            _measurement_update(out, k, x, P, L, y, finite, moments, H_of, R_of, thresholds,
+                                guard) if any_obs[k] else (x, P, None, False))
         if k < K - 1:
             L = None
             if downdate and L_prior is not None:
