@@ -182,6 +182,82 @@ def window_steps(
     return max(2, int(max_store_bytes // (held * per_step)))
 
 
+class _Trace:
+    """The forward pass's per-step facts, gathered window by window."""
+
+    def __init__(self, K: int, m: int, p: int) -> None:
+        self.innov = np.full((K, m), np.nan)
+        self.innov_var = np.full((K, m), np.nan)
+        self.nis = np.full(K, np.nan)
+        self.loglik = np.zeros(K)
+        self.n_obs = np.zeros(K, dtype=np.int64)
+        self.rejected = np.zeros(K, dtype=bool)
+        self.ro = np.empty((K, p))
+        self.ro_var = np.empty((K, p))
+        self.repairs: list[int] = []
+
+    def take(self, res: FilterResult, a: int, b: int) -> None:
+        """Steps ``[a, b)`` from a window's run (which may hold one step more)."""
+        L = b - a
+        self.innov[a:b], self.innov_var[a:b] = res.innovation[:L], res.innovation_var[:L]
+        self.nis[a:b], self.loglik[a:b] = res.nis[:L], res.loglik[:L]
+        self.n_obs[a:b], self.rejected[a:b] = res.n_obs[:L], res.rejected[:L]
+        if self.ro.shape[1]:
+            self.ro[a:b], self.ro_var[a:b] = res.readout[:L], res.readout_var[:L]
+        self.repairs.extend(s + a for s in res.repair_steps)
+
+    def result(self) -> ForwardTrace:
+        p = self.ro.shape[1]
+        return ForwardTrace(
+            innovation=self.innov, innovation_var=self.innov_var, nis=self.nis,
+            loglik=self.loglik, n_obs=self.n_obs, rejected=self.rejected,
+            readout=self.ro if p else None, readout_var=self.ro_var if p else None,
+            n_repairs=len(self.repairs), repair_steps=tuple(self.repairs),
+        )
+
+
+def _backward_pass(
+    spans: tuple[tuple[int, int], ...], held_last: list[FilterResult | None],
+    rerun: Callable[[int], FilterResult], workers: int, held: int, ro_arg: Array | None,
+    backend: Backend, n: int,
+) -> tuple[SmootherResult, int]:
+    """The RTS pass window by window from the last (``held_last``: its run, in a list
+    the pass empties so its gains are freed once smoothed instead of living through the
+    whole pass), earlier windows re-run from their checkpoints (by ``workers`` threads
+    ahead of the pass); the smoothed result and the most bytes of gains held at once."""
+    peak = 0
+    K, p = spans[-1][1], 0 if ro_arg is None else ro_arg.shape[0]
+    x_s = np.empty((K, n))
+    var_s = np.empty((K, n))
+    s_ro = np.empty((K, p))
+    s_ro_var = np.empty((K, p))
+    start: tuple[Array, Array] | None = None
+    parallel = workers > 1 and len(spans) > 2
+    pool = ThreadPoolExecutor(workers) if parallel else None
+    # one BLAS thread per worker: the workers are the parallelism
+    limit = threadpool_limits(1) if parallel else nullcontext()
+    with limit:
+        try:
+            for j, res in _backwards(len(spans), held_last, rerun, pool, workers):
+                a, b = spans[j]
+                L = b - a
+                peak = max(peak, _gain_bytes(res) * (held if parallel else 1))
+                sm = urts_smooth(res, readout=ro_arg, backend=backend, start=start)
+                x_s[a:b], var_s[a:b] = sm.x_smooth[:L], sm.var_smooth[:L]
+                if p:
+                    s_ro[a:b], s_ro_var[a:b] = sm.readout[:L], sm.readout_var[:L]
+                start = (sm.x_smooth[0].copy(), sm.P_first)
+                del res, sm
+        finally:
+            if pool is not None:
+                pool.shutdown(cancel_futures=True)
+    smoothed = SmootherResult(
+        x_smooth=x_s, var_smooth=var_s, P_smooth=None, readout=s_ro if p else None,
+        readout_var=s_ro_var if p else None, P_first=None if start is None else start[1],
+    )  # fmt: skip
+    return smoothed, peak
+
+
 def urts_smooth_windowed(
     ukf: UnscentedKalmanFilter,
     x0: Array,
@@ -245,15 +321,7 @@ def urts_smooth_windowed(
         return _window_filter(ukf, a).run(x, P, seg, store="smoother", store_dtype=dtype,
                                           readout=ro_arg)
 
-    innov = np.full((K, m), np.nan)
-    innov_var = np.full((K, m), np.nan)
-    nis = np.full(K, np.nan)
-    loglik = np.zeros(K)
-    n_obs = np.zeros(K, dtype=np.int64)
-    rejected = np.zeros(K, dtype=bool)
-    f_ro = np.empty((K, p))
-    f_ro_var = np.empty((K, p))
-    repairs: list[int] = []
+    trace = _Trace(K, m, p)
     peak = 0
 
     t0 = time.perf_counter()
@@ -268,13 +336,7 @@ def urts_smooth_windowed(
                 np.save(ckpt / f"P{j}.npy", P)
             res = run_window(j, x, P)
             peak = max(peak, _gain_bytes(res))
-            L = b - a
-            innov[a:b], innov_var[a:b] = res.innovation[:L], res.innovation_var[:L]
-            nis[a:b], loglik[a:b] = res.nis[:L], res.loglik[:L]
-            n_obs[a:b], rejected[a:b] = res.n_obs[:L], res.rejected[:L]
-            if p:
-                f_ro[a:b], f_ro_var[a:b] = res.readout[:L], res.readout_var[:L]
-            repairs.extend(s + a for s in res.repair_steps)
+            trace.take(res, a, b)
             if b == K:
                 last = res
             else:
@@ -285,46 +347,14 @@ def urts_smooth_windowed(
         def rerun(j: int) -> FilterResult:
             return run_window(j, np.load(ckpt / f"x{j}.npy"), np.load(ckpt / f"P{j}.npy"))
 
-        x_s = np.empty((K, n))
-        var_s = np.empty((K, n))
-        s_ro = np.empty((K, p))
-        s_ro_var = np.empty((K, p))
-        start: tuple[Array, Array] | None = None
-        parallel = workers > 1 and len(spans) > 2
-        pool = ThreadPoolExecutor(workers) if parallel else None
-        # one BLAS thread per worker: the workers are the parallelism
-        limit = threadpool_limits(1) if parallel else nullcontext()
-        with limit:
-            try:
-                # handed over in a list the generator empties, so the last window's gains
-                # are freed once smoothed instead of living through the whole pass
-                held_last = [last]
-                del last
-                for j, res in _backwards(len(spans), held_last, rerun, pool, workers):
-                    a, b = spans[j]
-                    L = b - a
-                    peak = max(peak, _gain_bytes(res) * (held if parallel else 1))
-                    sm = urts_smooth(res, readout=ro_arg, backend=backend, start=start)
-                    x_s[a:b], var_s[a:b] = sm.x_smooth[:L], sm.var_smooth[:L]
-                    if p:
-                        s_ro[a:b], s_ro_var[a:b] = sm.readout[:L], sm.readout_var[:L]
-                    start = (sm.x_smooth[0].copy(), sm.P_first)
-                    del res, sm
-            finally:
-                if pool is not None:
-                    pool.shutdown(cancel_futures=True)
+        held_last = [last]
+        del last  # the list is the only reference: the pass frees it once smoothed
+        smoothed, peak_back = _backward_pass(spans, held_last, rerun, workers, held, ro_arg,
+                                             backend, n)
+        peak = max(peak, peak_back)
 
     t2 = time.perf_counter()
-    forward = ForwardTrace(
-        innovation=innov, innovation_var=innov_var, nis=nis, loglik=loglik, n_obs=n_obs,
-        rejected=rejected, readout=f_ro if p else None, readout_var=f_ro_var if p else None,
-        n_repairs=len(repairs), repair_steps=tuple(repairs),
-    )  # fmt: skip
-    smoothed = SmootherResult(
-        x_smooth=x_s, var_smooth=var_s, P_smooth=None, readout=s_ro if p else None,
-        readout_var=s_ro_var if p else None, P_first=None if start is None else start[1],
-    )  # fmt: skip
-    return WindowedSmootherResult(forward=forward, smoothed=smoothed, windows=spans,
+    return WindowedSmootherResult(forward=trace.result(), smoothed=smoothed, windows=spans,
                                   peak_store_bytes=peak, forward_s=t1 - t0, backward_s=t2 - t1)
 
 
