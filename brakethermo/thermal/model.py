@@ -101,6 +101,121 @@ if HAVE_NUMBA:
             v += slope[m] * min(max(t - x0[m], 0.0), width[m])
         return v
 
+    @numba.njit(cache=True, nogil=True, inline="always", fastmath=True)
+    def _matrices_nb(  # pragma: no cover - compiled
+        Tmt: np.ndarray, h: np.ndarray, kz: np.ndarray, N: int, L: int, dt: float,
+        cap_geo: np.ndarray, cond_geo: np.ndarray, z_geo: np.ndarray, area: np.ndarray,
+        c_tab: tuple[np.ndarray, np.ndarray, np.ndarray, float],
+        k_tab: tuple[np.ndarray, np.ndarray, np.ndarray, float],
+        z_tab: tuple[np.ndarray, np.ndarray, np.ndarray, float],
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``M/dt + A_cond + A_conv`` of eq. 15 at ``Tmt`` (n, Bm): diagonal D, bands E
+        (``E[o - 1, s] = A[s + o, s]``) and ``M/dt``."""
+        n, Bm = Tmt.shape
+        inv_dt = 1.0 / dt
+        # matrices: D = diagonal, E[o - 1, s] = A[s + o, s]; Md = M / dt (eq. 15)
+        D = np.empty((n, Bm))
+        Md = np.empty((n, Bm))
+        E = np.zeros((L, n, Bm))
+        for s in range(n):
+            for b in range(Bm):
+                Md[s, b] = cap_geo[s] * _ramp_nb(Tmt[s, b], c_tab) * inv_dt
+                D[s, b] = Md[s, b] + h[b] * area[s]
+        for s in range(n - L):
+            g = cond_geo[s]
+            for b in range(Bm):
+                G = g * _ramp_nb(0.5 * (Tmt[s, b] + Tmt[s + L, b]), k_tab)
+                D[s, b] += G
+                D[s + L, b] += G
+                E[L - 1, s, b] = -G
+        for i in range(N):
+            for j in range(L - 1):
+                s = i * L + j
+                zg = z_geo[i * (L - 1) + j]
+                for b in range(Bm):
+                    G = kz[b] * zg * _ramp_nb(0.5 * (Tmt[s, b] + Tmt[s + 1, b]), z_tab)
+                    D[s, b] += G
+                    D[s + 1, b] += G
+                    E[0, s, b] = -G
+        return D, E, Md
+
+    @numba.njit(cache=True, nogil=True, inline="always", fastmath=True)
+    def _rhs_nb(  # pragma: no cover - compiled
+        Tt: np.ndarray, Md: np.ndarray, h: np.ndarray, ta: np.ndarray, Qs: np.ndarray,
+        load: np.ndarray, N: int, L: int, area: np.ndarray, rad_geo: np.ndarray,
+    ) -> np.ndarray:
+        """``M/dt T + p`` (n, B) of eq. 15: convection to ambient, friction, lagged
+        radiation; ``Md`` and ``h`` one column or value per matrix (B or 1 shared)."""
+        n, B = Tt.shape
+        Bm = Md.shape[1]
+        MdB, hB = Md, h
+        if Bm != B:
+            MdB = np.empty((n, B))
+            for s in range(n):
+                for b in range(B):
+                    MdB[s, b] = Md[s, 0]
+            hB = np.full(B, h[0])
+        X = np.empty((n, B))
+        for s in range(n):
+            for b in range(B):
+                X[s, b] = MdB[s, b] * Tt[s, b] + hB[b] * area[s] * ta[b]
+        shared_load = load.shape[0] != B
+        for i in range(N):
+            s = i * L
+            for b in range(B):
+                tk = Tt[s, b] + KELVIN
+                tak = ta[b] + KELVIN
+                share = load[0, i] if shared_load else load[b, i]
+                X[s, b] += Qs[b] * share - rad_geo[i] * (
+                    (tk * tk) * (tk * tk) - (tak * tak) * (tak * tak)
+                )
+        return X
+
+    @numba.njit(cache=True, nogil=True, inline="always", fastmath=True)
+    def _ldl_solve_nb(  # pragma: no cover - compiled
+        D: np.ndarray, E: np.ndarray, X: np.ndarray, L: int
+    ) -> None:
+        """Factor the banded matrices (D, E) as LDL^T and solve them for ``X`` (n, B) in
+        place; a single shared matrix (one column) is spread over the B members."""
+        n, B = X.shape
+        Bm = D.shape[1]
+        # LDL^T (as banded._factor_numpy), D <- 1/D
+        for s in range(n):
+            m = min(L, n - 1 - s)
+            for b in range(Bm):
+                D[s, b] = 1.0 / D[s, b]
+            for o1 in range(1, m + 1):
+                for o2 in range(o1, m + 1):
+                    if o2 == o1:
+                        for b in range(Bm):
+                            D[s + o1, b] -= E[o1 - 1, s, b] * E[o1 - 1, s, b] * D[s, b]
+                    else:
+                        for b in range(Bm):
+                            E[o2 - o1 - 1, s + o1, b] -= E[o2 - 1, s, b] * E[o1 - 1, s, b] * D[s, b]
+            for o in range(m):
+                for b in range(Bm):
+                    E[o, s, b] *= D[s, b]
+        if Bm != B:  # one shared factor: spread it so the solve loops stay gather-free
+            D1, E1 = D, E
+            D = np.empty((n, B))
+            E = np.empty((L, n, B))
+            for s in range(n):
+                for b in range(B):
+                    D[s, b] = D1[s, 0]
+                    for o in range(L):
+                        E[o, s, b] = E1[o, s, 0]
+        for s in range(n):
+            for o in range(1, min(L, n - 1 - s) + 1):
+                for b in range(B):
+                    X[s + o, b] -= E[o - 1, s, b] * X[s, b]
+        for s in range(n):
+            for b in range(B):
+                X[s, b] *= D[s, b]
+        for s in range(n - 2, -1, -1):
+            for o in range(1, min(L, n - 1 - s) + 1):
+                for b in range(B):
+                    X[s, b] -= E[o - 1, s, b] * X[s + o, b]
+
     @numba.njit(cache=True, nogil=True, fastmath=True)
     def _step_block(  # pragma: no cover - compiled; equal to system() + banded solve (tested)
         out: np.ndarray,
@@ -146,89 +261,10 @@ if HAVE_NUMBA:
             for b in range(Bm):
                 for s in range(n):
                     Tmt[s, b] = Tm[b, s]
-        inv_dt = 1.0 / dt
-        # matrices: D = diagonal, E[o - 1, s] = A[s + o, s]; Md = M / dt (eq. 15)
-        D = np.empty((n, Bm))
-        Md = np.empty((n, Bm))
-        E = np.zeros((L, n, Bm))
-        for s in range(n):
-            for b in range(Bm):
-                Md[s, b] = cap_geo[s] * _ramp_nb(Tmt[s, b], c_tab) * inv_dt
-                D[s, b] = Md[s, b] + h[b] * area[s]
-        for s in range(n - L):
-            g = cond_geo[s]
-            for b in range(Bm):
-                G = g * _ramp_nb(0.5 * (Tmt[s, b] + Tmt[s + L, b]), k_tab)
-                D[s, b] += G
-                D[s + L, b] += G
-                E[L - 1, s, b] = -G
-        for i in range(N):
-            for j in range(L - 1):
-                s = i * L + j
-                zg = z_geo[i * (L - 1) + j]
-                for b in range(Bm):
-                    G = kz[b] * zg * _ramp_nb(0.5 * (Tmt[s, b] + Tmt[s + 1, b]), z_tab)
-                    D[s, b] += G
-                    D[s + 1, b] += G
-                    E[0, s, b] = -G
-        # right-hand sides M/dt T + p, radiation lagged (eq. 15)
-        MdB, hB = Md, h
-        if Bm != B:
-            MdB = np.empty((n, B))
-            for s in range(n):
-                for b in range(B):
-                    MdB[s, b] = Md[s, 0]
-            hB = np.full(B, h[0])
-        X = np.empty((n, B))
-        for s in range(n):
-            for b in range(B):
-                X[s, b] = MdB[s, b] * Tt[s, b] + hB[b] * area[s] * ta[b]
-        shared_load = load.shape[0] != B
-        for i in range(N):
-            s = i * L
-            for b in range(B):
-                tk = Tt[s, b] + KELVIN
-                tak = ta[b] + KELVIN
-                share = load[0, i] if shared_load else load[b, i]
-                X[s, b] += Qs[b] * share - rad_geo[i] * (
-                    (tk * tk) * (tk * tk) - (tak * tak) * (tak * tak)
-                )
-        # LDL^T (as banded._factor_numpy), D <- 1/D
-        for s in range(n):
-            m = min(L, n - 1 - s)
-            for b in range(Bm):
-                D[s, b] = 1.0 / D[s, b]
-            for o1 in range(1, m + 1):
-                for o2 in range(o1, m + 1):
-                    if o2 == o1:
-                        for b in range(Bm):
-                            D[s + o1, b] -= E[o1 - 1, s, b] * E[o1 - 1, s, b] * D[s, b]
-                    else:
-                        for b in range(Bm):
-                            E[o2 - o1 - 1, s + o1, b] -= E[o2 - 1, s, b] * E[o1 - 1, s, b] * D[s, b]
-            for o in range(m):
-                for b in range(Bm):
-                    E[o, s, b] *= D[s, b]
-        if Bm != B:  # one shared factor: spread it so the solve loops stay gather-free
-            D1, E1 = D, E
-            D = np.empty((n, B))
-            E = np.empty((L, n, B))
-            for s in range(n):
-                for b in range(B):
-                    D[s, b] = D1[s, 0]
-                    for o in range(L):
-                        E[o, s, b] = E1[o, s, 0]
-        for s in range(n):
-            for o in range(1, min(L, n - 1 - s) + 1):
-                for b in range(B):
-                    X[s + o, b] -= E[o - 1, s, b] * X[s, b]
-        for s in range(n):
-            for b in range(B):
-                X[s, b] *= D[s, b]
-        for s in range(n - 2, -1, -1):
-            for o in range(1, min(L, n - 1 - s) + 1):
-                for b in range(B):
-                    X[s, b] -= E[o - 1, s, b] * X[s + o, b]
+        D, E, Md = _matrices_nb(Tmt, h, kz, N, L, dt, cap_geo, cond_geo, z_geo, area, c_tab,
+                                k_tab, z_tab)
+        X = _rhs_nb(Tt, Md, h, ta, Qs, load, N, L, area, rad_geo)
+        _ldl_solve_nb(D, E, X, L)
         for b in range(B):
             for s in range(n):
                 out[b, s] = X[s, b]
