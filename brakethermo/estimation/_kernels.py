@@ -114,6 +114,46 @@ def _factor(P, L, k, abs_floor, repairs):
 
 
 @njit(cache=True, nogil=True)
+def _gain_multi(S, Cxy, nu, Kg, k, repairs, abs_floor):  # pragma: no cover - compiled
+    """Gain ``Kg = Cxy S^-1`` (eq. 45, into ``Kg``), NIS and log det S of a vector
+    innovation, by the Cholesky factor of S (repaired and counted when S is not positive
+    definite)."""
+    n, mk = Cxy.shape
+    _symmetrise(S)
+    Ls = np.empty((mk, mk))
+    if not _chol(S, Ls):
+        repairs[k] += 1
+        _repair(S, abs_floor)
+        _chol(S, Ls)
+    logdet = 0.0
+    for a in range(mk):
+        logdet += 2.0 * math.log(Ls[a, a])
+    # K' = S^-1 Cxy' by two triangular solves, column by column of Cxy'
+    for i in range(n):
+        z = np.empty(mk)
+        for a in range(mk):
+            t = Cxy[i, a]
+            for b in range(a):
+                t -= Ls[a, b] * z[b]
+            z[a] = t / Ls[a, a]
+        for a in range(mk - 1, -1, -1):
+            t = z[a]
+            for b in range(a + 1, mk):
+                t -= Ls[b, a] * Kg[i, b]
+            Kg[i, a] = t / Ls[a, a]
+    z = np.empty(mk)
+    for a in range(mk):
+        t = nu[a]
+        for b in range(a):
+            t -= Ls[a, b] * z[b]
+        z[a] = t / Ls[a, a]
+    nis_k = 0.0
+    for a in range(mk):
+        nis_k += z[a] * z[a]
+    return nis_k, logdet
+
+
+@njit(cache=True, nogil=True)
 def _update(
     k, x, P, H, R, y, gate_thr, abs_floor, repairs, innov, innov_var, nis, loglik, n_obs, rejected
 ):
@@ -161,37 +201,7 @@ def _update(
         nis_k = nu[0] * nu[0] / s
         logdet = math.log(s)
     else:
-        _symmetrise(S)
-        Ls = np.empty((mk, mk))
-        if not _chol(S, Ls):
-            repairs[k] += 1
-            _repair(S, abs_floor)
-            _chol(S, Ls)
-        logdet = 0.0
-        for a in range(mk):
-            logdet += 2.0 * math.log(Ls[a, a])
-        # K' = S^-1 Cxy' by two triangular solves, column by column of Cxy'
-        for i in range(n):
-            z = np.empty(mk)
-            for a in range(mk):
-                t = Cxy[i, a]
-                for b in range(a):
-                    t -= Ls[a, b] * z[b]
-                z[a] = t / Ls[a, a]
-            for a in range(mk - 1, -1, -1):
-                t = z[a]
-                for b in range(a + 1, mk):
-                    t -= Ls[b, a] * Kg[i, b]
-                Kg[i, a] = t / Ls[a, a]
-        z = np.empty(mk)
-        for a in range(mk):
-            t = nu[a]
-            for b in range(a):
-                t -= Ls[a, b] * z[b]
-            z[a] = t / Ls[a, a]
-        nis_k = 0.0
-        for a in range(mk):
-            nis_k += z[a] * z[a]
+        nis_k, logdet = _gain_multi(S, Cxy, nu, Kg, k, repairs, abs_floor)
     for a in range(mk):
         innov[k, idx[a]] = nu[a]
         innov_var[k, idx[a]] = S[a, a]
