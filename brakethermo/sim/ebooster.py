@@ -154,6 +154,41 @@ def _berg(x: float, xs: float, ffs: float, fmax: float, x2: float) -> tuple[floa
 
 
 @numba.njit(cache=True)
+def _hydraulics(  # pragma: no cover - compiled; checked through its outputs
+    pm: float, pf: float, pr: float, dvol: float, gp: float, h: float, cm: float, kf: float,
+    kr_o: float, pt: float, c0f: float, pcf: float, cif: float, c0r: float, pcr: float,
+    cir: float,
+) -> tuple[float, float, float]:
+    """Master-cylinder, front and rear pressures after one implicit substep (Newton on the
+    volume balances of the three chambers, the port open by ``gp``), MPa."""
+    vf0, _ = _caliper_volume(pf, c0f, pcf, cif)
+    vr0, _ = _caliper_volume(pr, c0r, pcr, cir)
+    p1, p2, p3 = pm, pf, pr
+    for _ in range(20):
+        qf, dqf = _flow(kf, p1 - p2, pt)
+        qr, dqr = _flow(kr_o, p1 - p3, pt)
+        vf1, cf1 = _caliper_volume(p2, c0f, pcf, cif)
+        vr1, cr1 = _caliper_volume(p3, c0r, pcr, cir)
+        r1 = cm * (p1 - pm) - dvol + h * (qf + qr + gp * p1)
+        r2 = vf1 - vf0 - h * qf
+        r3 = vr1 - vr0 - h * qr
+        J = np.array([
+            [cm + h * (dqf + dqr + gp), -h * dqf, -h * dqr],
+            [-h * dqf, cf1 + h * dqf, 0.0],
+            [-h * dqr, 0.0, cr1 + h * dqr],
+        ])
+        d = np.linalg.solve(J, np.array([r1, r2, r3]))
+        p1 -= d[0]
+        p2 -= d[1]
+        p3 -= d[2]
+        p2 = max(p2, -0.5 * pcf)
+        p3 = max(p3, -0.5 * pcr)
+        if abs(d[0]) + abs(d[1]) + abs(d[2]) < 1e-11:
+            break
+    return p1, p2, p3
+
+
+@numba.njit(cache=True)
 def _integrate(
     par: Array, f_in: Array, s2_prof: Array, dref: Array, noise_d: Array, closed: bool,
     h_out: float, nsub: int,
@@ -201,31 +236,8 @@ def _integrate(
             x1 = w_dead * (np.log1p(np.exp(-abs(z1))) + max(z1, 0.0))
             dvol = area * (x1 - x0)
             open_port = 1.0 / (1.0 + np.exp(z1 * 4.0))
-            vf0, _ = _caliper_volume(pf, c0f, pcf, cif)
-            vr0, _ = _caliper_volume(pr, c0r, pcr, cir)
-            p1, p2, p3 = pm, pf, pr
-            for _ in range(20):
-                qf, dqf = _flow(kf, p1 - p2, pt)
-                qr, dqr = _flow(kr_o, p1 - p3, pt)
-                vf1, cf1 = _caliper_volume(p2, c0f, pcf, cif)
-                vr1, cr1 = _caliper_volume(p3, c0r, pcr, cir)
-                gp = g_port * open_port
-                r1 = cm * (p1 - pm) - dvol + h * (qf + qr + gp * p1)
-                r2 = vf1 - vf0 - h * qf
-                r3 = vr1 - vr0 - h * qr
-                J = np.array([
-                    [cm + h * (dqf + dqr + gp), -h * dqf, -h * dqr],
-                    [-h * dqf, cf1 + h * dqf, 0.0],
-                    [-h * dqr, 0.0, cr1 + h * dqr],
-                ])
-                d = np.linalg.solve(J, np.array([r1, r2, r3]))
-                p1 -= d[0]
-                p2 -= d[1]
-                p3 -= d[2]
-                p2 = max(p2, -0.5 * pcf)
-                p3 = max(p3, -0.5 * pcr)
-                if abs(d[0]) + abs(d[1]) + abs(d[2]) < 1e-11:
-                    break
+            p1, p2, p3 = _hydraulics(pm, pf, pr, dvol, g_port * open_port, h, cm, kf, kr_o, pt,
+                                     c0f, pcf, cif, c0r, pcr, cir)
             pm, pf, pr = max(p1, 0.0), p2, p3
             s2 = s2_new
             # output force on the piston, N
