@@ -95,3 +95,16 @@ def test_the_checker_sees_imports_inside_functions(tmp_path: Path) -> None:
     probe = tmp_path / "probe.py"
     probe.write_text("def f():\n    from brakethermo.pipelines.estimate import x\n")
     assert _imports(probe) == {"pipelines"}
+
+
+def test_no_function_is_over_100_lines() -> None:
+    """Every function of the package reads in one sitting (the house issue's rule)."""
+    long = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                lines = node.end_lineno - node.lineno + 1
+                if lines > 100:
+                    long.append(f"{path.relative_to(PACKAGE)}:{node.lineno} {node.name}"
+                                f" ({lines} lines)")
+    assert not long, "functions over 100 lines:\n" + "\n".join(long)
