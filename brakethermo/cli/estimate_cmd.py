@@ -228,6 +228,13 @@ def estimate_command(
         int,
         typer.Option(min=1, max=64, help="Threads smoothing windows in parallel (fine meshes)."),
     ] = 1,
+    modes: Annotated[
+        int | None,
+        typer.Option("--modes", min=0, max=40,
+                     help="Reduced-order filter on at most this many thermal modes; 0 = the "
+                     "full filter. Default: reduced above 64 temperature states (a fine "
+                     "mesh at the cost of a coarse one), full below."),
+    ] = None,
 ) -> None:
     """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
     from brakethermo.pipelines.estimate import (
@@ -249,7 +256,7 @@ def estimate_command(
         spot=spot, h_law=law, disc=disc, tuning=tuning, nodes=nodes, layers=layers,
         smoother=smoother, adapt_power=adapt_power, adapt_kz=adapt_kz,
         adapt_slipstream=adapt_slipstream, adapt_balance=adapt_balance, aliases=aliases,
-        ambient_c=ambient, workers=workers,
+        ambient_c=ambient, workers=workers, modes=modes,
     )  # fmt: skip
     result = run_with_status(as_json, f"estimating {session.name} ...",
                              lambda: estimate_from_session(loaded, options))

@@ -198,6 +198,14 @@ class DiscStateSpace:
         C_share = sigma_crown**2 * (np.diag(share) - np.outer(share, share))
         return G @ C_share @ G.T
 
+    def crown_directions(self) -> np.ndarray:
+        """(n_temp, d) directions of the crown-split process noise (the eigenvectors of
+        its covariance that carry it), each scaled to unit norm."""
+        S = self._S_crown[: self.n_temp, : self.n_temp]
+        w, V = np.linalg.eigh(S)
+        keep = w > 1e-9 * max(float(w.max(initial=0.0)), 1e-300)
+        return V[:, keep]
+
     # ----------------------------------------------------------- filter interface
     def _param(self, X: np.ndarray, name: str) -> np.ndarray | None:
         i = self.index.get(name)

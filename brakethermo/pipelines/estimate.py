@@ -32,6 +32,12 @@ from brakethermo.models.disc import (
     RandomWalkParam,
 )
 from brakethermo.models.effects import true_from_reading
+from brakethermo.models.reduced import (
+    MAX_MODES,
+    ReducedStateSpace,
+    pod_modes,
+    with_directions,
+)
 from brakethermo.pipelines import scoring
 from brakethermo.pipelines.checks import check_estimate_result
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
@@ -58,7 +64,10 @@ from brakethermo.report.braking_zones import detect_zones
 from brakethermo.results.laps import lap_summaries
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
+from brakethermo.thermal.power import crown_load
 
+AUTO_REDUCE_ABOVE = 64  # temperature states beyond which the filter runs on modes
+SNAPSHOTS = 2000  # open-loop steps per run the modes are taken from
 SENSOR_FLOOR_C = 100.0  # IR pyrometers read nothing useful below this (datasheet floor)
 SIGMA_MEAS_FLOOR_C = 0.5  # degC: never trust a reading beyond its quantisation
 
@@ -94,6 +103,10 @@ class EstimateOptions:
     online_auto : bool
         Let the race decide the online effects whose flag is neither given here nor set
         in the user's tuning file (:mod:`brakethermo.pipelines.online_choice`).
+    modes : int, optional
+        Reduced-order filter (:mod:`brakethermo.models.reduced`): at most this many
+        thermal modes; 0 runs the full-order filter; ``None`` reduces a model of more
+        than :data:`AUTO_REDUCE_ABOVE` temperature states and keeps a smaller one full.
     """
 
     spot: int = 3
@@ -113,9 +126,13 @@ class EstimateOptions:
     score: bool = True
     workers: int = 1
     online_auto: bool = True
+    modes: int | None = None
 
     def __post_init__(self) -> None:
         check_overrides(self.overrides())
+        if self.modes is not None and not 0 <= self.modes <= MAX_MODES:
+            raise ConfigError(f"--modes {self.modes}: give 0 (the full filter) or 1 to"
+                              f" {MAX_MODES} thermal modes")
         if self.ambient_c is not None and not -60.0 <= self.ambient_c <= 80.0:
             raise ConfigError(
                 f"ambient temperature {self.ambient_c} degC must be a finite value between"
@@ -416,17 +433,16 @@ def estimate_from_session(
     ssm = build_state_space(model, inputs, h, tuning, cal.power_scale, plan,
                             float(spot_radii[options.spot - 1]))
 
-    readout = _readout(ssm, spot_radii, tuning.adapt_power)
-    x0, P0 = ssm.prior(model.initial_state(_initial_temperature(y, inputs.t_amb)),
-                       tuning.init_sigma_temp)
-    ukf = UnscentedKalmanFilter(
-        ssm.f, ssm.Q, np.array([[tuning.sigma_meas**2]]),
-        H=ssm.H_measured(float(spot_radii[options.spot - 1])),
-        alpha=tuning.alpha, beta=tuning.beta, kappa=tuning.kappa,
-    )  # fmt: skip
+    filt, order = _filter_space(ssm, model, inputs, h, cal.power_scale, options.modes)
+    readout = _readout(filt, spot_radii, tuning.adapt_power)
+    x0, P0 = filt.prior(model.initial_state(_initial_temperature(y, inputs.t_amb)),
+                        tuning.init_sigma_temp)
+    ukf = _filter(filt, tuning, float(spot_radii[options.spot - 1]))
     t_filter = time.perf_counter()
     forward, states, out, out_var, windows, forward_s = _run_filter(
         ukf, x0, P0, y, readout, tuning.smoother, options.workers)
+    if isinstance(filt, ReducedStateSpace):
+        states, x0 = filt.lift(states), filt.lift(x0)  # the full model's nodes, everywhere
     t_smooth = t_filter + forward_s
     t_done = time.perf_counter()
 
@@ -456,6 +472,7 @@ def estimate_from_session(
             **_model_facts(cal, tuning, model),
             "sigma_meas_source": sigma_meas_source,
             "smoother_windows": windows,
+            "filter_order": order,
             "workers": options.workers,
             "measured_spot": options.spot,
             "effects": plan.facts,
@@ -477,6 +494,52 @@ def estimate_from_session(
                           float(spot_radii[options.spot - 1]))
 
 
+def _filter(space: DiscStateSpace | ReducedStateSpace, tuning: EstimateTuning,
+            spot_radius: float) -> UnscentedKalmanFilter:
+    """The UKF of ``space`` fed by the pyrometer at ``spot_radius`` (m)."""
+    return UnscentedKalmanFilter(space.f, space.Q, np.array([[tuning.sigma_meas**2]]),
+                                 H=space.H_measured(spot_radius), alpha=tuning.alpha,
+                                 beta=tuning.beta, kappa=tuning.kappa)
+
+
+def _filter_space(ssm: DiscStateSpace, model: DiscFEModel, inputs: DiscInputs, h: np.ndarray,
+                  power_scale: float, modes: int | None
+                  ) -> tuple[DiscStateSpace | ReducedStateSpace, dict[str, Any]]:
+    """The state space the filter runs on: the full one, or its reduced order
+    (:mod:`brakethermo.models.reduced`) with the modes of the model's own open loop over
+    this session at a spread of braking-power scales and h factors."""
+    n_t = ssm.n_temp
+    if modes == 0 or (modes is None and n_t <= AUTO_REDUCE_ABOVE):
+        return ssm, {"kind": "full", "states": ssm.n}
+    # (power scale, h factor, k_z factor, inner/outer crown tilt) of each open-loop run
+    spread = np.array([(1.0, 1.0, 1.0, 0.0), (0.7, 1.0, 1.0, 0.0), (1.3, 1.0, 1.0, 0.0),
+                       (1.0, 0.7, 1.0, 0.0), (1.0, 1.4, 1.0, 0.0), (1.0, 1.0, 0.5, 0.0),
+                       (1.0, 1.0, 2.0, 0.0), (1.0, 1.0, 1.0, 0.5), (1.0, 1.0, 1.0, -0.5)])
+    B, K = len(spread), inputs.q_brk.size - 1
+    edges = model.disc.crown_edges
+    loads = np.stack([crown_load(model.radii, edges, model.weights * [1 + b, 1.0, 1 - b])
+                      for b in spread[:, 3]])
+    runs = model.run_readout(
+        np.tile(model.initial_state(float(inputs.t_amb[0])), (B, 1)),
+        inputs.q_brk[:-1, None] * power_scale * spread[:, 0], h[:-1, None] * spread[:, 1],
+        inputs.t_amb[:-1], model.kz_ratio * spread[:, 2], loads[None], np.zeros(K, int),
+        np.eye(n_t))
+    stride = max(1, K // SNAPSHOTS)
+    Phi, error = pod_modes(runs[::stride].reshape(-1, n_t),
+                           max_modes=min(modes or MAX_MODES, n_t))
+    # and the directions the crown-split process noise pushes the field in: the filter's
+    # corrections live there, the open loop never goes
+    Phi = with_directions(Phi, ssm.crown_directions())
+    reduced = ReducedStateSpace(ssm, Phi)
+    return reduced, {
+        "kind": "reduced", "modes": reduced.r, "states": reduced.n, "full_states": ssm.n,
+        "snapshot_projection_rms_c": error,
+        "approximation": "node temperatures on the leading POD modes of the model's own open"
+                         " loop over this session (power scale 0.7-1.3, h x 0.7-1.4, k_z x"
+                         " 0.5-2, crown tilt +-0.5); what the modes cannot hold is dropped"
+                         " each step"}
+
+
 def _reading_noise(y: np.ndarray, tuning: EstimateTuning, options: EstimateOptions
                    ) -> tuple[EstimateTuning, str]:
     """The reading noise of this very sensor, from the signal itself, unless the user's
@@ -489,7 +552,8 @@ def _reading_noise(y: np.ndarray, tuning: EstimateTuning, options: EstimateOptio
             "measured from the signal (second differences)")
 
 
-def _readout(ssm: DiscStateSpace, spot_radii: np.ndarray, adapt_power: bool) -> np.ndarray:
+def _readout(ssm: DiscStateSpace | ReducedStateSpace, spot_radii: np.ndarray,
+             adapt_power: bool) -> np.ndarray:
     """What the filter reports beside its state: the four spots, the contact band (the
     mean of spots 2-4) and, when it is a state, the braking-power scale."""
     H_spots = ssm.H(spot_radii)

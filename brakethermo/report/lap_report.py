@@ -276,6 +276,12 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
     if choice.get("forced_or_from_law"):
         lines.append("forced by option or carried by the law: " + ", ".join(
             f"{k} {'on' if v else 'off'}" for k, v in choice["forced_or_from_law"].items()))
+    order = ((summary or {}).get("run") or {}).get("filter_order") or {}
+    if order.get("kind") == "reduced":
+        lines.append(
+            f"reduced-order filter: the {order['full_states']} filter states of this mesh on"
+            f" {order['modes']} thermal modes ({order['approximation']}; snapshot projection"
+            f" {order['snapshot_projection_rms_c']:.3f} °C RMS); --modes 0 runs the full one")
     return lines
 
 
