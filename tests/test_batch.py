@@ -332,11 +332,13 @@ def test_folders_not_read_are_said(tmp_path):
     (root / "locked").mkdir(parents=True)
     (root / "elsewhere").mkdir()
     os.symlink(root / "elsewhere", root / "link")
+    os.symlink(tmp_path / "gone.mcap", root / "race.mcap")  # a link whose target is gone
     os.chmod(root / "locked", 0)
     try:
         notes: list[str] = []
-        discover_sessions(root, not_read=notes)
+        assert discover_sessions(root, not_read=notes) == []
         assert any("link" in n and "not followed" in n for n in notes)
+        assert any("race.mcap" in n and "does not exist" in n for n in notes)
         if os.geteuid() != 0:  # root reads any folder
             assert any("locked" in n and "cannot be read" in n for n in notes)
     finally:

@@ -375,7 +375,12 @@ def discover_sessions(folder: str | Path, exclude: Iterable[Path] = (),
             if name.lower().endswith(TRUTH_SUFFIX):
                 continue
             resolved = path.resolve()
-            if any(resolved.is_relative_to(e) for e in excluded) or not path.is_file():
+            if any(resolved.is_relative_to(e) for e in excluded):
+                continue
+            if not path.is_file():
+                if path.is_symlink():
+                    said.append(f"{path}: a link to {os.readlink(path)}, which does not exist;"
+                                " fix or remove the link")
                 continue
             found.append(path)
     return sorted(found)
