@@ -252,7 +252,7 @@ def test_bad_input_exits_1_with_one_clear_line(tmp_path):
     still_path, _ = write_ebooster_session(still, tmp_path / "still.parquet")
     res = runner.invoke(app, ["ebooster", str(no_delta), "--train", str(still_path),
                               "--out", str(tmp_path)])
-    assert res.exit_code == 1 and "moves only 0.000 mm" in res.output
+    assert res.exit_code == 1 and "'pushrod_displacement' does not move" in res.output
     # a unit we do not know
     good, _ = write_ebooster_session(sim, tmp_path / "units.csv")
     text = good.read_text().replace("reaction_disk_delta [mm]", "reaction_disk_delta [wibble]")

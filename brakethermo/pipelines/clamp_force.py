@@ -9,7 +9,7 @@ the error of not re-training.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,7 @@ from brakethermo.models.clamp_force import (
     fusion_check,
     train,
 )
+from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
 from brakethermo.report.page import Card, Page, Section, TableBlock
 from brakethermo.rigs.emb import rmse
 
@@ -87,6 +88,12 @@ def load_emb(
             path=session.path,
             channel="motor_angle",
         )
+    notes = check_rig_channels(session, (
+        Expect("motor_angle", "rad", 2e3), Expect("motor_current", "A", 500.0),
+        Expect("clamp_force", "N", 1e5, positive=True,
+               role="input" if need_sensor else "score")))
+    if notes:
+        session = replace(session, warnings=(*session.warnings, *notes))
     force = session.values("clamp_force") if session.has("clamp_force") else None
     if force is not None and not np.isfinite(force).all():
         force = None
@@ -122,6 +129,7 @@ def clamp_force(
     check = fusion_check(tr.theta, tr.current, tr.force, tr.ts, factor_walk=factor_walk)
     est = estimate(models, data.theta, data.current, data.ts, factor_walk=factor_walk,
                    fallback=check)
+    _check_sources(est, data)
     rt = mr = er = None
     if retrain_path is not None:
         rt = load_emb(retrain_path, need_sensor=True, role="re-training", aliases=aliases)
@@ -130,6 +138,22 @@ def clamp_force(
                       fallback=fusion_check(rt.theta, rt.current, rt.force, rt.ts,
                                             factor_walk=factor_walk) or check)
     return ClampForceResult(data, tr, models, est, rt, mr, er, check)
+
+
+def _check_sources(est: ClampForceEstimates, data: EmbData) -> None:
+    """Each input's own estimate of the force — the stiffness curve's from the angle, the
+    torque balance's from the current — must press: a clamp force pulling in the hardest
+    applies means that input's sign is reversed against the training session."""
+    for series, channel in ((est.stiffness, "motor_angle"), (est.torque_balance,
+                                                              "motor_current")):
+        strong = series[np.abs(series) >= np.percentile(np.abs(series), 90)]
+        pull = float(np.median(strong)) / 1e3 if strong.size else 0.0
+        if pull < 0.0:
+            raise DataError(
+                f"the clamp force estimated from '{channel}' alone pulls ({pull:.1f} kN in the"
+                " hardest applies): its sign is reversed against the training session's;"
+                " flip the channel or check its wiring",
+                path=data.session.path, channel=channel)
 
 
 def estimator_series(est: ClampForceEstimates) -> dict[str, np.ndarray]:
@@ -252,6 +276,7 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         "stiffness_factor_final": float(res.est.stiffness_factor[-1]),
         "fitted": _model_dict(res.models, res.train.session.path),
         "training_session": str(res.train.session.path),
+        "warnings": [*res.data.session.warnings, *res.train.session.warnings],
     }
     if res.est_retrained is not None and res.models_retrained is not None and res.retrain:
         rr = _rmse_kn(res.est_retrained, force)

@@ -11,8 +11,9 @@ followed by the RTS smoother (offline). Pressure channels, when present, only sc
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,6 +27,7 @@ from brakethermo.estimation.rls import even_powers, rls_fit
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.ebooster import STATE_NAMES, BoosterFit, EboosterModel, load_fit
+from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
 from brakethermo.results.ebooster import (
     OBSERVERS,
     PRESSURES,
@@ -64,14 +66,26 @@ def _series(session: Session, name: str, scale: float, *, gaps: bool) -> Array:
     return v
 
 
-def load_booster_session(path: str | Path, aliases: str | Path | None = None) -> Session:
-    """Load a booster session on its native grid and check the observer's inputs."""
+def _expect(training: bool) -> tuple[Expect, ...]:
+    """What a booster's channels look like (SI); pressures and the pedal force are inputs
+    of the training and only score the observer otherwise."""
+    role: Literal["input", "score"] = "input" if training else "score"
+    return (Expect(S2, "m", 0.1, positive=True), Expect(DELTA, "m", 0.01),
+            *(Expect(ch, "Pa", 3e7, positive=True, role=role) for ch in PRESSURES.values()),
+            Expect(PEDAL, "N", 5e3, positive=True, role=role))
+
+
+def load_booster_session(path: str | Path, aliases: str | Path | None = None, *,
+                         training: bool = False) -> Session:
+    """Load a booster session on its native grid and check its channels (the observer's
+    inputs refuse the run; a scoring channel gets a warning in ``session.warnings``)."""
     session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases)
     session.require(S2, DELTA)
     if len(session.frame) < 10:
         raise DataError("holds fewer than 10 samples; record a longer session",
                         path=session.path)
-    return session
+    notes = check_rig_channels(session, _expect(training))
+    return replace(session, warnings=(*session.warnings, *notes)) if notes else session
 
 
 def train(path: str | Path, spec: BoosterSpec, aliases: str | Path | None = None) -> BoosterFit:
@@ -86,7 +100,7 @@ def train(path: str | Path, spec: BoosterSpec, aliases: str | Path | None = None
     -------
     BoosterFit
     """
-    session = load_booster_session(path, aliases)
+    session = load_booster_session(path, aliases, training=True)
     session.require(PRESSURES["p_m"], PEDAL)
     s2 = _series(session, S2, MM, gaps=False)
     travel = float(np.max(s2) - np.min(s2))
@@ -346,6 +360,7 @@ def _summary(
             "pedal_dof": spec.pedal_dof,
         },
         "bench": spec.id,
+        "warnings": list(session.warnings),
         "seconds": {"train": t_train, **{w: tracks[w].seconds for w in OBSERVERS}},
         "n_repairs": {w: tracks[w].filt.n_repairs for w in OBSERVERS},
     }

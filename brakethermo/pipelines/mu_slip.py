@@ -173,6 +173,33 @@ def find_ramp(session: Session, slip: np.ndarray) -> tuple[int, int]:
     return start, lock
 
 
+MU_PLAUSIBLE = (0.05, 3.0)  # peak friction of any tyre on any surface, –
+
+
+def _check_plausible_mu(mu: np.ndarray, session: Session) -> None:
+    """μ = drag / normal force through the ramp must look like a tyre's: positive while the
+    wheel is braked, peaking between ice and a racing slick, and moving with the slip;
+    anything else is a sign, unit or sensor fault, named here rather than fitted."""
+    lo, hi = MU_PLAUSIBLE
+    peak, spread = float(np.percentile(np.abs(mu), 95)), float(np.ptp(np.percentile(mu, [5, 95])))
+    if np.median(mu) < 0.0:
+        raise DataError(
+            f"μ = drag_force / normal_force is negative through the braking ramp (median"
+            f" {float(np.median(mu)):.3f}): one of the two has the wrong sign; braking drag and"
+            " the normal load are both positive", path=session.path, channel="drag_force")
+    if peak > hi:
+        raise DataError(
+            f"μ = drag_force / normal_force reaches {peak:.3g} in the braking ramp, beyond any"
+            f" tyre (at most about {hi:g}): check the two channels' units (kN logged as N?)",
+            path=session.path, channel="drag_force")
+    if peak < lo or spread < 0.5 * lo:
+        raise DataError(
+            f"μ = drag_force / normal_force stays at {float(np.median(mu)):.3g}"
+            f" ({spread:.3g} between its 5th and 95th percentile) while the wheel slips to"
+            " lock: the drag or load cell is zero, stuck or in the wrong unit",
+            path=session.path, channel="drag_force")
+
+
 def _check_past_peak(best: FamilyFit, s: np.ndarray, session: Session) -> None:
     """A peak needs points on both sides: refuse a curve still rising at the largest slip."""
     s_peak = float(best.slip_peak)
@@ -202,6 +229,7 @@ def mu_slip(
     if s.size < 10:
         raise DataError(f"only {s.size} (slip, μ) points with 0 < slip <= 1; a curve needs"
                         " at least 10", path=session.path)
+    _check_plausible_mu(m, session)
     sigma = noise_std(m)
     (m_lo, m_hi), (s_lo, s_hi) = options.mu_range, options.slip_range
     x0 = np.array([m_hi, s_hi])  # paper: start at the high end, covariance covering the range

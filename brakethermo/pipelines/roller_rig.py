@@ -27,6 +27,7 @@ from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.roller_rig import CREEP_LAWS, RollerRigModel
+from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
 from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS as TUNINGS
 from brakethermo.results.roller_rig import GuessRun, RollerRigResult
 from brakethermo.rigs.motor import motor_torque
@@ -210,6 +211,11 @@ def _rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
     """The session's speeds (rolling forward), torque and load, checked against physics, and
     the free-rolling, traction and both-speeds masks."""
     session.require("wheel_omega", "roller_omega", "wheel_torque")
+    notes = check_rig_channels(session, (
+        Expect("wheel_omega", "rad/s", 1e3), Expect("roller_omega", "rad/s", 1e3),
+        Expect("normal_force", "N", 5e5), Expect("wheel_torque", "N m", 1e5),
+        Expect("roller_torque", "N m", 1e5, role="score"),
+        Expect("rolling_radius_ref", "m", 2.0, positive=True, role="score")))
     w_w = _finite_series(session, "wheel_omega")
     w_r = _finite_series(session, "roller_omega")
     _check_speed(session, "wheel_omega", w_w)
@@ -224,7 +230,7 @@ def _rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
             " so creep cannot reveal the radius; use a session with traction phases",
             path=session.path, channel="wheel_torque",
         )  # fmt: skip
-    warnings = list(session.warnings)
+    warnings = [*session.warnings, *notes]
     if session.has("normal_force"):
         normal = _fill(_finite_series(session, "normal_force"))
         if np.nanmin(normal) <= 0:
@@ -326,7 +332,8 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2], normal)
     naive = w_r * spec.roller_radius / np.where(np.abs(w_w) > 1e-9, w_w, np.nan) * 1e3
     ref = session.constant("rolling_radius_ref")
-    ref_mm = None if ref is None else ref * 1e3
+    # a reference the checks found implausible (said in the warnings) scores nothing
+    ref_mm = ref * 1e3 if ref is not None and 0.0 < ref <= 2.0 else None
     elapsed = time.perf_counter() - t_start
     result = RollerRigResult(
         stem=session.path.stem, session=session, spec=spec, options=opts, time=t,

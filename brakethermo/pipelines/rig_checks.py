@@ -1,0 +1,92 @@
+"""Physical plausibility of a rig session's channels, before any estimate is made.
+
+A rig log can be wrong in ways no reader sees: a sensor zeroed or frozen, a channel of
+the wrong sign, a unit off by a thousand. Each rig states what its channels must look
+like (:class:`Expect`); a channel the estimate is made from refuses the run with a line
+naming the channel, the fault and the likely cause, and a channel that only scores the
+estimate (a pressure beside a pressure observer) is kept with a warning, because an
+estimate scored against it would be scored against nonsense.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from brakethermo.errors import DataError
+from brakethermo.io.session import Session
+
+
+@dataclass(frozen=True)
+class Expect:
+    """What a channel of a rig must look like, in SI units.
+
+    Attributes
+    ----------
+    channel : str — canonical name.
+    unit : str — SI unit, for the messages.
+    most : float — the largest magnitude any such rig reaches (beyond it: a unit error).
+    positive : bool — the quantity is not negative in use (a force pressing, a pressure).
+    role : ``"input"`` (the estimate is made from it) or ``"score"`` (it only scores).
+    """
+
+    channel: str
+    unit: str
+    most: float
+    positive: bool = False
+    role: Literal["input", "score"] = "input"
+
+
+def _fault(v: np.ndarray, e: Expect) -> str | None:
+    """What is wrong with one channel's finite values, in words (None: nothing); a single
+    value (a constant of the log) is judged on its range and sign only."""
+    scale = float(np.percentile(np.abs(v), 99.5))
+    if v.size == 1 and e.positive and not v[0] > 0.0:
+        return f"is {float(v[0]):.4g} {e.unit}: it must be positive"
+    if v.size > 1 and np.ptp(v) <= 1e-9 * max(scale, 1e-30):
+        return (f"does not move (constant {float(v[0]):.4g} {e.unit} throughout): nothing was"
+                " applied in this session, or the sensor is zeroed, frozen or not connected")
+    if scale > e.most:
+        return (f"reaches {scale:.4g} {e.unit}, beyond any such rig (at most about"
+                f" {e.most:g} {e.unit}): check the channel's unit")
+    if e.positive and float(np.percentile(v, 5)) < -0.2 * scale:
+        return (f"is mostly negative (5th percentile {float(np.percentile(v, 5)):.4g} {e.unit}"
+                f" against a largest magnitude of {scale:.4g}): the sign is reversed")
+    return None
+
+
+def check_rig_channels(session: Session, expects: Sequence[Expect]) -> list[str]:
+    """Check the channels ``expects`` names that the session has.
+
+    Returns
+    -------
+    list of str — warnings for scoring channels that fail.
+
+    Raises
+    ------
+    DataError
+        An input channel fails (named, with the likely cause).
+    """
+    warnings = []
+    for e in expects:
+        if e.channel in session.constants:
+            v = np.array([session.constants[e.channel]])
+        elif session.has(e.channel):
+            v = session.values(e.channel)
+            v = v[np.isfinite(v)]
+            if v.size < 2:
+                continue
+        else:
+            continue
+        fault = _fault(v, e)
+        if fault is None:
+            continue
+        if e.role == "input":
+            raise DataError(f"channel '{e.channel}' {fault}", path=session.path,
+                            channel=e.channel)
+        warnings.append(f"channel '{e.channel}' {fault}; it only scores the estimate, whose"
+                        " figures against it mean nothing")
+    return warnings

@@ -1,0 +1,115 @@
+"""Rig sessions with a sensor zeroed, frozen, negated or in the wrong unit: each rig
+command refuses an input it cannot use with one line naming the channel, keeps a
+channel that only scores with a warning, and never exits 0 with a number that cannot be."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from typer.testing import CliRunner
+
+from brakethermo.cli import app
+
+RUNNER = CliRunner()
+SIMS = {
+    "ebt": ["--rig", "ebooster", "--set", "scenario=train", "--seed", "8"],
+    "ebv": ["--rig", "ebooster", "--set", "scenario=vehicle", "--set", "duration_s=30",
+            "--seed", "7"],
+    "embt": ["--rig", "emb", "--set", "duration_s=30", "--seed", "1"],
+    "emb": ["--rig", "emb", "--set", "duration_s=30", "--set", "sensor=false", "--seed", "2"],
+    "ty": ["--rig", "tyre", "--seed", "4"],
+    "rr": ["--rig", "roller-rig", "--set", "duration_s=80", "--seed", "7"],
+}
+
+
+@pytest.fixture(scope="module")
+def sessions(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    out = tmp_path_factory.mktemp("rigs")
+    paths = {}
+    for name, args in SIMS.items():
+        res = RUNNER.invoke(app, ["simulate", *args, "--out", str(out / f"{name}.parquet")])
+        assert res.exit_code == 0, res.output
+        paths[name] = out / f"{name}.parquet"
+    return paths
+
+
+def _mutate(src: Path, column: str, how: str, out: Path) -> Path:
+    table = pq.read_table(src)
+    v = table.column(column).to_numpy(zero_copy_only=False).astype(float)
+    v = {"zero": np.zeros_like(v), "negate": -v, "x1000": v * 1000.0,
+         "stuck": np.full_like(v, float(np.nanmedian(v)))}[how]
+    field = table.schema.field(column)
+    table = table.set_column(table.column_names.index(column), field, pa.array(v))
+    path = out / f"{src.stem}_{column}_{how}.parquet"
+    pq.write_table(table, path)
+    return path
+
+
+def _command(rig: str, session: Path, s: dict[str, Path], out: Path) -> list[str]:
+    return {
+        "ebooster": ["ebooster", str(session), "--train", str(s["ebt"])],
+        "clamp-force": ["clamp-force", str(session), "--train", str(s["embt"])],
+        "mu-slip": ["mu-slip", str(session)],
+        "roller-rig": ["roller-rig", str(session), "--r0", "340"],
+    }[rig] + ["--out", str(out), "--json"]
+
+
+def _finite(o: object) -> bool:
+    if isinstance(o, dict):
+        return all(_finite(v) for v in o.values())
+    if isinstance(o, list):
+        return all(_finite(v) for v in o)
+    return not (isinstance(o, float) and not math.isfinite(o))
+
+
+# (rig, session, channel, mutation, expected: "refused" or "warned")
+CASES = [
+    ("ebooster", "ebv", "pushrod_displacement", "stuck", "refused"),
+    ("ebooster", "ebv", "pushrod_displacement", "x1000", "refused"),
+    ("ebooster", "ebv", "master_cylinder_pressure", "zero", "warned"),
+    ("ebooster", "ebv", "pedal_force", "negate", "warned"),
+    ("clamp-force", "emb", "motor_current", "x1000", "refused"),
+    ("clamp-force", "emb", "motor_current", "negate", "refused"),
+    ("clamp-force", "emb", "motor_angle", "negate", "refused"),
+    ("clamp-force", "emb", "motor_current", "stuck", "refused"),
+    ("mu-slip", "ty", "drag_force", "zero", "refused"),
+    ("mu-slip", "ty", "drag_force", "negate", "refused"),
+    ("mu-slip", "ty", "drag_force", "x1000", "refused"),
+    ("mu-slip", "ty", "normal_force", "x1000", "refused"),
+    ("roller-rig", "rr", "wheel_omega", "stuck", "refused"),
+    ("roller-rig", "rr", "roller_torque", "x1000", "warned"),
+]
+
+
+@pytest.mark.parametrize(("rig", "src", "channel", "how", "expected"), CASES,
+                         ids=[f"{c[0]}-{c[2]}-{c[3]}" for c in CASES])
+def test_rig_mutation(rig: str, src: str, channel: str, how: str, expected: str,
+                      sessions: dict[str, Path], tmp_path: Path) -> None:
+    bad = _mutate(sessions[src], channel, how, tmp_path)
+    res = RUNNER.invoke(app, _command(rig, bad, sessions, tmp_path / "out"))
+    assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
+    assert "Traceback" not in res.output
+    if expected == "refused":
+        assert res.exit_code == 1, res.output
+        assert channel in res.output or "μ" in res.output, res.output
+        assert len(res.output.strip().splitlines()) <= 3  # one message (wrapped at most)
+    else:
+        assert res.exit_code == 0, res.output
+        summary = json.loads(res.stdout[res.stdout.index("{"):])
+        assert _finite(summary)
+        assert any(channel in w for w in summary["warnings"]), summary["warnings"]
+
+
+def test_clean_rig_sessions_pass_without_warnings(sessions: dict[str, Path],
+                                                  tmp_path: Path) -> None:
+    for rig, src in (("ebooster", "ebv"), ("clamp-force", "emb"), ("mu-slip", "ty")):
+        res = RUNNER.invoke(app, _command(rig, sessions[src], sessions, tmp_path / rig))
+        assert res.exit_code == 0, res.output
+        summary = json.loads(res.stdout[res.stdout.index("{"):])
+        assert not summary.get("warnings"), summary.get("warnings")
