@@ -24,10 +24,11 @@ def where_table(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: S
     v_kmh = np.abs(inputs.speed) * 3.6
     speed_edges = _speed_edges(v_kmh[scored])
     speed_band = np.digitize(v_kmh, speed_edges[1:-1])
+    temp_edges = _edges(TEMP_BANDS_C, y[scored])
     rows = []
     total = float(np.nansum(res[scored] ** 2))
     for i in range(4):
-        temp_band = np.digitize(np.nan_to_num(y[:, i], nan=-1.0), TEMP_BANDS_C[1:-1])
+        temp_band = np.digitize(np.nan_to_num(y[:, i], nan=-1.0), temp_edges[1:-1])
         ok = scored & np.isfinite(res[:, i])
         keys = np.stack([np.unique(phase, return_inverse=True)[1], segments.zone + 1,
                          speed_band, temp_band], axis=1)[ok]
@@ -45,7 +46,7 @@ def where_table(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: S
                 "phase": str(phases[key[0]]),
                 "zone": zone_label(int(key[1]) - 1),
                 "speed_band_kmh": _band(speed_edges, key[2]),
-                "temp_band_c": _band(TEMP_BANDS_C, key[3]),
+                "temp_band_c": _band(temp_edges, key[3]),
                 "rmse_c": float(np.sqrt(sse[j] / count[j])),
                 "bias_c": float(bias[j]),
                 "share_pct": 100.0 * float(sse[j]) / total if total else 0.0,
@@ -64,11 +65,16 @@ def zone_label(z: int) -> str | None:
     return f"B{z + 1}" if z >= 0 else None
 
 
+def _edges(bands: Sequence[float], values: np.ndarray) -> tuple[float, ...]:
+    """Band edges within the session: the last band ends at its largest value."""
+    top = float(np.ceil(np.nanmax(values))) if np.isfinite(values).any() else bands[1]
+    inner = tuple(e for e in bands[1:] if e < top)
+    return (bands[0], *inner, top)
+
+
 def _speed_edges(v_kmh: np.ndarray) -> tuple[float, ...]:
     """Speed-band edges, km/h, within the session: the last band ends at its top speed."""
-    top = float(np.ceil(np.nanmax(v_kmh))) if np.isfinite(v_kmh).any() else 1.0
-    inner = tuple(e for e in SPEED_BANDS_KMH[1:] if e < top)
-    return (SPEED_BANDS_KMH[0], *inner, top)
+    return _edges(SPEED_BANDS_KMH, v_kmh)
 
 
 def _marginals(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: Segments,
@@ -97,9 +103,9 @@ def _marginals(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: Se
     ]
     t = _nanmean(y, axis=1)
     out["by_temperature_band"] = [
-        {"band_c": f"{lo:.0f}-{hi:.0f}", "rmse_c": _rmse(res[scored & (t >= lo) & (t < hi)])}
-        for lo, hi in itertools.pairwise(TEMP_BANDS_C)
-        if (scored & (t >= lo) & (t < hi)).any()
+        {"band_c": f"{lo:.0f}-{hi:.0f}", "rmse_c": _rmse(res[scored & (t >= lo) & (t <= hi)])}
+        for lo, hi in itertools.pairwise(_edges(TEMP_BANDS_C, t[scored]))
+        if (scored & (t >= lo) & (t <= hi)).any()
     ]
     return out
 
