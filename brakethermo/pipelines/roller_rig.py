@@ -211,11 +211,6 @@ def _rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
     """The session's speeds (rolling forward), torque and load, checked against physics, and
     the free-rolling, traction and both-speeds masks."""
     session.require("wheel_omega", "roller_omega", "wheel_torque")
-    notes = check_rig_channels(session, (
-        Expect("wheel_omega", "rad/s", 1e3), Expect("roller_omega", "rad/s", 1e3),
-        Expect("normal_force", "N", 5e5), Expect("wheel_torque", "N m", 1e5),
-        Expect("roller_torque", "N m", 1e5, role="score"),
-        Expect("rolling_radius_ref", "m", 2.0, positive=True, role="score")))
     w_w = _finite_series(session, "wheel_omega")
     w_r = _finite_series(session, "roller_omega")
     _check_speed(session, "wheel_omega", w_w)
@@ -230,6 +225,12 @@ def _rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
             " so creep cannot reveal the radius; use a session with traction phases",
             path=session.path, channel="wheel_torque",
         )  # fmt: skip
+    # the rig's own checks above name the common faults first; then every channel
+    notes = check_rig_channels(session, (
+        Expect("wheel_omega", "rad/s", 1e3), Expect("roller_omega", "rad/s", 1e3),
+        Expect("normal_force", "N", 5e5), Expect("wheel_torque", "N m", 1e5),
+        Expect("roller_torque", "N m", 1e5, role="score"),
+        Expect("rolling_radius_ref", "m", 2.0, positive=True, role="score")))
     warnings = [*session.warnings, *notes]
     if session.has("normal_force"):
         normal = _fill(_finite_series(session, "normal_force"))
