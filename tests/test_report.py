@@ -81,7 +81,7 @@ def test_zone_table_matches_the_data(race) -> None:
     zones = detect_zones(frame["time"].to_numpy(), p)
     table = zone_table(est, frame["speed"].to_numpy(), p, zones, WINDOW)
     assert table.groupby("lap").size().tolist() == [6, 6, 6]
-    assert table["zone"].tolist() == [1, 2, 3, 4, 5, 6] * 3
+    assert table["zone"].tolist() == [f"B{k}" for k in range(1, 7)] * 3  # no distance: order
     # Zones start at the braking positions of the synthetic lap (lap time, s).
     np.testing.assert_allclose(table["start_s"][:6], [8, 22, 37, 51, 66, 82], atol=0.35)
     assert (table["entry_speed_kmh"] > 280).all() and (table["min_speed_kmh"] < 200).all()
@@ -216,3 +216,24 @@ def test_mcap_export_round_trip(race, tmp_path: Path) -> None:
         est["power_scale"].round(6),
         atol=1e-9,
     )
+
+
+def test_zones_are_named_by_track_position_on_every_lap() -> None:
+    """Three flying laps brake at 300, 900 and 1500 m; lap 2 misses the second zone and
+    lap 3 adds a dab at 1200 m: the names stay with the corners (B1, B2, B3 on every
+    lap, the dab "B2+"), the out-lap's stops are named by their order."""
+    from brakethermo.report.braking_zones import zone_names
+
+    laps = {0: [100.0, 700.0], 1: [300.0, 900.0, 1500.0], 2: [305.0, 1490.0],
+            3: [295.0, 905.0, 1200.0, 1510.0]}
+    lap, dist, starts = [], [], []
+    for n, ds in laps.items():
+        base = len(lap)
+        lap += [n] * 2000
+        dist += list(np.arange(2000.0))
+        starts += [base + int(d) for d in ds]
+    lap_a, dist_a = np.array(lap), np.array(dist)
+    zones = np.column_stack([starts, np.array(starts) + 20])
+    names = zone_names(zones, lap_a, dist_a)
+    assert names == ["out B1", "out B2", "B1", "B2", "B3", "B1", "B3", "B1", "B2", "B2+",
+                     "B3"]

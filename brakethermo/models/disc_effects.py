@@ -56,6 +56,9 @@ class Segments:
     n_straights : int
     straight_lap : ndarray (n_straights,) of int
         Lap of each straight.
+    zone_names : tuple of str
+        The track name of each zone as every page gives it (B1…, "B3+" for an occasional
+        stop; ``report.braking_zones``).
     """
 
     zone: np.ndarray
@@ -63,6 +66,7 @@ class Segments:
     straight: np.ndarray
     n_straights: int
     straight_lap: np.ndarray
+    zone_names: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

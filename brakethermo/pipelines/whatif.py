@@ -52,7 +52,7 @@ from brakethermo.pipelines.estimate import (
 from brakethermo.pipelines.inputs import load_timed
 from brakethermo.pipelines.models import calibration_for, disc_for, other_disc
 from brakethermo.pipelines.outputs import write_json, write_parquet
-from brakethermo.report.braking_zones import detect_zones
+from brakethermo.report.braking_zones import detect_zones, lap_distance, zone_names
 from brakethermo.thermal.disc import DiscSpec, load_disc
 from brakethermo.thermal.hlaw import read_h_law
 from brakethermo.thermal.model import DiscFEModel
@@ -329,17 +329,12 @@ def lap_figures(r: Replay, lap: np.ndarray, braking: np.ndarray, dt: float
     return out
 
 
-def zone_figures(r: Replay, zones: np.ndarray, lap: np.ndarray) -> list[dict[str, Any]]:
-    """Per braking zone (B1… in lap order, as the lap reports): peak contact and μ there."""
-    rows = []
-    lap_start_zone: dict[int, int] = {}
-    for a, b in zones:
-        n = int(lap[a])
-        j = lap_start_zone.get(n, 0) + 1
-        lap_start_zone[n] = j
-        rows.append({"lap": n, "zone": f"B{j}", "peak_contact_c": float(np.max(r.contact[a:b])),
-                     "mu_rel_min": float(np.min(r.mu_rel[a:b]))})
-    return rows
+def zone_figures(r: Replay, zones: np.ndarray, lap: np.ndarray, names: list[str]
+                 ) -> list[dict[str, Any]]:
+    """Per braking zone (named by track position, as the lap reports): peak contact and μ."""
+    return [{"lap": int(lap[a]), "zone": name, "peak_contact_c": float(np.max(r.contact[a:b])),
+             "mu_rel_min": float(np.min(r.mu_rel[a:b]))}
+            for (a, b), name in zip(zones, names, strict=True)]
 
 
 def _frame(est: EstimateResult, base: Replay, replays: list[Replay]) -> pd.DataFrame:
@@ -383,6 +378,9 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
     braking = q > 0.01 * max(float(np.max(q, initial=0.0)), 1.0)
     dt = session.dt
     zones = detect_zones(est.frame["time"].to_numpy(), session.values("brake_pressure_front"))
+    names = zone_names(zones, lap, lap_distance(
+        lap, session.values("speed"), dt,
+        session.values("distance") if session.has("distance") else None))
     base_laps = lap_figures(base, lap, braking, dt)
     scen_laps = [lap_figures(r, lap, braking, dt) for r in replays]
     laps = []
@@ -396,8 +394,8 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
         "metadata": session.metadata,
         "scenarios": [r.scenario.describe() for r in replays],
         "laps": laps,
-        "zones": {"base": zone_figures(base, zones, lap),
-                  **{r.scenario.label: zone_figures(r, zones, lap) for r in replays}},
+        "zones": {"base": zone_figures(base, zones, lap, names),
+                  **{r.scenario.label: zone_figures(r, zones, lap, names) for r in replays}},
         "assumptions": [
             "same speed trace and the same braking power at every stop (the rider brakes"
             " for the same corners)",

@@ -1,10 +1,16 @@
-"""Braking zones from the front brake pressure, and the per-zone temperature table.
+"""Braking zones from the front brake pressure, their names, and the per-zone table.
 
 A braking zone is a stretch of the 10 Hz grid where the line pressure stays above a
 threshold, short releases bridged (a rider who eases off mid-corner is still in the
 same zone). The zone's thermal "cycle" runs from its start to the start of the next
 zone: the disc heats during braking, peaks just after release, then cools on the
 straight; the table reports that cycle.
+
+Zones are named by where they are on the track, the same on every lap and on every
+page (lap reports, diagnosis, what-if): braking starts of all flying laps are matched
+by lap distance, and the zones braked on in at least half of the flying laps are B1,
+B2, … in lap order; an occasional stop (a lift, a second dab) is named after the zone
+before it, "B3+". A lap that misses a zone does not renumber the ones after it.
 """
 
 from __future__ import annotations
@@ -18,6 +24,7 @@ BAR = 1.0e5  # Pa
 KMH = 3.6  # (km/h) per (m/s)
 SPOTS = ("spot1", "spot2", "spot3", "spot4")
 TIME_TOL = 1e-6  # s
+ZONE_MATCH_M = 120.0  # m: braking starts closer than this on different laps are one zone
 
 
 @dataclass(frozen=True)
@@ -83,6 +90,7 @@ def zone_table(
     pressure_pa: np.ndarray,
     zones: np.ndarray,
     window_c: tuple[float, float],
+    dist: np.ndarray | None = None,
 ) -> pd.DataFrame:
     """One row per braking zone: what the disc did through that braking cycle.
 
@@ -102,7 +110,8 @@ def zone_table(
     Returns
     -------
     DataFrame
-        Columns ``zone`` (1-based within its lap), ``lap``, ``start_s`` (lap time of the
+        Columns ``zone`` (its track name from ``dist``, m along the lap; without it
+        its order in the lap), ``lap``, ``start_s`` (lap time of the
         brake application, s), ``duration_s``, ``entry_speed_kmh``, ``min_speed_kmh``,
         ``peak_pressure_bar``, ``peak_spot1..4`` (degC), ``peak_contact``, ``rise_k``
         (contact-band rise from brake application to peak, K), ``cooling_k`` (drop from
@@ -169,5 +178,85 @@ def zone_table(
             "above_s": above,
         }
     )
-    table.insert(0, "zone", table.groupby("lap").cumcount() + 1)
+    names = (zone_names(zones, lap, dist) if dist is not None else
+             [f"B{k}" for k in table.groupby("lap").cumcount() + 1])
+    table.insert(0, "zone", names)
     return table[columns]
+
+
+def lap_distance(lap: np.ndarray, speed_ms: np.ndarray, dt: float,
+                 distance: np.ndarray | None = None) -> np.ndarray:
+    """Distance along each lap, m: the logged ``distance`` from each lap's least value
+    when it is complete, else the integrated speed.
+
+    Parameters
+    ----------
+    lap : ndarray (K,) of int
+    speed_ms : ndarray (K,) — m/s
+    dt : float — s, grid step
+    distance : ndarray (K,), optional — m, a logged lap distance
+    """
+    laps, which = np.unique(lap, return_inverse=True)
+    if distance is not None and np.isfinite(distance).all():
+        start = np.array([distance[which == j].min() for j in range(laps.size)])
+        return distance - start[which]
+    out = np.zeros(np.size(speed_ms))
+    for j in range(laps.size):
+        m = which == j
+        out[m] = np.cumsum(np.abs(np.nan_to_num(speed_ms[m]))) * dt
+    return out
+
+
+def zone_clusters(starts: np.ndarray, lap: np.ndarray, dist: np.ndarray
+                  ) -> tuple[np.ndarray, list[float]]:
+    """Braking starts matched across laps by lap distance.
+
+    Returns
+    -------
+    ids : ndarray (n,) of int — the cluster of each start, in lap order; -1 when no
+        flying lap braked within :data:`ZONE_MATCH_M` of it (an out-lap stop).
+    centres : list of float — m, each cluster's first lap distance.
+    """
+    starts = np.asarray(starts, int)
+    centres: list[float] = []
+    for d in np.sort(dist[starts[lap[starts] >= 1]]) if starts.size else []:
+        if not centres or d - centres[-1] > ZONE_MATCH_M:
+            centres.append(float(d))
+    ids = np.full(starts.size, -1)
+    for i, s in enumerate(starts):
+        if centres:
+            z = int(np.argmin(np.abs(np.asarray(centres) - dist[s])))
+            if abs(centres[z] - dist[s]) <= ZONE_MATCH_M:
+                ids[i] = z
+    return ids, centres
+
+
+def cluster_names(ids: np.ndarray, lap_of_start: np.ndarray, n_clusters: int) -> list[str]:
+    """The name of each cluster (module docstring): B1… for the zones braked on in at
+    least half of the flying laps, "B<k>+" for an occasional stop after B<k>."""
+    flying = np.unique(lap_of_start[lap_of_start >= 1])
+    laps_in = [np.unique(lap_of_start[(ids == z) & (lap_of_start >= 1)]).size
+               for z in range(n_clusters)]
+    names, k = [], 0
+    for z in range(n_clusters):
+        if 2 * laps_in[z] >= max(flying.size, 1):
+            k += 1
+            names.append(f"B{k}")
+        else:
+            names.append(f"B{k}+")
+    return names
+
+
+def zone_names(zones: np.ndarray, lap: np.ndarray, dist: np.ndarray) -> list[str]:
+    """The track name of each detected zone (``[start, stop)`` rows, lap order); a zone
+    no flying lap shares (an out-lap stop) is named by its order in its lap, "out B2"."""
+    starts = zones[:, 0] if len(zones) else np.empty(0, int)
+    ids, centres = zone_clusters(starts, lap, dist)
+    names = cluster_names(ids, lap[starts], len(centres))
+    out, seen = [], {}
+    for i, s in enumerate(starts):
+        n = int(lap[s])
+        seen[n] = seen.get(n, 0) + 1
+        # the out-lap's distance runs from the pit exit, not the line: named by its order
+        out.append(names[ids[i]] if ids[i] >= 0 and n >= 1 else f"out B{seen[n]}")
+    return out

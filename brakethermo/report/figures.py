@@ -69,6 +69,8 @@ class LapData:
     pressure_bar : ndarray — bar
     zones_t : ndarray, shape (n_zones, 2) — s
         Start and end of each braking zone, lap time.
+    zone_names : tuple of str
+        Each zone's track name (B1…, as the zone table); its order in the lap without.
     """
 
     t: np.ndarray
@@ -81,6 +83,7 @@ class LapData:
     speed_kmh: np.ndarray
     pressure_bar: np.ndarray
     zones_t: np.ndarray
+    zone_names: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -200,7 +203,7 @@ class _ZoneMarks:
             for _ in range(MAX_ZONE_LABELS if labels else 0)
         ]
 
-    def update(self, zones_t: np.ndarray) -> None:
+    def update(self, zones_t: np.ndarray, names: tuple[str, ...] = ()) -> None:
         x0, x1 = zones_t[:, 0], zones_t[:, 1]
         verts = np.stack(
             [
@@ -216,7 +219,7 @@ class _ZoneMarks:
             text.set_visible(i < len(zones_t))
             if i < len(zones_t):
                 text.set_x(0.5 * (x0[i] + x1[i]))
-                text.set_text(f"B{i + 1}")
+                text.set_text(names[i] if i < len(names) else f"B{i + 1}")
 
 
 class LapFigures:
@@ -416,7 +419,7 @@ class LapFigures:
             self.spot_bands[i].set_data(t, lo, hi)
             self.spot_lines[i].set_data(t, lap.spot[i])
             self.meas_lines[i].set_data(t, lap.measured[i])
-        self.zone_spots.update(lap.zones_t)
+        self.zone_spots.update(lap.zones_t, lap.zone_names)
         # From the estimate and the readings: a wide start-up band must not stretch the axis.
         spots_ylim = _rounded_range((lap.spot, lap.measured), self.scales.spots)
         self.ax_spots.set_ylim(*spots_ylim)
@@ -438,11 +441,11 @@ class LapFigures:
 
         self.contact_band.set_data(t, lap.contact - lap.contact_std, lap.contact + lap.contact_std)
         self.contact_line.set_data(t, lap.contact)
-        self.zone_contact.update(lap.zones_t)
+        self.zone_contact.update(lap.zones_t, lap.zone_names)
 
         self.speed_line.set_data(t, lap.speed_kmh)
         self.pressure_line.set_data(t, lap.pressure_bar)
-        self.zone_context.update(lap.zones_t)
+        self.zone_context.update(lap.zones_t, lap.zone_names)
 
         for ax in (self.ax_spots, self.ax_heatmap, self.ax_contact, self.ax_speed):
             ax.set_xlim(0.0, x_end)

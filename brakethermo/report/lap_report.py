@@ -28,6 +28,7 @@ from brakethermo.report.braking_zones import (
     SPOTS,
     ZoneDetection,
     detect_zones,
+    lap_distance,
     zone_table,
 )
 from brakethermo.report.figures import (
@@ -335,7 +336,8 @@ def _stats_with_readings(estimate: pd.DataFrame, session: Session | None, disc: 
     return stats
 
 
-def _lap_data(arrays: dict[str, np.ndarray], zones: np.ndarray, a: int, b: int) -> LapData:
+def _lap_data(arrays: dict[str, np.ndarray], zones: np.ndarray, a: int, b: int,
+              names: tuple[str, ...] = ()) -> LapData:
     """One lap's slice ``[a, b)`` of the session arrays, times from the lap's start."""
     time = arrays["time"]
     t0 = time[a]
@@ -356,6 +358,7 @@ def _lap_data(arrays: dict[str, np.ndarray], zones: np.ndarray, a: int, b: int) 
         speed_kmh=arrays["speed"][a:b] * KMH,
         pressure_bar=arrays["pressure"][a:b] / BAR,
         zones_t=zones_t,
+        zone_names=names,
     )
 
 
@@ -409,7 +412,8 @@ def _write_lap_pages(
         for k, lap in enumerate(lap_numbers):
             a, b = int(slices.loc[lap, "min"]), int(slices.loc[lap, "max"]) + 1
             r0 = _time.perf_counter()
-            pngs = figs.render(_lap_data(arrays, zones, a, b))
+            names = tuple(zones_df.loc[zones_df["lap"] == lap, "zone"])
+            pngs = figs.render(_lap_data(arrays, zones, a, b, names))
             render_s += _time.perf_counter() - r0
             lap_dir = out_dir / lap_folder(lap)
             for fig_name, png in pngs.items():
@@ -432,6 +436,17 @@ def _write_lap_pages(
     finally:
         figs.close()
     return pages, render_s
+
+
+def _zones_named(estimate: pd.DataFrame, session: Session | None, speed: np.ndarray,
+                 pressure: np.ndarray, zones: np.ndarray, disc: DiscSpec) -> pd.DataFrame:
+    """The zone table with each zone named by where it is on the track (as every page)."""
+    time = estimate["time"].to_numpy(dtype=float)
+    dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
+    logged = (_aligned(session, time, "distance")
+              if session is not None and session.has("distance") else None)
+    dist = lap_distance(estimate["lap"].to_numpy(), speed, dt, logged)
+    return zone_table(estimate, speed, pressure, zones, disc.window_c, dist)
 
 
 def write_session_report(
@@ -494,7 +509,7 @@ def write_session_report(
     measured = _measured(session, time)
 
     zones = detect_zones(time, pressure, detection)
-    zones_df = zone_table(estimate, speed, pressure, zones, disc.window_c)
+    zones_df = _zones_named(estimate, session, speed, pressure, zones, disc)
     stats = _stats_with_readings(estimate, session, disc, node_radii, measured, zones_df)
 
     env = _environment()

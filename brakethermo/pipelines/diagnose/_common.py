@@ -26,9 +26,6 @@ PRIOR_WEIGHT_C = 5.0  # degC: one prior sigma costs like one residual of this si
 BOOTSTRAP = 2000
 
 
-ZONE_MATCH_M = 120.0  # m: braking starts closer than this on different laps are one zone
-
-
 MIN_STRAIGHT_S = 3.0  # s: shorter off-brake stretches join their neighbour's latent value
 
 

@@ -115,9 +115,10 @@ def _spread(values: Sequence[float]) -> str:
     return f"median {np.median(v):.2f}, range {v.min():.2f}-{v.max():.2f}"
 
 
-def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int
-                ) -> tuple[dict[str, Any], str]:
-    """An effect's fitted size in physical units, and the sentence the page shows."""
+def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
+                zone_names: tuple[str, ...] = ()) -> tuple[dict[str, Any], str]:
+    """An effect's fitted size in physical units, and the sentence the page shows
+    (``zone_names``: the session's track names of its braking zones)."""
     if name == "thickness_gradient":
         f = float(params["kz_factor"])
         k_z = f * disc.k_z if disc.k_z else float("nan")
@@ -156,12 +157,12 @@ def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int
     if name == "power_distribution":
         b = np.asarray(params.get("zone_balance", []), float)
         m = np.asarray(params.get("zone_middle", []), float)
-        zones = {zone_label(z): {"inner_vs_outer": float(np.exp(2 * b[z])),
+        zones = {zone_label(z, zone_names): {"inner_vs_outer": float(np.exp(2 * b[z])),
                                  "middle_factor": float(np.exp(m[z]))} for z in range(b.size)}
         worst = int(np.argmax(np.abs(b))) if b.size else -1
         text = ("no zone" if worst < 0 else
                 f"inner/outer crown power ratio per zone {_spread(np.exp(2 * b))}; most"
-                f" uneven {zone_label(worst)}: {np.exp(2 * b[worst]):.2f}")
+                f" uneven {zone_label(worst, zone_names)}: {np.exp(2 * b[worst]):.2f}")
         return {"per_zone": zones}, text
     return dict(params), ""
 

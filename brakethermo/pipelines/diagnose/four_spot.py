@@ -270,7 +270,8 @@ class _FourSpot:
         for c in self.candidates:
             row = rows[c.name]
             params = self.make(c.effects).values(c.p, c.name)
-            size, sentence = effect_size(c.name, params, self.disc, self.est_tuning.layers)
+            size, sentence = effect_size(c.name, params, self.disc, self.est_tuning.layers,
+                                         self.segments.zone_names)
             if "kz_factor" in params:  # in h_law.toml kz_factor is relative to k(T), not k_z
                 params = {"kz_over_nominal": params.pop("kz_factor"), **params}
             out.append({

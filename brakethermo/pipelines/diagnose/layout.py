@@ -11,45 +11,30 @@ import numpy as np
 from brakethermo.errors import DataError
 from brakethermo.io.session import Session
 from brakethermo.models.disc_effects import KNEE, Segments
-from brakethermo.pipelines.diagnose._common import MIN_STRAIGHT_S, ZONE_MATCH_M
+from brakethermo.pipelines.diagnose._common import MIN_STRAIGHT_S
 from brakethermo.pipelines.inputs import DiscInputs
-from brakethermo.report.braking_zones import detect_zones
+from brakethermo.report.braking_zones import (
+    cluster_names,
+    detect_zones,
+    zone_clusters,
+)
+from brakethermo.report.braking_zones import lap_distance as track_distance
 
 
 def lap_distance(inputs: DiscInputs, session: Session) -> np.ndarray:
     """Distance along the lap, m: the ``distance`` channel, else integrated speed."""
-    if session.has("distance"):
-        d = session.values("distance")
-        if np.isfinite(d).all():
-            laps, which = np.unique(inputs.lap, return_inverse=True)
-            start = np.array([d[which == j].min() for j in range(laps.size)])
-            return d - start[which]  # each lap from its own least distance
-    dt = session.dt
-    out = np.zeros(inputs.speed.size)
-    for lap in np.unique(inputs.lap):
-        m = inputs.lap == lap
-        out[m] = np.cumsum(np.abs(inputs.speed[m])) * dt
-    return out
+    logged = session.values("distance") if session.has("distance") else None
+    return track_distance(inputs.lap, inputs.speed, session.dt, logged)
 
 
 def build_segments(inputs: DiscInputs, zones: np.ndarray, dist: np.ndarray) -> Segments:
     """Braking zones matched across laps by lap distance; straights per lap."""
     K = inputs.speed.size
     starts = zones[:, 0] if zones.size else np.empty(0, int)
-    flying = inputs.lap[starts] >= 1 if starts.size else np.empty(0, bool)
-    # One zone = a cluster of braking starts at nearly the same lap distance.
-    centres: list[float] = []
-    for d in np.sort(dist[starts[flying]]):
-        if not centres or d - centres[-1] > ZONE_MATCH_M:
-            centres.append(float(d))
+    ids, centres = zone_clusters(starts, inputs.lap, dist)
     zone = np.full(K, -1)
-    for start in starts:
-        if centres:
-            z = int(np.argmin(np.abs(np.asarray(centres) - dist[start])))
-            if abs(centres[z] - dist[start]) <= ZONE_MATCH_M:
-                zone[start:] = z  # the zone owns its cycle until the next start
-                continue
-        zone[start:] = -1
+    for start, z in zip(starts, ids, strict=True):
+        zone[start:] = z  # the zone owns its cycle until the next start
     braking = np.zeros(K, bool)
     for a, b in zones:
         braking[a:b] = True
@@ -64,7 +49,8 @@ def build_segments(inputs: DiscInputs, zones: np.ndarray, dist: np.ndarray) -> S
         straight[a:b] = len(laps)
         laps.append(int(inputs.lap[a]))
     return Segments(zone=zone, n_zones=len(centres), straight=straight,
-                    n_straights=len(laps), straight_lap=np.asarray(laps, int))
+                    n_straights=len(laps), straight_lap=np.asarray(laps, int),
+                    zone_names=tuple(cluster_names(ids, inputs.lap[starts], len(centres))))
 
 
 def session_segments(session: Session, inputs: DiscInputs

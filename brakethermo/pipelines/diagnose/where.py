@@ -44,7 +44,7 @@ def where_table(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: S
             rows.append({
                 "spot": f"spot{i + 1}",
                 "phase": str(phases[key[0]]),
-                "zone": zone_label(int(key[1]) - 1),
+                "zone": zone_label(int(key[1]) - 1, segments.zone_names),
                 "speed_band_kmh": _band(speed_edges, key[2]),
                 "temp_band_c": _band(temp_edges, key[3]),
                 "rmse_c": float(np.sqrt(sse[j] / count[j])),
@@ -60,9 +60,12 @@ def _band(edges: Sequence[float], i: int) -> str:
     return f"{edges[i]:.0f}-{edges[i + 1]:.0f}"
 
 
-def zone_label(z: int) -> str | None:
-    """Braking zone ``z`` (0-based, in lap order) as the lap reports name it: B1, B2, …"""
-    return f"B{z + 1}" if z >= 0 else None
+def zone_label(z: int, names: tuple[str, ...] = ()) -> str | None:
+    """Braking zone ``z`` (0-based, by lap distance) as every page names it (``names``:
+    the session's ``Segments.zone_names``; B1, B2, … without them)."""
+    if z < 0:
+        return None
+    return names[z] if z < len(names) else f"B{z + 1}"
 
 
 def _edges(bands: Sequence[float], values: np.ndarray) -> tuple[float, ...]:
@@ -91,7 +94,8 @@ def _marginals(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: Se
         for i in range(4)
     }
     out["by_zone"] = [
-        {"zone": zone_label(z), "rmse_c": _rmse(res[scored & (segments.zone == z)]),
+        {"zone": zone_label(z, segments.zone_names),
+         "rmse_c": _rmse(res[scored & (segments.zone == z)]),
          "bias_c": float(_nanmean(res[scored & (segments.zone == z)]))}
         for z in range(segments.n_zones) if (scored & (segments.zone == z)).any()
     ]
