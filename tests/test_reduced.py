@@ -35,6 +35,28 @@ def test_modes_are_orthonormal_and_hold_low_rank_snapshots(rank: int, n: int, se
     assert with_directions(Psi, D).shape == Psi.shape  # nothing new to add
 
 
+def test_reduced_noise_is_the_projected_full_noise() -> None:
+    """Q(k) from parts projected once equals the full Q(k) projected, braking or not,
+    with random-walk parameters and a lagging sensor."""
+    from brakethermo.models.disc import DiscEffects, DiscStateSpace, RandomWalkParam
+    from brakethermo.models.reduced import ReducedStateSpace
+    from brakethermo.thermal.disc import load_disc
+    from brakethermo.thermal.model import DiscFEModel
+
+    disc = load_disc()
+    model = DiscFEModel(disc, 20, 2)
+    q = np.array([0.0, 4.0e4, 0.0])
+    ssm = DiscStateSpace(model, q, np.full(3, 25.0), np.full(3, 90.0),
+                         [RandomWalkParam("power_scale", 1.0, 0.1, 0.01),
+                          RandomWalkParam("h_factor", 1.0, 0.1, 0.02, off_brake_only=True)],
+                         sigma_temp=0.5, sigma_crown=0.2,
+                         effects=DiscEffects(sensor_tau_s=0.5), spot_radius=disc.spot_radii[2])
+    Phi, _ = pod_modes(np.random.default_rng(0).normal(size=(50, model.n_state)), 1e-9, 8)
+    red = ReducedStateSpace(ssm, Phi)
+    for k in range(3):
+        np.testing.assert_allclose(red.Q(k), red.L.T @ ssm.Q(k) @ red.L, atol=1e-12)
+
+
 @pytest.fixture(scope="module")
 def session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("reduced")

@@ -255,10 +255,16 @@ class DiscStateSpace:
 
     def Q(self, k: int) -> np.ndarray:
         """Process noise of the step ``k -> k + 1``, squared state units."""
-        Q = self._Q_base + self.q_brk[k] ** 2 * self._S_crown
+        return self.noise(k, self._Q_base, self._S_crown, self._param_idx)
+
+    def noise(self, k: int, base: np.ndarray, crown: np.ndarray, param_idx: np.ndarray
+              ) -> np.ndarray:
+        """:meth:`Q` from its parts in any coordinates that keep the parameters as they
+        are (the reduced order's): white ``base``, the crown split's covariance per
+        squared watt ``crown``, the parameters' random walks at ``param_idx``."""
+        Q = base + self.q_brk[k] ** 2 * crown
         if self.params:
-            i = self._param_idx
-            Q[i, i] = self._step_var * self._moving[k]
+            Q[param_idx, param_idx] = self._step_var * self._moving[k]
         return Q
 
     def H(self, radii: Sequence[float] | np.ndarray) -> np.ndarray:

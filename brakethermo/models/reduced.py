@@ -103,6 +103,9 @@ class ReducedStateSpace:
         L[:n_t, : self.r] = self.Phi
         L[n_t:, self.r:] = np.eye(full.n - n_t)
         self.L = L
+        self._Q_base = L.T @ full._Q_base @ L
+        self._S_crown = L.T @ full._S_crown @ L
+        self._param_idx = full._param_idx + shift
 
     def lift(self, X: np.ndarray) -> np.ndarray:
         """Reduced states (..., n) to full ones (..., n_full)."""
@@ -117,8 +120,9 @@ class ReducedStateSpace:
         return self.project(self.full.f(self.lift(Z), k))
 
     def Q(self, k: int) -> np.ndarray:
-        """The full process noise projected onto the reduced coordinates."""
-        return self.L.T @ self.full.Q(k) @ self.L
+        """The full process noise projected onto the reduced coordinates (its parts
+        projected once: no full-size matrix per step)."""
+        return self.full.noise(k, self._Q_base, self._S_crown, self._param_idx)
 
     def H(self, radii: Sequence[float] | np.ndarray) -> np.ndarray:
         return self.full.H(radii) @ self.L
