@@ -44,6 +44,7 @@ MIN_TRACTION_NM = 20.0  # a session whose request never exceeds this has no trac
 CONVERGED_MM = 1.0  # the estimate has converged once it stays this close to its end value
 CONVERGENCE_WINDOW_S = 0.25  # moving average of the filter track judged for convergence
 SUPPLY_FACT = "roller_supply_hz"
+REF_EXPECT = Expect("rolling_radius_ref", "m", 2.0, positive=True, role="score")
 
 RADIUS_RANGE_MM = (100.0, 1000.0)  # a tram wheel's rolling radius, and the accepted guesses
 RATIO_TOLERANCE = 0.03  # traction creep moves the speed-ratio radius by well under this
@@ -230,7 +231,7 @@ def _rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
         Expect("wheel_omega", "rad/s", 1e3), Expect("roller_omega", "rad/s", 1e3),
         Expect("normal_force", "N", 5e5), Expect("wheel_torque", "N m", 1e5),
         Expect("roller_torque", "N m", 1e5, role="score"),
-        Expect("rolling_radius_ref", "m", 2.0, positive=True, role="score")))
+        REF_EXPECT))
     warnings = [*session.warnings, *notes]
     if session.has("normal_force"):
         normal = _fill(_finite_series(session, "normal_force"))
@@ -334,7 +335,7 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     naive = w_r * spec.roller_radius / np.where(np.abs(w_w) > 1e-9, w_w, np.nan) * 1e3
     ref = session.constant("rolling_radius_ref")
     # a reference the checks found implausible (said in the warnings) scores nothing
-    ref_mm = ref * 1e3 if ref is not None and 0.0 < ref <= 2.0 else None
+    ref_mm = ref * 1e3 if ref is not None and 0.0 < ref <= REF_EXPECT.most else None
     elapsed = time.perf_counter() - t_start
     result = RollerRigResult(
         stem=session.path.stem, session=session, spec=spec, options=opts, time=t,
