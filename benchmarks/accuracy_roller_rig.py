@@ -7,7 +7,8 @@ with the default tuning (measured noise, smoother on) and with the paper's P0/Q/
 filter only (the paper's run). Printed per case: whole-run RMSE in % of the true
 radius (mean, and min-max over the seeds), convergence time ("never": the filter's
 last 0.25 s was still more than 1 mm from its end value, it had not settled), and the
-absolute traction-phase error of the UKF (first guess) and of the naive speed ratio.
+absolute traction-phase error of the UKF (first guess) and of the naive speed ratio, and
+how much of the run the output's 95 % band covers the true radius.
 Seeds 301+ were not used for tuning.
 
 Run: ``python benchmarks/accuracy_roller_rig.py [--seeds 5] [--duration 120]``
@@ -67,8 +68,10 @@ def main() -> None:
                 for mode, opts in modes.items():
                     res = run_roller_rig(path, opts)
                     cmp = res.summary["naive_vs_ukf"]
-                    for r in res.summary["runs"]:
+                    for r, run in zip(res.summary["runs"], res.runs, strict=True):
                         d = rows.setdefault((speed, mode, r["r0_mm"]), {})
+                        inside = np.abs(run.radius_mm - radius * 1e3) <= 1.96 * run.radius_std_mm
+                        d.setdefault("cover", []).append(100.0 * float(np.mean(inside)))
                         d.setdefault("rmse", []).append(r["rmse_vs_ref_pct"])
                         d.setdefault("filt", []).append(r["filter_rmse_vs_ref_pct"])
                         d.setdefault("conv", []).append(r["convergence_time_s"])
@@ -78,11 +81,12 @@ def main() -> None:
           " every other wheel re-profiled (341.6 mm); mean [min, max] over the seeds")  # fmt: skip
     print(f"{'km/h':>4} {'mode':>22} {'r0':>4} {'output RMSE %':>24} {'filter RMSE %':>24}"
           f" {'paper %':>7} {'converged s':>24} {'UKF |traction err| mm':>26}"
-          f" {'naive |traction err| mm':>26}")  # fmt: skip
+          f" {'naive |traction err| mm':>26} {'95 % band covers %':>24}")  # fmt: skip
     for (speed, mode, r0), d in rows.items():
         print(f"{speed:>4} {mode:>22} {r0:>4.0f} {_stat(d['rmse']):>24} {_stat(d['filt']):>24}"
               f" {PAPER[(speed, int(r0))]:>7.2f} {_stat(d['conv']):>24}"
-              f" {_stat(d['ukf_tr']):>26} {_stat(d['naive_tr']):>26}")  # fmt: skip
+              f" {_stat(d['ukf_tr']):>26} {_stat(d['naive_tr']):>26}"
+              f" {_stat(d['cover']):>24}")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -29,9 +29,7 @@ ALLOWED: dict[str, set[str]] = {
 }
 # Known debt, each with its issue; the test fails when one is fixed (remove it here) or
 # when a new one appears.
-KNOWN = {
-    ("sim/roller_rig.py", "rigs"),  # issue 17 item 5: an independent contact model
-}
+KNOWN: set[tuple[str, str]] = set()
 # Within a layer that may import io, physics must not write files: only these modules of
 # thermal/ models/ rigs/ may import io, and only to read (the datasheet loaders).
 PHYSICS_IO_READERS: set[str] = set()

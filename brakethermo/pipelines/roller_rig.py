@@ -330,7 +330,8 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
             f"the free-rolling speed ratio gives a wheel radius of {ratio_mm:.1f} mm, which no"
             " tram wheel has: check the units of wheel_omega and roller_omega (rad/s) and the"
             " roller radius of the rig datasheet", path=session.path, channel="wheel_omega")
-    runs = [_checked_guess(run, ratio_mm, one_guess) for run in runs]
+    runs = [creep_model_band(_checked_guess(run, ratio_mm, one_guess), torque, free & both)
+            for run in runs]
     s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2], normal)
     naive = w_r * spec.roller_radius / np.where(np.abs(w_w) > 1e-9, w_w, np.nan) * 1e3
     ref = session.constant("rolling_radius_ref")
@@ -379,6 +380,36 @@ def _checked_guess(run: GuessRun, ratio_mm: float, rerun: Any) -> GuessRun:
         f"from {run.r0_mm:g} mm the filter ended at {final:.1f} mm, more than"
         f" {100 * RATIO_TOLERANCE:g} % from the free-rolling ratio radius {ratio_mm:.1f} mm"
         " (outside its basin of attraction); re-started from the ratio radius"))
+
+
+def creep_model_band(run: GuessRun, torque: np.ndarray, free: np.ndarray) -> GuessRun:
+    """The guess's bands widened by the creep law's error, as the session measures it.
+
+    The wheel's radius does not change with the torque, so what the estimate does under
+    traction that it does not do in free rolling is the creep law's error (another
+    creep curve slope, friction): the estimate moves with the traction force while the
+    filter's own variance, which trusts the model, stays put. Its size is measured on
+    the session as a standard deviation proportional to the torque,
+    ``sigma_m = c |T|`` with ``c^2 = sum(d^2 - s^2) / sum(T^2)`` over the samples off free
+    rolling (``d``: departure from the free-rolling mean, ``s``: the filter's own
+    standard deviation), and added to both bands in quadrature.
+    """
+    both = np.isfinite(run.radius_mm) & np.isfinite(torque)
+    rolling = free & both
+    loaded = ~free & both
+    if not rolling.any() or not loaded.any():
+        return replace(run, model_error_mm_per_knm=0.0)
+    d = run.radius_mm[loaded] - float(np.mean(run.radius_mm[rolling]))
+    tq = torque[loaded] * 1e-3  # kN m
+    c2 = float(np.sum(d**2 - run.radius_std_mm[loaded] ** 2) / max(np.sum(tq**2), 1e-12))
+    c = math.sqrt(max(c2, 0.0))
+    model_var = (c * np.nan_to_num(torque) * 1e-3) ** 2
+    return replace(
+        run,
+        radius_std_mm=np.sqrt(run.radius_std_mm**2 + model_var),
+        filter_std_mm=np.sqrt(run.filter_std_mm**2 + model_var),
+        model_error_mm_per_knm=c,
+    )
 
 
 def _supply(
@@ -443,6 +474,7 @@ def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> di
                 "restarted": run.restart,
                 "radius_mm": float(run.radius_mm[-1]),
                 "radius_std_mm": float(run.radius_std_mm[-1]),
+                "creep_model_error_mm_per_knm": run.model_error_mm_per_knm,
                 "convergence_time_s": run.convergence_time_s,
                 "rmse_vs_ref_mm": rmse,
                 "rmse_vs_ref_pct": None if ref is None else 100.0 * rmse / ref,

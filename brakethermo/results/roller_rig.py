@@ -23,6 +23,7 @@ class GuessRun:
     states: np.ndarray  # (K, 3) output means
     convergence_time_s: float | None
     restart: str | None = None  # why the guess was re-started from the speed ratio
+    model_error_mm_per_knm: float = 0.0  # the creep law's error in the bands, mm per kN m
 
 
 @dataclass(frozen=True)

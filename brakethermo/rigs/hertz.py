@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import brentq
-from scipy.special import ellipe, ellipk
+from scipy.special import elliprd, elliprf
 
 from brakethermo.errors import ConfigError
 
@@ -67,9 +67,11 @@ def curvature_sums(
 
 
 def _ratio_residual(m: float, target: float) -> float:
-    # Johnson eq. 4.39: B/A for a major axis along x (A < B), e^2 = m
-    K, E = ellipk(m), ellipe(m)
-    return (E / (1.0 - m) - K) / (K - E) - target
+    # Johnson eq. 4.39: B/A = (E/(1 - m) - K)/(K - E) for a major axis along x (A < B),
+    # e^2 = m; written with Carlson's K = R_F, (K - E)/m = R_D/3 (arguments 0, 1 - m, 1),
+    # which stays exact as m -> 0 where K - E cancels (a near-round contact)
+    rf, rd = elliprf(0.0, 1.0 - m, 1.0), elliprd(0.0, 1.0 - m, 1.0)
+    return (3.0 * rf / rd - 1.0) / (1.0 - m) - target
 
 
 def hertz_contact(
@@ -100,8 +102,8 @@ def hertz_contact(
         m, k_minus_e_over_m, K = 0.0, np.pi / 4.0, np.pi / 2.0
     else:
         m = brentq(_ratio_residual, 1e-14, 1.0 - 1e-14, args=(ratio,), xtol=1e-15, rtol=1e-14)
-        K = float(ellipk(m))
-        k_minus_e_over_m = (K - float(ellipe(m))) / m
+        K = float(elliprf(0.0, 1.0 - m, 1.0))
+        k_minus_e_over_m = float(elliprd(0.0, 1.0 - m, 1.0)) / 3.0
     # eq. 4.38 with p0 = 3N/(2 pi a b): A_min = 3 N (K - E)/(2 pi E* a^3 e^2)
     major = (3.0 * normal_force * k_minus_e_over_m / (2.0 * np.pi * lo * e_star)) ** (1.0 / 3.0)
     minor = major * np.sqrt(1.0 - m)

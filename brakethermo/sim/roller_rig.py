@@ -3,8 +3,11 @@
 What the estimator (:mod:`brakethermo.models.roller_rig`) does not know about, and this
 simulator has:
 
-- the creep law: FASTSIM (Kalker) on the Kik-Piotrowski virtually corrected ellipse
-  (paper eq. 4), Hertz's elliptic traction bound, friction falling with the slip
+- the contact: its own Hertz ellipse (Carlson's integrals, not the estimator's ratio
+  of complete elliptic integrals) and Haines-Ollerton strip theory with Carter's exact
+  2-D solution in every strip, the spin entering as a creepage varying across the
+  strips -- not the estimator's Kalker/FASTSIM family, whose small-creep slope it
+  undercuts by some 15 %, as measured creep curves do; friction falling with the slip
   velocity by a law with other parameters than the datasheet's;
 - an out-of-round roller (its radius varies once per revolution) and an eccentric
   roller encoder: periodic noise at the roller's rotation frequency, as the paper saw;
@@ -35,16 +38,12 @@ from numba import njit
 
 from brakethermo.errors import ConfigError
 from brakethermo.io.writers import Channel, SessionData
-from brakethermo.rigs.fastsim import ELLIPTIC, fastsim_scalar
-from brakethermo.rigs.hertz import curvature_sums, hertz_contact
-from brakethermo.rigs.kalker import flexibilities, kalker_coefficients
-from brakethermo.rigs.roller_rig import RollerRigSpec, load_roller_rig
+from brakethermo.sim.roller_contact import Machine, contact_strips, load_machine, strip_force
 from brakethermo.sim.writer import write_session_and_truth
 
 ENCODER_COUNTS = 16384  # per revolution, 4096 PPR in X4 evaluation (paper)
 SIM_STEP = 2.0e-4  # s, the truth's RK4 step
 WARMUP_S = 3.0  # s of free rolling integrated before the log starts
-VIRTUAL_PENETRATION = 0.55  # Kik-Piotrowski factor (paper eq. 4)
 
 
 @dataclass(frozen=True)
@@ -153,59 +152,18 @@ def _ou(rng: np.random.Generator, n: int, dt: float, tau: float, sigma: float) -
 
 # Layout of the truth parameter vector.
 (P_JW, P_JR, P_RW, P_RR, P_ECC, P_NREF, P_PHI, P_MU0, P_FA, P_FB, P_GAIN, P_TAUP, P_MV, P_MRTH,
- P_MX, P_MR2, P_MF, P_MP, P_TAUM, P_FSYN, P_BW0, P_BW1, P_BR0, P_BR1, P_U_MAX, P_V_LO,
- P_V_HI) = range(27)  # fmt: skip
-N_U, N_V = 801, 7  # FASTSIM table: normalised creepage x normalised spin
+ P_MX, P_MR2, P_MF, P_MP, P_TAUM, P_FSYN, P_BW0, P_BW1, P_BR0, P_BR1) = range(24)  # fmt: skip
 
 
 @njit(cache=True, nogil=True)
-def _fastsim_table(a, b, L1, L2, L3, u_max, v_lo, v_hi, nx):  # pragma: no cover - compiled
-    """F/(mu N) of FASTSIM at N_ref, mu = 1 over u = xi/(mu s) in [0, u_max], v = phi/mu.
-
-    With a, b, L ~ s = (N/N_ref)^(1/3) FASTSIM's F/(mu N) depends on xi and phi only
-    through xi/(mu s) and phi/mu, so one table serves every load and friction. The
-    flexibilities come in multiplied by N_ref and FASTSIM runs at N = 1 N: the same
-    traction-to-bound ratios as at N_ref, and the force it returns is F/(mu N).
-    """
-    tab = np.empty((N_V, N_U))
-    for iv in range(N_V):
-        v = v_lo + (v_hi - v_lo) * iv / (N_V - 1)
-        for iu in range(N_U):
-            u = u_max * iu / (N_U - 1)
-            fx, _ = fastsim_scalar(u, 0.0, v, 1.0, 1.0, a, b, L1, L2, L3, nx, nx, ELLIPTIC)
-            tab[iv, iu] = fx
-    return tab
-
-
-@njit(cache=True, nogil=True)
-def _creep_force(xi, mu, N, p, tab):  # pragma: no cover - compiled
-    """FASTSIM force from the table, bilinear, N (the sign of xi)."""
-    s = (N / p[P_NREF]) ** (1.0 / 3.0)
-    u = abs(xi) / (mu * s) * (N_U - 1) / p[P_U_MAX]
-    v = (p[P_PHI] / mu - p[P_V_LO]) / (p[P_V_HI] - p[P_V_LO]) * (N_V - 1)
-    v = min(max(v, 0.0), N_V - 1.000001)
-    jv = int(v)
-    fv = v - jv
-    if u >= N_U - 1:
-        g = (1.0 - fv) * tab[jv, N_U - 1] + fv * tab[jv + 1, N_U - 1]
-    else:
-        ju = int(u)
-        fu = u - ju
-        g = (1.0 - fv) * ((1.0 - fu) * tab[jv, ju] + fu * tab[jv, ju + 1]) + fv * (
-            (1.0 - fu) * tab[jv + 1, ju] + fu * tab[jv + 1, ju + 1]
-        )
-    return math.copysign(g * mu * N, xi)
-
-
-@njit(cache=True, nogil=True)
-def _truth_rhs(th_r, w_w, w_r, t_del, t_a, tq, N, p, tab):  # pragma: no cover - compiled
+def _truth_rhs(th_r, w_w, w_r, t_del, t_a, tq, N, p, strips):  # pragma: no cover - compiled
     r_r = p[P_RR] * (1.0 + p[P_ECC] * math.cos(th_r))  # out-of-round roller
     v_w = w_w * p[P_RW]
     v_r = w_r * r_r
     V = max(0.5 * (abs(v_w) + abs(v_r)), 0.05)
     mu = p[P_MU0] * ((1.0 - p[P_FA]) * math.exp(-p[P_FB] * abs(v_w - v_r)) + p[P_FA])
     xi = (v_w - v_r) / V
-    F = _creep_force(xi, mu, N, p, tab)
+    F = strip_force(xi, mu, N, p[P_NREF], p[P_PHI], strips)
     ratio = p[P_FSYN] / p[P_MF]
     w_syn = 2.0 * math.pi * p[P_FSYN] / p[P_MP]
     slip = (w_syn - w_r) / w_syn
@@ -234,7 +192,7 @@ def _truth_rhs(th_r, w_w, w_r, t_del, t_a, tq, N, p, tab):  # pragma: no cover -
 
 
 @njit(cache=True, nogil=True)
-def _integrate(y0, tq, nf, dt, n_sub, p, tab, out, force, creep):  # pragma: no cover
+def _integrate(y0, tq, nf, dt, n_sub, p, strips, out, force, creep):  # pragma: no cover
     """RK4 of the truth over len(tq) - 1 samples; inputs linear inside an interval."""
     h = dt / n_sub
     y = y0.copy()
@@ -244,7 +202,7 @@ def _integrate(y0, tq, nf, dt, n_sub, p, tab, out, force, creep):  # pragma: no 
     k4 = np.empty(6)
     z = np.empty(6)
     for k in range(tq.shape[0]):
-        r = _truth_rhs(y[1], y[2], y[3], y[4], y[5], tq[k], nf[k], p, tab)
+        r = _truth_rhs(y[1], y[2], y[3], y[4], y[5], tq[k], nf[k], p, strips)
         out[k] = y
         force[k] = r[6]
         creep[k] = r[7]
@@ -253,57 +211,49 @@ def _integrate(y0, tq, nf, dt, n_sub, p, tab, out, force, creep):  # pragma: no 
         for j in range(n_sub):
             ca, cm, cb = j / n_sub, (j + 0.5) / n_sub, (j + 1.0) / n_sub
             dq, dn = tq[k + 1] - tq[k], nf[k + 1] - nf[k]
-            r = _truth_rhs(y[1], y[2], y[3], y[4], y[5], tq[k] + dq * ca, nf[k] + dn * ca, p, tab)
+            r = _truth_rhs(
+                y[1], y[2], y[3], y[4], y[5], tq[k] + dq * ca, nf[k] + dn * ca, p, strips
+            )
             for i in range(6):
                 k1[i] = r[i]
                 z[i] = y[i] + 0.5 * h * r[i]
-            r = _truth_rhs(z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cm, nf[k] + dn * cm, p, tab)
+            r = _truth_rhs(
+                z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cm, nf[k] + dn * cm, p, strips
+            )
             for i in range(6):
                 k2[i] = r[i]
                 z[i] = y[i] + 0.5 * h * r[i]
-            r = _truth_rhs(z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cm, nf[k] + dn * cm, p, tab)
+            r = _truth_rhs(
+                z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cm, nf[k] + dn * cm, p, strips
+            )
             for i in range(6):
                 k3[i] = r[i]
                 z[i] = y[i] + h * r[i]
-            r = _truth_rhs(z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cb, nf[k] + dn * cb, p, tab)
+            r = _truth_rhs(
+                z[1], z[2], z[3], z[4], z[5], tq[k] + dq * cb, nf[k] + dn * cb, p, strips
+            )
             for i in range(6):
                 k4[i] = r[i]
                 y[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
 def _truth_params(
-    spec: RollerRigSpec, cfg: RollerRigSimConfig, rng: np.random.Generator, nx: int = 20
+    machine: Machine, cfg: RollerRigSimConfig, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The machine as it really is (datasheet values perturbed) and its FASTSIM table."""
-    A, B = curvature_sums(
-        cfg.radius_m,
-        spec.roller_radius,
-        spec.wheel_lateral_curvature,
-        spec.roller_lateral_curvature,
-    )
-    hz = hertz_contact(spec.nominal_load, A, B, spec.young, spec.poisson)
-    a = math.sqrt(VIRTUAL_PENETRATION * hz.delta / A)  # eq. 4, Kik-Piotrowski
-    b = math.sqrt(VIRTUAL_PENETRATION * hz.delta / B)
-    c = kalker_coefficients(b / a, spec.poisson)
-    L1, L2, L3 = flexibilities(a, b, spec.shear_modulus, c)
-    spin = math.sin(spec.contact_angle) * (1.0 / cfg.radius_m + 1.0 / spec.roller_radius)
-    m, br = spec.motor, spec.bearings
+    """The machine as it really is (datasheet values perturbed) and its contact strips."""
+    spin = math.sin(machine.contact_angle) * (1.0 / cfg.radius_m + 1.0 / machine.roller_radius)
+    v_th, r_th, x_th, r2, x2, f_rated, pole_pairs = machine.motor
+    bw0, bw1, br0, br1 = machine.bearings
     u = rng.uniform
-    mu0, fa = spec.friction.mu0 * u(0.9, 1.1), u(0.35, 0.5)
-    # full sliding of pure creepage is reached near xi = 3 mu N/(G a b c11); table to 3x that
-    u_max = 9.0 * spec.nominal_load / (spec.shear_modulus * a * b * c.c11)
-    v_lo, v_hi = spin / mu0, spin / (mu0 * fa)
     p = np.array([
-        spec.wheel_inertia * u(0.98, 1.03), spec.roller_inertia * u(0.98, 1.03), cfg.radius_m,
-        spec.roller_radius, u(1.0e-4, 2.5e-4), spec.nominal_load, spin, mu0, fa, u(0.4, 0.9),
-        u(0.95, 0.99), u(0.008, 0.015), m.v_th, m.r_th, m.x_th + m.x2, m.r2 * u(1.02, 1.08),
-        m.f_rated, m.pole_pairs, u(0.015, 0.03), cfg.supply_hz,
-        br.wheel_coulomb * u(0.8, 1.3), br.wheel_viscous * u(0.8, 1.3),
-        br.roller_coulomb * u(0.8, 1.3), br.roller_viscous * u(0.8, 1.3), u_max, v_lo, v_hi,
+        machine.wheel_inertia * u(0.98, 1.03), machine.roller_inertia * u(0.98, 1.03),
+        cfg.radius_m, machine.roller_radius, u(1.0e-4, 2.5e-4), machine.nominal_load, spin,
+        machine.mu0 * u(0.9, 1.1), u(0.35, 0.5), u(0.4, 0.9), u(0.95, 0.99), u(0.008, 0.015),
+        v_th, r_th, x_th + x2, r2 * u(1.02, 1.08), f_rated, pole_pairs, u(0.015, 0.03),
+        cfg.supply_hz, bw0 * u(0.8, 1.3), bw1 * u(0.8, 1.3), br0 * u(0.8, 1.3),
+        br1 * u(0.8, 1.3),
     ])  # fmt: skip
-    n_ref = spec.nominal_load
-    tab = _fastsim_table(a, b, L1 * n_ref, L2 * n_ref, L3 * n_ref, u_max, v_lo, v_hi, nx)
-    return p, tab
+    return p, contact_strips(machine, cfg.radius_m)
 
 
 def _encoder_speed(theta: np.ndarray, dt: float, ecc: float, phase: float) -> np.ndarray:
@@ -327,9 +277,9 @@ def simulate_roller_rig(cfg: RollerRigSimConfig) -> RollerRigSimResult:
         ``torque_delivered``).
     """
     cfg = cfg.validated()
-    spec = load_roller_rig(cfg.rig)
+    machine = load_machine(cfg.rig)
     rng = np.random.default_rng(cfg.seed)
-    p, tab = _truth_params(spec, cfg, rng)
+    p, strips = _truth_params(machine, cfg, rng)
     dt = 1.0 / cfg.rate_hz
     n_sub = max(1, math.ceil(dt / SIM_STEP - 1e-9))
     n_warm = round(WARMUP_S / dt)
@@ -342,22 +292,21 @@ def simulate_roller_rig(cfg: RollerRigSimConfig) -> RollerRigSimResult:
     # the PMSM acts on the request after its dead time (one to three samples)
     dead = int(rng.integers(1, 4))
     acting = np.concatenate([np.zeros(dead), request[:-dead]])
-    load = spec.nominal_load * (1.0 + _ou(rng, n, dt, 2.0, 0.015))
-    w_syn = 2.0 * math.pi * cfg.supply_hz / spec.motor.pole_pairs
+    load = machine.nominal_load * (1.0 + _ou(rng, n, dt, 2.0, 0.015))
+    w_syn = 2.0 * math.pi * cfg.supply_hz / machine.motor[6]
     w_r0 = w_syn * (1.0 - 0.005)
-    y0 = np.array(
-        [0.0, rng.uniform(0, 2 * np.pi), w_r0 * spec.roller_radius / cfg.radius_m, w_r0, 0.0, 0.0]
-    )
+    w_w0 = w_r0 * machine.roller_radius / cfg.radius_m
+    y0 = np.array([0.0, rng.uniform(0, 2 * np.pi), w_w0, w_r0, 0.0, 0.0])
     states = np.empty((n, 6))
     force, creep = np.empty(n), np.empty(n)
-    _integrate(y0, acting, load, dt, n_sub, p, tab, states, force, creep)
+    _integrate(y0, acting, load, dt, n_sub, p, strips, states, force, creep)
     states, force, creep, load = states[n_warm:], force[n_warm:], creep[n_warm:], load[n_warm:]
     th_w, th_r, w_w, w_r, t_del = (states[:, i] for i in range(5))
 
     meas_w = _encoder_speed(th_w, dt, rng.uniform(5e-4, 1.5e-3), rng.uniform(0, 2 * np.pi))
     meas_r = _encoder_speed(th_r, dt, rng.uniform(1e-3, 2.5e-3), rng.uniform(0, 2 * np.pi))
-    load_meas = load + rng.normal(0.0, 0.004 * spec.nominal_load, load.size)
-    shaft = force * spec.roller_radius + rng.normal(0.0, 8.0, load.size)  # transducer
+    load_meas = load + rng.normal(0.0, 0.004 * machine.nominal_load, load.size)
+    shaft = force * machine.roller_radius + rng.normal(0.0, 8.0, load.size)  # transducer
     channels = [
         Channel("wheel_omega", "rad/s", t_log, meas_w, decimals=5),
         Channel("roller_omega", "rad/s", t_log, meas_r, decimals=5),
@@ -377,7 +326,7 @@ def simulate_roller_rig(cfg: RollerRigSimConfig) -> RollerRigSimResult:
         )
     facts = {
         "rig": "roller-rig",
-        "rig_datasheet": spec.id,
+        "rig_datasheet": machine.id,
         "roller_supply_hz": f"{cfg.supply_hz:g}",
         "speed_kmh": f"{cfg.speed_kmh:g}",
         "simulated": "true",
