@@ -24,9 +24,11 @@ from brakethermo.pipelines.roller_rig import (
     CONVERGENCE_WINDOW_S,
     RollerRigOptions,
     convergence_time,
+    creep_model_band,
     run_roller_rig,
     windowed_mean,
 )
+from brakethermo.results.roller_rig import GuessRun
 from brakethermo.sim.roller_rig import (
     RollerRigSimConfig,
     simulate_roller_rig,
@@ -221,3 +223,20 @@ def test_any_accepted_guess_gives_the_same_radius_or_says_why(sessions: dict[str
     for run in res.runs:
         if run.restart is not None:
             assert "re-started from the ratio radius" in rows[run.r0_mm]["restarted"]
+
+
+def test_creep_model_band_measures_the_torque_proportional_departure() -> None:
+    rng = np.random.default_rng(5)
+    n = 4000
+    torque = np.zeros(n)
+    torque[1000:3000] = 600.0  # N m
+    free = torque == 0.0
+    std = np.full(n, 0.03)
+    for slope in (0.0, 0.2):  # mm per kN m of torque: none, and the creep law's error
+        r = 341.6 + rng.normal(0.0, 0.03, n) - slope * torque * 1e-3
+        run = GuessRun(320.0, r, std, r, std, np.zeros((n, 3)), 0.0)
+        out = creep_model_band(run, torque, free)
+        assert out.model_error_mm_per_knm == pytest.approx(slope, abs=0.02)
+        inside = np.abs(r - 341.6) <= 1.96 * out.radius_std_mm
+        assert 0.9 <= inside.mean() <= 1.0
+        assert np.array_equal(out.radius_std_mm[free], std[free])  # free rolling untouched

@@ -189,8 +189,11 @@ def roller_rig_page(result: RollerRigResult) -> Page:
         Section("Rolling radius", text, [table1],
                 {"radius": radius_figure(result),
                  "radius_start": radius_figure(result, (float(result.time[0]), t_end))},
-                ["Bands: ±2σ of each run's posterior. Dashed: the forward filter (the "
-                 "paper's estimate); solid: the output track."]),
+                ["Bands: ±2σ of each run's posterior, widened by the creep law's error "
+                 f"the session shows ({result.runs[0].model_error_mm_per_knm:.3f} mm per kN m"
+                 " of traction torque: how far the estimate leaves its free-rolling value "
+                 "under load, which a constant radius cannot do). Dashed: the forward filter"
+                 " (the paper's estimate); solid: the output track."]),
         Section("Naive speed-ratio radius vs the UKF", [naive_text], [TableBlock(
             ["phase", "naive, mm", "naive − ref, mm", "UKF, mm", "UKF − ref, mm"], cmp_rows,
             caption="Phase means; free rolling: torque request below 2 % of its peak, "
