@@ -82,3 +82,26 @@ def test_the_race_judges_the_laws_mu_t_a_lap_ahead(races, tmp_path) -> None:
     assert "friction_temperature" not in used
     kept = estimate_session(path, EstimateOptions(h_law=law, smoother=False, online_auto=False))
     assert "friction_temperature" in kept.summary["run"]["effects"]
+
+
+def test_the_race_judges_the_laws_uneven_crown_before_its_online_states(races, tmp_path) -> None:
+    """A law whose pad crown is far more uneven than the race's pads (a test session with
+    a pad split): the race tests uniform weights a lap ahead before anything else, drops
+    the law's, and then needs no online k_z to explain its measured spot."""
+    shipped = Path(__file__).parents[1] / "configs" / "hlaw" / "cc-340-8.toml"
+    text = shipped.read_text()
+    start = text.index("w = [")
+    end = text.index("]", start) + 1
+    law = tmp_path / "split.toml"
+    law.write_text(text[:start] + "w = [1.6, 0.6, 0.8]" + text[end:])
+    path, truth_path = races["normal"]
+    auto = estimate_session(path, EstimateOptions(h_law=law, smoother=False))
+    choice = auto.summary["run"]["online_choice"]
+    crown = next(r for r in choice["law_effects_tested"] if r["name"] == "without crown_weights")
+    assert crown["significant"] and choice["law_effects_dropped"] == ["crown_weights"]
+    assert "thickness_gradient" not in choice["chosen"]
+    kept = estimate_session(path, EstimateOptions(h_law=law, smoother=False, online_auto=False))
+    truth = read_truth(truth_path)
+    assert _contact_rmse(auto.frame, truth) < 0.7 * _contact_rmse(kept.frame, truth)
+    plain = estimate_session(path, EstimateOptions(smoother=False))  # the shipped law: usual
+    assert not plain.summary["run"]["online_choice"].get("law_effects_tested")

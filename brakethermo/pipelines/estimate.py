@@ -48,10 +48,11 @@ from brakethermo.pipelines.models import (
     other_disc,
 )
 from brakethermo.pipelines.online_choice import (
-    DROPPABLE,
     ONLINE_FLAGS,
     OnlineChoice,
     choose_online,
+    droppable,
+    law_without,
 )
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.tuning import (
@@ -362,11 +363,10 @@ def _online_choice(session: Session, options: EstimateOptions, cal: DiscCalibrat
     given = options.overrides()
     candidates = tuple(name for name, flag in ONLINE_FLAGS.items()
                        if flag not in given and flag not in user and name not in cal.effects)
-    carried = {name: replace(cal, effects={k: v for k, v in cal.effects.items() if k != name})
-               for name in DROPPABLE if name in cal.effects}
-    if not candidates and not carried:
+    parts = droppable(cal)
+    if not candidates and not parts:
         return None
-    choice = choose_online(session, options, candidates, carried)
+    choice = choose_online(session, options, candidates, cal, parts)
     forced = {flag: getattr(tuning, flag) for name, flag in ONLINE_FLAGS.items()
               if name not in candidates}
     return OnlineChoice(choice.flags, {**choice.facts, "forced_or_from_law": forced},
@@ -420,9 +420,8 @@ def estimate_from_session(
     choice = _online_choice(session, options, cal, tuning, calibration)
     if choice is not None:
         tuning = replace(tuning, **choice.flags)
-        if choice.dropped:
-            cal = replace(cal, effects={k: v for k, v in cal.effects.items()
-                                        if k not in choice.dropped})
+        for name in choice.dropped:
+            cal = law_without(cal, name)
     h = cal.law(inputs.speed)
     model = disc_model(disc, tuning, cal.weights, cal.kz_ratio)
     spot_radii = np.asarray(disc.spot_radii)

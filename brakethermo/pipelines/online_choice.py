@@ -29,6 +29,13 @@ by default. Instead the race decides:
    the lap open loop, and the effect is dropped only when the lap-ahead error without it
    shrinks by the same rule. A race whose friction behaves like the test session's keeps
    it.
+6. **the law's pad-crown weights** (eq. 6-8) are the test session's pads: a race on
+   other pads (or the same pads bedded otherwise) may not share a strongly uneven crown.
+   They are tested the same way — uniform weights against the law's, a lap ahead — but
+   *before* the online states: a crown the race does not have makes the measured spot
+   run hotter or cooler than the model, which an online k_z (or the power scale) would
+   otherwise "explain", moving the unmeasured spots the wrong way. When the uniform
+   crown wins, the online candidates are judged again on it.
 
 The crown balance is not a candidate: on the measured spot it does what a k_z change
 does, and on races where neither the test session's split nor its k_z held, letting the
@@ -66,6 +73,24 @@ NEUTRAL = {"kz_factor": 1.0, "crown_balance": 0.0}
 
 # effects of the h law the race may drop (the rest are the disc's or the sensor's)
 DROPPABLE = ("friction_temperature",)
+CROWN = "crown_weights"  # the law's pad-crown weights, tested before the online states
+UNIFORM_CROWN = (1.0, 1.0, 1.0)
+# weights all within this of uniform: nothing worth a filter pass (the test sessions
+# without a pad split give 0.8-1.25: the crown's usual unevenness and the model's own)
+CROWN_TOLERANCE = 0.3
+
+
+def law_without(cal: DiscCalibration, name: str) -> DiscCalibration:
+    """The h law's calibration without one of its race-droppable parts (module docstring)."""
+    if name == CROWN:
+        return replace(cal, weights=UNIFORM_CROWN)
+    return replace(cal, effects={k: v for k, v in cal.effects.items() if k != name})
+
+
+def droppable(cal: DiscCalibration) -> tuple[str, ...]:
+    """The parts of ``cal`` a race may drop: its uneven crown first, then its effects."""
+    crown = (CROWN,) if max(abs(w - 1.0) for w in cal.weights) > CROWN_TOLERANCE else ()
+    return crown + tuple(name for name in DROPPABLE if name in cal.effects)
 
 
 @dataclass(frozen=True)
@@ -89,17 +114,15 @@ def head(session: Session, laps: int) -> Session:
 
 
 def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str, ...],
-                  carried: dict[str, DiscCalibration] | None = None) -> OnlineChoice:
+                  cal: DiscCalibration, parts: tuple[str, ...] = ()) -> OnlineChoice:
     """Run the decision (module docstring) for ``candidates`` (effect names).
 
     ``base`` is the estimate's options with every candidate's flag unset; the decision
-    runs filter-only passes with each flag forced. ``carried`` maps each effect of the h
-    law the race may drop to the law's calibration without it.
+    runs filter-only passes with each flag forced, on the calibration ``cal``. ``parts``
+    are the parts of the h law the race may drop (:func:`droppable`).
     """
-
-    carried = carried or {}
     flying = sorted({lap.lap for lap in session.laps if lap.lap >= 1})
-    if not (candidates or carried) or len(flying) < 2:
+    if not (candidates or parts) or len(flying) < 2:
         return OnlineChoice({ONLINE_FLAGS[c]: False for c in candidates}, {
             "rule": "not decided: fewer than two flying laps; online effects left off, the"
                     " h law's effects kept",
@@ -107,19 +130,71 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     part = head(session, min(DECISION_LAPS, flying[-1]))
     off = {ONLINE_FLAGS[c]: False for c in candidates}
     quick = replace(base, smoother=False, score=False, online_auto=False)
-    variants: dict[str, tuple[EstimateOptions, DiscCalibration | None]] = {
-        "reference": (replace(quick, **off), None)}
-    variants.update({c: (replace(quick, **{**off, ONLINE_FLAGS[c]: True}), None)
-                     for c in candidates})
-    variants.update({f"without {name}": (replace(quick, **off), cal)
-                     for name, cal in carried.items()})
-    runs = _run_variants(part, variants)
     lap = part.frame["lap"].to_numpy()
     zones = detect_zones(part.time, np.nan_to_num(part.values("brake_pressure_front")))
     cycles = np.full(lap.size, -1)
     for j, (a, _) in enumerate(zones):
         cycles[a:] = j
     rule = VerdictRule(min_shrink_pct=MIN_SHRINK_PCT)
+    first = tuple(p for p in parts if p == CROWN)
+    later = tuple(p for p in parts if p != CROWN)
+
+    def one_pass(law: DiscCalibration, with_first: bool) -> dict[str, Any]:
+        variants = {"reference": (replace(quick, **off), law)}
+        variants.update({c: (replace(quick, **{**off, ONLINE_FLAGS[c]: True}), law)
+                         for c in candidates})
+        variants.update({f"without {p}": (replace(quick, **off), law_without(law, p))
+                         for p in (*first, *later) if with_first or p in later})
+        return _run_variants(part, variants)
+
+    runs = one_pass(cal, True)
+    tested = []
+    for name in first:
+        row = _lap_ahead_test(runs["reference"], runs[f"without {name}"], lap, cycles, rule)
+        tested.append({**row, "name": f"without {name}", "law": list(cal.weights),
+                       "test": f"uniform weights against the law's, {row['test']}"})
+    dropped_first = tuple(r["name"].removeprefix("without ") for r in tested
+                          if r["significant"])
+    for name in dropped_first:
+        cal = law_without(cal, name)
+    if dropped_first:
+        runs = one_pass(cal, False)
+    rows = _online_rows(runs, candidates, lap, cycles, rule)
+    chosen = [r["name"] for r in rows if r["significant"]]
+    alike = [c for c in chosen if c in CONFOUNDED]
+    chosen = [c for c in chosen if c not in alike[1:]]
+    flags = {ONLINE_FLAGS[c]: c in chosen for c in candidates}
+    ref = runs["reference"]
+    if later and chosen:
+        # the law's effects are judged under the online states the race chose
+        on = {**off, **{ONLINE_FLAGS[c]: True for c in chosen}}
+        again = {"reference": (replace(quick, **on), cal)}
+        again.update({f"without {p}": (replace(quick, **on), law_without(cal, p))
+                      for p in later})
+        runs.update(_run_variants(part, again))
+        ref = runs["reference"]
+    for name in later:
+        row = _lap_ahead_test(ref, runs[f"without {name}"], lap, cycles, rule)
+        tested.append({**row, "name": f"without {name}"})
+    dropped = tuple(r["name"].removeprefix("without ") for r in tested if r["significant"])
+    return OnlineChoice(flags, {
+        "rule": (f"switched on when the measured spot's one-step-ahead innovation RMSE"
+                 f" shrinks by more than {MIN_SHRINK_PCT:g} % (lower end of a 95 % bootstrap"
+                 " interval over braking cycles) and the predictive log-likelihood improves,"
+                 f" on flying laps 1-{min(DECISION_LAPS, flying[-1])}; of k_z and the crown"
+                 " balance (one spot cannot tell them apart) only the better; the law's"
+                 " uneven pad crown is tested first"),
+        "laps": [int(v) for v in np.unique(lap[lap >= 1])],
+        "chosen": chosen,
+        "scores": rows,
+        "law_effects_tested": tested,
+        "law_effects_dropped": list(dropped),
+    }, dropped)
+
+
+def _online_rows(runs: dict[str, Any], candidates: tuple[str, ...], lap: np.ndarray,
+                 cycles: np.ndarray, rule: VerdictRule) -> list[dict[str, Any]]:
+    """Each online candidate's test against the reference run, best first."""
     ref = runs["reference"]
     loglik = {name: float(np.nanmean(_loglik(r))) for name, r in runs.items()}
     rows = []
@@ -136,36 +211,7 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
         row["name"] = c
         rows.append(row)
     rows.sort(key=lambda r: -np.nan_to_num(r["shrink_pct"], nan=-1e9))
-    chosen = [r["name"] for r in rows if r["significant"]]
-    alike = [c for c in chosen if c in CONFOUNDED]
-    chosen = [c for c in chosen if c not in alike[1:]]
-    flags = {ONLINE_FLAGS[c]: c in chosen for c in candidates}
-    if carried and chosen:
-        # the law's effects are judged under the online states the race chose
-        on = {**off, **{ONLINE_FLAGS[c]: True for c in chosen}}
-        again = {"reference": (replace(quick, **on), None)}
-        again.update({f"without {name}": (replace(quick, **on), cal)
-                      for name, cal in carried.items()})
-        runs.update(_run_variants(part, again))
-        ref = runs["reference"]
-    kept = []
-    for name in carried:
-        row = _lap_ahead_test(ref, runs[f"without {name}"], lap, cycles, rule)
-        row["name"] = f"without {name}"
-        kept.append(row)
-    dropped = tuple(r["name"].removeprefix("without ") for r in kept if r["significant"])
-    return OnlineChoice(flags, {
-        "rule": (f"switched on when the measured spot's one-step-ahead innovation RMSE"
-                 f" shrinks by more than {MIN_SHRINK_PCT:g} % (lower end of a 95 % bootstrap"
-                 " interval over braking cycles) and the predictive log-likelihood improves,"
-                 f" on flying laps 1-{min(DECISION_LAPS, flying[-1])}; of k_z and the crown"
-                 " balance (one spot cannot tell them apart) only the better"),
-        "laps": [int(v) for v in np.unique(lap[lap >= 1])],
-        "chosen": chosen,
-        "scores": rows,
-        "law_effects_tested": kept,
-        "law_effects_dropped": list(dropped),
-    }, dropped)
+    return rows
 
 
 def _structural_test(run: Any, param: str, lap: np.ndarray, cycles: np.ndarray,

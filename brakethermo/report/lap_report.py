@@ -271,6 +271,8 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
         lo, hi = row.get("shrink_ci95_pct", [float("nan")] * 2)
         verdict = ("dropped" if name in choice.get("law_effects_dropped", []) else
                    "kept")
+        if "law" in row:  # the pad crown: say which weights were tested against uniform
+            name = "pad-crown weights w = " + ", ".join(f"{w:.2f}" for w in row["law"])
         lines.append(f"the h law's {name}: {verdict} — {row.get('test', '')}, error without it"
                      f" {-row.get('shrink_pct', float('nan')):+.0f} % (95 % {-hi:+.0f} to"
                      f" {-lo:+.0f} %)")
