@@ -37,6 +37,9 @@ from brakethermo.pipelines.batch import (
     process_session,
     run_batch,
 )
+from brakethermo.pipelines.batch import scheduling as batch_scheduling
+from brakethermo.pipelines.batch import session as batch_session
+from brakethermo.pipelines.batch import tasks as batch_tasks
 
 
 class SynthRunner:
@@ -282,7 +285,7 @@ def test_worker_processes(tmp_path: Path) -> None:
 
 
 def test_unreachable_scheduler_is_a_user_error(tmp_path: Path, monkeypatch) -> None:
-    monkeypatch.setattr(batch_mod, "SCHEDULER_TIMEOUT_S", 1.0)
+    monkeypatch.setattr(batch_scheduling, "SCHEDULER_TIMEOUT_S", 1.0)
     src = tmp_path / "s"
     src.mkdir()
     write_session_parquet(src / "race.parquet", 1)
@@ -295,7 +298,7 @@ def test_unreachable_scheduler_is_a_user_error(tmp_path: Path, monkeypatch) -> N
 def test_cli_exit_code_table_and_json(folder: Path, tmp_path: Path, monkeypatch) -> None:
     from brakethermo.cli import app
 
-    monkeypatch.setattr(batch_mod, "PipelineRunner", SynthRunner)
+    monkeypatch.setattr(batch_session, "PipelineRunner", SynthRunner)
     out = tmp_path / "cli_out"
     res = CliRunner().invoke(app, ["batch", str(folder), "--out", str(out), "--mcap-out"])
     assert res.exit_code == EXIT_BATCH_PARTIAL, res.output
@@ -313,7 +316,7 @@ def test_output_key_covers_options_and_shipped_configs(tmp_path: Path, monkeypat
     shipped = tmp_path / "configs"
     (shipped / "hlaw").mkdir(parents=True)
     (shipped / "hlaw" / "cc-340-8.toml").write_text("a = 1\n")
-    monkeypatch.setattr(batch_mod, "config_dir", lambda: shipped)
+    monkeypatch.setattr(batch_tasks, "config_dir", lambda: shipped)
     base = BatchOptions(out=tmp_path)
     key = base.output_key()
     assert key == BatchOptions(out=tmp_path / "elsewhere", workers=4, force=True).output_key()

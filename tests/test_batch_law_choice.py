@@ -24,6 +24,7 @@ from brakethermo.pipelines.batch import (
     process_session,
     run_batch,
 )
+from brakethermo.pipelines.batch import session as batch_session
 
 
 class LawRunner:
@@ -126,7 +127,7 @@ def test_batch_uses_records_and_prints_the_choice(folder, tmp_path):
 
 
 def test_progress_names_session_phase_and_laps(folder, tmp_path, monkeypatch):
-    monkeypatch.setattr(batch_mod, "PipelineRunner", LawRunner)
+    monkeypatch.setattr(batch_session, "PipelineRunner", LawRunner)
     for name in ("b_misano", "z_other_disc"):
         (folder / f"{name}.parquet").unlink()
     phases: list[Phase] = []
@@ -153,7 +154,7 @@ def test_cli_progress_and_choice_lines(folder, tmp_path, monkeypatch):
 
     from brakethermo.cli import app
 
-    monkeypatch.setattr(batch_mod, "PipelineRunner", LawRunner)
+    monkeypatch.setattr(batch_session, "PipelineRunner", LawRunner)
     res = CliRunner().invoke(app, ["batch", str(folder), "--out", str(tmp_path / "o"),
                                    "--no-reports"], env={"COLUMNS": "80"})
     assert res.exit_code == 0, res.output

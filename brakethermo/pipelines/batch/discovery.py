@@ -1,0 +1,139 @@
+"""Which files of a folder are sessions, the output folder each gets, and the manifest
+that says whether its outputs are up to date."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from brakethermo import __version__
+from brakethermo.errors import (
+    ConfigError,
+)
+from brakethermo.io.formats import SUFFIXES as FORMAT_SUFFIXES
+from brakethermo.io.writers import TRUTH_SUFFIX
+from brakethermo.pipelines.batch.tasks import SessionOutcome
+
+SESSION_SUFFIXES = FORMAT_SUFFIXES  # every registered reader (brakethermo.io.formats)
+MANIFEST = "batch_manifest.json"
+
+
+def discover_sessions(folder: str | Path, exclude: Iterable[Path] = (),
+                      not_read: list[str] | None = None) -> list[Path]:
+    """Session files under ``folder``, recursively, sorted.
+
+    Files of every registered reader (extension case-insensitive); simulator truth files
+    (``*.truth.parquet``), hidden files and directories, and anything under ``exclude``
+    (the output root when it lies inside the folder) are left out. Sub-folders that
+    cannot be read, and links to folders (a link can loop or lead out of the folder), are
+    not entered; each is said in ``not_read`` (one sentence per folder) when given.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ConfigError("is not a folder; give the folder holding the session files", path=folder)
+    excluded = [Path(e).resolve() for e in exclude]
+    said = not_read if not_read is not None else []
+
+    def unreadable(exc: OSError) -> None:
+        said.append(f"{exc.filename}: cannot be read ({exc.strerror}); its sessions are"
+                    " not in this batch")
+
+    found = []
+    for top, dirs, files in os.walk(folder, onerror=unreadable):
+        here = Path(top)
+        for d in list(dirs):
+            if d.startswith("."):
+                dirs.remove(d)
+            elif (here / d).is_symlink():
+                dirs.remove(d)
+                said.append(f"{here / d}: a link to a folder, not followed (it could loop"
+                            " or lead outside); pass its target as a batch of its own")
+        for name in files:
+            path = here / name
+            if name.startswith(".") or path.suffix.lower() not in SESSION_SUFFIXES:
+                continue
+            if name.lower().endswith(TRUTH_SUFFIX):
+                continue
+            resolved = path.resolve()
+            if any(resolved.is_relative_to(e) for e in excluded):
+                continue
+            if not path.is_file():
+                if path.is_symlink():
+                    said.append(f"{path}: a link to {os.readlink(path)}, which does not exist;"
+                                " fix or remove the link")
+                continue
+            found.append(path)
+    return sorted(found)
+
+
+def output_names(files: list[Path], folder: Path) -> list[str]:
+    """Output directory name of each file: its stem, made unique when stems collide.
+
+    Colliding files are named after their path inside the folder, parts joined
+    by ``__`` (and the extension appended if that still collides).
+    """
+    stems = [f.stem for f in files]
+    names = []
+    for f, stem in zip(files, stems, strict=True):
+        if stems.count(stem) == 1:
+            names.append(stem)
+            continue
+        rel = f.relative_to(folder)
+        names.append("__".join((*rel.parent.parts, stem)))
+    clashes = {n for n in names if names.count(n) > 1}
+    names = [
+        f"{n}_{f.suffix.lstrip('.').lower()}" if n in clashes else n
+        for n, f in zip(names, files, strict=True)
+    ]
+    # Still one folder per session: ``s.mcap`` and ``s.MCAP`` (or ``s.mcap`` beside
+    # ``s_mcap.mcap``) must not share one, also on a file system that folds case.
+    final: list[str] = []
+    seen: set[str] = set()
+    for n in names:
+        cand, k = n, 2
+        while cand.casefold() in seen:
+            cand, k = f"{n}_{k}", k + 1
+        seen.add(cand.casefold())
+        final.append(cand)
+    return final
+
+
+def read_manifest(out_dir: Path) -> dict[str, Any] | None:
+    """The batch manifest of a session's output directory, or None."""
+    try:
+        return json.loads((out_dir / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def up_to_date(manifest: dict[str, Any] | None, sha: str, key: str) -> bool:
+    return (
+        manifest is not None
+        and manifest.get("input_sha256") == sha
+        and manifest.get("options_key") == key
+        and manifest.get("version") == __version__
+        # Written before the law choice recorded session facts: redo it once.
+        and isinstance(manifest.get("facts"), dict)
+    )
+
+
+def skipped_outcome(path: Path, name: str, manifest: dict[str, Any], out: Path) -> SessionOutcome:
+    law_file = out / name / "h_law.toml" if manifest.get("kind") == "multi" else None
+    return SessionOutcome(
+        path=path,
+        name=name,
+        status="skipped",
+        kind=manifest.get("kind"),
+        laps=int(manifest.get("laps", 0)),
+        peaks=dict(manifest.get("peaks_c", {})),
+        reason="up to date",
+        h_law_source=str(manifest.get("h_law_source", "")),
+        h_law_file=str(law_file) if law_file is not None and law_file.is_file() else None,
+        h_law_used=manifest.get("h_law_used"),
+        h_law_reason=str(manifest.get("h_law_reason", "")),
+        session_date=str(manifest.get("session_date", "")),
+        facts={str(k): str(v) for k, v in dict(manifest.get("facts") or {}).items()},
+    )

@@ -1,0 +1,179 @@
+"""``run_batch``: discovery, the first pass (test sessions, and races with a given law),
+the second (races with the laws just identified), the index."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+from brakethermo.errors import (
+    ConfigError,
+    Interrupted,
+)
+from brakethermo.pipelines.batch.discovery import (
+    discover_sessions,
+    output_names,
+    read_manifest,
+    skipped_outcome,
+    up_to_date,
+)
+from brakethermo.pipelines.batch.laws import second_pass
+from brakethermo.pipelines.batch.scheduling import executor_for, run_tasks
+from brakethermo.pipelines.batch.session import process_session
+from brakethermo.pipelines.batch.tasks import (
+    DEFAULT_LAW,
+    BatchOptions,
+    BatchResult,
+    Event,
+    Job,
+    SessionOutcome,
+    SessionTask,
+    file_sha256,
+)
+
+
+def preflight(options: BatchOptions) -> None:
+    """The user's errors, before any session is touched (exit 1, not a batch of failures).
+
+    Raises
+    ------
+    ConfigError
+        An output place that cannot be written, a broken ``--h-law`` or ``--aliases``.
+    """
+    from brakethermo.io.aliases import load_aliases
+    from brakethermo.pipelines.models import read_calibration
+    from brakethermo.pipelines.output_dir import check_output_dir
+    from brakethermo.pipelines.tuning import check_overrides
+
+    check_output_dir(options.out)
+    check_overrides({"nodes": options.nodes}, "--nodes:")
+    load_aliases(options.aliases)
+    if options.h_law is not None:
+        read_calibration(options.h_law)
+
+
+def _interrupted(files: list[Path], names: list[str], done: dict[Path, SessionOutcome]
+                 ) -> Interrupted:
+    """What an interrupt leaves: finished sessions complete, the others untouched."""
+    finished = [o.name for o in done.values() if o.status in ("ok", "skipped")]
+    pending = [n for p, n in zip(files, names, strict=True)
+               if p not in done or done[p].status == "deferred"]
+    return Interrupted(
+        f"interrupted: {len(finished)} of {len(files)} sessions finished"
+        f" ({', '.join(finished) or 'none'}) and their outputs are complete; not done:"
+        f" {', '.join(pending) or 'none'}, their folders as before. Run the same command"
+        " again to resume (finished sessions are skipped)")
+
+
+def _check_places(folder: Path, out: Path) -> None:
+    """The output folder may sit inside the input folder, not be it or hold it."""
+    f, o = folder.resolve(), out.resolve()
+    if f == o:
+        raise ConfigError(f"--out {out} is the input folder: its outputs would be read as"
+                          " sessions; give another folder, e.g. --out out")
+    if f.is_relative_to(o):
+        raise ConfigError(f"the input folder {folder} is inside --out {out}: give an output"
+                          " folder outside it")
+
+
+def run_batch(
+    folder: str | Path,
+    options: BatchOptions,
+    *,
+    job: Job = process_session,
+    on_event: Event | None = None,
+) -> BatchResult:
+    """Process every session file under ``folder`` (see the module docstring).
+
+    Parameters
+    ----------
+    folder : path
+        Searched recursively for ``.mcap``, ``.parquet``, ``.csv`` session files.
+    options : BatchOptions
+    job : callable, optional
+        ``SessionTask -> SessionOutcome``; :func:`process_session` by default. It must
+        be picklable for worker processes and Dask.
+    on_event : callable, optional
+        ``on_event("start", n_files)`` once, then ``on_event("done", outcome)`` as each
+        session finishes (or is skipped) — for progress display.
+
+    Returns
+    -------
+    BatchResult
+        One outcome per file; :attr:`BatchResult.exit_code` is 3 when any failed.
+    """
+    t0 = time.perf_counter()
+    folder = Path(folder)
+    out = Path(options.out)
+    _check_places(folder, out)
+    not_read: list[str] = []
+    files = discover_sessions(folder, exclude=[out], not_read=not_read)
+    preflight(options)
+    names = output_names(files, folder)
+    if on_event is not None:
+        on_event("start", len(files))
+    key = options.output_key()
+    given_sha = file_sha256(options.h_law) if options.h_law is not None else None
+
+    done: dict[Path, SessionOutcome] = {}
+    known_single: list[tuple[Path, str, str, dict[str, Any]]] = []
+    first: list[SessionTask] = []
+    sizes: dict[Path, int] = {}
+    for path, name in zip(files, names, strict=True):
+        try:
+            sha = file_sha256(path)
+            sizes[path] = path.stat().st_size
+        except OSError as exc:
+            done[path] = SessionOutcome(path, name, "failed", reason=f"{path}: cannot read ({exc})")
+            continue
+        manifest = None if options.force else read_manifest(out / name)
+        if up_to_date(manifest, sha, key):
+            assert manifest is not None
+            if manifest.get("kind") == "multi" or (
+                given_sha is not None and manifest.get("h_law_sha256") == given_sha
+            ):
+                done[path] = skipped_outcome(path, name, manifest, out)
+                continue
+            if given_sha is None and manifest.get("kind") == "single":
+                known_single.append((path, name, sha, manifest))
+                continue
+        first.append(
+            SessionTask(
+                path=path,
+                name=name,
+                options=options,
+                input_sha256=sha,
+                h_law=options.h_law,
+                h_law_source="given" if options.h_law is not None else DEFAULT_LAW,
+                h_law_reason="given with --h-law" if options.h_law is not None else "",
+                defer_single=options.h_law is None,
+            )
+        )
+    if on_event is not None:
+        for o in done.values():
+            on_event("done", o)
+
+    try:
+        # Longest first keeps a pool busy to the end; file size stands in for session length.
+        first.sort(key=lambda task: -sizes[task.path])
+        with executor_for(options) as executor:
+            for o in run_tasks(first, executor, job, on_event):
+                done[o.path] = o
+            second = second_pass(known_single, first, done, options, out, on_event)
+            for o in run_tasks(second, executor, job, on_event):
+                first_pass = done.get(o.path)
+                if first_pass is not None and first_pass.status == "deferred":
+                    # The file was read in the first pass; count that read in this session.
+                    o.wall_s += first_pass.wall_s
+                    o.timings["read_s"] = (o.timings.get("read_s", 0.0)
+                                           + first_pass.timings["read_s"])
+                done[o.path] = o
+    except KeyboardInterrupt:
+        raise _interrupted(files, names, done) from None
+    result = BatchResult([done[p] for p in files], time.perf_counter() - t0, not_read)
+    if options.reports and files:
+        from brakethermo.report.index import write_batch_index
+
+        write_batch_index(out, folder, (o.to_json() for o in result.outcomes))
+    return result
