@@ -39,6 +39,9 @@ def test_a_disc_of_other_kz_switches_kz_on_and_gains(races) -> None:
     assert "thickness_gradient" in choice["chosen"]
     row = next(r for r in choice["scores"] if r["name"] == "thickness_gradient")
     assert row["learned"] < 0.8 and row["shrink_ci95_pct"][0] > 5.0
+    # a thinner thermal skin than the law's disc: identify-h's thin-skin layering
+    assert choice["layering"].startswith("6 layers")
+    assert auto.summary["run"]["layers"] == 6
     off = estimate_session(path, EstimateOptions(smoother=False, adapt_kz=False,
                                                  adapt_slipstream=False))
     truth = read_truth(truth_path)

@@ -276,6 +276,8 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
         lines.append(f"the h law's {name}: {verdict} — {row.get('test', '')}, error without it"
                      f" {-row.get('shrink_pct', float('nan')):+.0f} % (95 % {-hi:+.0f} to"
                      f" {-lo:+.0f} %)")
+    if choice.get("layering"):
+        lines.append(f"layering: {choice['layering']}")
     if choice.get("forced_or_from_law"):
         lines.append("forced by option or carried by the law: " + ", ".join(
             f"{k} {'on' if v else 'off'}" for k, v in choice["forced_or_from_law"].items()))
