@@ -28,7 +28,8 @@ def races(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, Pat
     return {
         name: write_simulation(simulate(SimConfig(laps=4, sensor="single", seed=SEED,
                                                   effects=eff)), out / f"{name}.parquet")
-        for name, eff in (("low_kz", {"thickness_gradient": 1.0}), ("normal", {}))
+        for name, eff in (("low_kz", {"thickness_gradient": 1.0}), ("normal", {}),
+                          ("slow_pyrometer", {"sensor_lag": 1.0}))
     }
 
 
@@ -108,3 +109,21 @@ def test_the_race_judges_the_laws_uneven_crown_before_its_online_states(races, t
     assert _contact_rmse(auto.frame, truth) < 0.7 * _contact_rmse(kept.frame, truth)
     plain = estimate_session(path, EstimateOptions(smoother=False))  # the shipped law: usual
     assert not plain.summary["run"]["online_choice"].get("law_effects_tested")
+
+
+def test_the_race_judges_the_laws_pyrometer_lag_by_its_own_readings(races, tmp_path) -> None:
+    """The law's lag is the test session's pyrometer: a race logged by a fast one drops it
+    (one-step innovations, before the online states), a race whose sensor is as slow
+    keeps it."""
+    shipped = Path(__file__).parents[1] / "configs" / "hlaw" / "cc-340-8.toml"
+    law = tmp_path / "lag.toml"
+    law.write_text(shipped.read_text() + "\n[effects.sensor_lag]\ntau_s = 0.35\n")
+    for race, dropped in (("normal", True), ("slow_pyrometer", False)):
+        path, _ = races[race]
+        auto = estimate_session(path, EstimateOptions(h_law=law, smoother=False))
+        choice = auto.summary["run"]["online_choice"]
+        row = next(r for r in choice["law_effects_tested"] if r["name"] == "without sensor_lag")
+        assert row["test"].startswith("one-step-ahead innovations")
+        assert bool(row["significant"]) is dropped, (race, row)
+        assert ("sensor_lag" in choice["law_effects_dropped"]) is dropped
+        assert ("sensor_lag" in auto.summary["run"]["effects"]) is not dropped

@@ -29,7 +29,12 @@ by default. Instead the race decides:
    the lap open loop, and the effect is dropped only when the lap-ahead error without it
    shrinks by the same rule. A race whose friction behaves like the test session's keeps
    it.
-6. **the law's pad-crown weights** (eq. 6-8) are the test session's pads: a race on
+6. **the law's pyrometer lag** is the test session's sensor: a race logged by another
+   (or a cleaned) pyrometer has its own. It is judged by the one-step innovations (a lag
+   shapes every braking's reading within seconds) and, like the crown below, before the
+   online states: a lag the race's sensor does not have smears the readings and hides a
+   k_z change from the structural test.
+7. **the law's pad-crown weights** (eq. 6-8) are the test session's pads: a race on
    other pads (or the same pads bedded otherwise) may not share a strongly uneven crown.
    They are tested the same way — uniform weights against the law's, a lap ahead — but
    *before* the online states: a crown the race does not have makes the measured spot
@@ -72,8 +77,12 @@ NEUTRAL = {"kz_factor": 1.0, "crown_balance": 0.0}
 
 
 # effects of the h law the race may drop (the rest are the disc's or the sensor's)
-DROPPABLE = ("friction_temperature",)
+DROPPABLE = ("friction_temperature", "sensor_lag")
 CROWN = "crown_weights"  # the law's pad-crown weights, tested before the online states
+# what shapes the measured spot itself: judged before the online states, which it hides
+FIRST = (CROWN, "sensor_lag")
+# a lag shapes every braking's reading within seconds: the one-step innovations see it
+ONE_STEP = ("sensor_lag",)
 UNIFORM_CROWN = (1.0, 1.0, 1.0)
 # weights all within this of uniform: nothing worth a filter pass (the test sessions
 # without a pad split give 0.8-1.25: the crown's usual unevenness and the model's own)
@@ -136,8 +145,8 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     for j, (a, _) in enumerate(zones):
         cycles[a:] = j
     rule = VerdictRule(min_shrink_pct=MIN_SHRINK_PCT)
-    first = tuple(p for p in parts if p == CROWN)
-    later = tuple(p for p in parts if p != CROWN)
+    first = tuple(p for p in parts if p in FIRST)
+    later = tuple(p for p in parts if p not in FIRST)
 
     def one_pass(law: DiscCalibration, with_first: bool) -> dict[str, Any]:
         variants = {"reference": (replace(quick, **off), law)}
@@ -150,9 +159,14 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     runs = one_pass(cal, True)
     tested = []
     for name in first:
-        row = _lap_ahead_test(runs["reference"], runs[f"without {name}"], lap, cycles, rule)
-        tested.append({**row, "name": f"without {name}", "law": list(cal.weights),
-                       "test": f"uniform weights against the law's, {row['test']}"})
+        if name in ONE_STEP:
+            row = _one_step_test(runs["reference"], runs[f"without {name}"], lap, cycles, rule)
+        else:
+            row = _lap_ahead_test(runs["reference"], runs[f"without {name}"], lap, cycles, rule)
+        if name == CROWN:
+            row = {**row, "law": list(cal.weights),
+                   "test": f"uniform weights against the law's, {row['test']}"}
+        tested.append({**row, "name": f"without {name}"})
     dropped_first = tuple(r["name"].removeprefix("without ") for r in tested
                           if r["significant"])
     for name in dropped_first:
@@ -202,16 +216,26 @@ def _online_rows(runs: dict[str, Any], candidates: tuple[str, ...], lap: np.ndar
         if c in STRUCTURAL:
             row = _structural_test(runs[c], STRUCTURAL[c], lap, cycles, rule)
         else:
-            units = np.where(lap >= 1, cycles, -1)
-            d = decide(unit_sse(ref.innovation, units)[0],
-                       [CandidateEvidence(c, unit_sse(runs[c].innovation, units)[0])], rule)
-            row = {**d.rows[0], "test": "one-step-ahead innovations, every flying lap",
-                   "loglik_gain_per_reading": loglik[c] - loglik["reference"]}
-            row["significant"] &= row["loglik_gain_per_reading"] > 0
+            row = _one_step_test(ref, runs[c], lap, cycles, rule, loglik[c] - loglik["reference"])
         row["name"] = c
         rows.append(row)
     rows.sort(key=lambda r: -np.nan_to_num(r["shrink_pct"], nan=-1e9))
     return rows
+
+
+def _one_step_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
+                   rule: VerdictRule, loglik_gain: float | None = None) -> dict[str, Any]:
+    """Do ``other``'s one-step-ahead innovations (predictions from past readings only)
+    shrink over the flying laps' braking cycles, with the predictive likelihood up?"""
+    if loglik_gain is None:
+        loglik_gain = float(np.nanmean(_loglik(other)) - np.nanmean(_loglik(ref)))
+    units = np.where(lap >= 1, cycles, -1)
+    d = decide(unit_sse(ref.innovation, units)[0],
+               [CandidateEvidence("other", unit_sse(other.innovation, units)[0])], rule)
+    row = {**d.rows[0], "test": "one-step-ahead innovations, every flying lap",
+           "loglik_gain_per_reading": loglik_gain}
+    row["significant"] &= loglik_gain > 0
+    return row
 
 
 def _structural_test(run: Any, param: str, lap: np.ndarray, cycles: np.ndarray,
