@@ -123,7 +123,7 @@ def test_the_race_judges_the_laws_pyrometer_lag_by_its_own_readings(races, tmp_p
         auto = estimate_session(path, EstimateOptions(h_law=law, smoother=False))
         choice = auto.summary["run"]["online_choice"]
         row = next(r for r in choice["law_effects_tested"] if r["name"] == "without sensor_lag")
-        assert row["test"].startswith("one-step-ahead innovations")
+        assert row["test"].startswith("one-step predictive likelihood")
         assert bool(row["significant"]) is dropped, (race, row)
         assert ("sensor_lag" in choice["law_effects_dropped"]) is dropped
         assert ("sensor_lag" in auto.summary["run"]["effects"]) is not dropped

@@ -177,6 +177,19 @@ def shrink_interval(sse_before: np.ndarray, sse_after: np.ndarray, rule: Verdict
     return point, float(lo), float(hi)
 
 
+def gain_interval(before: np.ndarray, after: np.ndarray, count: np.ndarray, rule: VerdictRule
+                  ) -> tuple[float, float, float]:
+    """Mean gain per sample of ``after`` over ``before`` (sums per unit, e.g. predictive
+    log-likelihoods) and its 95 % paired-bootstrap interval over units."""
+    d, n = np.asarray(after, float) - np.asarray(before, float), np.asarray(count, float)
+    if d.size == 0 or n.sum() <= 0:
+        return float("nan"), float("nan"), float("nan")
+    draw = _draws(d.size, rule)
+    lo, hi = np.percentile(d[draw].sum(axis=1) / np.maximum(n[draw].sum(axis=1), 1.0),
+                           [2.5, 97.5])
+    return float(d.sum() / n.sum()), float(lo), float(hi)
+
+
 def difference_interval(sse_before: np.ndarray, sse_a: np.ndarray, sse_b: np.ndarray,
                         rule: VerdictRule) -> tuple[float, float, float]:
     """Shrink of ``a`` minus shrink of ``b`` (percentage points), 95 % interval, paired."""

@@ -28,7 +28,11 @@ by default. Instead the race decides:
    filtered state at the start of every flying lap after the first, its model predicts
    the lap open loop, and the effect is dropped only when the lap-ahead error without it
    shrinks by the same rule. A race whose friction behaves like the test session's keeps
-   it.
+   it. When k_z is a candidate too, the two are judged together (:func:`_joint_test`):
+   the law as written, with k_z online, without the effect, and both — each a whole lap
+   ahead from its own filtered state — and the best that beats the law as written wins.
+   Judged one after the other, the first change explains what the second causes (a μ(T)
+   the race's pads lack made a normal disc's k_z look low).
 6. **the law's pyrometer lag** is the test session's sensor: a race logged by another
    (or a cleaned) pyrometer has its own. It is judged by the one-step innovations (a lag
    shapes every braking's reading within seconds) and, like the crown below, before the
@@ -58,7 +62,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from brakethermo.diagnosis.verdict import CandidateEvidence, VerdictRule, decide, unit_sse
+from brakethermo.diagnosis.verdict import (
+    CandidateEvidence,
+    VerdictRule,
+    decide,
+    gain_interval,
+    unit_sse,
+)
 from brakethermo.io.session import Session
 from brakethermo.report.braking_zones import detect_zones
 
@@ -81,8 +91,11 @@ DROPPABLE = ("friction_temperature", "sensor_lag")
 CROWN = "crown_weights"  # the law's pad-crown weights, tested before the online states
 # what shapes the measured spot itself: judged before the online states, which it hides
 FIRST = (CROWN, "sensor_lag")
-# a lag shapes every braking's reading within seconds: the one-step innovations see it
-ONE_STEP = ("sensor_lag",)
+# a lag is the measurement's own model: judged by the one-step predictive likelihood (a
+# proper score: a wrong lag shows in the innovations' size and in their variance)
+BY_LIKELIHOOD = ("sensor_lag",)
+MIN_LOGLIK_GAIN = 0.02  # nats per reading — lower bootstrap bound the drop must clear
+JOINT = "thickness_gradient"  # judged together with the law's later parts (_joint_test)
 UNIFORM_CROWN = (1.0, 1.0, 1.0)
 # weights all within this of uniform: nothing worth a filter pass (the test sessions
 # without a pad split give 0.8-1.25: the crown's usual unevenness and the model's own)
@@ -148,19 +161,26 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     first = tuple(p for p in parts if p in FIRST)
     later = tuple(p for p in parts if p not in FIRST)
 
+    joint = JOINT if JOINT in candidates and later else None
+
     def one_pass(law: DiscCalibration, with_first: bool) -> dict[str, Any]:
         variants = {"reference": (replace(quick, **off), law)}
         variants.update({c: (replace(quick, **{**off, ONLINE_FLAGS[c]: True}), law)
                          for c in candidates})
         variants.update({f"without {p}": (replace(quick, **off), law_without(law, p))
                          for p in (*first, *later) if with_first or p in later})
+        if joint is not None:
+            variants.update({f"without {p} + {joint}": (
+                replace(quick, **{**off, ONLINE_FLAGS[joint]: True}), law_without(law, p))
+                for p in later})
         return _run_variants(part, variants)
 
     runs = one_pass(cal, True)
     tested = []
     for name in first:
-        if name in ONE_STEP:
-            row = _one_step_test(runs["reference"], runs[f"without {name}"], lap, cycles, rule)
+        if name in BY_LIKELIHOOD:
+            row = _likelihood_test(runs["reference"], runs[f"without {name}"], lap, cycles,
+                                   rule)
         else:
             row = _lap_ahead_test(runs["reference"], runs[f"without {name}"], lap, cycles, rule)
         if name == CROWN:
@@ -174,12 +194,22 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     if dropped_first:
         runs = one_pass(cal, False)
     rows = _online_rows(runs, candidates, lap, cycles, rule)
+    if joint is not None:
+        combos, best = _joint_test(runs, joint, later, lap, cycles, rule)
+        alone = next(r for r in combos if r["name"] == joint)
+        for r in rows:
+            if r["name"] == joint:  # the joint verdict replaces the structural test's
+                r.update({k: alone[k] for k in ("shrink_pct", "shrink_ci95_pct", "test")},
+                         significant=joint in best, joint_test=combos)
+        tested.extend({**row, "name": f"without {p}",
+                       "significant": p in best} for p in later
+                      for row in combos if row["name"] == f"without {p}")
     chosen = [r["name"] for r in rows if r["significant"]]
     alike = [c for c in chosen if c in CONFOUNDED]
     chosen = [c for c in chosen if c not in alike[1:]]
     flags = {ONLINE_FLAGS[c]: c in chosen for c in candidates}
     ref = runs["reference"]
-    if later and chosen:
+    if later and chosen and joint is None:
         # the law's effects are judged under the online states the race chose
         on = {**off, **{ONLINE_FLAGS[c]: True for c in chosen}}
         again = {"reference": (replace(quick, **on), cal)}
@@ -187,7 +217,7 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
                       for p in later})
         runs.update(_run_variants(part, again))
         ref = runs["reference"]
-    for name in later:
+    for name in later if joint is None else ():
         row = _lap_ahead_test(ref, runs[f"without {name}"], lap, cycles, rule)
         tested.append({**row, "name": f"without {name}"})
     dropped = tuple(r["name"].removeprefix("without ") for r in tested if r["significant"])
@@ -221,6 +251,48 @@ def _online_rows(runs: dict[str, Any], candidates: tuple[str, ...], lap: np.ndar
         rows.append(row)
     rows.sort(key=lambda r: -np.nan_to_num(r["shrink_pct"], nan=-1e9))
     return rows
+
+
+def _joint_test(runs: dict[str, Any], joint: str, later: tuple[str, ...], lap: np.ndarray,
+                cycles: np.ndarray, rule: VerdictRule) -> tuple[list[dict[str, Any]], set[str]]:
+    """k_z and the law's droppable effects judged together, each combination a whole lap
+    ahead from its own filtered state (online states frozen at the lap's start) on the
+    flying laps after the first: the best combination that beats the law as written by
+    the rule wins. Judged one after the other, the first change explains what the
+    second one causes (a μ(T) the race's pads lack made a normal disc's k_z look low)."""
+    laps = np.unique(lap[lap >= 2])
+    units = np.where(np.isin(lap, laps), cycles, -1)
+    y = runs["reference"].y_measured
+    names = [joint, *(f"without {p}" for p in later), *(f"without {p} + {joint}" for p in later)]
+    sse = {n: unit_sse(_lap_ahead(runs[n], lap, laps) - y, units)[0]
+           for n in ("reference", *names)}
+    d = decide(sse["reference"], [CandidateEvidence(n, sse[n]) for n in names], rule)
+    test = ("with the others, each a whole lap ahead from its own filtered state, flying laps"
+            f" {', '.join(str(int(v)) for v in laps)}")
+    combos = [{**r, "test": test} for r in d.rows]
+    best = next((r["name"] for r in combos if r["significant"]), "reference")
+    changes = {joint} if joint in best.split(" + ") else set()
+    changes |= {p for p in later if best.startswith(f"without {p}")}
+    return combos, changes
+
+
+def _likelihood_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
+                     rule: VerdictRule) -> dict[str, Any]:
+    """Does ``other`` predict the flying laps' readings one step ahead with a higher
+    likelihood, per braking cycle, by more than :data:`MIN_LOGLIK_GAIN` at the lower end
+    of the 95 % bootstrap interval?"""
+    units = np.where(lap >= 1, cycles, -1)
+    a, b = _loglik(ref), _loglik(other)
+    keep = (units >= 0) & np.isfinite(a) & np.isfinite(b)
+    _, inv = np.unique(units[keep], return_inverse=True)
+    count = np.bincount(inv)
+    gain, lo, hi = gain_interval(np.bincount(inv, a[keep]), np.bincount(inv, b[keep]), count,
+                                 rule)
+    d = decide(unit_sse(ref.innovation, units)[0],
+               [CandidateEvidence("other", unit_sse(other.innovation, units)[0])], rule)
+    return {**d.rows[0], "test": "one-step predictive likelihood, every flying lap",
+            "loglik_gain_per_reading": gain, "loglik_gain_ci95": [lo, hi],
+            "significant": bool(np.isfinite(lo) and lo > MIN_LOGLIK_GAIN)}
 
 
 def _one_step_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
