@@ -12,6 +12,7 @@ from brakethermo.diagnosis.verdict import (
     Signature,
     VerdictRule,
     decide,
+    gain_interval,
     shrink_interval,
     unit_sse,
 )
@@ -126,3 +127,15 @@ def test_signature_names_an_effect_the_whole_data_dilutes_but_never_one_that_har
     assert not d.rows[0]["significant"] and d.verdict == "none"
     # without the signature the diluted effect is not named
     assert decide(before, [CandidateEvidence("knee", diluted)], RULE).verdict == "none"
+
+
+def test_gain_interval_is_the_mean_gain_per_sample_over_units() -> None:
+    rng = np.random.default_rng(3)
+    count = rng.integers(50, 150, 40).astype(float)
+    before = rng.normal(-2.0, 0.3, 40) * count
+    point, lo, hi = gain_interval(before, before + 0.1 * count, count, VerdictRule())
+    assert point == pytest.approx(0.1) and lo == pytest.approx(0.1) and hi == pytest.approx(0.1)
+    noisy = before + rng.normal(0.0, 0.2, 40) * count  # no gain, only noise
+    point, lo, hi = gain_interval(before, noisy, count, VerdictRule())
+    assert lo < 0.0 < hi and lo <= point <= hi
+    assert all(np.isnan(gain_interval(np.zeros(0), np.zeros(0), np.zeros(0), VerdictRule())))
