@@ -104,3 +104,19 @@ def test_the_cli_finds_the_caliper_and_needs_its_training(caliper, tmp_path):
                             "--out", str(tmp_path), "--json"])
     assert r.exit_code == 0, r.output
     assert json.loads(r.output)["verdict"] == "gap_shift"
+
+
+def test_roller_rig_and_tyre_sessions_are_named_and_sent_to_their_command(tmp_path):
+    """Found from their channels: one line naming the rig and the command that checks it,
+    not a disc diagnosis asking for a speed channel."""
+    from brakethermo.sim.roller_rig import RollerRigSimConfig, simulate_roller_rig
+    from brakethermo.sim.roller_rig import write_roller_rig_simulation as write_rr
+    from brakethermo.sim.tyre_rig import simulate_tyre_rig, write_tyre_simulation
+
+    rr = write_rr(simulate_roller_rig(RollerRigSimConfig(duration_s=20, free_s=5, seed=1)),
+                  tmp_path / "rr.mcap")[0]
+    ty = write_tyre_simulation(simulate_tyre_rig(seed=1), tmp_path / "ty.mcap")[0]
+    for path, rig in ((rr, "roller-rig"), (ty, "mu-slip")):
+        r = runner.invoke(app, ["diagnose", str(path), "--out", str(tmp_path / "o")])
+        assert r.exit_code == 1 and f"a {rig} session" in r.output, r.output
+        assert f"brakethermo {rig} SESSION" in r.output and "Traceback" not in r.output

@@ -132,7 +132,8 @@ def _detect_rig(session: Path, aliases: Path | None) -> str | None:
 
     try:
         s = load_session(session, rate_hz=None, aliases=aliases, channels=(
-            "pushrod_displacement", "reaction_disk_delta", "motor_angle", "motor_current"))
+            "pushrod_displacement", "reaction_disk_delta", "motor_angle", "motor_current",
+            "wheel_omega", "roller_omega", "drag_force", "wheel_speed"))
     except BrakethermoError:
         return None
     if any(c.startswith("disc_temp") for c in s.available):
@@ -141,7 +142,20 @@ def _detect_rig(session: Path, aliases: Path | None) -> str | None:
         return "ebooster"
     if s.has("motor_angle") and s.has("motor_current"):
         return "emb"
+    if s.has("wheel_omega") and s.has("roller_omega"):
+        return "roller-rig"
+    if s.has("drag_force") and s.has("wheel_speed"):
+        return "mu-slip"
     return None
+
+
+# rigs whose sessions diagnose recognises but does not diagnose, and their own command
+OWN_COMMAND = {
+    "roller-rig": "brakethermo roller-rig SESSION --out DIR (its radius band carries the"
+                  " creep law's error the session shows)",
+    "mu-slip": "brakethermo mu-slip SESSION --out DIR (it reports how far the fitted curve's"
+               " shape is from the data, shape_mismatch)",
+}
 
 
 def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
@@ -154,10 +168,14 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
     )
     from brakethermo.pipelines.outputs import to_json
 
+    if rig in OWN_COMMAND:
+        raise ConfigError(f"{sessions[0]}: a {rig} session; diagnose compares disc, E-Booster"
+                          f" and EMB sessions with their models, not {rig} ones yet: run"
+                          f" {OWN_COMMAND[rig]}")
     if rig not in RIGS:
         raise ConfigError(f"--rig {rig!r}: diagnose reads rig sessions of {', '.join(RIGS)}"
-                          " (the roller-rig and mu-slip pipelines have their own checks but no"
-                          " diagnosis yet)")
+                          f" (the {' and '.join(OWN_COMMAND)} pipelines have their own checks"
+                          " but no diagnosis yet)")
     if len(sessions) != 1:
         raise ConfigError("a rig diagnosis takes one session at a time")
     if rig == "emb":
