@@ -34,10 +34,12 @@ by default. Instead the race decides:
    Judged one after the other, the first change explains what the second causes (a μ(T)
    the race's pads lack made a normal disc's k_z look low).
 6. **the law's pyrometer lag** is the test session's sensor: a race logged by another
-   (or a cleaned) pyrometer has its own. It is judged by the one-step innovations (a lag
-   shapes every braking's reading within seconds) and, like the crown below, before the
-   online states: a lag the race's sensor does not have smears the readings and hides a
-   k_z change from the structural test.
+   (or a cleaned) pyrometer has its own. It is judged by the one-step predictive
+   likelihood (a lag is the measurement's own model and shapes every braking's reading
+   within seconds; dropped when the gain's lower 95 % bound over braking cycles exceeds
+   :data:`MIN_LOGLIK_GAIN`) and, like the crown below, before the online states: a lag
+   the race's sensor does not have smears the readings and hides a k_z change from the
+   structural test.
 7. **the law's pad-crown weights** (eq. 6-8) are the test session's pads: a race on
    other pads (or the same pads bedded otherwise) may not share a strongly uneven crown.
    They are tested the same way — uniform weights against the law's, a lap ahead — but
@@ -227,7 +229,8 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
                  " interval over braking cycles) and the predictive log-likelihood improves,"
                  f" on flying laps 1-{min(DECISION_LAPS, flying[-1])}; of k_z and the crown"
                  " balance (one spot cannot tell them apart) only the better; the law's"
-                 " uneven pad crown is tested first"),
+                 " pyrometer lag and uneven pad crown are judged first, its μ(T) together"
+                 " with k_z"),
         "laps": [int(v) for v in np.unique(lap[lap >= 1])],
         "chosen": chosen,
         "scores": rows,
