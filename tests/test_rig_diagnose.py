@@ -106,17 +106,31 @@ def test_the_cli_finds_the_caliper_and_needs_its_training(caliper, tmp_path):
     assert json.loads(r.output)["verdict"] == "gap_shift"
 
 
-def test_roller_rig_and_tyre_sessions_are_named_and_sent_to_their_command(tmp_path):
-    """Found from their channels: one line naming the rig and the command that checks it,
+def test_a_tyre_session_is_named_and_sent_to_its_command(tmp_path):
+    """Found from its channels: one line naming the rig and the command that checks it,
     not a disc diagnosis asking for a speed channel."""
-    from brakethermo.sim.roller_rig import RollerRigSimConfig, simulate_roller_rig
-    from brakethermo.sim.roller_rig import write_roller_rig_simulation as write_rr
     from brakethermo.sim.tyre_rig import simulate_tyre_rig, write_tyre_simulation
 
-    rr = write_rr(simulate_roller_rig(RollerRigSimConfig(duration_s=20, free_s=5, seed=1)),
-                  tmp_path / "rr.mcap")[0]
     ty = write_tyre_simulation(simulate_tyre_rig(seed=1), tmp_path / "ty.mcap")[0]
-    for path, rig in ((rr, "roller-rig"), (ty, "mu-slip")):
-        r = runner.invoke(app, ["diagnose", str(path), "--out", str(tmp_path / "o")])
-        assert r.exit_code == 1 and f"a {rig} session" in r.output, r.output
-        assert f"brakethermo {rig} SESSION" in r.output and "Traceback" not in r.output
+    r = runner.invoke(app, ["diagnose", str(ty), "--out", str(tmp_path / "o")])
+    assert r.exit_code == 1 and "a mu-slip session" in r.output, r.output
+    assert "brakethermo mu-slip SESSION" in r.output and "Traceback" not in r.output
+
+
+def test_the_roller_rigs_creep_law_is_diagnosed_against_its_torque_transducer(tmp_path):
+    """The simulated rig's contact is strip theory (its slope some 16 % under Kalker's):
+    found from the channels, diagnosed against the roller shaft's torque, the creep
+    curve's slope named with its size and the datasheet change that carries it."""
+    from brakethermo.sim.roller_rig import RollerRigSimConfig, simulate_roller_rig
+    from brakethermo.sim.roller_rig import write_roller_rig_simulation as write_rr
+
+    cfg = RollerRigSimConfig(speed_kmh=30, duration_s=120, free_s=20, seed=6, radius_m=0.3416)
+    path = write_rr(simulate_roller_rig(cfg), tmp_path / "rr.mcap")[0]
+    r = runner.invoke(app, ["diagnose", str(path), "--out", str(tmp_path / "o"), "--json"])
+    assert r.exit_code == 0, r.output
+    s = json.loads(r.output)
+    assert s["rig"] == "roller-rig" and s["unit"] == "N" and s["verdict"] == "creep_slope"
+    top = s["effects"][0]
+    assert top["name"] == "creep_slope" and -0.35 < top["params"]["slope_change"] < -0.05
+    assert any("k_a =" in step for step in s["next_steps"])
+    assert (tmp_path / "o" / "rr" / "diagnosis" / "index.html").is_file()

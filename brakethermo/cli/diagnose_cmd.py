@@ -58,8 +58,8 @@ def diagnose_command(
     ambient: AmbientOpt = None,
     rig: Annotated[
         str | None,
-        typer.Option(help="Diagnose a rig session: 'ebooster' (found from the channels when"
-                     " not given)."),
+        typer.Option(help="Diagnose a rig session: 'ebooster', 'emb' or 'roller-rig' (found"
+                     " from the channels when not given)."),
     ] = None,
     train: Annotated[
         Path | None,
@@ -122,7 +122,7 @@ def diagnose_command(
         console.print(f"wrote {escape(str(pooled_path))}")
 
 
-RIGS = ("ebooster", "emb")
+RIGS = ("ebooster", "emb", "roller-rig")
 
 
 def _detect_rig(session: Path, aliases: Path | None) -> str | None:
@@ -151,8 +151,6 @@ def _detect_rig(session: Path, aliases: Path | None) -> str | None:
 
 # rigs whose sessions diagnose recognises but does not diagnose, and their own command
 OWN_COMMAND = {
-    "roller-rig": "brakethermo roller-rig SESSION --out DIR (its radius band carries the"
-                  " creep law's error the session shows)",
     "mu-slip": "brakethermo mu-slip SESSION --out DIR (it reports how far the fitted curve's"
                " shape is from the data, shape_mismatch)",
 }
@@ -169,16 +167,20 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
     from brakethermo.pipelines.outputs import to_json
 
     if rig in OWN_COMMAND:
-        raise ConfigError(f"{sessions[0]}: a {rig} session; diagnose compares disc, E-Booster"
-                          f" and EMB sessions with their models, not {rig} ones yet: run"
-                          f" {OWN_COMMAND[rig]}")
+        raise ConfigError(f"{sessions[0]}: a {rig} session; diagnose compares disc, E-Booster,"
+                          f" EMB and roller-rig sessions with their models, not {rig} ones yet:"
+                          f" run {OWN_COMMAND[rig]}")
     if rig not in RIGS:
         raise ConfigError(f"--rig {rig!r}: diagnose reads rig sessions of {', '.join(RIGS)}"
                           f" (the {' and '.join(OWN_COMMAND)} pipelines have their own checks"
                           " but no diagnosis yet)")
     if len(sessions) != 1:
         raise ConfigError("a rig diagnosis takes one session at a time")
-    if rig == "emb":
+    if rig == "roller-rig":
+        from brakethermo.pipelines.diagnose.rig_roller import diagnose_roller_rig
+
+        result = diagnose_roller_rig(sessions[0], aliases=aliases, effects=effects)
+    elif rig == "emb":
         if train is None:
             raise ConfigError("--rig emb needs --train SESSION: the caliper session the"
                               " stiffness model is trained on (with the clamp-force sensor)")
@@ -192,7 +194,7 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
         print(to_json({**s, "output": str(folder)}))
         return
     u = s["unit"]
-    console.print(f"[bold]{escape(result.stem)}[/] ({rig}): the trained relation's held-out"
+    console.print(f"[bold]{escape(result.stem)}[/] ({rig}): the reference relation's held-out"
                   f" RMSE {s['gap']['rmse']:.3f} {u}, bias {s['gap']['bias']:+.3f} {u}"
                   f" ({s['units']}s {s['heldout_units']} held out)")
     console.print(_effects_table(s["effects"], u, 3))

@@ -160,3 +160,32 @@ EMB_EFFECTS: dict[str, RigEffect] = {e.name: e for e in (
         lambda th, c: c.curve(c.x) + th[0] * np.tanh(c.v / HYSTERESIS_V0_RAD_S),
     ),
 )}
+
+# The roller rig's creep law, F = f(ξ, N) (Polach or FASTSIM on Hertz, the rig datasheet),
+# against the roller shaft's torque transducer.
+ROLLER_EFFECTS: dict[str, RigEffect] = {e.name: e for e in (
+    RigEffect(
+        "creep_slope", ("slope_change",), ("-",), (0.0,), (-0.8,), (2.0,),
+        "the creep curve's initial slope off the contact theory's: F = f((1 + a) ξ)"
+        " (Polach's k_A: a contaminated or rough surface, another contact theory)",
+        "traction up to sliding: a slope changes the force at small creepage, the friction"
+        " level only where the curve saturates",
+        lambda th, c: c.curve((1.0 + th[0]) * c.x),
+    ),
+    RigEffect(
+        "friction_level", ("mu_change",), ("-",), (0.0,), (-0.8,), (2.0,),
+        "the friction coefficient off the datasheet's: F = (1 + a) f(ξ / (1 + a))"
+        " (Kalker's similarity: F / (μN) depends on ξ / μ)",
+        "traction up to sliding: only the saturated force tells the friction level",
+        lambda th, c: (1.0 + th[0]) * c.curve(c.x / (1.0 + th[0])),
+    ),
+    RigEffect(
+        "creepage_offset", ("offset",), ("-",), (0.0,), (-0.01,), (0.01,),
+        "a creepage the speeds carry at zero force: F = f(ξ - d) (the free-rolling radius"
+        " off the rolling one, or drag in the bearings while free rolling)",
+        "free rolling at two speeds: an offset from the radius stays, one from drag grows"
+        " with speed",
+        lambda th, c: c.curve(c.x - th[0]),
+    ),
+)}
+

@@ -208,7 +208,7 @@ def _rmse(x: np.ndarray, ref: float) -> float:
     return float(np.sqrt(np.mean((x[ok] - ref) ** 2)))
 
 
-def _rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
+def rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
     """The session's speeds (rolling forward), torque and load, checked against physics, and
     the free-rolling, traction and both-speeds masks."""
     session.require("wheel_omega", "roller_omega", "wheel_torque")
@@ -284,7 +284,7 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     spec = load_roller_rig(opts.rig)
     t_start = time.perf_counter()
     session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=opts.aliases)
-    w_w, w_r, torque, normal, warnings, free, traction, both = _rig_inputs(session, spec)
+    w_w, w_r, torque, normal, warnings, free, traction, both = rig_inputs(session, spec)
     supply, source = _supply(session, opts, spec, w_w, w_r, free & both)
     dt = session.dt
     t = session.time
@@ -323,13 +323,7 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     workers = max(1, min(len(opts.r0_mm), os.cpu_count() or 1))
     with ThreadPoolExecutor(max_workers=workers) as pool:
         runs = list(pool.map(one_guess, opts.r0_mm))
-    ratio_mm = float(np.sum(w_r[free & both]) * spec.roller_radius
-                     / np.sum(w_w[free & both]) * 1e3)
-    if not (math.isfinite(ratio_mm) and RADIUS_RANGE_MM[0] <= ratio_mm <= RADIUS_RANGE_MM[1]):
-        raise DataError(
-            f"the free-rolling speed ratio gives a wheel radius of {ratio_mm:.1f} mm, which no"
-            " tram wheel has: check the units of wheel_omega and roller_omega (rad/s) and the"
-            " roller radius of the rig datasheet", path=session.path, channel="wheel_omega")
+    ratio_mm = free_rolling_radius_mm(session, spec, w_w, w_r, free & both)
     runs = [creep_model_band(_checked_guess(run, ratio_mm, one_guess), torque, free & both)
             for run in runs]
     s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2], normal)
@@ -354,6 +348,19 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         }
     )
     return result
+
+
+def free_rolling_radius_mm(session: Session, spec: RollerRigSpec, w_w: np.ndarray,
+                           w_r: np.ndarray, free: np.ndarray) -> float:
+    """The wheel radius the free-rolling speed ratio gives, mm (DataError if no tram wheel
+    has it): sum(omega_r) R_r / sum(omega_w) over the free-rolling samples."""
+    ratio_mm = float(np.sum(w_r[free]) * spec.roller_radius / np.sum(w_w[free]) * 1e3)
+    if not (math.isfinite(ratio_mm) and RADIUS_RANGE_MM[0] <= ratio_mm <= RADIUS_RANGE_MM[1]):
+        raise DataError(
+            f"the free-rolling speed ratio gives a wheel radius of {ratio_mm:.1f} mm, which no"
+            " tram wheel has: check the units of wheel_omega and roller_omega (rad/s) and the"
+            " roller radius of the rig datasheet", path=session.path, channel="wheel_omega")
+    return ratio_mm
 
 
 def _checked_guess(run: GuessRun, ratio_mm: float, rerun: Any) -> GuessRun:

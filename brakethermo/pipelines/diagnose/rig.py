@@ -86,7 +86,7 @@ class RigCase:
     input_unit: str
     reference_text: str
     reference_fit: dict[str, Any]
-    next_step: Any  # callable(name) -> str
+    next_step: Any  # callable(name, fitted parameters) -> str
 
 
 def apply_units(x: np.ndarray, t: np.ndarray, rest: float) -> tuple[np.ndarray, str]:
@@ -121,7 +121,7 @@ def diagnose_booster(
 ) -> RigDiagnosis:
     """Diagnose an E-Booster session with a pressure sensor (module docstring)."""
     t_start = time.perf_counter()
-    names = _effect_names(effects, BOOSTER_EFFECTS, "E-Booster")
+    names = effect_names(effects, BOOSTER_EFFECTS, "E-Booster")
     spec = load_booster(bench)
     fit: BoosterFit = (train(train_path, spec, aliases) if train_path is not None
                        else load_fit(fit_path or default_fit_path()))
@@ -147,8 +147,8 @@ def diagnose_booster(
         reference_text=f"the p-V curve of the training session {fit.train_session},"
                        " p_m = f(s2), as the observer uses it (not refitted here)",
         reference_fit={"pv_coeffs_mpa": list(fit.pv_coeffs), "stroke_mm": fit.stroke_mm},
-        next_step=lambda n: _booster_step(n, path))
-    return _diagnose(case, t_start)
+        next_step=lambda n, _: _booster_step(n, path))
+    return run_case(case, t_start)
 
 
 def diagnose_emb(
@@ -163,7 +163,7 @@ def diagnose_emb(
     from brakethermo.pipelines.clamp_force import load_emb
 
     t_start = time.perf_counter()
-    names = _effect_names(effects, EMB_EFFECTS, "EMB")
+    names = effect_names(effects, EMB_EFFECTS, "EMB")
     tr = load_emb(train_path, need_sensor=True, role="training", aliases=aliases)
     data = load_emb(path, need_sensor=False, role="diagnosed", aliases=aliases)
     if data.force is None:
@@ -188,13 +188,13 @@ def diagnose_emb(
                        f" {tr.session.path}, as the clamp-force filter uses it (not refitted"
                        " here)",
         reference_fit={"alpha0": ds.alpha0, "beta": list(ds.beta)},
-        next_step=lambda n: (f"re-train on a session of these pads: brakethermo clamp-force"
+        next_step=lambda n, _: (f"re-train on a session of these pads: brakethermo clamp-force"
                              f" SESSION --train {train_path} --retrain {path}  (the adaptive"
                              " filter follows a stiffness scale on its own)"))
-    return _diagnose(case, t_start)
+    return run_case(case, t_start)
 
 
-def _diagnose(case: RigCase, t_start: float) -> RigDiagnosis:
+def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
     """The diagnosis proper, whatever the rig (module docstring, steps 2-4)."""
     ctx, y, session = case.ctx, case.measured, case.session
     units, unit_kind = apply_units(ctx.x, ctx.t, case.rest)
@@ -220,7 +220,7 @@ def _diagnose(case: RigCase, t_start: float) -> RigDiagnosis:
     names = tuple(case.effects)
     evidence = [CandidateEvidence(
         name, unit_sse(preds[name] - y, scored)[0], correction=(preds[name] - ref)[held],
-        separate_by=case.effects[name].separate_by, next_step=case.next_step(name),
+        separate_by=case.effects[name].separate_by, next_step=case.next_step(name, params[name]),
         n_params=len(case.effects[name].params))
         for name in names]
     size = {name: rmse((preds[name] - ref)[held], 0.0) for name in names}
@@ -275,7 +275,7 @@ def _diagnose(case: RigCase, t_start: float) -> RigDiagnosis:
                         preds[best] if best else None)
 
 
-def _effect_names(text: str | None, registry: dict[str, RigEffect], rig: str
+def effect_names(text: str | None, registry: dict[str, RigEffect], rig: str
                   ) -> tuple[str, ...]:
     if text is None or text.strip().lower() in ("", "all"):
         return tuple(registry)
