@@ -322,15 +322,12 @@ def _structural_test(run: Any, param: str, lap: np.ndarray, cycles: np.ndarray,
     train = (lap >= 1) & (lap % 2 == 1)
     learned = float(np.median(X[train, j])) if train.any() else neutral
     y = run.y_measured
-    H = ssm.H_measured(run.spot_radius)[0]
+    starts = np.repeat(X[:, None, :], 2, axis=1)
+    starts[:, :, j] = (neutral, learned)
     pred = np.full((lap.size, 2), np.nan)
-    for n in np.unique(lap[(lap >= 2) & (lap % 2 == 0)]):
-        idx = np.flatnonzero(lap == n)
-        x = np.repeat(X[idx[0]][None, :], 2, axis=0)
-        x[:, j] = (neutral, learned)
-        for k in idx:
-            pred[k] = x @ H
-            x = ssm.f(x, k) if k + 1 < lap.size else x
+    for rows, p in _open_loop(run, lap, np.unique(lap[(lap >= 2) & (lap % 2 == 0)]),
+                              starts):
+        pred[rows] = p
     held = (lap >= 2) & (lap % 2 == 0)
     units = np.where(held, cycles, -1)
     err = pred - y[:, None]
@@ -354,18 +351,38 @@ def _run_variants(part: Session, variants: dict[str, tuple[Any, Any]]) -> dict[s
 def _lap_ahead(run: Any, lap: np.ndarray, laps: np.ndarray) -> np.ndarray:
     """The measured spot predicted open loop through each of ``laps`` from the run's own
     filtered state at the lap's start (its model, its online states frozen)."""
-    ssm, X = run.state_space, run.states
-    H = ssm.H_measured(run.spot_radius)[0]
     pred = np.full(lap.size, np.nan)
-    for n in laps:
-        idx = np.flatnonzero(lap == n)
-        x = X[idx[0]][None, :]
-        for k in idx:
-            pred[k] = (x @ H)[0]
-            x = ssm.f(x, k) if k + 1 < lap.size else x
+    for rows, p in _open_loop(run, lap, laps, run.states[:, None, :]):
+        pred[rows] = p[:, 0]
     return pred
 
 
+def _open_loop(run: Any, lap: np.ndarray, laps: np.ndarray, starts: np.ndarray
+               ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Open-loop predictions of the measured spot through each of ``laps``, all laps and
+    all variants in one batch (each row at its own step: the model's inputs are indexed
+    per row), from ``starts[k]`` (V, n): the V variant states at step k.
+
+    Returns ``(the lap's step indices, (len, V) predictions)`` per lap."""
+    ssm = run.state_space
+    H = ssm.H_measured(run.spot_radius)[0]
+    idx = [np.flatnonzero(lap == n) for n in laps]
+    idx = [i for i in idx if i.size]
+    if not idx:
+        return []
+    V = starts.shape[1]
+    first = np.array([i[0] for i in idx])
+    length = np.repeat([i.size for i in idx], V)
+    x = starts[first].reshape(-1, starts.shape[2]).copy()
+    k0 = np.repeat(first, V)
+    pred = np.full((x.shape[0], int(length.max())), np.nan)
+    for j in range(pred.shape[1]):
+        live = j < length
+        pred[live, j] = x[live] @ H
+        step = live & (k0 + j + 1 < lap.size)
+        if step.any():
+            x[step] = ssm.f(x[step], k0[step] + j)
+    return [(i, pred[m * V:(m + 1) * V, :i.size].T) for m, i in enumerate(idx)]
 def _lap_ahead_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
                     rule: VerdictRule) -> dict[str, Any]:
     """Does ``other``'s model predict the flying laps after the first better, a lap ahead?"""
