@@ -67,8 +67,8 @@ def test_a_production_session_is_refused_in_one_line(tmp_path):
     r = runner.invoke(app, ["diagnose", str(path), "--out", str(tmp_path / "o")])
     assert r.exit_code == 1 and "master-cylinder pressure" in r.output
     assert "Traceback" not in r.output
-    r = runner.invoke(app, ["diagnose", str(path), "--rig", "tyre", "--out", str(tmp_path)])
-    assert r.exit_code == 1 and "ebooster" in r.output
+    r = runner.invoke(app, ["diagnose", str(path), "--rig", "bogus", "--out", str(tmp_path)])
+    assert r.exit_code == 1 and "ebooster" in r.output and "tyre" in r.output
 
 
 @pytest.fixture(scope="module")
@@ -106,15 +106,22 @@ def test_the_cli_finds_the_caliper_and_needs_its_training(caliper, tmp_path):
     assert json.loads(r.output)["verdict"] == "gap_shift"
 
 
-def test_a_tyre_session_is_named_and_sent_to_its_command(tmp_path):
-    """Found from its channels: one line naming the rig and the command that checks it,
-    not a disc diagnosis asking for a speed channel."""
+def test_a_tyre_ramp_is_diagnosed_against_the_two_parameter_curve(tmp_path):
+    """The simulated tyre is a brush model (sharper, earlier peak than any two-parameter
+    curve): found from the channels, Rudd's curve fitted on half of the ramp's blocks,
+    the shape named on the other half; a bad --radius is one line."""
     from brakethermo.sim.tyre_rig import simulate_tyre_rig, write_tyre_simulation
 
     ty = write_tyre_simulation(simulate_tyre_rig(seed=1), tmp_path / "ty.mcap")[0]
-    r = runner.invoke(app, ["diagnose", str(ty), "--out", str(tmp_path / "o")])
-    assert r.exit_code == 1 and "a mu-slip session" in r.output, r.output
-    assert "brakethermo mu-slip SESSION" in r.output and "Traceback" not in r.output
+    r = runner.invoke(app, ["diagnose", str(ty), "--out", str(tmp_path / "o"), "--json"])
+    assert r.exit_code == 0, r.output
+    s = json.loads(r.output)
+    assert s["rig"] == "tyre" and s["input"]["name"] == "slip"
+    assert s["verdict"] == "curve_shape" or "curve_shape" in s["verdict_set"]
+    assert s["effects"][0]["shrink_ci95_pct"][0] > 10.0
+    assert (tmp_path / "o" / "ty" / "diagnosis" / "index.html").is_file()
+    r = runner.invoke(app, ["diagnose", str(ty), "--radius", "nan", "--out", str(tmp_path)])
+    assert r.exit_code == 1 and "--radius" in r.output and "Traceback" not in r.output
 
 
 def test_the_roller_rigs_creep_law_is_diagnosed_against_its_torque_transducer(tmp_path):

@@ -38,8 +38,9 @@ def diagnose_command(
     sessions: Annotated[
         list[Path],
         typer.Argument(help=f"Four-spot test session file(s) ({SESSION_FORMATS}), a"
-                       " single-spot race or an E-Booster bench session; several"
-                       " sessions of one bike and disc are also pooled."),
+                       " single-spot race, or a rig session (E-Booster, EMB, roller rig,"
+                       " tyre rig); several sessions of one bike and disc are also"
+                       " pooled."),
     ],
     out: OutDir = Path("out"),
     effects: Annotated[
@@ -58,8 +59,8 @@ def diagnose_command(
     ambient: AmbientOpt = None,
     rig: Annotated[
         str | None,
-        typer.Option(help="Diagnose a rig session: 'ebooster', 'emb' or 'roller-rig' (found"
-                     " from the channels when not given)."),
+        typer.Option(help="Diagnose a rig session: 'ebooster', 'emb', 'roller-rig' or 'tyre'"
+                     " (found from the channels when not given)."),
     ] = None,
     train: Annotated[
         Path | None,
@@ -69,14 +70,22 @@ def diagnose_command(
     fit: Annotated[
         Path | None, typer.Option(help="Rig: a saved training result (TOML).")
     ] = None,
+    radius: Annotated[
+        float | None,
+        typer.Option("--radius", help="Tyre rig: wheel radius, m (else the session's"
+                     " slip_ratio channel or its fact wheel_radius_m)."),
+    ] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Where the model parts from the disc (or rig), which effect causes it, how far the gap
     shrinks."""
+    if radius is not None and not 0.05 <= radius <= 2.0:
+        raise ConfigError(f"--radius {radius} m is not a wheel radius; give metres, 0.05 to 2")
     if rig is None and len(sessions) == 1 and not sessions[0].suffix.lower() == ".toml":
         rig = _detect_rig(sessions[0], aliases)
     if rig is not None:
-        _diagnose_rig(rig, sessions, out, effects, train, fit, aliases, as_json)
+        _diagnose_rig(RIG_NAMES.get(rig, rig), sessions, out, effects, train, fit, radius,
+                      aliases, as_json)
         return
     from brakethermo.pipelines.diagnose import (
         DiagnoseOptions,
@@ -122,7 +131,8 @@ def diagnose_command(
         console.print(f"wrote {escape(str(pooled_path))}")
 
 
-RIGS = ("ebooster", "emb", "roller-rig")
+RIGS = ("ebooster", "emb", "roller-rig", "tyre")
+RIG_NAMES = {"mu-slip": "tyre"}  # the tyre rig by its command's name
 
 
 def _detect_rig(session: Path, aliases: Path | None) -> str | None:
@@ -149,16 +159,11 @@ def _detect_rig(session: Path, aliases: Path | None) -> str | None:
     return None
 
 
-# rigs whose sessions diagnose recognises but does not diagnose, and their own command
-OWN_COMMAND = {
-    "mu-slip": "brakethermo mu-slip SESSION --out DIR (it reports how far the fitted curve's"
-               " shape is from the data, shape_mismatch)",
-}
 
 
 def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
-                  train: Path | None, fit: Path | None, aliases: Path | None,
-                  as_json: bool) -> None:
+                  train: Path | None, fit: Path | None, radius: float | None,
+                  aliases: Path | None, as_json: bool) -> None:
     from brakethermo.pipelines.diagnose.rig import (
         diagnose_booster,
         diagnose_emb,
@@ -166,20 +171,18 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
     )
     from brakethermo.pipelines.outputs import to_json
 
-    if rig in OWN_COMMAND:
-        raise ConfigError(f"{sessions[0]}: a {rig} session; diagnose compares disc, E-Booster,"
-                          f" EMB and roller-rig sessions with their models, not {rig} ones yet:"
-                          f" run {OWN_COMMAND[rig]}")
     if rig not in RIGS:
-        raise ConfigError(f"--rig {rig!r}: diagnose reads rig sessions of {', '.join(RIGS)}"
-                          f" (the {' and '.join(OWN_COMMAND)} pipelines have their own checks"
-                          " but no diagnosis yet)")
+        raise ConfigError(f"--rig {rig!r}: diagnose reads rig sessions of {', '.join(RIGS)}")
     if len(sessions) != 1:
         raise ConfigError("a rig diagnosis takes one session at a time")
     if rig == "roller-rig":
         from brakethermo.pipelines.diagnose.rig_roller import diagnose_roller_rig
 
         result = diagnose_roller_rig(sessions[0], aliases=aliases, effects=effects)
+    elif rig == "tyre":
+        from brakethermo.pipelines.diagnose.rig_tyre import diagnose_tyre
+
+        result = diagnose_tyre(sessions[0], radius_m=radius, aliases=aliases, effects=effects)
     elif rig == "emb":
         if train is None:
             raise ConfigError("--rig emb needs --train SESSION: the caliper session the"

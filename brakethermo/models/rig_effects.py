@@ -33,7 +33,7 @@ force in kN):
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,12 +53,15 @@ class RigContext:
     v : ndarray (K,) — its rate (smoothed), per s.
     t : ndarray (K,) — s from the session start.
     curve : callable — the trained relation, input array -> output array.
+    aux : dict of str to ndarray (K,) — further signals some candidates read (the tyre
+        rig's carriage speed ``speed`` in m/s and load ``load`` in N).
     """
 
     x: Array
     v: Array
     t: Array
     curve: Callable[[Array], Array]
+    aux: dict[str, Array] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -186,6 +189,54 @@ ROLLER_EFFECTS: dict[str, RigEffect] = {e.name: e for e in (
         "free rolling at two speeds: an offset from the radius stays, one from drag grows"
         " with speed",
         lambda th, c: c.curve(c.x - th[0]),
+    ),
+)}
+
+
+def _relaxed(mu: Array, c: RigContext, length_m: float) -> Array:
+    """``mu`` through the tyre's first-order lag over ``length_m`` of travel."""
+    if length_m <= 1e-6:
+        return mu
+    dt = np.diff(c.t, prepend=c.t[0])
+    gain = 1.0 - np.exp(-c.aux["speed"] * dt / length_m)
+    out = np.empty_like(mu)
+    out[0] = mu[0]
+    for k in range(1, mu.size):
+        out[k] = out[k - 1] + gain[k] * (mu[k] - out[k - 1])
+    return out
+
+
+# The tyre rig's two-parameter curve (Rudd), fitted on the session's own fitting blocks,
+# against the measured μ = drag / load.
+TYRE_EFFECTS: dict[str, RigEffect] = {e.name: e for e in (
+    RigEffect(
+        "sliding_speed", ("fall_per_mps",), ("1/(m/s)",), (0.0,), (-0.2,), (0.2,),
+        "friction falling with the sliding speed: μ = f(s) (1 - a s V) (rubber on a"
+        " rough surface: adhesion and hysteresis both fall with speed)",
+        "ramps at two carriage speeds: a sliding-speed law moves the curve with speed, a"
+        " shape does not",
+        lambda th, c: c.curve(c.x) * (1.0 - th[0] * c.x * c.aux["speed"]),
+    ),
+    RigEffect(
+        "curve_shape", ("c1", "c2", "c3"), ("-", "-", "-"), (1.0, 20.0, 0.3),
+        (0.05, 1.0, 0.0), (3.0, 300.0, 1.5),
+        "another curve than the two-parameter one: Burckhardt's"
+        " μ = c1 (1 - exp(-c2 s)) - c3 s (a sharper, earlier peak)",
+        "ramps at two carriage speeds: a shape stays, a sliding-speed law moves the curve",
+        lambda th, c: th[0] * (1.0 - np.exp(-th[1] * c.x)) - th[2] * c.x,
+    ),
+    RigEffect(
+        "load_sensitivity", ("fall_per_load",), ("-",), (0.0,), (-2.0,), (2.0,),
+        "friction falling with the load: μ = f(s) (1 - a (F_z / F_z,mean - 1))",
+        "ramps at two loads: only the load moves the curve",
+        lambda th, c: c.curve(c.x) * (1.0 - th[0] * (c.aux["load"] / np.mean(c.aux["load"])
+                                                      - 1.0)),
+    ),
+    RigEffect(
+        "relaxation", ("length_m",), ("m",), (0.05,), (0.0,), (2.0,),
+        "the force builds over a relaxation length: μ follows f(s) with a lag of σ / V",
+        "a slow against a fast ramp: a relaxation lag grows with the ramp's rate",
+        lambda th, c: _relaxed(c.curve(c.x), c, th[0]),
     ),
 )}
 

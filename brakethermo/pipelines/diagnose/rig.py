@@ -87,9 +87,11 @@ class RigCase:
     reference_text: str
     reference_fit: dict[str, Any]
     next_step: Any  # callable(name, fitted parameters) -> str
+    block_s: float = BLOCK_S  # s, unit length when the session holds too few apply cycles
 
 
-def apply_units(x: np.ndarray, t: np.ndarray, rest: float) -> tuple[np.ndarray, str]:
+def apply_units(x: np.ndarray, t: np.ndarray, rest: float, block_s: float = BLOCK_S
+                ) -> tuple[np.ndarray, str]:
     """Unit id per sample (-1 at rest) and what a unit is."""
     active = x > rest
     starts = np.flatnonzero(np.diff(active.astype(np.int8)) == 1) + 1
@@ -98,8 +100,8 @@ def apply_units(x: np.ndarray, t: np.ndarray, rest: float) -> tuple[np.ndarray, 
     if starts.size >= MIN_CYCLES:
         ids = np.searchsorted(starts, np.arange(x.size), side="right") - 1
         return np.where(active & (ids >= 0), ids, -1), "apply cycle"
-    blocks = np.floor((t - t[0]) / BLOCK_S).astype(int)
-    return np.where(active, blocks, -1), f"{BLOCK_S:g} s block"
+    blocks = np.floor((t - t[0]) / block_s).astype(int)
+    return np.where(active, blocks, -1), f"{block_s:g} s block"
 
 
 def _fit_effect(e: RigEffect, ctx: RigContext, y: np.ndarray, mask: np.ndarray,
@@ -197,7 +199,7 @@ def diagnose_emb(
 def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
     """The diagnosis proper, whatever the rig (module docstring, steps 2-4)."""
     ctx, y, session = case.ctx, case.measured, case.session
-    units, unit_kind = apply_units(ctx.x, ctx.t, case.rest)
+    units, unit_kind = apply_units(ctx.x, ctx.t, case.rest, case.block_s)
     units = np.where(np.isfinite(y), units, -1)
     ids = np.unique(units[units >= 0])
     if ids.size < 4:
@@ -271,7 +273,7 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
         "run": {"brakethermo": __version__, "effects_tried": list(names),
                 "wall_time_s": time.perf_counter() - t_start},
     }
-    return RigDiagnosis(session, summary, session.time, ctx.x, y, ref,
+    return RigDiagnosis(session, summary, session.time[0] + ctx.t, ctx.x, y, ref,
                         preds[best] if best else None)
 
 
