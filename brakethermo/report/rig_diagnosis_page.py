@@ -1,4 +1,4 @@
-"""The rig diagnosis page: the trained relation against this session, and the verdict."""
+"""The rig diagnosis page: the reference relation against this session, and the verdict."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ from matplotlib.figure import Figure
 
 from brakethermo.report.page import Card, Page, Section, TableBlock
 
-RIG_NAMES = {"ebooster": "E-Booster", "emb": "EMB caliper"}
+RIG_NAMES = {"ebooster": "E-Booster", "emb": "EMB caliper", "roller-rig": "Roller rig",
+             "tyre": "Tyre rig"}
 
 if TYPE_CHECKING:
     from brakethermo.results.rig_diagnosis import RigDiagnosis
@@ -22,7 +23,7 @@ def _pv_figure(r: RigDiagnosis) -> Figure:
     ax.plot(r.x[::step], r.measured[::step], ".", ms=1.5, color="#1f77b4", alpha=0.5,
             label="this session (sensor)")
     ax.plot(r.x[::step], r.reference[::step], ".", ms=1.2, color="k", alpha=0.6,
-            label="trained relation (reference)")
+            label="reference relation")
     if r.best is not None:
         ax.plot(r.x[::step], r.best[::step], ".", ms=1.2, color="#d62728", alpha=0.5,
                 label=f"with {r.summary['verdict']} (fitted on other cycles)")
@@ -74,16 +75,16 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
             Card("best shrink", f"{top['shrink_pct']:+.0f}" if top else "–", "%"),
         ],
         sections=[
-            Section("Where the training curve parts from this session",
+            Section("Where the reference parts from this session",
                     paragraphs=["Held-out RMSE by phase: " + ", ".join(
-                        f"{k} {v:.3f} MPa" for k, v in s["gap"]["per_phase"].items())],
+                        f"{k} {v:.3f} {s['unit']}" for k, v in s["gap"]["per_phase"].items())],
                     figures={"pv": _pv_figure(r), "residual": _residual_figure(r)}),
             Section("Which effect", paragraphs=[s["verdict_rule"], *s["verdict_reasons"]],
                     tables=[TableBlock(["effect", f"before {s['unit']}",
                                         f"after {s['unit']}", "shrink %",
                                         "95 % interval", "fitted", "evidence"], rows)]),
             Section("Next", paragraphs=list(s["next_steps"]) or ["nothing to do: the"
-                    " training curve holds on this session"]),
+                    " reference holds on this session"]),
         ],
         footer=f"brakethermo {s['run']['brakethermo']}",
     )
