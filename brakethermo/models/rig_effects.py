@@ -38,6 +38,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from brakethermo.rigs.tyre import magic_formula_mu
+
 Array = NDArray[np.float64]
 HYSTERESIS_V0_MM_S = 0.5  # mm/s: below this screw speed the direction is not yet set
 HYSTERESIS_V0_RAD_S = 2.0  # rad/s: the same for the caliper's motor
@@ -218,12 +220,12 @@ TYRE_EFFECTS: dict[str, RigEffect] = {e.name: e for e in (
         lambda th, c: c.curve(c.x) * (1.0 - th[0] * c.x * c.aux["speed"]),
     ),
     RigEffect(
-        "curve_shape", ("c1", "c2", "c3"), ("-", "-", "-"), (1.0, 20.0, 0.3),
-        (0.05, 1.0, 0.0), (3.0, 300.0, 1.5),
-        "another curve than the two-parameter one: Burckhardt's"
-        " μ = c1 (1 - exp(-c2 s)) - c3 s (a sharper, earlier peak)",
+        "curve_shape", ("B", "C", "D", "E"), ("-", "-", "-", "-"), (10.0, 1.5, 1.0, 0.0),
+        (1.0, 1.0, 0.05, -5.0), (80.0, 2.5, 3.0, 1.0),
+        "another curve than the two-parameter one: Pacejka's Magic Formula"
+        " μ = D sin(C atan(B s - E (B s - atan(B s)))) (a sharper peak, a plateau after it)",
         "ramps at two carriage speeds: a shape stays, a sliding-speed law moves the curve",
-        lambda th, c: th[0] * (1.0 - np.exp(-th[1] * c.x)) - th[2] * c.x,
+        lambda th, c: magic_formula_mu(c.x, *th),
     ),
     RigEffect(
         "load_sensitivity", ("fall_per_load",), ("-",), (0.0,), (-2.0,), (2.0,),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import matplotlib.pyplot as plt
@@ -77,7 +78,8 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
         sections=[
             Section("Where the reference parts from this session",
                     paragraphs=["Held-out RMSE by phase: " + ", ".join(
-                        f"{k} {v:.3f} {s['unit']}" for k, v in s["gap"]["per_phase"].items())],
+                        f"{k} {v:.3f} {s['unit']}" for k, v in s["gap"]["per_phase"].items()
+                        if math.isfinite(v))],
                     figures={"pv": _pv_figure(r), "residual": _residual_figure(r)}),
             Section("Which effect", paragraphs=[s["verdict_rule"], *s["verdict_reasons"]],
                     tables=[TableBlock(["effect", f"before {s['unit']}",
