@@ -284,6 +284,26 @@ def shape_mismatch(result: MuSlipResult) -> dict[str, object]:
     }
 
 
+# families within this factor of the best held-out RMSE: the shapes the data still allow
+PLAUSIBLE_SHAPE = 2.0
+
+
+def peak_band(result: MuSlipResult) -> dict[str, float]:
+    """1σ of the reported peak that admits the curve's form: the RMS distance of the peaks
+    of the families the held-out points still allow (held-out RMSE within
+    :data:`PLAUSIBLE_SHAPE` of the best's) from the best's, and never below the EKF's own
+    (fit) standard deviation. One family's fit noise is far smaller than what another
+    plausible shape moves the peak by (on a brush tyre the EKF's 0.005 against 0.15 off)."""
+    best = result.best
+    allowed = [f for f in result.families
+               if f.heldout_rmse <= PLAUSIBLE_SHAPE * best.heldout_rmse]
+    sd_fit = np.sqrt(np.maximum(result.ekf.var_filt[-1], 0.0))
+    mu_sd = float(np.sqrt(np.mean([(f.mu_peak - best.mu_peak) ** 2 for f in allowed])))
+    slip_sd = float(np.sqrt(np.mean([(f.slip_peak - best.slip_peak) ** 2 for f in allowed])))
+    return {"mu_std": max(mu_sd, float(sd_fit[0])), "slip_std": max(slip_sd, float(sd_fit[1])),
+            "families": [f.name for f in allowed]}
+
+
 def result_frame(res: MuSlipResult) -> pd.DataFrame:
     """The ``mu_slip.parquet`` table: the points used and the EKF track."""
     x, v = res.ekf.x_filt, res.ekf.var_filt
@@ -341,7 +361,8 @@ def summary(res: MuSlipResult) -> dict[str, Any]:
             }
             for f in res.families
         ],
-        "peak": {"mu": res.best.mu_peak, "slip": res.best.slip_peak, "model": res.best.name},
+        "peak": {"mu": res.best.mu_peak, "slip": res.best.slip_peak, "model": res.best.name,
+                 **peak_band(res)},
         "shape_mismatch": shape_mismatch(res),
     }
 
@@ -463,8 +484,9 @@ def page(res: MuSlipResult, summ: dict[str, Any]) -> Page:
         title=f"mu-slip — {res.session.path.name}",
         subtitle="tyre μ–slip peak: EKF, Levenberg–Marquardt and curve families",
         cards=[
-            Card("peak μ", f"{res.best.mu_peak:.3f}"),
-            Card("peak slip", f"{res.best.slip_peak:.3f}"),
+            Card("peak μ", f"{res.best.mu_peak:.3f} ± {summ['peak']['mu_std']:.3f}", "1σ"),
+            Card("peak slip", f"{res.best.slip_peak:.3f} ± {summ['peak']['slip_std']:.3f}",
+                 "1σ"),
             Card("from", res.best.name),
             Card("points", str(res.slip.size)),
         ],
