@@ -102,6 +102,12 @@ def test_rig_sessions_peak_targets(tmp_path: Path, tyre: str, seed: int, ext: st
     assert 0.0 <= summ["peak"]["slip"] - s_true < 0.04
     # the two-parameter curve overshoots and says so
     assert summ["shape_mismatch"]["rudd_mu_peak_minus_best_pct"] > 5.0
+    # the reported peak's band admits the curve's form: it holds the brush's peak, and is
+    # never narrower than the EKF's own
+    peak = summ["peak"]
+    assert abs(peak["mu"] - mu_true) <= 1.96 * peak["mu_std"]
+    assert abs(peak["slip"] - s_true) <= 1.96 * peak["slip_std"]
+    assert peak["mu_std"] >= summ["ekf"]["mu_peak_std"] and len(peak["families"]) >= 1
 
 
 def test_cli_writes_all_outputs(tmp_path: Path) -> None:
