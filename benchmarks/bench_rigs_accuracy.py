@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from brakethermo.models.mu_slip import rudd_ekf
+from brakethermo.numeric import rmse
 from brakethermo.pipelines import clamp_force as cf
 from brakethermo.pipelines import mu_slip as ms
-from brakethermo.rigs.emb import rmse
 from brakethermo.rigs.tyre import rudd_mu
 from brakethermo.sim.emb import simulate_emb, write_emb_simulation
 from brakethermo.sim.tyre_rig import simulate_tyre_rig, write_tyre_simulation

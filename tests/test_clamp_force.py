@@ -15,13 +15,13 @@ from brakethermo.cli import app
 from brakethermo.estimation.kf import kalman_filter, kalman_filter_tv
 from brakethermo.io.writers import Channel, SessionData, write_session
 from brakethermo.models.clamp_force import estimate, train
+from brakethermo.numeric import rmse
 from brakethermo.rigs.emb import (
     TorqueBalance,
     dynamic_stiffness,
     fit_dynamic_stiffness,
     fit_torque_balance,
     ml_fusion,
-    rmse,
     torque_balance_force,
 )
 from brakethermo.sim.emb import simulate_emb, write_emb_simulation

@@ -9,8 +9,8 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[1] / "brakethermo"
 
 # package -> the brakethermo packages it may import (itself always allowed). Base modules:
-# errors, config, vocabulary, the package root (__version__).
-BASE = {"errors", "config", "vocabulary", "__init__"}
+# errors, config, vocabulary, numeric, the package root (__version__).
+BASE = {"errors", "config", "vocabulary", "numeric", "__init__"}
 ALLOWED: dict[str, set[str]] = {
     "estimation": BASE,
     "io": BASE,

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from brakethermo.errors import ConfigError
 from brakethermo.estimation.kf import kalman_filter_tv
+from brakethermo.numeric import rmse
 from brakethermo.rigs.emb import (
     DynamicStiffness,
     TorqueBalance,
@@ -39,7 +40,6 @@ from brakethermo.rigs.emb import (
     fit_torque_balance,
     ml_fusion,
     motor_rates,
-    rmse,
     torque_balance_force,
 )
 

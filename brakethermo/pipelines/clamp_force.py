@@ -32,9 +32,9 @@ from brakethermo.models.clamp_force import (
     fusion_check,
     train,
 )
+from brakethermo.numeric import rmse
 from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
 from brakethermo.report.page import Card, Page, Section, TableBlock
-from brakethermo.rigs.emb import rmse
 
 CHANNELS = ("motor_angle", "motor_current", "clamp_force")
 ESTIMATORS = ("kf", "kf_paper", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")

@@ -27,6 +27,7 @@ from brakethermo.estimation.rls import even_powers, rls_fit
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.ebooster import STATE_NAMES, BoosterFit, EboosterModel, load_fit
+from brakethermo.numeric import rmse
 from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
 from brakethermo.results.ebooster import (
     OBSERVERS,
@@ -247,8 +248,9 @@ def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTr
 
 
 def _rmse(a: Array) -> float | None:
-    a = a[np.isfinite(a)]
-    return float(np.sqrt(np.mean(a * a))) if a.size else None
+    """RMS of the finite samples, None when there is none (a figure the page leaves out)."""
+    value = rmse(a)
+    return value if np.isfinite(value) else None
 
 
 def observe(

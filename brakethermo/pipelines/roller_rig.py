@@ -27,6 +27,7 @@ from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.roller_rig import CREEP_LAWS, RollerRigModel
+from brakethermo.numeric import rmse
 from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
 from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS as TUNINGS
 from brakethermo.results.roller_rig import GuessRun, RollerRigResult
@@ -201,11 +202,6 @@ def convergence_time(
     last = np.flatnonzero(out[w - 1 :])
     start = 0 if last.size == 0 else int(last[-1]) + 1  # first good window, by its start
     return float(t[start] - t[0])
-
-
-def _rmse(x: np.ndarray, ref: float) -> float:
-    ok = np.isfinite(x)
-    return float(np.sqrt(np.mean((x[ok] - ref) ** 2)))
 
 
 def rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
@@ -469,8 +465,8 @@ def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> di
     ref = result.reference_mm
     runs = []
     for run in result.runs:
-        rmse = None if ref is None else _rmse(run.radius_mm, ref)
-        rmse_f = None if ref is None else _rmse(run.filter_mm, ref)
+        err = None if ref is None else rmse(run.radius_mm, ref)
+        err_f = None if ref is None else rmse(run.filter_mm, ref)
         after = None
         if ref is not None and run.convergence_time_s is not None:
             tail = result.time - result.time[0] >= run.convergence_time_s
@@ -483,10 +479,10 @@ def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> di
                 "radius_std_mm": float(run.radius_std_mm[-1]),
                 "creep_model_error_mm_per_knm": run.model_error_mm_per_knm,
                 "convergence_time_s": run.convergence_time_s,
-                "rmse_vs_ref_mm": rmse,
-                "rmse_vs_ref_pct": None if ref is None else 100.0 * rmse / ref,
-                "filter_rmse_vs_ref_mm": rmse_f,
-                "filter_rmse_vs_ref_pct": None if ref is None else 100.0 * rmse_f / ref,
+                "rmse_vs_ref_mm": err,
+                "rmse_vs_ref_pct": None if ref is None else 100.0 * err / ref,
+                "filter_rmse_vs_ref_mm": err_f,
+                "filter_rmse_vs_ref_pct": None if ref is None else 100.0 * err_f / ref,
                 "max_error_after_convergence_mm": after,
                 "traction_radius_mm": _phase_mean(run.radius_mm, result.traction),
             }

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from brakethermo.numeric import rmse
+
 CONTACT_SPOTS = (2, 3, 4)  # spot numbers inside the pad contact band
 Z95 = 1.959963984540054
 
@@ -35,16 +37,6 @@ def reading_noise(y: np.ndarray) -> float:
 def ratio(a: float, b: float) -> float:
     """``a / b``, NaN when ``b`` is zero or not finite (a score against nothing)."""
     return a / b if np.isfinite(b) and b > 0 else float("nan")
-
-
-def rmse(estimate: np.ndarray, reference: np.ndarray, mask: np.ndarray | None = None) -> float:
-    """Root-mean-square error over the grid points where both are finite (and ``mask``)."""
-    ok = np.isfinite(estimate) & np.isfinite(reference)
-    if mask is not None:
-        ok &= mask
-    if not ok.any():
-        return float("nan")
-    return float(np.sqrt(np.mean((estimate[ok] - reference[ok]) ** 2)))
 
 
 def segments(flag: np.ndarray, min_len: int = 1) -> list[tuple[int, int]]:

@@ -230,10 +230,3 @@ def ml_fusion(F_ds: Array, F_tb: Array, sigma_ds: float, sigma_tb: float) -> Arr
     """Eq. 8: F = F_ds + σds² / (σds² + σtb²) (F_tb − F_ds), N."""
     w = sigma_ds**2 / (sigma_ds**2 + sigma_tb**2)
     return F_ds + w * (F_tb - F_ds)
-
-
-def rmse(a: Array, b: Array) -> float:
-    """Root mean square of a − b over the finite samples."""
-    d = np.asarray(a, float) - np.asarray(b, float)
-    d = d[np.isfinite(d)]
-    return float(np.sqrt(np.mean(d * d))) if d.size else float("nan")

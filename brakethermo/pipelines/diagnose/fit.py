@@ -72,11 +72,6 @@ def _nanmean(a: np.ndarray, axis: int | None = None) -> Any:
         return np.nanmean(a, axis=axis)
 
 
-def _rmse(err: np.ndarray) -> float:
-    e = err[np.isfinite(err)]
-    return float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
-
-
 def _initial_nodes(model: DiscFEModel, spot_radii: np.ndarray, y: np.ndarray, t_amb: float
                    ) -> np.ndarray:
     first = y[:50]

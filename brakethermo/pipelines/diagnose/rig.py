@@ -47,6 +47,7 @@ from brakethermo.errors import ConfigError, DataError
 from brakethermo.io.session import Session
 from brakethermo.models.ebooster import BoosterFit, load_fit
 from brakethermo.models.rig_effects import BOOSTER_EFFECTS, EMB_EFFECTS, RigContext, RigEffect
+from brakethermo.numeric import rmse
 from brakethermo.pipelines.ebooster import (
     MM,
     MPA,
@@ -60,7 +61,6 @@ from brakethermo.results.ebooster import PRESSURES
 from brakethermo.results.rig_diagnosis import RigDiagnosis
 from brakethermo.rigs.booster import pv_pressure
 from brakethermo.rigs.booster_datasheet import load_booster
-from brakethermo.rigs.emb import rmse
 from brakethermo.rigs.signals import smoothed_rate
 
 MIN_CYCLES = 12  # apply cycles for a cycle-wise split (6 held out); fewer: time blocks

@@ -15,9 +15,10 @@ from brakethermo.diagnosis.verdict import (
 )
 from brakethermo.estimation import UnscentedKalmanFilter
 from brakethermo.models.disc import DiscStateSpace
+from brakethermo.numeric import rmse as _rmse
 from brakethermo.pipelines.diagnose._common import RULE
 from brakethermo.pipelines.diagnose.evidence import _corr
-from brakethermo.pipelines.diagnose.fit import _nanmean, _rmse
+from brakethermo.pipelines.diagnose.fit import _nanmean
 from brakethermo.pipelines.diagnose.layout import Layout, _phase_masks
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.thermal.model import DiscFEModel

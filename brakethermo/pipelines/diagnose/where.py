@@ -10,8 +10,9 @@ from typing import Any
 import numpy as np
 
 from brakethermo.models.disc_effects import Segments
+from brakethermo.numeric import rmse as _rmse
 from brakethermo.pipelines.diagnose._common import SPEED_BANDS_KMH, TEMP_BANDS_C
-from brakethermo.pipelines.diagnose.fit import _nanmean, _rmse
+from brakethermo.pipelines.diagnose.fit import _nanmean
 from brakethermo.pipelines.diagnose.layout import Layout
 from brakethermo.pipelines.inputs import DiscInputs
 

@@ -1,0 +1,24 @@
+"""Numeric helpers every layer may use (a base module, like ``errors`` and ``config``)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+
+def rmse(estimate: ArrayLike, reference: ArrayLike = 0.0, mask: ArrayLike | None = None
+         ) -> float:
+    """Root-mean-square of ``estimate - reference`` over the samples where both are finite
+    (and ``mask``); NaN when none is.
+
+    Parameters
+    ----------
+    estimate, reference : array_like — any unit; ``reference`` broadcasts (0: the RMS of
+        ``estimate`` itself, e.g. of a residual).
+    mask : array_like of bool, optional — samples to score.
+    """
+    d = np.asarray(estimate, float) - np.asarray(reference, float)
+    ok = np.isfinite(d)
+    if mask is not None:
+        ok &= np.asarray(mask, bool)
+    return float(np.sqrt(np.mean(d[ok] ** 2))) if ok.any() else float("nan")
