@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
 
@@ -132,7 +134,8 @@ def test_the_roller_rigs_creep_law_is_diagnosed_against_its_torque_transducer(tm
     from brakethermo.sim.roller_rig import write_roller_rig_simulation as write_rr
 
     cfg = RollerRigSimConfig(speed_kmh=30, duration_s=120, free_s=20, seed=6, radius_m=0.3416)
-    path = write_rr(simulate_roller_rig(cfg), tmp_path / "rr.mcap")[0]
+    sim = simulate_roller_rig(cfg)
+    path = write_rr(sim, tmp_path / "rr.mcap")[0]
     r = runner.invoke(app, ["diagnose", str(path), "--out", str(tmp_path / "o"), "--json"])
     assert r.exit_code == 0, r.output
     s = json.loads(r.output)
@@ -141,3 +144,15 @@ def test_the_roller_rigs_creep_law_is_diagnosed_against_its_torque_transducer(tm
     assert top["name"] == "creep_slope" and -0.35 < top["params"]["slope_change"] < -0.05
     assert any("k_a =" in step for step in s["next_steps"])
     assert (tmp_path / "o" / "rr" / "diagnosis" / "index.html").is_file()
+    # bad input, one line each: the transducer in kN m labelled N m, no transducer at all
+    pq_path = write_rr(sim, tmp_path / "rr.parquet")[0]
+    table = pq.read_table(pq_path)
+    i = table.schema.get_field_index("roller_torque")
+    scaled = table.set_column(i, table.schema.field(i), pc.divide(table.column(i), 1000.0))
+    pq.write_table(scaled, tmp_path / "knm.parquet")
+    pq.write_table(table.remove_column(i), tmp_path / "none.parquet")
+    for name, words in (("knm", "check its unit"), ("none", "no roller torque transducer")):
+        r = runner.invoke(app, ["diagnose", str(tmp_path / f"{name}.parquet"), "--out",
+                                str(tmp_path / "o")])
+        assert r.exit_code == 1 and words in r.output and "roller_torque" in r.output, r.output
+        assert "Traceback" not in r.output

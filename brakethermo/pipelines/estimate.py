@@ -374,23 +374,23 @@ def _online_choice(session: Session, options: EstimateOptions, cal: DiscCalibrat
 
 
 def _race_layering(choice: OnlineChoice, tuning: EstimateTuning, options: EstimateOptions
-                   ) -> EstimateTuning:
+                   ) -> tuple[EstimateTuning, str | None]:
     """identify-h's thin-skin layering for a race whose disc conducts through the thickness
     worse than the law's (the race chose k_z and learned it lower): heat stays nearer the
-    face, and the law's layering, built for its own disc, is too coarse to hold the skin."""
+    face, and the law's layering, built for its own disc, is too coarse to hold the skin.
+    Returns the tuning and what was changed, in words (None: nothing)."""
     row = next((r for r in choice.facts.get("scores", [])
                 if r.get("name") == "thickness_gradient"), None)
     user = user_tuning_keys(options.tuning, "estimate")
     if (row is None or "thickness_gradient" not in choice.facts.get("chosen", [])
             or not row.get("learned", 1.0) < 1.0 or options.layers is not None
             or "layers" in user or tuning.layers >= tuning.thin_skin_layers):
-        return tuning
-    choice.facts["layering"] = (
-        f"{tuning.thin_skin_layers} layers (growth {tuning.thin_skin_layer_growth:g}) instead"
-        f" of the law's {tuning.layers}: the race's k_z came out {row['learned']:.2f} of the"
-        " law's, a thinner thermal skin")
+        return tuning, None
+    said = (f"{tuning.thin_skin_layers} layers (growth {tuning.thin_skin_layer_growth:g})"
+            f" instead of the law's {tuning.layers}: the race's k_z came out"
+            f" {row['learned']:.2f} of the law's, a thinner thermal skin")
     return replace(tuning, layers=tuning.thin_skin_layers,
-                   layer_growth=tuning.thin_skin_layer_growth)
+                   layer_growth=tuning.thin_skin_layer_growth), said
 
 
 def build_state_space(
@@ -439,7 +439,9 @@ def estimate_from_session(
         )
     choice = _online_choice(session, options, cal, tuning, calibration)
     if choice is not None:
-        tuning = _race_layering(choice, replace(tuning, **choice.flags), options)
+        tuning, layering = _race_layering(choice, replace(tuning, **choice.flags), options)
+        if layering:
+            choice = replace(choice, facts={**choice.facts, "layering": layering})
         for name in choice.dropped:
             cal = law_without(cal, name)
     h = cal.law(inputs.speed)

@@ -212,11 +212,22 @@ def _check_past_peak(best: FamilyFit, s: np.ndarray, session: Session) -> None:
             path=session.path)
 
 
-def mu_slip(
-    path: str | Path, options: MuSlipOptions | None = None, *, aliases: Path | None = None
-) -> MuSlipResult:
-    """Run the whole ``mu-slip`` pipeline on one session file."""
-    options = options or MuSlipOptions()
+@dataclass(frozen=True)
+class RampPoints:
+    """The (slip, μ) points of the braking ramp (or of a point set) and where they came from."""
+
+    session: Session
+    time: np.ndarray  # s
+    slip: np.ndarray  # -
+    mu: np.ndarray  # -
+    radius_m: float | None
+    ramp_s: tuple[float, float]
+
+
+def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | None = None
+                ) -> RampPoints:
+    """Read a session and keep the points ``mu-slip`` fits: the first braking ramp to lock
+    (or every point of a point set), 0 < slip <= 1, μ plausible (DataError otherwise)."""
     session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases)
     slip, mu, radius = slip_and_mu(session, options.radius_m)
     if options.points:
@@ -230,6 +241,17 @@ def mu_slip(
         raise DataError(f"only {s.size} (slip, μ) points with 0 < slip <= 1; a curve needs"
                         " at least 10", path=session.path)
     _check_plausible_mu(m, session)
+    return RampPoints(session, t, s, m, radius,
+                      (float(session.time[start]), float(session.time[min(lock, slip.size - 1)])))
+
+
+def mu_slip(
+    path: str | Path, options: MuSlipOptions | None = None, *, aliases: Path | None = None
+) -> MuSlipResult:
+    """Run the whole ``mu-slip`` pipeline on one session file."""
+    options = options or MuSlipOptions()
+    ramp = ramp_points(path, options, aliases=aliases)
+    session, t, s, m = ramp.session, ramp.time, ramp.slip, ramp.mu
     sigma = noise_std(m)
     (m_lo, m_hi), (s_lo, s_hi) = options.mu_range, options.slip_range
     x0 = np.array([m_hi, s_hi])  # paper: start at the high end, covariance covering the range
@@ -249,8 +271,8 @@ def mu_slip(
         lm_converged=rudd_lm(s, m, x0, None),
         families=fams,
         best=best,
-        radius_m=radius,
-        ramp_s=(float(session.time[start]), float(session.time[min(lock, slip.size - 1)])),
+        radius_m=ramp.radius_m,
+        ramp_s=ramp.ramp_s,
         inflation=options.inflation,
         points=options.points,
     )

@@ -9,7 +9,7 @@ estimator's accuracy is measured against is not its own model:
   ellipse (a, b) the surface gap closes when (Johnson, *Contact Mechanics*, eq. 3.x in
   integral form; Barber, *Contact Mechanics*, ch. 3)
   ``A = N R_D(b^2, 0, a^2) / (2 pi E*)``, ``B = N R_D(a^2, 0, b^2) / (2 pi E*)``,
-  solved for (a, b) by Newton's method on log a, log b;
+  solved for (a, b) in log a, log b by MINPACK's hybrid method (``scipy.optimize.root``);
 - **strip theory** (Haines and Ollerton, 1963): the ellipse cut into strips along the
   rolling direction, each a 2-D rolling contact solved exactly by Carter (1926),
   ``Q / (mu P) = 1 - (1 - |xi| / xi_c)^2`` with ``xi_c = 2 mu p0(y) / E*``; spin
@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
+from scipy.optimize import root
 from scipy.special import elliprd
 
 from brakethermo.config import load_toml, resolve_named
@@ -116,22 +117,15 @@ def hertz_ellipse(
     k = normal_force / (2.0 * math.pi * e_star)
     # start from the circle of the mean curvature: R_D(r^2, 0, r^2) = 3 pi / (4 r^3)
     r = (3.0 * math.pi * k / (4.0 * math.sqrt(A * B))) ** (1.0 / 3.0)
-    z = np.log([r, r])
-    for _ in range(60):
+
+    def gap(z: np.ndarray) -> np.ndarray:  # log of the closing condition, in log semi-axes
         a2, b2 = np.exp(2.0 * z)
-        res = np.log([k * elliprd(b2, 0.0, a2) / A, k * elliprd(a2, 0.0, b2) / B])
-        h = 1e-6
-        J = np.empty((2, 2))
-        for j in range(2):
-            zp = z.copy()
-            zp[j] += h
-            a2p, b2p = np.exp(2.0 * zp)
-            J[:, j] = (np.log([k * elliprd(b2p, 0.0, a2p) / A,
-                               k * elliprd(a2p, 0.0, b2p) / B]) - res) / h  # fmt: skip
-        step = np.linalg.solve(J, -res)
-        z += step
-        if np.max(np.abs(step)) < 1e-13:
-            break
+        return np.log([k * elliprd(b2, 0.0, a2) / A, k * elliprd(a2, 0.0, b2) / B])
+
+    sol = root(gap, np.log([r, r]), method="hybr", options={"xtol": 1e-13})
+    if not np.max(np.abs(sol.fun)) < 1e-11:  # MINPACK may stop at round-off, solved
+        raise ConfigError(f"Hertz's contact did not solve (A={A:g}, B={B:g}): {sol.message}")
+    z = sol.x
     a, b = (float(v) for v in np.exp(z))
     return a, b, 3.0 * normal_force / (2.0 * math.pi * a * b)
 

@@ -23,6 +23,7 @@ import numpy as np
 
 from brakethermo.errors import DataError
 from brakethermo.io.load import load_session
+from brakethermo.io.session import Session
 from brakethermo.models.rig_effects import ROLLER_EFFECTS, RigContext
 from brakethermo.models.roller_rig import RollerRigModel
 from brakethermo.pipelines.diagnose.rig import RigCase, effect_names, run_case
@@ -35,6 +36,7 @@ from brakethermo.results.rig_diagnosis import RigDiagnosis
 from brakethermo.rigs.roller_rig import Friction, load_roller_rig
 
 FORCE_FLOOR_N = 25.0  # a shaft torque transducer's accuracy (0.5 % of 2 kN m) at the roller
+FORCE_RATIO = (0.5, 2.0)  # measured over requested creep force in traction: plausible
 REST_SHARE = 0.2  # creepage below this share of its 95th percentile: the rig is not pulling
 # s, moving average of speeds, load and force: several revolutions of wheel and roller, so
 # that the encoders' once-per-revolution errors and an out-of-round roller average out (a
@@ -61,10 +63,11 @@ def diagnose_roller_rig(
             " measured creep force, so it needs a session that logs roller_torque (one"
             " without can only be estimated: brakethermo roller-rig)",
             path=session.path, channel="roller_torque")
-    w_w, w_r, _, normal, _, free, _, both = rig_inputs(session, spec)
+    w_w, w_r, torque, normal, _, free, traction, both = rig_inputs(session, spec)
     radius = free_rolling_radius_mm(session, spec, w_w, w_r, free & both) * 1e-3
     sign = 1.0 if np.nanmedian(session.values("roller_omega")) > 0 else -1.0
     force = sign * session.values("roller_torque") / spec.roller_radius
+    _check_force(session, force[traction], torque[traction] / radius)
     window = max(1, round(AVERAGE_S / session.dt))
     w_w, w_r, normal, force = (_moving_mean(v, window) for v in (w_w, w_r, normal, force))
     model = RollerRigModel.from_spec(spec, creep_law=creep_law)
@@ -90,6 +93,19 @@ def diagnose_roller_rig(
                        "k_a": spec.friction.k_a, "creep_law": creep_law},
         next_step=lambda n, fit: _next_step(n, fit, spec.friction))
     return run_case(case, t_start)
+
+
+def _check_force(session: Session, force: np.ndarray, pull: np.ndarray) -> None:
+    """In traction the wheel's torque reaches the roller through the contact: the creep
+    force the transducer gives must be of the size the torque request asks for (bearing
+    losses and inertia take a few per cent, not a factor)."""
+    ratio = float(np.nanmedian(force) / np.nanmedian(pull))
+    if not FORCE_RATIO[0] <= ratio <= FORCE_RATIO[1]:
+        raise DataError(
+            f"gives a creep force of {np.nanmedian(force):.0f} N in traction, {ratio:.3g}"
+            f" times the {np.nanmedian(pull):.0f} N the wheel torque request asks for: check"
+            " its unit (N m at the roller shaft) and its sign",
+            path=session.path, channel="roller_torque")
 
 
 def _moving_mean(v: np.ndarray, window: int) -> np.ndarray:

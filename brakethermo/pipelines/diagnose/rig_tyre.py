@@ -2,7 +2,8 @@
 against the measured μ = drag / load along the braking ramp, with the verdict engine of
 the other rigs (:func:`brakethermo.pipelines.diagnose.rig.run_case`).
 
-1. **Split**: the ramp (found as ``mu-slip`` finds it) is cut into
+1. **Split**: the ramp (:func:`brakethermo.pipelines.mu_slip.ramp_points`, as ``mu-slip``
+   finds it) is cut into
    :data:`BLOCK_S` blocks that alternate between fitting and held out.
 2. **Reference**: Rudd's curve fitted (Levenberg–Marquardt to convergence) on the fitting
    blocks only — the held-out blocks are never seen by the reference either.
@@ -23,7 +24,7 @@ import numpy as np
 from brakethermo.models.mu_slip import rudd_lm
 from brakethermo.models.rig_effects import TYRE_EFFECTS, RigContext
 from brakethermo.pipelines.diagnose.rig import RigCase, apply_units, effect_names, run_case
-from brakethermo.pipelines.mu_slip import MuSlipOptions, mu_slip
+from brakethermo.pipelines.mu_slip import MuSlipOptions, ramp_points
 from brakethermo.results.rig_diagnosis import RigDiagnosis
 from brakethermo.rigs.signals import smoothed_rate
 from brakethermo.rigs.tyre import rudd_mu
@@ -42,8 +43,8 @@ def diagnose_tyre(
     """Diagnose a tyre-rig braking ramp (module docstring)."""
     t_start = time.perf_counter()
     names = effect_names(effects, TYRE_EFFECTS, "tyre")
-    res = mu_slip(path, MuSlipOptions(radius_m=radius_m),
-                  aliases=Path(aliases) if aliases is not None else None)
+    res = ramp_points(path, MuSlipOptions(radius_m=radius_m),
+                      aliases=Path(aliases) if aliases is not None else None)
     session = res.session
     t = res.time - session.time[0]  # s from the session start, as every rig's context
     units, _ = apply_units(res.slip, t, 0.0, BLOCK_S)
