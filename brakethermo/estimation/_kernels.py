@@ -32,6 +32,16 @@ def _symmetrise(P):
 
 
 @njit(cache=True, nogil=True)
+def _put(dst, src, transpose):
+    """dst[:, :] = src (or src') by loops: an array assignment compiles numba's shape-error
+    machinery, seconds of a first run for a copy."""
+    n, m = dst.shape
+    for i in range(n):
+        for j in range(m):
+            dst[i, j] = src[j, i] if transpose else src[i, j]
+
+
+@njit(cache=True, nogil=True)
 def _chol(P, L):
     """Lower Cholesky factor into L; False if P is not (numerically) positive definite."""
     n = P.shape[0]
@@ -89,12 +99,21 @@ def _repair(P, abs_floor):
                 P[i, j] = 0.0
     _symmetrise(P)
     w, V = np.linalg.eigh(P)
-    floor = max(1e-12 * np.max(np.abs(w)), abs_floor)
+    wmax = 0.0
+    for i in range(n):
+        wmax = max(wmax, abs(w[i]))
+    floor = max(1e-12 * wmax, abs_floor)
     for i in range(n):
         w[i] = max(w[i], floor)
-    Pn = (V * w) @ V.T
-    P[:, :] = Pn
-    _symmetrise(P)
+    # V diag(w) V' by loops: array expressions here would compile numba's shape-error
+    # machinery (seconds on a first run) for a path taken once in a thousand steps
+    for i in range(n):
+        for j in range(i + 1):
+            t = 0.0
+            for a in range(n):
+                t += V[i, a] * w[a] * V[j, a]
+            P[i, j] = t
+            P[j, i] = t
 
 
 @njit(cache=True, nogil=True)
@@ -254,7 +273,7 @@ def _record_posterior(k, x, P, x_filt, var_filt, P_filt_all, full, M, ro, ro_var
         x_filt[k, i] = x[i]
         var_filt[k, i] = P[i, i]
     if full:
-        P_filt_all[k] = P
+        _put(P_filt_all[k], P, False)
     for r in range(M.shape[0]):
         t = 0.0
         v = 0.0
@@ -285,7 +304,8 @@ def ukf_first(work, par, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
     """
     X, P, L, x = _views(work)
     c, abs_floor = par[0], par[1]
-    if _update_step(0, x, P, L, abs_floor, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
+    k0 = np.int64(0)  # not the literal 0: that compiles the update chain a second time
+    if _update_step(k0, x, P, L, abs_floor, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
         _sigma(x, L, c, X)
 
 
@@ -342,7 +362,7 @@ def _advance(k, xp, Pp, C, P, L, x, abs_floor, gate_thr, H, R, y, M, st, cov, gs
     gains = gs.shape[1] > 0
     _symmetrise(Pp)
     if full:
-        cov[2, k] = C
+        _put(cov[2, k], C, False)
     if gains:
         Lp = np.empty((n, n))
         _factor(Pp, Lp, kp, abs_floor, ic[1])
@@ -378,9 +398,10 @@ def _advance(k, xp, Pp, C, P, L, x, abs_floor, gate_thr, H, R, y, M, st, cov, gs
                 v = P[i, j] - 0.5 * (CG[i, j] + CG[j, i])
                 gs[1, k, i, j] = v
                 gs[1, k, j, i] = v
-        gs[0, k] = Gt.T
-    x[:] = xp
-    P[:, :] = Pp
+        _put(gs[0, k], Gt, True)
+    for i in range(n):
+        x[i] = xp[i]
+    _put(P, Pp, False)
     return _update_step(kp, x, P, L, abs_floor, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro)
 
 
@@ -394,7 +415,7 @@ def _update_step(k, x, P, L, abs_floor, gate_thr, H, R, y, M, st, cov, iv, sc, i
         st[0, k, i] = x[i]
         st[1, k, i] = P[i, i]
     if cov.shape[1] > 0:
-        cov[0, k] = P
+        _put(cov[0, k], P, False)
     _update(
         k, x, P, H, R, y[k], gate_thr, abs_floor, ic[1], iv[0], iv[1], sc[0], sc[1], ic[0], rej
     )  # fmt: skip
@@ -435,7 +456,8 @@ def ekf_first(work, par, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
     """
     X, P, L, x, eps = _ekf_views(work)
     rel_step, abs_floor = par[0], par[1]
-    if _update_step(0, x, P, L, abs_floor, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
+    k0 = np.int64(0)  # not the literal 0: that compiles the update chain a second time
+    if _update_step(k0, x, P, L, abs_floor, gate_thr, H, R, y, M, st, cov, iv, sc, ic, rej, ro):
         _fd_points(x, X, eps, rel_step)
 
 
@@ -514,6 +536,6 @@ def rts_backward(
             x_s[k, i] = xs[i]
             var_s[k, i] = Ps[i, i]
         if full:
-            P_all[k] = Ps
+            _put(P_all[k], Ps, False)
         _record_posterior(k, xs, Ps, x_s, var_s, P_all, False, M, ro, ro_var)
-    P_first[:, :] = Ps
+    _put(P_first, Ps, False)

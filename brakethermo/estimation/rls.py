@@ -82,7 +82,7 @@ def _rls_loop(X: Array, y: Array, w: Array, P: Array, lam: float) -> tuple[Array
                 P[j, i] = s
         for i in range(p):
             w[i] += k[i] * e  # eq. 12d (real data: eps* = eps)
-        W[t] = w
+            W[t, i] = w[i]  # by element: a row assignment compiles seconds of error paths
         eps[t] = e
     return W, eps
 

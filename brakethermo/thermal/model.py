@@ -296,6 +296,18 @@ if HAVE_NUMBA:
         return out
 
 
+    @numba.njit(cache=True, nogil=True, inline="always")
+    def _readout_nb(out: np.ndarray, T: np.ndarray, HT: np.ndarray) -> None:  # pragma: no cover
+        """``out = T HT`` by loops: an array assignment would compile numba's shape-error
+        machinery, seconds of every first run."""
+        B, n = T.shape
+        for b in range(B):
+            for j in range(HT.shape[1]):
+                t = 0.0
+                for i in range(n):
+                    t += T[b, i] * HT[i, j]
+                out[b, j] = t
+
     @numba.njit(cache=True, nogil=True)
     def _run_nb(  # pragma: no cover - compiled
         T0: np.ndarray,
@@ -320,7 +332,7 @@ if HAVE_NUMBA:
         out = np.empty((K + 1, B, HT.shape[1]))
         T = T0.copy()
         Qk = np.empty(B)
-        out[0] = T @ HT
+        _readout_nb(out[0], T, HT)
         for k in range(K):
             for b in range(B):
                 t_c = 0.0
@@ -329,7 +341,7 @@ if HAVE_NUMBA:
                 x = (t_c / fb_at.size - fb[b, 1]) / fb[b, 2]
                 Qk[b] = Qs[k, b] * (1.0 + fb[b, 0] * min(max(x, -1.0), 1.0))
             T = _step_nb(T, T, Qk, ta[k], h[k], kz, loads[zone[k]], *geometry)
-            out[k + 1] = T @ HT
+            _readout_nb(out[k + 1], T, HT)
         return out
 
 
