@@ -144,6 +144,39 @@ def test_the_roller_rigs_creep_law_is_diagnosed_against_its_torque_transducer(tm
     assert top["name"] == "creep_slope" and -0.35 < top["params"]["slope_change"] < -0.05
     assert any("k_a =" in step for step in s["next_steps"])
     assert (tmp_path / "o" / "rr" / "diagnosis" / "index.html").is_file()
+    # the rolling-radius filter carries it when given and the radius moves less with the
+    # torque under it; from this session's diagnosis, where the slope and a creepage
+    # offset stay a set, nothing is carried and it says so
+    slope = top["params"]["slope_change"]
+    runs = {}
+    for source in ("none", f"creep_slope={slope}", "creep_slope=0.5",
+                   str(tmp_path / "o" / "rr" / "diagnosis.json"), "auto"):
+        r = runner.invoke(app, ["roller-rig", str(path), "--r0", "340", "--with-effect",
+                                source, "--out", str(tmp_path / "o"), "--json"])
+        assert r.exit_code == 0, r.output
+        runs[source.rsplit("/", 1)[-1]] = json.loads(r.output)
+    assert runs["none"]["filter"]["with_effect"] is None
+    given = runs[f"creep_slope={slope}"]
+    assert given["filter"]["with_effect"]["effects"] == {"creep_slope": top["params"]}
+    err = {k: abs(v["naive_vs_ukf"]["ukf_traction_error_mm"]) for k, v in runs.items()}
+    assert err[f"creep_slope={slope}"] < 0.6 * err["none"], err
+    assert given["filter"]["with_effect"]["kept"] is True
+    # a curve that makes the radius move more with the torque is not kept
+    wrong = runs["creep_slope=0.5"]["filter"]["with_effect"]
+    assert wrong["kept"] is False and "not kept" in wrong["note"]
+    assert err["creep_slope=0.5"] == err["none"]
+    for key in ("diagnosis.json", "auto"):
+        carried = runs[key]["filter"]["with_effect"]
+        if s["verdict_kind"] == "set":
+            assert carried["effects"] == {} and "cannot tell" in carried["note"]
+            assert err[key] == err["none"]
+        else:
+            assert carried["effects"] == {"creep_slope": top["params"]}
+    assert (tmp_path / "o" / "rr" / "diagnosis.json").is_file()  # kept beside the run's
+    for bad, words in (("creep_slope=x", "not a number"), ("grip=0.1", "NAME=VALUE"),
+                       (str(tmp_path / "nope.json"), "no such file")):
+        r = runner.invoke(app, ["roller-rig", str(path), "--with-effect", bad])
+        assert r.exit_code == 1 and words in r.output and "Traceback" not in r.output, r.output
     # bad input, one line each: the transducer in kN m labelled N m, no transducer at all
     pq_path = write_rr(sim, tmp_path / "rr.parquet")[0]
     table = pq.read_table(pq_path)

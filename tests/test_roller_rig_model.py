@@ -12,7 +12,7 @@ from filterpy.kalman import UnscentedKalmanFilter as FilterpyUKF
 
 from brakethermo.errors import ConfigError
 from brakethermo.estimation import UnscentedKalmanFilter
-from brakethermo.models.roller_rig import RollerRigModel
+from brakethermo.models.roller_rig import CreepEffects, RollerRigModel
 from brakethermo.rigs.roller_rig import Bearings, load_roller_rig
 
 SPEC = load_roller_rig()
@@ -27,9 +27,10 @@ def _inputs(K: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 @pytest.mark.parametrize("law", ["polach", "fastsim"])
-def test_compiled_kernel_equals_vectorised_numpy(law: str) -> None:
+@pytest.mark.parametrize("effects", [None, CreepEffects(-0.2, 0.3, 2e-4)])
+def test_compiled_kernel_equals_vectorised_numpy(law: str, effects: CreepEffects | None) -> None:
     """All sigma points in one compiled call == the numpy RK4 of the same equations."""
-    model = RollerRigModel.from_spec(SPEC, creep_law=law)
+    model = RollerRigModel.from_spec(SPEC, creep_law=law, effects=effects)
     torque, normal, supply = _inputs(8)
     f = model.transition(0.005, torque, normal, supply)
     X = np.array([[12.16, 9.36, 0.3482], [12.3, 9.3, 0.32], [12.0, 9.45, 0.40],
@@ -38,6 +39,32 @@ def test_compiled_kernel_equals_vectorised_numpy(law: str) -> None:
         ref = model.propagate_numpy(X, 0.005, (torque[k], torque[min(k + 1, 7)]),
                                     (normal[k], normal[min(k + 1, 7)]), 7.5)  # fmt: skip
         np.testing.assert_allclose(f(X, k), ref, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("law", ["polach", "fastsim"])
+def test_carried_creep_effects_are_the_diagnosis_transforms(law: str) -> None:
+    """F(xi) = (1 + m) f((1 + a)(xi - d) / (1 + m)), f the datasheet's law: the forms
+    ``diagnose`` fits (models.rig_effects.ROLLER_EFFECTS), each alone and together; up
+    to the slip velocity, which the diagnosis's curve takes at the shifted wheel speed
+    (below 1e-4 of the force at 6e-3 creepage)."""
+    plain = RollerRigModel.from_spec(SPEC, creep_law=law)
+    w_r = np.full(7, 9.36)
+    normal = np.full(7, 13e3)
+    r_w = np.full(7, 0.3482)
+    xi = np.array([-4e-3, -1e-3, -1e-4, 0.0, 2e-4, 1.5e-3, 6e-3])
+    v_r = w_r * SPEC.roller_radius
+
+    def at(x: np.ndarray) -> np.ndarray:  # the wheel speed giving creepage x
+        return v_r * (1.0 + 0.5 * x) / (1.0 - 0.5 * x) / r_w
+
+    for a, m, d in ((-0.2, 0.0, 0.0), (0.0, 0.3, 0.0), (0.0, 0.0, 3e-4), (0.4, -0.25, -2e-4)):
+        model = RollerRigModel.from_spec(SPEC, creep_law=law, effects=CreepEffects(a, m, d))
+        s_x, F = model.creep(at(xi), w_r, r_w, normal)
+        np.testing.assert_allclose(s_x, xi, rtol=1e-12, atol=1e-15)
+        expect = (1 + m) * plain.creep(at((1 + a) * (xi - d) / (1 + m)), w_r, r_w, normal)[1]
+        np.testing.assert_allclose(F, expect, rtol=1e-4, atol=1e-6)
+    with pytest.raises(ConfigError, match="out of range"):
+        CreepEffects(slope_change=-1.2)
 
 
 def test_contact_force_cancels_in_the_angular_impulse() -> None:

@@ -11,6 +11,7 @@ from rich.table import Table
 from brakethermo.cli._app import app, console, run_with_status
 from brakethermo.cli._options import SESSION_FORMATS, AliasesOpt, JsonOpt, OutDir
 from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS
+from brakethermo.results.roller_rig import carried_text
 
 if TYPE_CHECKING:
     from brakethermo.pipelines.roller_rig import RollerRigResult
@@ -46,6 +47,9 @@ def render(result: RollerRigResult, folder: Path) -> None:
         f"{_fmt(c['ukf_traction_mm'], '.3f')} mm"
     )
     console.print(line, highlight=False)
+    carried = s["filter"]["with_effect"]
+    if carried is not None:
+        console.print(f"creep law carries: {carried_text(carried)}", highlight=False)
     for w in s["warnings"]:
         console.print(f"[yellow]warning:[/] {w}", highlight=False)
     console.print(f"wrote {folder}", highlight=False)
@@ -70,6 +74,13 @@ def roller_rig_cmd(
         str, typer.Option(help="Creep law: polach, or fastsim (Kalker, 20 x 20, slower).")
     ] = "polach",
     rig: Annotated[str, typer.Option(help="Rig datasheet id or TOML file.")] = "roller-rig",
+    with_effect: Annotated[
+        str,
+        typer.Option(help="Creep-curve effects carried from a diagnosis: 'none' (the"
+                          " datasheet's law), 'auto' (diagnose this session first: needs"
+                          " roller_torque), a diagnosis.json of a roller-rig session, or"
+                          " NAME=VALUE pairs (creep_slope, friction_level, creepage_offset)."),
+    ] = "none",
     supply_hz: Annotated[
         float | None, typer.Option(help="Roller-motor supply, Hz (else the session's fact).")
     ] = None,
@@ -88,6 +99,7 @@ def roller_rig_cmd(
         aliases=aliases,
         tuning=tuning,
         creep_law=creep,
+        with_effect=with_effect,
     )
     result = run_with_status(as_json, "estimating the rolling radius…",
                              lambda: run_roller_rig(session, options))  # fmt: skip

@@ -37,9 +37,43 @@ V_MIN = 0.05  # m/s, floor of the rolling speed in the creepage (standstill)
 OMEGA_EPS = 0.05  # rad/s, width of the smoothed sign of the Coulomb bearing loss
 # Layout of the compiled parameter vector (see RollerRigModel.params).
 (J_W, J_R, R_R, PSI, A_REF, B_REF, N_REF, G, C11, C22, MU0, FA, FB, KA, KS, MV, MRTH, MX, MR2,
- MF, MP, BW0, BW1, BR0, BR1, LAW, U_MAX, V_LO, V_HI) = range(29)  # fmt: skip
+ MF, MP, BW0, BW1, BR0, BR1, LAW, U_MAX, V_LO, V_HI,
+ EF_GAIN, EF_OFF, EF_MU) = range(32)  # fmt: skip
 CREEP_LAWS = ("polach", "fastsim")
 FASTSIM_GRID = 20  # elements per strip and strips (the paper's 20 x 20)
+
+
+@dataclass(frozen=True)
+class CreepEffects:
+    """Departures of the creep curve from the datasheet's law, as ``diagnose`` fits them
+    (:data:`brakethermo.models.rig_effects.ROLLER_EFFECTS`) and the estimator carries them::
+
+        F(ξ) = (1 + m) f((1 + a) (ξ - d) / (1 + m))
+
+    Attributes
+    ----------
+    slope_change : float — a, the initial slope's change, - (``creep_slope``).
+    mu_change : float — m, the friction level's change, - (``friction_level``; Kalker's
+        similarity: F / (μN) depends on ξ / μ).
+    offset : float — d, a creepage the speeds carry at zero force, - (``creepage_offset``).
+    """
+
+    slope_change: float = 0.0
+    mu_change: float = 0.0
+    offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (self.slope_change > -1.0 and self.mu_change > -1.0
+                and abs(self.offset) < 0.05):
+            raise ConfigError(
+                f"creep effects out of range (slope_change {self.slope_change:g} and"
+                f" mu_change {self.mu_change:g} must exceed -1, |offset| {self.offset:g}"
+                " below 0.05)")
+
+    @property
+    def gain(self) -> float:
+        """(1 + a) / (1 + m): the factor on the creepage inside the law."""
+        return (1.0 + self.slope_change) / (1.0 + self.mu_change)
 
 
 @dataclass(frozen=True)
@@ -53,15 +87,18 @@ class RollerRigModel:
     creep_law : {"polach", "fastsim"} — Polach's closed-form law (default), or Kalker's
         FASTSIM (20 x 20, parabolic bound, tabulated once per run) with Polach's
         slip-velocity friction: the richer alternative.
+    effects : CreepEffects — the creep curve's diagnosed departures (none by default).
     """
 
     spec: RollerRigSpec
     substep: float
     creep_law: str = "polach"
+    effects: CreepEffects = CreepEffects()
 
     @classmethod
     def from_spec(
-        cls, spec: RollerRigSpec, substep: float | None = None, creep_law: str = "polach"
+        cls, spec: RollerRigSpec, substep: float | None = None, creep_law: str = "polach",
+        effects: CreepEffects | None = None,
     ) -> RollerRigModel:
         """The model with the datasheet's substep unless one is given (s)."""
         h = spec.filter.substep if substep is None else substep
@@ -71,7 +108,7 @@ class RollerRigModel:
             raise ConfigError(
                 f"creep law must be one of {', '.join(CREEP_LAWS)}, got {creep_law!r}"
             )
-        return cls(spec, h, creep_law)
+        return cls(spec, h, creep_law, effects or CreepEffects())
 
     def params(self) -> Array:
         """The compiled kernels' parameter vector (layout of the module constants)."""
@@ -93,7 +130,8 @@ class RollerRigModel:
             c.normal_force, s.shear_modulus, k.c11, k.c22, fr.mu0, fr.A, fr.B, fr.k_a, fr.k_s,
             *s.motor.params(), b.wheel_coulomb, b.wheel_viscous, b.roller_coulomb,
             b.roller_viscous, CREEP_LAWS.index(self.creep_law), u_max, phi / fr.mu0,
-            phi / (fr.mu0 * fr.A),
+            phi / (fr.mu0 * fr.A), self.effects.gain, self.effects.offset,
+            1.0 + self.effects.mu_change,
         ])  # fmt: skip
 
     @cached_property
@@ -115,19 +153,20 @@ class RollerRigModel:
         v_r = np.asarray(omega_r) * p[R_R]
         V = np.maximum(0.5 * (np.abs(v_w) + np.abs(v_r)), V_MIN)
         s_x = (v_w - v_r) / V
+        s_law = p[EF_GAIN] * (s_x - p[EF_OFF])  # CreepEffects
         fr = s.friction
         if self.creep_law == "fastsim":
-            mu = friction_coefficient(v_w - v_r, fr.mu0, fr.A, fr.B)
+            mu = friction_coefficient(s_law * V, fr.mu0, fr.A, fr.B)
             lookup = np.vectorize(fastsim_table_force, otypes=[float], excluded={"tab"})
-            F = lookup(s_x, p[PSI], mu, normal_force, p[N_REF], p[U_MAX], p[V_LO], p[V_HI],
+            F = lookup(s_law, p[PSI], mu, normal_force, p[N_REF], p[U_MAX], p[V_LO], p[V_HI],
                        tab=self.table())  # fmt: skip
-            return s_x, F
+            return s_x, p[EF_MU] * F
         scale = np.cbrt(np.asarray(normal_force, dtype=float) / p[N_REF])
         F, _ = polach_force(
-            s_x, p[PSI], V, normal_force, p[A_REF] * scale, p[B_REF] * scale, p[G], p[C11],
+            s_law, p[PSI], V, normal_force, p[A_REF] * scale, p[B_REF] * scale, p[G], p[C11],
             p[C22], fr.mu0, fr.A, fr.B, fr.k_a, fr.k_s,
         )  # fmt: skip
-        return s_x, F
+        return s_x, p[EF_MU] * F
 
     def derivatives(
         self, X: Array, torque: Array | float, normal_force: Array | float, supply_hz: float
@@ -220,15 +259,16 @@ def _rhs(w_w, w_r, r_w, tq, N, a, b, fsyn, p, tab):  # pragma: no cover - compil
     v_w = w_w * r_w
     v_r = w_r * p[R_R]
     V = max(0.5 * (abs(v_w) + abs(v_r)), V_MIN)
+    s_law = p[EF_GAIN] * ((v_w - v_r) / V - p[EF_OFF])  # CreepEffects
     if p[LAW] == 1.0:
-        mu = p[MU0] * ((1.0 - p[FA]) * math.exp(-p[FB] * abs(v_w - v_r)) + p[FA])
-        F = fastsim_table_force((v_w - v_r) / V, p[PSI], mu, N, p[N_REF], p[U_MAX], p[V_LO],
-                                p[V_HI], tab)  # fmt: skip
+        mu = p[MU0] * ((1.0 - p[FA]) * math.exp(-p[FB] * abs(s_law * V)) + p[FA])
+        F = fastsim_table_force(s_law, p[PSI], mu, N, p[N_REF], p[U_MAX], p[V_LO], p[V_HI],
+                                tab)  # fmt: skip
     else:
         F = polach_force_scalar(
-            (v_w - v_r) / V, p[PSI], V, N, a, b, p[G], p[C11], p[C22], p[MU0], p[FA], p[FB],
-            p[KA], p[KS],
+            s_law, p[PSI], V, N, a, b, p[G], p[C11], p[C22], p[MU0], p[FA], p[FB], p[KA], p[KS]
         )  # fmt: skip
+    F *= p[EF_MU]
     T_A = motor_torque_scalar(w_r, fsyn, p[MV], p[MRTH], p[MX], p[MR2], p[MF], p[MP])
     T_bw = p[BW0] * _smooth_sign(w_w) + p[BW1] * w_w
     T_br = p[BR0] * _smooth_sign(w_r) + p[BR1] * w_r

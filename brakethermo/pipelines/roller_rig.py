@@ -26,9 +26,10 @@ from brakethermo.errors import ConfigError, DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
-from brakethermo.models.roller_rig import CREEP_LAWS, RollerRigModel
+from brakethermo.models.roller_rig import CREEP_LAWS, CreepEffects, RollerRigModel
 from brakethermo.numeric import rmse
 from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
+from brakethermo.pipelines.roller_rig_effects import carried_effects
 from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS as TUNINGS
 from brakethermo.results.roller_rig import GuessRun, RollerRigResult
 from brakethermo.rigs.motor import motor_torque
@@ -67,6 +68,9 @@ class RollerRigOptions:
         datasheet's ``q_measured``; or the paper's P0/Q/R exactly (eq. 15a-15c).
     creep_law : {"polach", "fastsim"} — the estimator's creep force: Polach's law, or
         Kalker's FASTSIM (20 x 20) with Polach's friction.
+    with_effect : str — the creep curve's departures carried from a diagnosis: 'none',
+        'auto', a diagnosis.json or NAME=VALUE pairs
+        (:mod:`brakethermo.pipelines.roller_rig_effects`).
     """
 
     r0_mm: tuple[float, ...] = (320.0, 400.0)
@@ -76,6 +80,7 @@ class RollerRigOptions:
     aliases: Path | None = None
     tuning: str = "measured"
     creep_law: str = "polach"
+    with_effect: str = "none"
 
     def validated(self) -> RollerRigOptions:
         """Self after checks (ConfigError naming the option)."""
@@ -284,8 +289,8 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     supply, source = _supply(session, opts, spec, w_w, w_r, free & both)
     dt = session.dt
     t = session.time
-    model = RollerRigModel.from_spec(spec, creep_law=opts.creep_law)
-    f = model.transition(dt, torque, normal, np.full(t.size, supply))
+    effects, carried = carried_effects(opts.with_effect, path, rig=opts.rig,
+                                       creep_law=opts.creep_law, aliases=opts.aliases)
     y = np.column_stack([w_w, w_r])
     fd = spec.filter
     if opts.tuning == "paper":
@@ -294,34 +299,43 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         Q = np.array(fd.q_measured)
         R = np.array([speed_noise_var(w_w, free & both), speed_noise_var(w_r, free & both)])
     H = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-    ukf = UnscentedKalmanFilter(
-        f, np.diag(Q), np.diag(R), H=H, alpha=fd.alpha, beta=fd.beta, kappa=fd.kappa
-    )
     first = int(np.flatnonzero(both)[0])
-
-    def one_guess(r0: float) -> GuessRun:
-        x0 = np.array([w_w[first], w_r[first], r0 * 1e-3])
-        res = ukf.run(x0, np.diag(fd.p0), y, store="smoother" if opts.smoother else "diag")
-        filt_mm = res.x_filt[:, 2] * 1e3
-        filt_std = np.sqrt(res.var_filt[:, 2]) * 1e3
-        if opts.smoother:
-            sm = urts_smooth(res)
-            states, var = sm.x_smooth, sm.var_smooth
-        else:
-            states, var = res.x_filt, res.var_filt
-        return GuessRun(
-            r0, states[:, 2] * 1e3, np.sqrt(var[:, 2]) * 1e3, filt_mm, filt_std, states,
-            convergence_time(t, filt_mm, float(filt_mm[-1]), dt),
-        )  # fmt: skip
-
-    # The guesses are independent and the compiled model and filter steps release the
-    # GIL: one thread per guess, at most one per core.
-    workers = max(1, min(len(opts.r0_mm), os.cpu_count() or 1))
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        runs = list(pool.map(one_guess, opts.r0_mm))
     ratio_mm = free_rolling_radius_mm(session, spec, w_w, w_r, free & both)
-    runs = [creep_model_band(_checked_guess(run, ratio_mm, one_guess), torque, free & both)
-            for run in runs]
+
+    def guesses(model: RollerRigModel) -> list[GuessRun]:
+        f = model.transition(dt, torque, normal, np.full(t.size, supply))
+        ukf = UnscentedKalmanFilter(
+            f, np.diag(Q), np.diag(R), H=H, alpha=fd.alpha, beta=fd.beta, kappa=fd.kappa
+        )
+
+        def one_guess(r0: float) -> GuessRun:
+            x0 = np.array([w_w[first], w_r[first], r0 * 1e-3])
+            res = ukf.run(x0, np.diag(fd.p0), y, store="smoother" if opts.smoother else "diag")
+            filt_mm = res.x_filt[:, 2] * 1e3
+            filt_std = np.sqrt(res.var_filt[:, 2]) * 1e3
+            if opts.smoother:
+                sm = urts_smooth(res)
+                states, var = sm.x_smooth, sm.var_smooth
+            else:
+                states, var = res.x_filt, res.var_filt
+            return GuessRun(
+                r0, states[:, 2] * 1e3, np.sqrt(var[:, 2]) * 1e3, filt_mm, filt_std, states,
+                convergence_time(t, filt_mm, float(filt_mm[-1]), dt),
+            )  # fmt: skip
+
+        # The guesses are independent and the compiled model and filter steps release the
+        # GIL: one thread per guess, at most one per core.
+        workers = max(1, min(len(opts.r0_mm), os.cpu_count() or 1))
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            runs = list(pool.map(one_guess, opts.r0_mm))
+        return [creep_model_band(_checked_guess(run, ratio_mm, one_guess), torque, free & both)
+                for run in runs]
+
+    model = RollerRigModel.from_spec(spec, creep_law=opts.creep_law)
+    runs = guesses(model)
+    if effects != CreepEffects():
+        model, runs = _judged(model, runs, replace(model, effects=effects), guesses, carried,
+                              free & both, traction & both)
     s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2], normal)
     naive = w_r * spec.roller_radius / np.where(np.abs(w_w) > 1e-9, w_w, np.nan) * 1e3
     ref = session.constant("rolling_radius_ref")
@@ -339,11 +353,44 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         {
             "tuning": opts.tuning,
             "creep_law": opts.creep_law,
+            "with_effect": carried,
             "q_used": Q.tolist(),
             "r_used": R.tolist(),
         }
     )
     return result
+
+
+def _judged(law: RollerRigModel, law_runs: list[GuessRun], changed: RollerRigModel,
+            guesses: Any, carried: dict[str, Any], free: np.ndarray, traction: np.ndarray,
+            ) -> tuple[RollerRigModel, list[GuessRun]]:
+    """The datasheet's creep law or the carried one, as the session decides.
+
+    The wheel's radius does not change with the torque: the law under which the first
+    guess's radius moves less between free rolling and traction (:func:`traction_drift_mm`)
+    is the one the speeds and torque support. The creep force a diagnosis fitted against a
+    transducer can carry the transducer's own errors (bearing drag, inertia), so a carried
+    curve is kept only where it makes the radius more constant. Records both drifts and the
+    choice in ``carried`` (the summary's ``filter.with_effect``).
+    """
+    runs = guesses(changed)
+    before = traction_drift_mm(law_runs[0].radius_mm, free, traction)
+    after = traction_drift_mm(runs[0].radius_mm, free, traction)
+    kept = abs(after) < abs(before)
+    carried.update({"kept": kept, "traction_drift_mm": {"datasheet": before, "carried": after}})
+    if not kept:
+        carried["note"] = (f"not kept: with it the radius moves {after:+.3f} mm from free"
+                           f" rolling to traction, {before:+.3f} mm with the datasheet's law")
+        return law, law_runs
+    return changed, runs
+
+
+def traction_drift_mm(radius_mm: np.ndarray, free: np.ndarray, traction: np.ndarray) -> float:
+    """Mean radius under traction minus in free rolling, mm (0 for a right creep law)."""
+    ok = np.isfinite(radius_mm)
+    if not (free & ok).any() or not (traction & ok).any():
+        return 0.0
+    return float(np.mean(radius_mm[traction & ok]) - np.mean(radius_mm[free & ok]))
 
 
 def free_rolling_radius_mm(session: Session, spec: RollerRigSpec, w_w: np.ndarray,

@@ -7,7 +7,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from brakethermo.report.page import Card, Page, Section, TableBlock
-from brakethermo.results.roller_rig import RollerRigResult
+from brakethermo.results.roller_rig import RollerRigResult, carried_text
 
 # The paper's Table 1: whole-run RMSE of the radius, mm, (under-, over-estimation).
 PAPER_TABLE1 = {15: (0.6060, 0.8233), 30: (1.0631, 1.0139)}
@@ -171,6 +171,8 @@ def roller_rig_page(result: RollerRigResult) -> Page:
         + ("unscented RTS smoother on." if result.options.smoother else "filter only (the paper)."),
         f"Roller motor supply {result.supply_hz:.3f} Hz ({result.supply_source}).",
     ]  # fmt: skip
+    if s["filter"]["with_effect"] is not None:
+        text.append("The creep law carries " + carried_text(s["filter"]["with_effect"]) + ".")
     naive_text = (
         "The naive radius ω_r·R_r/ω_w ignores creep: right in free rolling, it reads low "
         "under traction because the wheel surface runs faster than the roller's."

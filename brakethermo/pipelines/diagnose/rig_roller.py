@@ -118,16 +118,19 @@ def _moving_mean(v: np.ndarray, window: int) -> np.ndarray:
 
 
 def _next_step(name: str, fit: dict[str, float], friction: Friction) -> str:
+    value = next(iter(fit.values()))
+    carry = f"brakethermo roller-rig SESSION --with-effect {name}={value:+.4g}"
     if name == "creep_slope":
         k_a = friction.k_a * (1.0 + fit["slope_change"])
-        return (f"copy the rig datasheet, set [friction] k_a = {k_a:.2f} and k_s ="
+        return (f"carry it: {carry} (or --with-effect with this diagnosis.json); for good,"
+                f" a copy of the rig datasheet with [friction] k_a = {k_a:.2f} and k_s ="
                 f" {min(friction.k_s, k_a):.2f} (were {friction.k_a:g}, {friction.k_s:g}:"
-                " Polach's reduction of the initial slope; k_s may not exceed k_a) and pass"
-                " it: brakethermo roller-rig SESSION --rig FILE")
+                " Polach's reduction of the initial slope; k_s may not exceed k_a), passed"
+                " with --rig FILE")
     if name == "friction_level":
         mu0 = friction.mu0 * (1.0 + fit["mu_change"])
-        return (f"copy the rig datasheet, set [friction] mu0 = {mu0:.3f} (was"
-                f" {friction.mu0:g}) and pass it with --rig FILE; a run with traction up to"
-                " sliding pins it")
-    return ("check the radius the free-rolling ratio gives against a measured one"
-            " (rolling_radius_ref), and free rolling at a second speed")
+        return (f"carry it: {carry}, or set [friction] mu0 = {mu0:.3f} (was"
+                f" {friction.mu0:g}) in a copy of the rig datasheet; a run with traction up"
+                " to sliding pins it")
+    return (f"carry it: {carry}; then check the radius the free-rolling ratio gives against"
+            " a measured one (rolling_radius_ref), and free rolling at a second speed")
