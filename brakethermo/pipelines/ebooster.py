@@ -23,6 +23,7 @@ from scipy.signal import lfilter, ss2tf
 from brakethermo.config import config_dir
 from brakethermo.errors import DataError
 from brakethermo.estimation import ExtendedKalmanFilter, UnscentedKalmanFilter, urts_smooth
+from brakethermo.estimation.consistency import nis_consistency
 from brakethermo.estimation.rls import even_powers, rls_fit
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
@@ -336,6 +337,8 @@ def _summary(
         "improvement_pct": improvement,
         "pressure_rmse_mpa": p_rmse,
         "coverage_95": cov95,
+        "consistency": {w: nis_consistency(t.filt.nis, t.filt.n_obs, t.filt.innovation)
+                        for w, t in tracks.items()},
         "outside_1sigma": out1,
         "band": {
             "pv_shift_sd_mm": spec.pv_shift_sd_mm,

@@ -23,6 +23,7 @@ import pandas as pd
 from scipy.ndimage import median_filter
 
 from brakethermo.errors import ConfigError, DataError
+from brakethermo.estimation.consistency import nis_consistency
 from brakethermo.estimation.results import FilterResult
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
@@ -34,7 +35,7 @@ from brakethermo.models.mu_slip import (
     rudd_ekf,
     rudd_lm,
 )
-from brakethermo.report.page import Card, Page, Section, TableBlock
+from brakethermo.report.page import Card, Page, Section, TableBlock, consistency_text
 from brakethermo.rigs.tyre import rudd_mu
 
 CHANNELS = ("vehicle_speed", "wheel_speed", "drag_force", "normal_force", "slip_ratio")
@@ -370,6 +371,9 @@ def summary(res: MuSlipResult) -> dict[str, Any]:
         "noise_std_mu": res.sigma,
         "wheel_radius_m": res.radius_m,
         "ekf": _peak(res.ekf.x_filt[-1], np.sqrt(res.ekf.var_filt[-1])),
+        # the EKF's noise is the measured std times the inflation: its NIS says whether
+        # that covers the curve's shape error (over-confident: the two-parameter form)
+        "ekf_consistency": nis_consistency(res.ekf.nis, res.ekf.n_obs, res.ekf.innovation),
         "lm_one_pass": _peak(*res.lm_one_pass),
         "lm_converged": _peak(*res.lm_converged),
         "families": [
@@ -521,7 +525,8 @@ def page(res: MuSlipResult, summ: dict[str, Any]) -> Page:
                           " braking;")
                     +
                     f" noise std of μ {res.sigma:.4f} (from point-to-point differences), inflated"
-                    f" ×{res.inflation:g} plus second-order pseudo-noise in the EKF."
+                    f" ×{res.inflation:g} plus second-order pseudo-noise in the EKF; its"
+                    f" innovations: {consistency_text(summ['ekf_consistency'])}."
                 ],
                 tables=[TableBlock(["estimator", "μ peak", "slip peak"], rows)],
                 figures={"ekf_convergence": fig},

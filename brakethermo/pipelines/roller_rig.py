@@ -24,6 +24,7 @@ from scipy.optimize import brentq
 
 from brakethermo.errors import ConfigError, DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
+from brakethermo.estimation.consistency import nis_consistency
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.roller_rig import CREEP_LAWS, CreepEffects, RollerRigModel
@@ -321,6 +322,7 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
             return GuessRun(
                 r0, states[:, 2] * 1e3, np.sqrt(var[:, 2]) * 1e3, filt_mm, filt_std, states,
                 convergence_time(t, filt_mm, float(filt_mm[-1]), dt),
+                consistency=nis_consistency(res.nis, res.n_obs, res.innovation),
             )  # fmt: skip
 
         # The guesses are independent and the compiled model and filter steps release the
@@ -525,6 +527,7 @@ def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> di
                 "radius_mm": float(run.radius_mm[-1]),
                 "radius_std_mm": float(run.radius_std_mm[-1]),
                 "creep_model_error_mm_per_knm": run.model_error_mm_per_knm,
+                "consistency": run.consistency,
                 "convergence_time_s": run.convergence_time_s,
                 "rmse_vs_ref_mm": err,
                 "rmse_vs_ref_pct": None if ref is None else 100.0 * err / ref,

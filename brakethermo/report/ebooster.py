@@ -115,13 +115,18 @@ def booster_page(r: EboosterResult) -> Page:
         pr, out1 = s["pressure_rmse_mpa"][w], s["outside_1sigma"][w]
         rows.append((w.upper(), *(_fmt(pr[k]) for k in PRESSURES),
                      *(_fmt(None if out1[k] is None else 100 * out1[k], 1) for k in PRESSURES),
-                     _fmt(None if s["coverage_95"][w] is None else 100 * s["coverage_95"][w], 1)))
+                     _fmt(None if s["coverage_95"][w] is None else 100 * s["coverage_95"][w], 1),
+                     f"{s['consistency'][w]['mean_nis']:.2f} ({s['consistency'][w]['state']})"))
     ptable = TableBlock(
         header=("observer", "p_m RMSE MPa", "p_f RMSE MPa", "p_r RMSE MPa", "p_m outside 1σ %",
-                "p_f outside 1σ %", "p_r outside 1σ %", "95 % band coverage %"),
+                "p_f outside 1σ %", "p_r outside 1σ %", "95 % band coverage %",
+                "δ mean NIS"),
         rows=rows,
         caption="Against the session's pressure channels (validation only; – where the "
-        "session has none). A consistent 1σ band leaves about 32 % outside, a 95 % band 5 %.",
+        "session has none). A consistent 1σ band leaves about 32 % outside, a 95 % band 5 %."
+        " δ mean NIS: the filter's normalised innovations, 1 when its noise settings match"
+        f" ({s['consistency']['ukf']['chi2_band'][0]:.2f}–"
+        f"{s['consistency']['ukf']['chi2_band'][1]:.2f} for this session's length).",
     )
     pv_only = None
     if "p_m" in r.validation:

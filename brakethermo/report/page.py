@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import matplotlib.pyplot as plt
 from jinja2 import Environment, PackageLoader, select_autoescape
@@ -129,3 +130,13 @@ def write_page(page: Page, folder: Path, name: str = "index.html") -> Path:
     target = folder / name
     write_text_atomic(target, html)
     return target
+
+
+def consistency_text(c: dict[str, Any]) -> str:
+    """A filter's NIS check in one phrase (``estimation.consistency.nis_consistency``)."""
+    if not c or not c.get("n"):
+        return "no measurements to check it on"
+    lo, hi = c["chi2_band"]
+    return (f"mean NIS {c['mean_nis']:.2f} per step, {c['state']} (95 % band"
+            f" {lo:.2f}–{hi:.2f} for {c['dof_per_step']:g} measured value(s) a step;"
+            f" lag-1 autocorrelation of the innovations {c['lag1_autocorrelation']:+.2f})")

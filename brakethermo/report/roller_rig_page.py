@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from brakethermo.report.page import Card, Page, Section, TableBlock
+from brakethermo.report.page import Card, Page, Section, TableBlock, consistency_text
 from brakethermo.results.roller_rig import RollerRigResult, carried_text
 
 # The paper's Table 1: whole-run RMSE of the radius, mm, (under-, over-estimation).
@@ -171,6 +171,8 @@ def roller_rig_page(result: RollerRigResult) -> Page:
         + ("unscented RTS smoother on." if result.options.smoother else "filter only (the paper)."),
         f"Roller motor supply {result.supply_hz:.3f} Hz ({result.supply_source}).",
     ]  # fmt: skip
+    text.append("Filter consistency (speeds), first guess: "
+                + consistency_text(s["runs"][0]["consistency"]) + ".")
     if s["filter"]["with_effect"] is not None:
         text.append("The creep law carries " + carried_text(s["filter"]["with_effect"]) + ".")
     naive_text = (

@@ -24,6 +24,7 @@ class GuessRun:
     convergence_time_s: float | None
     restart: str | None = None  # why the guess was re-started from the speed ratio
     model_error_mm_per_knm: float = 0.0  # the creep law's error in the bands, mm per kN m
+    consistency: dict[str, Any] | None = None  # the filter's NIS against its chi-square band
 
 
 @dataclass(frozen=True)

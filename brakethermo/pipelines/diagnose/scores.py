@@ -7,17 +7,16 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy.stats import chi2
 
 from brakethermo.diagnosis.verdict import (
     shrink_interval,
     unit_sse,
 )
 from brakethermo.estimation import UnscentedKalmanFilter
+from brakethermo.estimation.consistency import nis_consistency
 from brakethermo.models.disc import DiscStateSpace
 from brakethermo.numeric import rmse as _rmse
 from brakethermo.pipelines.diagnose._common import RULE
-from brakethermo.pipelines.diagnose.evidence import _corr
 from brakethermo.pipelines.diagnose.fit import _nanmean
 from brakethermo.pipelines.diagnose.layout import Layout, _phase_masks
 from brakethermo.pipelines.inputs import DiscInputs
@@ -84,18 +83,10 @@ def consistency(model: DiscFEModel, inputs: DiscInputs, y: np.ndarray, law_h: np
     out: dict[str, Any] = {"per_spot": {}, "sigma_meas_c": [float(s) for s in sigma_meas]}
     verdicts = []
     for i in range(4):
-        v = nis_spot[scored, i]
-        v = v[np.isfinite(v)]
-        n = max(v.size, 1)
-        lo, hi = chi2.ppf([0.025, 0.975], n) / n
-        nu = res.innovation[scored, i]
-        nu = nu[np.isfinite(nu)]
-        ac = _corr(nu[:-1], nu[1:]) if nu.size > 3 else float("nan")
-        mean = float(np.mean(v)) if v.size else float("nan")
-        state = "over-confident" if mean > hi else "under-confident" if mean < lo else "consistent"
-        verdicts.append(state)
-        out["per_spot"][f"spot{i + 1}"] = {"mean_nis": mean, "chi2_band": [float(lo), float(hi)],
-                                           "lag1_autocorrelation": ac, "state": state}
+        c = nis_consistency(nis_spot[scored, i], 1, res.innovation[scored, i])
+        verdicts.append(c["state"])
+        out["per_spot"][f"spot{i + 1}"] = {k: c[k] for k in (
+            "mean_nis", "chi2_band", "lag1_autocorrelation", "state")}
     over = verdicts.count("over-confident")
     out["summary"] = (
         f"the reference filter is over-confident at {over} of 4 spots: its model error is"

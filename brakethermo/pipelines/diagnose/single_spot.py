@@ -9,7 +9,6 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from scipy.stats import chi2
 
 from brakethermo import __version__
 from brakethermo.diagnosis.verdict import (
@@ -18,6 +17,7 @@ from brakethermo.diagnosis.verdict import (
     unit_sse,
 )
 from brakethermo.errors import DataError
+from brakethermo.estimation.consistency import nis_consistency
 from brakethermo.io.session import Session
 from brakethermo.models.effects import EFFECTS, parse_effects
 from brakethermo.pipelines.diagnose._common import (
@@ -27,7 +27,6 @@ from brakethermo.pipelines.diagnose._common import (
     DiagnoseOptions,
     DiagnoseResult,
 )
-from brakethermo.pipelines.diagnose.evidence import _corr
 from brakethermo.pipelines.diagnose.fit import _gauss_ll
 from brakethermo.pipelines.diagnose.layout import Layout, session_segments, zone_masks
 from brakethermo.pipelines.diagnose.scores import score
@@ -181,19 +180,12 @@ def _race_consistency(nis: np.ndarray, innovation: np.ndarray, scored: np.ndarra
                       ) -> dict[str, Any]:
     """The race filter's mean NIS at spot 3 against its χ² band, and its innovations'
     lag-1 autocorrelation."""
-    v = nis[scored & np.isfinite(nis)]
-    lo_b, hi_b = chi2.ppf([0.025, 0.975], max(v.size, 1)) / max(v.size, 1)
-    mean = float(np.mean(v)) if v.size else float("nan")
-    state = ("over-confident" if mean > hi_b else "under-confident" if mean < lo_b else
-             "consistent")
-    nu = innovation[scored]
-    nu = nu[np.isfinite(nu)]
+    c = nis_consistency(nis[scored], 1, innovation[scored])
     return {
-        "per_spot": {f"spot{RACE_SPOT}": {
-            "mean_nis": mean, "chi2_band": [float(lo_b), float(hi_b)],
-            "lag1_autocorrelation": _corr(nu[:-1], nu[1:]) if nu.size > 3 else float("nan"),
-            "state": state}},
-        "summary": f"the race filter is {state} at spot {RACE_SPOT} (mean NIS {mean:.2f})",
+        "per_spot": {f"spot{RACE_SPOT}": {k: c[k] for k in (
+            "mean_nis", "chi2_band", "lag1_autocorrelation", "state")}},
+        "summary": f"the race filter is {c['state']} at spot {RACE_SPOT} (mean NIS"
+                   f" {c['mean_nis']:.2f})",
     }
 
 

@@ -1,0 +1,58 @@
+"""Filter consistency: the mean normalised innovation squared (NIS) against its χ² band.
+
+A filter whose noise settings admit its model's error has innovations ν_k with
+ν_k' S_k^-1 ν_k ~ χ²(m_k) (Bar-Shalom, Li & Kirubarajan, sec. 5.4.2): over n steps the
+mean NIS lies in ``chi2.ppf([0.025, 0.975], Σ m_k) / n`` 95 % of the time. Above the
+band the filter is over-confident (its bands are too narrow: the model is incomplete),
+below it under-confident. The band assumes independent innovations; the lag-1
+autocorrelation, reported beside it, says how far they are from that.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.stats import chi2
+
+
+def nis_consistency(nis: ArrayLike, dof: ArrayLike = 1, innovation: ArrayLike | None = None,
+                    ) -> dict[str, Any]:
+    """Mean NIS, its 95 % χ² band, lag-1 autocorrelation of the innovations and a state.
+
+    Parameters
+    ----------
+    nis : array (K,) — NIS per step (NaN where no measurement was used).
+    dof : int or array (K,) — measurement components per step.
+    innovation : array (K,) or (K, m), optional — innovations, for the autocorrelation
+        (of the first component).
+
+    Returns
+    -------
+    dict with ``mean_nis`` (per step: its expectation is the mean measurement size,
+    ``dof_per_step``), ``chi2_band`` ([lo, hi]), ``lag1_autocorrelation`` (NaN without
+    innovations or with fewer than four), ``state`` ("consistent", "over-confident",
+    "under-confident" or "no measurements") and ``n`` (steps with a measurement).
+    """
+    v = np.asarray(nis, dtype=float)
+    m = np.broadcast_to(np.asarray(dof, dtype=float), v.shape)
+    ok = np.isfinite(v) & (m > 0)
+    n = int(ok.sum())
+    if n == 0:
+        return {"mean_nis": float("nan"), "dof_per_step": float("nan"),
+                "chi2_band": [float("nan")] * 2, "lag1_autocorrelation": float("nan"),
+                "state": "no measurements", "n": 0}
+    lo, hi = chi2.ppf([0.025, 0.975], float(m[ok].sum())) / n
+    mean = float(np.mean(v[ok]))
+    state = "over-confident" if mean > hi else "under-confident" if mean < lo else "consistent"
+    ac = float("nan")
+    if innovation is not None:
+        nu = np.asarray(innovation, dtype=float)
+        nu = (nu if nu.ndim == 1 else nu[:, 0])
+        nu = nu[np.isfinite(nu)]
+        if nu.size > 3 and np.std(nu[:-1]) > 0 and np.std(nu[1:]) > 0:
+            ac = float(np.corrcoef(nu[:-1], nu[1:])[0, 1])
+    return {"mean_nis": mean, "dof_per_step": float(np.mean(m[ok])),
+            "chi2_band": [float(lo), float(hi)], "lag1_autocorrelation": ac, "state": state,
+            "n": n}
