@@ -11,7 +11,6 @@ from rich.table import Table
 from brakethermo.cli._app import app, console, run_with_status
 from brakethermo.cli._options import SESSION_FORMATS, AliasesOpt, JsonOpt, OutDir
 from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS
-from brakethermo.results.roller_rig import carried_text
 
 if TYPE_CHECKING:
     from brakethermo.pipelines.roller_rig import RollerRigResult
@@ -49,6 +48,8 @@ def render(result: RollerRigResult, folder: Path) -> None:
     console.print(line, highlight=False)
     carried = s["filter"]["with_effect"]
     if carried is not None:
+        from brakethermo.results.roller_rig import carried_text
+
         console.print(f"creep law carries: {carried_text(carried)}", highlight=False)
     for w in s["warnings"]:
         console.print(f"[yellow]warning:[/] {w}", highlight=False)

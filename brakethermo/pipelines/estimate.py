@@ -40,6 +40,7 @@ from brakethermo.models.reduced import (
 )
 from brakethermo.pipelines import scoring
 from brakethermo.pipelines.checks import check_estimate_result
+from brakethermo.pipelines.crown_band import crown_balance_std
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import (
     DiscCalibration,
@@ -470,8 +471,13 @@ def estimate_from_session(
     std = np.sqrt(np.maximum(out_var, 0.0))
     warnings.extend(check_estimate_result(out[:, :5], forward.nis))
     online = {p.name: ssm.index[p.name] for p in plan.online}
-    frame = _estimate_frame(inputs, model, states, out, band_std(out, std, tuning), tuning, h,
-                            online)
+    band = band_std(out, std, tuning)
+    H_spots = model.spot_matrix(spot_radii)
+    H_model = np.vstack([H_spots, H_spots[1:4].mean(axis=0)])
+    crown = crown_balance_std(model, x0[: model.n_state], inputs.q_brk * cal.power_scale, h,
+                              inputs.t_amb, H_model, options.spot, tuning.crown_balance_sd)
+    band[:, :5] = np.hypot(band[:, :5], crown)
+    frame = _estimate_frame(inputs, model, states, out, band, tuning, h, online)
     open_loop = scores = None
     if options.score and len(inputs.measured) > 1:
         open_loop, scores = _self_scores(session, inputs, model, cal, x0, h, frame, std,
@@ -616,6 +622,7 @@ def _model_facts(cal: DiscCalibration, tuning: EstimateTuning, model: DiscFEMode
         "band_scale_check": cal.band_scale,
         "sigma_meas_c": tuning.sigma_meas,
         "ir_calibration_pct": tuning.ir_calibration_pct,
+        "crown_balance_sd": tuning.crown_balance_sd,
         "crown_weights": [float(w) for w in model.weights],
         "filter": "UKF (Merwe scaled sigma points)",
         "smoother": tuning.smoother,

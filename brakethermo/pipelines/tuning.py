@@ -60,6 +60,10 @@ class EstimateTuning(SigmaPointTuning):
     ir_calibration_pct : float — % of absolute temperature, 1 sigma
         The pyrometer's absolute calibration (emissivity) uncertainty, common to every
         reading: added to the reported band, which the filter alone cannot widen for it.
+    crown_balance_sd : float — log of the inner/outer weight ratio, 1 sigma
+        How far a race's pads may share the power between the crowns unlike the law's
+        (test session's): what it changes at the unmeasured spots is added to the
+        reported band (:mod:`brakethermo.pipelines.crown_band`); 0 turns it off.
     """
 
     nodes: int = 10
@@ -86,6 +90,7 @@ class EstimateTuning(SigmaPointTuning):
     sigma_balance_step: float = 0.0005
     init_sigma_balance: float = 0.15
     ir_calibration_pct: float = 1.0
+    crown_balance_sd: float = 0.25
 
 
 @dataclass(frozen=True)
@@ -127,6 +132,7 @@ BOUNDS: dict[str, tuple[float, float]] = {
     "thin_skin_layer_growth": (0.2, 10.0),
     "thin_skin_kz_ratio": (0.0, 10.0),
     "ir_calibration_pct": (0.0, 10.0),
+    "crown_balance_sd": (0.0, 1.5),
     "init_sigma_balance": (0.0, 0.6),
     "alpha": (1e-4, 1.0),
     "beta": (0.0, 10.0),

@@ -1,0 +1,33 @@
+"""The crown-balance term of the reported band (pipelines/crown_band.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from brakethermo.pipelines.crown_band import crown_balance_std
+from brakethermo.thermal.disc import load_disc
+from brakethermo.thermal.model import DiscFEModel
+
+
+def _braking(K: int = 400, dt: float = 0.1) -> tuple[np.ndarray, ...]:
+    t = np.arange(K) * dt
+    q = np.where((t % 10.0) < 2.5, 60e3, 0.0)  # a 2.5 s stop every 10 s
+    return q, np.full(K, 150.0), np.full(K, 25.0)
+
+
+def test_the_term_is_zero_at_the_measured_spot_and_grows_with_the_prior():
+    disc = load_disc("cc-340-8")
+    model = DiscFEModel(disc, 10, 2, weights=(1.2, 1.0, 0.8), dt=0.1)
+    H_spots = model.spot_matrix(np.asarray(disc.spot_radii))
+    H = np.vstack([H_spots, H_spots[1:4].mean(axis=0)])
+    q, h, ta = _braking()
+    T0 = model.initial_state(100.0)
+    small, large = (crown_balance_std(model, T0, q, h, ta, H, 3, s) for s in (0.1, 0.3))
+    assert small.shape == (q.size, 5)
+    np.testing.assert_array_equal(small[:, 2], 0.0)
+    assert np.all(np.isfinite(small)) and small[:, [0, 1, 3]].max() > 5.0
+    # inner and outer move apart: the outer spots far more than the contact band's mean
+    assert small[:, [0, 3]].mean() > 2.0 * small[:, 4].mean()
+    grow = large.mean(axis=0)[[0, 1, 3, 4]] / small.mean(axis=0)[[0, 1, 3, 4]]
+    assert np.all(grow > 2.5), grow  # about linear in the prior's sigma
+    np.testing.assert_array_equal(crown_balance_std(model, T0, q, h, ta, H, 3, 0.0), 0.0)
