@@ -26,7 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
-CLI = [sys.executable, "-c", "from brakethermo.cli import main; main()"]
+CLI = [sys.executable, "-c", "from brakethermo.__main__ import main; main()"]
 
 
 def run_batch(folder: Path, out: Path, *extra: str) -> tuple[float, dict]:

@@ -34,7 +34,7 @@ FULL = (
 CASES = {
     "python -c pass": ["-c", "pass"],
     "import brakethermo.cli": ["-c", "import brakethermo.cli"],
-    "brakethermo --help": ["-c", "from brakethermo.cli import main; main()", "--help"],
+    "brakethermo --help": ["-c", "from brakethermo.__main__ import main; main()", "--help"],
     "cli + every pipeline": ["-c", FULL],
 }
 

@@ -7,6 +7,8 @@ EXIT_BAD_INPUT = 1
 EXIT_USAGE = 2
 EXIT_BATCH_PARTIAL = 3
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
+# every output is staged and swapped in whole: an interrupted run leaves nothing half-written
+INTERRUPTED_TEXT = "nothing of this run was written; earlier outputs are as they were"
 
 
 class BrakethermoError(Exception):

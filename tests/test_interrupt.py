@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-CMD = [sys.executable, "-c", "from brakethermo.cli import main; main()"]
+CMD = [sys.executable, "-c", "from brakethermo.__main__ import main; main()"]
 
 
 @pytest.mark.skipif(os.name != "posix", reason="SIGINT semantics of POSIX")
@@ -86,3 +86,22 @@ def test_sigint_during_estimate_leaves_the_old_results(sim_race_session, tmp_pat
                            capture_output=True, text=True, env=env, timeout=300)
     assert again.returncode == 0, again.stdout + again.stderr
     assert (folder / "index.html").is_file()
+
+
+def test_an_interrupt_while_the_cli_imports_is_one_line(monkeypatch, capsys) -> None:
+    """Ctrl-C before the commands are loaded (numpy, scipy, numba importing): the
+    console script says the same one line and exits 130, no traceback."""
+    import types
+
+    from brakethermo.__main__ import main
+
+    class Importing(types.ModuleType):
+        def __getattr__(self, name: str) -> None:
+            raise KeyboardInterrupt
+
+    monkeypatch.setitem(sys.modules, "brakethermo.cli", Importing("brakethermo.cli"))
+    with pytest.raises(SystemExit) as stop:
+        main()
+    assert stop.value.code == 130
+    err = capsys.readouterr().err
+    assert err.startswith("interrupted:") and len(err.strip().splitlines()) == 1

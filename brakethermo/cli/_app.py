@@ -14,7 +14,7 @@ from rich.markup import escape
 from typer.core import TyperGroup
 
 from brakethermo import __version__
-from brakethermo.errors import EXIT_INTERRUPTED, BrakethermoError
+from brakethermo.errors import EXIT_INTERRUPTED, INTERRUPTED_TEXT, BrakethermoError
 
 console = Console()
 err_console = Console(stderr=True)
@@ -40,9 +40,8 @@ class _UserErrorGroup(TyperGroup):
                               soft_wrap=True)
             ctx.exit(exc.exit_code)
         except KeyboardInterrupt:
-            # every output is staged and swapped in whole: nothing half-written is left
-            err_console.print("[bold red]interrupted:[/] nothing of this run was written;"
-                              " earlier outputs are as they were", highlight=False)
+            err_console.print(f"[bold red]interrupted:[/] {INTERRUPTED_TEXT}",
+                              highlight=False)
             ctx.exit(EXIT_INTERRUPTED)
 
 
