@@ -35,6 +35,13 @@ def ebooster_command(
     smooth: Annotated[
         bool, typer.Option("--smooth/--no-smooth", help="RTS smoothing after each filter.")
     ] = True,
+    with_effect: Annotated[
+        str,
+        typer.Option(help="p-V departure carried from a diagnosis: 'none', 'auto' (diagnose"
+                          " this session first: needs the pressure sensor), a diagnosis.json"
+                          " of a booster session of the day, or NAME=VALUE (pv_shift,"
+                          " pv_scale, rate_dependent)."),
+    ] = "none",
     out: OutDir = Path("out"),
     aliases: AliasesOpt = None,
     as_json: JsonOpt = False,
@@ -50,7 +57,7 @@ def ebooster_command(
     result = run_with_status(
         as_json, f"observing {session.name} ...",
         lambda: observe(session, train_path=train, fit_path=fit, bench=bench, aliases=aliases,
-                        smooth=smooth),
+                        smooth=smooth, with_effect=with_effect),
     )
     if save_fit is not None:
         from brakethermo.io.atomic import write_text_atomic
@@ -78,6 +85,10 @@ def ebooster_command(
                     "–" if cov is None else f"{100 * cov:.1f} %")
     console.print(tab)
     console.print(f"UKF improvement over EKF (residual RMSE): {s['improvement_pct']:.1f} %")
+    if s["with_effect"] is not None:
+        from brakethermo.results.rig_diagnosis import carried_text
+
+        console.print(f"p-V carries: {carried_text(s['with_effect'])}", highlight=False)
     for warning in result.session.warnings:
         console.print(f"[yellow]warning:[/] {warning}")
     console.print(f"wrote {folder}")

@@ -48,7 +48,7 @@ def render(result: RollerRigResult, folder: Path) -> None:
     console.print(line, highlight=False)
     carried = s["filter"]["with_effect"]
     if carried is not None:
-        from brakethermo.results.roller_rig import carried_text
+        from brakethermo.results.rig_diagnosis import carried_text
 
         console.print(f"creep law carries: {carried_text(carried)}", highlight=False)
     for w in s["warnings"]:

@@ -175,17 +175,21 @@ class EboosterModel:
     spec : BoosterSpec — bench datasheet and observer settings.
     fit : BoosterFit — identified p-V and disk.
     s2_mm : ndarray (K,) — mm, screw displacement per step.
+    pv : ndarray (K,), optional — MPa, the static pressure per step; default the fit's
+        p-V curve at s2 (a carried effect replaces it: ``ebooster --with-effect``).
     dt : float — s, step.
     """
 
-    def __init__(self, spec: BoosterSpec, fit: BoosterFit, s2_mm: Array, dt: float) -> None:
+    def __init__(self, spec: BoosterSpec, fit: BoosterFit, s2_mm: Array, dt: float,
+                 pv: Array | None = None) -> None:
         self.spec, self.fit, self.dt = spec, fit, float(dt)
         self.s2 = np.ascontiguousarray(s2_mm, dtype=np.float64)
         self.K = self.s2.shape[0]
         self.chi = spec.pedal_state == "chi_square"
         self.N = spec.pedal_dof if self.chi else 1
         self.n = N_PHYS + self.N
-        self.pv = pv_pressure(self.s2, np.array(fit.pv_coeffs), fit.stroke_mm)
+        self.pv = (pv_pressure(self.s2, np.array(fit.pv_coeffs), fit.stroke_mm) if pv is None
+                   else np.ascontiguousarray(pv, dtype=np.float64))
         self.decay = float(np.exp(-self.dt / spec.pv_relax_s))
         self.k_port = tuple(
             orifice_coefficient(spec.stiffness_mpa_per_cm3[i], spec.discharge_coeff,

@@ -21,14 +21,16 @@ from scipy.optimize import least_squares
 from scipy.signal import lfilter, ss2tf
 
 from brakethermo.config import config_dir
-from brakethermo.errors import DataError
+from brakethermo.errors import ConfigError, DataError
 from brakethermo.estimation import ExtendedKalmanFilter, UnscentedKalmanFilter, urts_smooth
 from brakethermo.estimation.consistency import nis_consistency
 from brakethermo.estimation.rls import even_powers, rls_fit
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.ebooster import STATE_NAMES, BoosterFit, EboosterModel, load_fit
+from brakethermo.models.rig_effects import BOOSTER_EFFECTS, RigContext
 from brakethermo.numeric import rmse
+from brakethermo.pipelines.rig_carry import carried
 from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
 from brakethermo.results.ebooster import (
     OBSERVERS,
@@ -45,6 +47,7 @@ from brakethermo.rigs.booster import (
     pv_pressure,
 )
 from brakethermo.rigs.booster_datasheet import BoosterSpec, load_booster
+from brakethermo.rigs.signals import smoothed_rate
 
 Array = NDArray[np.float64]
 S2, DELTA = "pushrod_displacement", "reaction_disk_delta"
@@ -53,6 +56,7 @@ CHANNELS = (S2, DELTA, *PRESSURES.values(), PEDAL)
 DEFAULT_FIT = "ebooster_fit"  # configs/rigs/ebooster_fit.toml, trained on a simulated bench
 MM, MPA = 1e3, 1e-6  # SI -> model units
 Z95 = 1.959963984540054
+SPEED_WINDOW_S = 0.02  # s, moving average of the input's rate (encoder quantisation)
 
 
 def _series(session: Session, name: str, scale: float, *, gaps: bool) -> Array:
@@ -188,6 +192,33 @@ def _fit_disk(
     return disk, float(dyn.x[0]), float(dyn.x[1]), float(dyn.x[2]), rmse
 
 
+def booster_context(session: Session, s2: Array, fit: BoosterFit) -> RigContext:
+    """What the booster's candidate effects see of a session: s2 (mm), its speed (mm/s,
+    a 20 ms moving average), time from the start (s) and the fit's p-V curve."""
+    coeffs = np.array(fit.pv_coeffs)
+    return RigContext(s2, smoothed_rate(s2, session.dt, SPEED_WINDOW_S),
+                      session.time - session.time[0],
+                      lambda s: pv_pressure(s, coeffs, fit.stroke_mm))
+
+
+def static_pressure_carried(text: str, session: Session, s2: Array, fit: BoosterFit,
+                            diagnose: Any) -> tuple[Array | None, dict[str, Any] | None]:
+    """The static pressure (MPa per step) under the effects ``--with-effect`` carries
+    (:mod:`brakethermo.pipelines.rig_carry`), None when nothing is carried."""
+    chosen, fact = carried(text, BOOSTER_EFFECTS, "ebooster", diagnose)
+    if not chosen:
+        return None, fact
+    ctx = booster_context(session, s2, fit)
+    (name, params), = chosen.items()
+    effect = BOOSTER_EFFECTS[name]
+    theta = np.array([params[p] for p in effect.params])
+    for p, v, lo, hi in zip(effect.params, theta, effect.lower, effect.upper, strict=True):
+        if not lo <= v <= hi:
+            raise ConfigError(f"--with-effect: {name} {p} = {v:g} is outside the range"
+                              f" diagnose fits ({lo:g} to {hi:g})")
+    return np.clip(effect.predict(theta, ctx), 0.0, None), fact
+
+
 def default_fit_path() -> Path:
     """The shipped training result."""
     return config_dir() / "rigs" / f"{DEFAULT_FIT}.toml"
@@ -262,6 +293,7 @@ def observe(
     bench: str | Path = "ebooster",
     aliases: str | Path | None = None,
     smooth: bool = True,
+    with_effect: str = "none",
 ) -> EboosterResult:
     """Run both observers on a session and score them.
 
@@ -273,6 +305,9 @@ def observe(
     bench : bench datasheet id or TOML.
     aliases : channel alias TOML.
     smooth : run the RTS smoother after each filter (offline use).
+    with_effect : the p-V departure a diagnosis found, carried into both observers:
+        'none', 'auto' (diagnose this session: needs the pressure sensor), a
+        diagnosis.json or NAME=VALUE (:mod:`brakethermo.pipelines.rig_carry`).
 
     Returns
     -------
@@ -290,13 +325,21 @@ def observe(
     delta = _series(session, DELTA, MM, gaps=True)
     if not np.isfinite(delta).any():
         raise DataError("holds no finite sample", path=session.path, channel=DELTA)
-    model = EboosterModel(spec, fit, s2, session.dt)
+    def diagnose() -> dict[str, Any]:
+        from brakethermo.pipelines.diagnose.rig import diagnose_booster
+
+        return diagnose_booster(path, train_path=train_path, fit_path=fit_path, bench=bench,
+                                aliases=aliases).summary
+
+    pv, carried_fact = static_pressure_carried(with_effect, session, s2, fit, diagnose)
+    model = EboosterModel(spec, fit, s2, session.dt, pv=pv)
     tracks = {which: _run(model, which, delta, smooth) for which in OBSERVERS}
     validation = {
         state: _series(session, ch, MPA, gaps=True)
         for state, ch in PRESSURES.items() if session.has(ch)
     }
     summary = _summary(session, spec, fit, tracks, validation, smooth, t_train)
+    summary["with_effect"] = carried_fact
     return EboosterResult(session, spec, fit, session.time, s2, delta, validation, tracks,
                           summary)
 

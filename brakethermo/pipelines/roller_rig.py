@@ -29,8 +29,8 @@ from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.roller_rig import CREEP_LAWS, CreepEffects, RollerRigModel
 from brakethermo.numeric import rmse
+from brakethermo.pipelines.rig_carry import creep_effects
 from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
-from brakethermo.pipelines.roller_rig_effects import carried_effects
 from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS as TUNINGS
 from brakethermo.results.roller_rig import GuessRun, RollerRigResult
 from brakethermo.rigs.motor import motor_torque
@@ -71,7 +71,7 @@ class RollerRigOptions:
         Kalker's FASTSIM (20 x 20) with Polach's friction.
     with_effect : str — the creep curve's departures carried from a diagnosis: 'none',
         'auto', a diagnosis.json or NAME=VALUE pairs
-        (:mod:`brakethermo.pipelines.roller_rig_effects`).
+        (:mod:`brakethermo.pipelines.rig_carry`).
     """
 
     r0_mm: tuple[float, ...] = (320.0, 400.0)
@@ -290,8 +290,8 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     supply, source = _supply(session, opts, spec, w_w, w_r, free & both)
     dt = session.dt
     t = session.time
-    effects, carried = carried_effects(opts.with_effect, path, rig=opts.rig,
-                                       creep_law=opts.creep_law, aliases=opts.aliases)
+    effects, carried = creep_effects(opts.with_effect, path, rig=opts.rig,
+                                     creep_law=opts.creep_law, aliases=opts.aliases)
     y = np.column_stack([w_w, w_r])
     fd = spec.filter
     if opts.tuning == "paper":

@@ -17,6 +17,7 @@ from brakethermo.results.ebooster import (
     EboosterResult,
     static_pressure,
 )
+from brakethermo.results.rig_diagnosis import carried_text
 from brakethermo.rigs.booster import pv_pressure
 
 COLOURS = {"ukf": "#1f77b4", "ekf": "#d62728"}
@@ -141,6 +142,8 @@ def booster_page(r: EboosterResult) -> Page:
         "can tell the sign of w, and the UKF's wide Gaussian over w turns into a positive "
         "force bias: the paper's advantage is not guaranteed on every session.",
     ]
+    if s["with_effect"] is not None:
+        notes.insert(1, "Both observers' p–V carries " + carried_text(s["with_effect"]) + ".")
     smooth = "smoothed (RTS)" if s["smoothed"] else "filtered"
     return Page(
         title=f"E-Booster observation — {r.session.path.name}",

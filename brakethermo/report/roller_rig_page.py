@@ -7,7 +7,8 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from brakethermo.report.page import Card, Page, Section, TableBlock, consistency_text
-from brakethermo.results.roller_rig import RollerRigResult, carried_text
+from brakethermo.results.rig_diagnosis import carried_text
+from brakethermo.results.roller_rig import RollerRigResult
 
 # The paper's Table 1: whole-run RMSE of the radius, mm, (under-, over-estimation).
 PAPER_TABLE1 = {15: (0.6060, 0.8233), 30: (1.0631, 1.0139)}

@@ -25,3 +25,22 @@ class RigDiagnosis:
     @property
     def stem(self) -> str:
         return self.session.path.stem
+
+
+def carried_text(fact: dict[str, Any]) -> str:
+    """One line on the effects a rig run carried (``--with-effect``; the summary's
+    ``with_effect`` fact of :mod:`brakethermo.pipelines.rig_carry`)."""
+    effects = fact.get("effects") or {}
+    values = "; ".join(
+        f"{name} ({', '.join(f'{p} = {v:+.3g}' for p, v in params.items())})"
+        for name, params in effects.items()
+    )
+    where = {"option": "given with --with-effect"}.get(fact["source"], f"from {fact['source']}")
+    if not values:
+        return f"nothing, {where}: {fact.get('note', '')}"
+    if fact.get("kept") is False:
+        return f"nothing: {values}, {where}, was {fact['note']}"
+    drift = fact.get("traction_drift_mm")
+    kept = ("" if drift is None else f" (the radius moves {drift['carried']:+.3f} mm from free"
+            f" rolling to traction with it, {drift['datasheet']:+.3f} mm without)")
+    return f"{values}, {where}{kept}"

@@ -51,20 +51,3 @@ class RollerRigResult:
     reference_mm: float | None
     summary: dict[str, Any]
 
-
-def carried_text(fact: dict[str, Any]) -> str:
-    """One line on the creep effects a run carried (summary ``filter.with_effect``)."""
-    effects = fact.get("effects") or {}
-    values = "; ".join(
-        f"{name} ({', '.join(f'{p} = {v:+.3g}' for p, v in params.items())})"
-        for name, params in effects.items()
-    )
-    where = {"option": "given with --with-effect"}.get(fact["source"], f"from {fact['source']}")
-    if not values:
-        return f"nothing, {where}: {fact.get('note', '')}"
-    if fact.get("kept") is False:
-        return f"the datasheet's law: {values}, {where}, was {fact['note']}"
-    drift = fact.get("traction_drift_mm")
-    kept = ("" if drift is None else f" (the radius moves {drift['carried']:+.3f} mm from free"
-            f" rolling to traction with it, {drift['datasheet']:+.3f} mm without)")
-    return f"{values}, {where}{kept}"

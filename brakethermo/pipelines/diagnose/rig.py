@@ -52,20 +52,20 @@ from brakethermo.pipelines.ebooster import (
     MM,
     MPA,
     S2,
+    SPEED_WINDOW_S,
     _series,
+    booster_context,
     default_fit_path,
     load_booster_session,
     train,
 )
 from brakethermo.results.ebooster import PRESSURES
 from brakethermo.results.rig_diagnosis import RigDiagnosis
-from brakethermo.rigs.booster import pv_pressure
 from brakethermo.rigs.booster_datasheet import load_booster
 from brakethermo.rigs.signals import smoothed_rate
 
 MIN_CYCLES = 12  # apply cycles for a cycle-wise split (6 held out); fewer: time blocks
 BLOCK_S = 1.0  # s, unit length when the session holds too few cycles
-SPEED_WINDOW_S = 0.02  # s, moving average of the input's rate (encoder quantisation)
 RULE = VerdictRule(min_shrink_pct=10.0)
 RIG_FILES = ("diagnosis.json", "diagnosis.parquet", "diagnosis")
 
@@ -136,12 +136,9 @@ def diagnose_booster(
             " them (a production session can only be observed: brakethermo ebooster)",
             path=session.path, channel=channel)
     s2 = _series(session, S2, MM, gaps=False)
-    coeffs = np.array(fit.pv_coeffs)
     case = RigCase(
         "ebooster", session, {n: BOOSTER_EFFECTS[n] for n in names},
-        RigContext(s2, smoothed_rate(s2, session.dt, SPEED_WINDOW_S),
-                   session.time - session.time[0],
-                   lambda s: pv_pressure(s, coeffs, fit.stroke_mm)),
+        booster_context(session, s2, fit),
         _series(session, channel, MPA, gaps=True), rest=0.5,
         # a pressure transducer's accuracy: 0.5 % of a 10 MPa range
         floor=max(0.05, 2.0 * fit.pv_rmse_mpa), unit="MPa", input_name="s2",
@@ -291,9 +288,11 @@ def effect_names(text: str | None, registry: dict[str, RigEffect], rig: str
 
 def _booster_step(name: str, path: str | Path) -> str:
     if name in ("pv_shift", "pv_scale", "pv_drift"):
-        return (f"retrain the p-V curve on a session of this day: brakethermo ebooster"
-                f" SESSION --train {path}  (the observer's band admits a shift of the"
-                " datasheet's pv_shift_sd_mm, not more)")
+        return (f"carry it into sessions of this day without the pressure sensor:"
+                " brakethermo ebooster SESSION --with-effect DIR/<stem>/diagnosis.json; or"
+                f" retrain the p-V curve on this session: brakethermo ebooster SESSION"
+                f" --train {path}  (the observer's band admits a shift of the datasheet's"
+                " pv_shift_sd_mm, not more)")
     return ("the observer's p-V is static: this effect is in its band only through"
             " q_pm_speed; widen it in the bench file, or train on applies at the speeds of"
             " use")
