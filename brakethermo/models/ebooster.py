@@ -61,7 +61,7 @@ from brakethermo.rigs.booster import (
     pv_pressure,
 )
 from brakethermo.rigs.booster_datasheet import BoosterSpec
-from brakethermo.rigs.signals import smoothed_rate
+from brakethermo.rigs.signals import SPEED_WINDOW_S, smoothed_rate
 
 Array = NDArray[np.float64]
 STATE_NAMES = ("p_m", "p_f", "p_r", "zeta1", "zeta2")
@@ -266,7 +266,7 @@ class EboosterModel:
         quantisation steps).
         """
         base = self.Q()
-        speed = np.abs(smoothed_rate(self.s2, self.dt, 0.02))
+        speed = np.abs(smoothed_rate(self.s2, self.dt, SPEED_WINDOW_S))
         extra = self.spec.q_pm_speed * (speed / V_REF_MM_S) * (self.dt / 1e-3)
         stack = base.copy()
 

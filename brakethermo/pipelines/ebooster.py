@@ -21,7 +21,7 @@ from scipy.optimize import least_squares
 from scipy.signal import lfilter, ss2tf
 
 from brakethermo.config import config_dir
-from brakethermo.errors import ConfigError, DataError
+from brakethermo.errors import DataError
 from brakethermo.estimation import ExtendedKalmanFilter, UnscentedKalmanFilter, urts_smooth
 from brakethermo.estimation.consistency import nis_consistency
 from brakethermo.estimation.rls import even_powers, rls_fit
@@ -30,7 +30,7 @@ from brakethermo.io.session import Session
 from brakethermo.models.ebooster import STATE_NAMES, BoosterFit, EboosterModel, load_fit
 from brakethermo.models.rig_effects import BOOSTER_EFFECTS, RigContext
 from brakethermo.numeric import rmse
-from brakethermo.pipelines.rig_carry import carried
+from brakethermo.pipelines.rig_carry import carried, carried_prediction
 from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
 from brakethermo.results.ebooster import (
     OBSERVERS,
@@ -47,7 +47,7 @@ from brakethermo.rigs.booster import (
     pv_pressure,
 )
 from brakethermo.rigs.booster_datasheet import BoosterSpec, load_booster
-from brakethermo.rigs.signals import smoothed_rate
+from brakethermo.rigs.signals import SPEED_WINDOW_S, smoothed_rate
 
 Array = NDArray[np.float64]
 S2, DELTA = "pushrod_displacement", "reaction_disk_delta"
@@ -56,7 +56,6 @@ CHANNELS = (S2, DELTA, *PRESSURES.values(), PEDAL)
 DEFAULT_FIT = "ebooster_fit"  # configs/rigs/ebooster_fit.toml, trained on a simulated bench
 MM, MPA = 1e3, 1e-6  # SI -> model units
 Z95 = 1.959963984540054
-SPEED_WINDOW_S = 0.02  # s, moving average of the input's rate (encoder quantisation)
 
 
 def _series(session: Session, name: str, scale: float, *, gaps: bool) -> Array:
@@ -208,15 +207,8 @@ def static_pressure_carried(text: str, session: Session, s2: Array, fit: Booster
     chosen, fact = carried(text, BOOSTER_EFFECTS, "ebooster", diagnose)
     if not chosen:
         return None, fact
-    ctx = booster_context(session, s2, fit)
-    (name, params), = chosen.items()
-    effect = BOOSTER_EFFECTS[name]
-    theta = np.array([params[p] for p in effect.params])
-    for p, v, lo, hi in zip(effect.params, theta, effect.lower, effect.upper, strict=True):
-        if not lo <= v <= hi:
-            raise ConfigError(f"--with-effect: {name} {p} = {v:g} is outside the range"
-                              f" diagnose fits ({lo:g} to {hi:g})")
-    return np.clip(effect.predict(theta, ctx), 0.0, None), fact
+    pv = carried_prediction(BOOSTER_EFFECTS, chosen, booster_context(session, s2, fit))
+    return np.clip(pv, 0.0, None), fact
 
 
 def default_fit_path() -> Path:

@@ -22,8 +22,10 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from brakethermo.errors import ConfigError
-from brakethermo.models.rig_effects import ROLLER_EFFECTS, RigEffect
+from brakethermo.models.rig_effects import ROLLER_EFFECTS, RigContext, RigEffect
 from brakethermo.models.roller_rig import CreepEffects
 
 Carried = dict[str, dict[str, float]]  # effect name -> its parameters
@@ -112,6 +114,20 @@ def _from_pairs(text: str, registry: Mapping[str, RigEffect]
             raise ConfigError(f"--with-effect {item!r}: {raw!r} is not a number")
         chosen[name] = {registry[name].params[0]: v}
     return chosen, {"source": "option", "effects": chosen}
+
+
+def carried_prediction(registry: Mapping[str, RigEffect], chosen: Carried, ctx: RigContext
+                       ) -> np.ndarray:
+    """The trained relation under the one carried effect, on the session's context (the
+    effect's own prediction, as ``diagnose`` fitted it); ConfigError outside its bounds."""
+    (name, params), = chosen.items()
+    effect = registry[name]
+    theta = np.array([params[p] for p in effect.params])
+    for p, v, lo, hi in zip(effect.params, theta, effect.lower, effect.upper, strict=True):
+        if not lo <= v <= hi:
+            raise ConfigError(f"--with-effect: {name} {p} = {v:g} is outside the range"
+                              f" diagnose fits ({lo:g} to {hi:g})")
+    return effect.predict(theta, ctx)
 
 
 def creep_effects(text: str, session: str | Path, *, rig: str, creep_law: str,

@@ -6,6 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 Array = NDArray[np.float64]
+SPEED_WINDOW_S = 0.02  # s, moving average of a rig input's rate (encoder quantisation)
 
 
 def smoothed_rate(x: Array, dt: float, window_s: float = 0.02) -> Array:

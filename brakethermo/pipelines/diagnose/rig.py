@@ -52,7 +52,6 @@ from brakethermo.pipelines.ebooster import (
     MM,
     MPA,
     S2,
-    SPEED_WINDOW_S,
     _series,
     booster_context,
     default_fit_path,
@@ -62,7 +61,7 @@ from brakethermo.pipelines.ebooster import (
 from brakethermo.results.ebooster import PRESSURES
 from brakethermo.results.rig_diagnosis import RigDiagnosis
 from brakethermo.rigs.booster_datasheet import load_booster
-from brakethermo.rigs.signals import smoothed_rate
+from brakethermo.rigs.signals import SPEED_WINDOW_S, smoothed_rate
 
 MIN_CYCLES = 12  # apply cycles for a cycle-wise split (6 held out); fewer: time blocks
 BLOCK_S = 1.0  # s, unit length when the session holds too few cycles
