@@ -429,15 +429,7 @@ def estimate_from_session(
     y = _measurement(inputs, options.spot, session.path)
     cal = calibration or calibration_for(disc, options.h_law)
     tuning = calibrated_tuning(cal, options)
-    warnings = list(session.warnings) + list(inputs.warnings)
-    mismatch = other_disc(cal, disc)
-    if mismatch:
-        warnings.append(mismatch)
-    if cal.layers is not None and tuning.layers != cal.layers:
-        warnings.append(
-            f"the model runs {tuning.layers} layers but the h law's k_z ratio was fitted for"
-            f" {cal.layers}; re-run identify-h with the same layering for best accuracy"
-        )
+    warnings = [*session.warnings, *inputs.warnings, *_law_warnings(cal, disc, tuning)]
     choice = _online_choice(session, options, cal, tuning, calibration)
     if choice is not None:
         tuning, layering = _race_layering(choice, replace(tuning, **choice.flags), options)
@@ -471,12 +463,9 @@ def estimate_from_session(
     std = np.sqrt(np.maximum(out_var, 0.0))
     warnings.extend(check_estimate_result(out[:, :5], forward.nis))
     online = {p.name: ssm.index[p.name] for p in plan.online}
-    band = band_std(out, std, tuning)
-    H_spots = model.spot_matrix(spot_radii)
-    H_model = np.vstack([H_spots, H_spots[1:4].mean(axis=0)])
-    crown = crown_balance_std(model, x0[: model.n_state], inputs.q_brk * cal.power_scale, h,
-                              inputs.t_amb, H_model, options.spot, tuning.crown_balance_sd)
-    band[:, :5] = np.hypot(band[:, :5], crown)
+    band = _reported_band(out, std, tuning, model, x0[: model.n_state],
+                          inputs.q_brk * cal.power_scale, h, inputs.t_amb, spot_radii,
+                          options.spot)
     frame = _estimate_frame(inputs, model, states, out, band, tuning, h, online)
     open_loop = scores = None
     if options.score and len(inputs.measured) > 1:
@@ -675,6 +664,31 @@ def band_std(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning) -> np.nda
     band = std.copy()
     calib = 0.01 * tuning.ir_calibration_pct * (out[:, :5] + 273.15)
     band[:, :5] = np.hypot(std[:, :5], calib)
+    return band
+
+
+def _law_warnings(cal: DiscCalibration, disc: DiscSpec, tuning: EstimateTuning) -> list[str]:
+    """What the h law was made for that this run is not: another disc, another layering."""
+    warnings = [w for w in (other_disc(cal, disc),) if w]
+    if cal.layers is not None and tuning.layers != cal.layers:
+        warnings.append(
+            f"the model runs {tuning.layers} layers but the h law's k_z ratio was fitted for"
+            f" {cal.layers}; re-run identify-h with the same layering for best accuracy"
+        )
+    return warnings
+
+
+def _reported_band(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning,
+                   model: DiscFEModel, T0: np.ndarray, q: np.ndarray, h: np.ndarray,
+                   t_amb: np.ndarray, spot_radii: np.ndarray, spot: int) -> np.ndarray:
+    """The 1-sigma the outputs carry: the filter's, the pyrometer's calibration
+    (:func:`band_std`) and what a crown balance unlike the law's would do at the spots
+    the filter does not measure (:mod:`brakethermo.pipelines.crown_band`)."""
+    band = band_std(out, std, tuning)
+    H_spots = model.spot_matrix(spot_radii)
+    H = np.vstack([H_spots, H_spots[1:4].mean(axis=0)])
+    crown = crown_balance_std(model, T0, q, h, t_amb, H, spot, tuning.crown_balance_sd)
+    band[:, :5] = np.hypot(band[:, :5], crown)
     return band
 
 

@@ -42,7 +42,8 @@ def score_against_truth(
     Parameters
     ----------
     estimate : pandas.DataFrame
-        ``estimate.parquet`` table (``spot1..4``, ``spot1..4_std``).
+        ``estimate.parquet`` table (``spot1..4``, ``spot1..4_std``, ``contact_avg`` and
+        its ``_std``: the contact band's coverage is scored against the true spots 2-4).
     truth : pandas.DataFrame
         Truth table with ``spot1..4`` and ``q_brake``.
     measured : ndarray (K,) — degC
@@ -75,5 +76,8 @@ def score_against_truth(
         "coverage95": {
             s: scoring.coverage(est[:, i], std[:, i], ref[:, i]) for i, s in enumerate(SPOTS)
         },
+        "coverage95_contact": scoring.coverage(
+            estimate["contact_avg"].to_numpy()[:n], estimate["contact_avg_std"].to_numpy()[:n],
+            ref[:, 1:4].mean(axis=1)),
         "measured_spot": measured_spot,
     }
