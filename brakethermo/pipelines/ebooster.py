@@ -317,6 +317,7 @@ def observe(
     delta = _series(session, DELTA, MM, gaps=True)
     if not np.isfinite(delta).any():
         raise DataError("holds no finite sample", path=session.path, channel=DELTA)
+
     def diagnose() -> dict[str, Any]:
         from brakethermo.pipelines.diagnose.rig import diagnose_booster
 

@@ -10,8 +10,9 @@ on others of the same rig that lack the sensor. Four sources:
 - a ``diagnosis.json`` of ``diagnose`` on a session of the same rig;
 - ``auto`` — diagnose the session itself first (it needs the sensor).
 
-From a diagnosis its verdict is carried: alone, or the simplest of a set the data cannot
-tell apart (the summary says which set); a verdict of ``none`` carries nothing.
+From a diagnosis its verdict is carried: alone, or the first of a set the data cannot
+tell apart (the simplest, else the best; the summary names the set); a verdict of
+``none`` carries nothing.
 """
 
 from __future__ import annotations
@@ -80,11 +81,11 @@ def _from_diagnosis(summary: dict[str, Any], registry: Mapping[str, RigEffect], 
         fact["note"] = "the diagnosis found no effect worth modelling: nothing carried"
         return {}, fact
     if len(chosen) > 1:
-        # the verdict engine leads a set with its simplest member (fewest parameters):
-        # the explanation to carry until a session separates them
+        # the verdict engine leads a set with its simplest member (fewest parameters),
+        # else its best: the explanation to carry until a session separates them
         fact["note"] = (f"the diagnosis cannot tell {', '.join(chosen)} apart; its verdict,"
-                        f" {verdict}, the simplest of them, is carried (its next steps say"
-                        " what would separate them)")
+                        f" {verdict}, is carried (its next steps say what would separate"
+                        " them)")
     entry = next((e for e in summary.get("effects", []) if e.get("name") == verdict), None)
     if entry is None or verdict not in registry:
         raise ConfigError(f"--with-effect {source}: its verdict {verdict!r} is not an effect"
