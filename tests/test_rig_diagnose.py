@@ -62,6 +62,9 @@ def test_the_observer_carries_the_shift_to_a_session_without_the_sensor(tmp_path
     assert r.exit_code == 1 and "NAME=VALUE" in r.output and "Traceback" not in r.output
     r = runner.invoke(app, ["ebooster", str(other), "--with-effect", "pv_shift=9"])
     assert r.exit_code == 1 and "outside the range" in r.output, r.output
+    production = _session(tmp_path, 0.35, channels=PRODUCTION_CHANNELS)
+    r = runner.invoke(app, ["ebooster", str(production), "--with-effect", "auto"])
+    assert r.exit_code == 1 and "--with-effect auto" in r.output and "diagnosis.json" in r.output
 
 
 def test_a_booster_like_its_training_day_gets_none(tmp_path):

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from brakethermo.errors import ConfigError
+from brakethermo.errors import ConfigError, DataError
 from brakethermo.models.rig_effects import ROLLER_EFFECTS, RigContext, RigEffect
 from brakethermo.models.roller_rig import CreepEffects
 
@@ -48,7 +48,14 @@ def carried(text: str, registry: Mapping[str, RigEffect], rig: str,
     if value.lower() in ("", "none"):
         return {}, None
     if value.lower() == "auto":
-        return _from_diagnosis(diagnose(), registry, "auto (diagnose on this session)")
+        try:
+            found = diagnose()
+        except DataError as exc:
+            raise ConfigError(
+                f"--with-effect auto diagnoses the session first, and cannot: {exc}. Pass the"
+                " diagnosis.json of a session of this rig that logs it, or NAME=VALUE"
+            ) from None
+        return _from_diagnosis(found, registry, "auto (diagnose on this session)")
     if value.lower().endswith(".json"):
         return _from_diagnosis(_read_diagnosis(Path(value), rig), registry, value)
     return _from_pairs(value, registry)
