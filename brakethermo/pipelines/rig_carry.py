@@ -70,11 +70,14 @@ def _read_diagnosis(path: Path, rig: str) -> dict[str, Any]:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ConfigError(f"--with-effect {path}: not a readable diagnosis.json ({exc})"
                           ) from None
-    if not isinstance(summary, dict) or summary.get("rig") != rig:
-        found = summary.get("rig", "a disc") if isinstance(summary, dict) else "no"
-        raise ConfigError(f"--with-effect {path}: a diagnosis of {found} session, not of a"
-                          f" {rig} session; run brakethermo diagnose on a {rig} session"
-                          " with the sensor its diagnosis needs")
+    if not isinstance(summary, dict):
+        raise ConfigError(f"--with-effect {path}: not a diagnosis.json (a JSON object with"
+                          " 'rig', 'verdict' and 'effects', as brakethermo diagnose writes)")
+    if summary.get("rig") != rig:
+        raise ConfigError(f"--with-effect {path}: the diagnosis of a"
+                          f" {summary.get('rig') or 'disc'} session, not of this rig ({rig});"
+                          " run brakethermo diagnose on a session of this rig with the sensor"
+                          " its diagnosis needs")
     return summary
 
 
@@ -93,13 +96,32 @@ def _from_diagnosis(summary: dict[str, Any], registry: Mapping[str, RigEffect], 
         fact["note"] = (f"the diagnosis cannot tell {', '.join(chosen)} apart; its verdict,"
                         f" {verdict}, is carried (its next steps say what would separate"
                         " them)")
-    entry = next((e for e in summary.get("effects", []) if e.get("name") == verdict), None)
+    entry = next((e for e in summary.get("effects") or [] if isinstance(e, dict)
+                  and e.get("name") == verdict), None)
     if entry is None or verdict not in registry:
         raise ConfigError(f"--with-effect {source}: its verdict {verdict!r} is not an effect"
                           " of this rig with fitted parameters")
-    params = {k: float(v) for k, v in entry["params"].items()}
+    params = _numbers(entry.get("params"), registry[verdict], source)
     fact["effects"] = {verdict: params}
     return {verdict: params}, fact
+
+
+def _numbers(params: Any, effect: RigEffect, source: str) -> dict[str, float]:
+    """The effect's parameters from a diagnosis.json, each a finite number."""
+    names = set(effect.params)
+    if not isinstance(params, dict) or set(params) != names:
+        raise ConfigError(f"--with-effect {source}: {effect.name} needs the parameters"
+                          f" {', '.join(effect.params)}, the file gives {params!r}")
+    out = {}
+    for k, v in params.items():
+        try:
+            out[k] = float(v)
+        except (TypeError, ValueError):
+            out[k] = math.nan
+        if not math.isfinite(out[k]):
+            raise ConfigError(f"--with-effect {source}: {effect.name} {k} = {v!r} is not a"
+                              " number")
+    return out
 
 
 def _from_pairs(text: str, registry: Mapping[str, RigEffect]
