@@ -321,8 +321,7 @@ def observe(
     def diagnose() -> dict[str, Any]:
         from brakethermo.pipelines.diagnose.rig import diagnose_booster
 
-        return diagnose_booster(path, train_path=train_path, fit_path=fit_path, bench=bench,
-                                aliases=aliases).summary
+        return diagnose_booster(path, bench=bench, aliases=aliases, fit=fit).summary
 
     pv, carried_fact = static_pressure_carried(with_effect, session, s2, fit, diagnose)
     model = EboosterModel(spec, fit, s2, session.dt, pv=pv)

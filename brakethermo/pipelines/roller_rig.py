@@ -210,6 +210,12 @@ def convergence_time(
     return float(t[start] - t[0])
 
 
+def rolling_sign(roller_omega: np.ndarray) -> float:
+    """+1 or -1: the sign that makes the roller roll forward, as the model does (applied
+    to the speeds, the wheel torque and the roller's)."""
+    return 1.0 if np.nanmedian(roller_omega) > 0 else -1.0
+
+
 def rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
     """The session's speeds (rolling forward), torque and load, checked against physics, and
     the free-rolling, traction and both-speeds masks."""
@@ -218,7 +224,7 @@ def rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
     w_r = _finite_series(session, "roller_omega")
     _check_speed(session, "wheel_omega", w_w)
     _check_speed(session, "roller_omega", w_r)
-    sign = 1.0 if np.nanmedian(w_r) > 0 else -1.0  # the model rolls forward
+    sign = rolling_sign(w_r)
     w_w, w_r = sign * w_w, sign * w_r
     torque = _fill(_finite_series(session, "wheel_torque")) * sign
     peak = float(np.max(np.abs(torque)))

@@ -119,13 +119,16 @@ def diagnose_booster(
     bench: str | Path = "ebooster",
     aliases: str | Path | None = None,
     effects: str | None = "all",
+    fit: BoosterFit | None = None,
 ) -> RigDiagnosis:
-    """Diagnose an E-Booster session with a pressure sensor (module docstring)."""
+    """Diagnose an E-Booster session with a pressure sensor (module docstring); ``fit``, when
+    given, is the training result already at hand (``train_path`` and ``fit_path`` unused)."""
     t_start = time.perf_counter()
     names = effect_names(effects, BOOSTER_EFFECTS, "E-Booster")
     spec = load_booster(bench)
-    fit: BoosterFit = (train(train_path, spec, aliases) if train_path is not None
-                       else load_fit(fit_path or default_fit_path()))
+    if fit is None:
+        fit = (train(train_path, spec, aliases) if train_path is not None
+               else load_fit(fit_path or default_fit_path()))
     session = load_booster_session(path, aliases)
     channel = PRESSURES["p_m"]
     if not session.has(channel):

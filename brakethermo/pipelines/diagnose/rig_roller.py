@@ -31,6 +31,7 @@ from brakethermo.pipelines.roller_rig import (
     CHANNELS,
     free_rolling_radius_mm,
     rig_inputs,
+    rolling_sign,
 )
 from brakethermo.results.rig_diagnosis import RigDiagnosis
 from brakethermo.rigs.roller_rig import Friction, load_roller_rig
@@ -65,8 +66,8 @@ def diagnose_roller_rig(
             path=session.path, channel="roller_torque")
     w_w, w_r, torque, normal, _, free, traction, both = rig_inputs(session, spec)
     radius = free_rolling_radius_mm(session, spec, w_w, w_r, free & both) * 1e-3
-    sign = 1.0 if np.nanmedian(session.values("roller_omega")) > 0 else -1.0
-    force = sign * session.values("roller_torque") / spec.roller_radius
+    force = (rolling_sign(session.values("roller_omega")) * session.values("roller_torque")
+             / spec.roller_radius)
     _check_force(session, force[traction], torque[traction] / radius)
     window = max(1, round(AVERAGE_S / session.dt))
     w_w, w_r, normal, force = (_moving_mean(v, window) for v in (w_w, w_r, normal, force))
