@@ -35,6 +35,7 @@ from brakethermo.sim.emb import simulate_emb, write_emb_simulation
 from brakethermo.sim.tyre_rig import simulate_tyre_rig, write_tyre_simulation
 
 BASE = 20000
+Z95 = 1.959963984540054
 
 
 def _line(name: str, v: list[float], unit: str = "") -> str:
@@ -43,6 +44,11 @@ def _line(name: str, v: list[float], unit: str = "") -> str:
         f"  {name:44s} {a.mean():8.3f} ± {a.std(ddof=1) if a.size > 1 else 0.0:6.3f}"
         f"  [{a.min():.3f}, {a.max():.3f}] {unit}"
     )
+
+
+def _covered(est, truth_kn: np.ndarray) -> float:
+    """Share of samples, %, where the reported KF's 95 % band holds the true force."""
+    return 100.0 * float(np.mean(np.abs(est.kf / 1e3 - truth_kn) <= Z95 * est.kf_std / 1e3))
 
 
 def clamp(seeds: int, d: Path) -> None:
@@ -63,6 +69,7 @@ def clamp(seeds: int, d: Path) -> None:
         nom = cf.clamp_force(ev, tr)
         for k, v in cf.estimator_series(nom.est).items():
             rows.setdefault(f"nominal {k} (kN)", []).append(rmse(v / 1e3, t_ev))
+        rows.setdefault("nominal KF 95 % band coverage (%)", []).append(_covered(nom.est, t_ev))
         kf, ds = rows["nominal kf (kN)"][-1], rows["nominal stiffness (kN)"][-1]
         rows.setdefault("nominal KF below stiffness (%)", []).append(100 * (1 - kf / ds))
         rows.setdefault("nominal KF / ML fusion", []).append(
@@ -75,11 +82,18 @@ def clamp(seeds: int, d: Path) -> None:
         fresh = rmse(worn.est_retrained.kf / 1e3, t_wv)
         rows.setdefault("worn KF not re-trained (kN)", []).append(stale)
         rows.setdefault("worn KF re-trained on 20 s (kN)", []).append(fresh)
+        rows.setdefault("worn KF not re-trained, coverage (%)", []).append(
+            _covered(worn.est, t_wv))
+        rows.setdefault("worn KF not re-trained, noise scale", []).append(
+            worn.est.kf_noise_scale)
+        rows.setdefault("worn KF re-trained, coverage (%)", []).append(
+            _covered(worn.est_retrained, t_wv))
         rows.setdefault("worn re-trained / nominal KF", []).append(fresh / kf)
         rows.setdefault("worn torque balance not re-trained (kN)", []).append(
             rmse(worn.est.torque_balance / 1e3, t_wv))
         hot = cf.clamp_force(hv, tr)
         rows.setdefault("heating KF (kN)", []).append(rmse(hot.est.kf / 1e3, t_hv))
+        rows.setdefault("heating KF coverage (%)", []).append(_covered(hot.est, t_hv))
         rows.setdefault("heating torque balance (kN)", []).append(
             rmse(hot.est.torque_balance / 1e3, t_hv))
         rows.setdefault("heating adaptive KF (kN)", []).append(rmse(hot.est.adaptive / 1e3, t_hv))

@@ -123,6 +123,15 @@ def test_targets_on_unseen_sessions(trained) -> None:
         assert stale < min(rmse(e_stale.torque_balance, _truth(worn)),
                            rmse(e_stale.stiffness, _truth(worn)))
         assert fresh < 0.6 * stale
+        # its innovations show more than its noise admits: the band widens by the noise
+        # scale, the estimate is the adaptive filter's to the bit, the truth mostly inside
+        assert e_stale.kf_consistency["state"] == "over-confident"
+        assert e_stale.kf_noise_scale == pytest.approx(e_stale.kf_consistency["mean_nis"])
+        np.testing.assert_array_equal(e_stale.kf, e_stale.adaptive)
+        np.testing.assert_allclose(
+            e_stale.kf_std, e_stale.adaptive_std * np.sqrt(e_stale.kf_noise_scale))
+        inside = np.abs(e_stale.kf - _truth(worn)) <= 1.96 * e_stale.kf_std
+        assert inside.mean() > 0.8
         ratios.append(fresh / kf)
     assert np.mean(ratios) <= 1.3
     assert max(ratios) <= 1.45

@@ -261,8 +261,13 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
                      f" {res.est.kf_paper_nis:.2f}, its stiffness model no longer holds for"
                      " these pads" if res.est.kf_switched else
                      f"the paper's fixed Q (its mean NIS {res.est.kf_paper_nis:.2f} is"
-                     " consistent)"),
+                     " consistent)")
+        + ("" if res.est.kf_noise_scale == 1.0 else
+           f"; its band widened {np.sqrt(res.est.kf_noise_scale):.2f}x, its noise scaled to"
+           " what its innovations show (same gain, same estimate)"),
         "kf_paper_mean_nis": res.est.kf_paper_nis,
+        "kf_noise_scale": res.est.kf_noise_scale,
+        "kf_consistency": res.est.kf_consistency,
         "kf_source": res.est.kf_source,
         "fusion_check": None if res.check is None else {
             "heldout_rmse_kn": {k: v / 1e3 for k, v in res.check.rmse_n.items()},
