@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,7 @@ from typer.testing import CliRunner
 from brakethermo.cli import app
 from brakethermo.estimation.kf import kalman_filter, kalman_filter_tv
 from brakethermo.io.writers import Channel, SessionData, write_session
-from brakethermo.models.clamp_force import estimate, train
+from brakethermo.models.clamp_force import Q_SCALES, estimate, fusion_check, train
 from brakethermo.numeric import rmse
 from brakethermo.rigs.emb import (
     TorqueBalance,
@@ -24,7 +25,7 @@ from brakethermo.rigs.emb import (
     ml_fusion,
     torque_balance_force,
 )
-from brakethermo.sim.emb import simulate_emb, write_emb_simulation
+from brakethermo.sim.emb import EmbCaliper, simulate_emb, write_emb_simulation
 
 TS = 1e-3
 
@@ -255,6 +256,35 @@ def test_ml_fusion_lies_between_and_favours_the_better_model(
     w = (ml_fusion(np.array([a]), np.array([b]), sd, stb)[0] - a) / gap  # weight on F_tb
     assert -1e-9 <= w <= 1.0 + 1e-9
     assert w == pytest.approx(sd**2 / (sd**2 + stb**2), abs=1e-9)
+
+
+def test_heldout_check_chooses_the_gain_and_falls_back_to_the_best_estimate() -> None:
+    """A caliper with four times the trained model's hysteresis: the stiffness model's
+    errors are not white, and the paper's Q (its training RMSE squared) weighs it too
+    much. The held-out halves of the training session choose a smaller Q, which beats the
+    paper's filter and the ML fusion on an unseen session of that caliper; a check whose
+    fusion did worse than the ML fusion reports the ML fusion with its held-out band."""
+    cal = EmbCaliper(hysteresis=0.12, omega_h=0.5)
+    th, cur, F = _arrays(simulate_emb("nominal", seed=6401, duration_s=40.0, caliper=cal))
+    models = train(th, cur, F, TS)
+    check = fusion_check(th, cur, F, TS)
+    assert check is not None and set(check.rmse_by_q) == set(Q_SCALES)
+    assert check.q_scale < 1.0
+    assert check.rmse_by_q[check.q_scale] < 0.95 * check.rmse_by_q[1.0]
+    ev = simulate_emb("nominal", seed=6402, duration_s=30.0, caliper=cal)
+    th2, cur2, _ = _arrays(ev)
+    truth = _truth(ev)
+    chosen = estimate(models, th2, cur2, TS, check=check)
+    paper = estimate(models, th2, cur2, TS, q_scale=1.0)
+    assert chosen.kf_source == "kf"
+    assert rmse(chosen.kf, truth) < 0.95 * min(rmse(paper.kf, truth),
+                                               rmse(chosen.ml_fusion, truth))
+    assert np.mean(np.abs(chosen.kf - truth) <= 1.96 * chosen.kf_std) > 0.85
+    worse = replace(check, fusion_holds=False, best_single="ml_fusion")
+    fell = estimate(models, th2, cur2, TS, check=worse)
+    assert fell.kf_source == "ml_fusion"
+    np.testing.assert_array_equal(fell.kf, fell.ml_fusion)
+    np.testing.assert_array_equal(fell.kf_std, check.rmse_n["ml_fusion"])
 
 
 def test_simulate_rig_emb_writes_a_readable_session(tmp_path: Path) -> None:
