@@ -322,7 +322,6 @@ def estimate(
     nu = F_tb - res.x_pred[:, 0]
     nis = float(np.nanmean(nu**2 / (res.P_pred[:, 0, 0] + R)))
     switched = nis > NIS_LIMIT
-    kf, kf_std = kf_paper, np.sqrt(res.P_filt[:, 0, 0])
 
     # adaptive: state [F, s], transition [[α0, u(k+1)], [0, 1]]
     A = np.zeros((K, 2, 2))
@@ -339,16 +338,7 @@ def estimate(
         np.diag([Q, 0.1**2]),
         y,
     )
-    chosen = ra if switched else res
-    consistency = nis_consistency((F_tb - chosen.x_pred[:, 0]) ** 2
-                                  / (chosen.P_pred[:, 0, 0] + R))
-    # Q, R and P0 scaled by c: K = P H'(H P H' + R)^-1 is unchanged, P becomes c P; the
-    # training session's held-out likelihood sets the floor of c
-    scale = max(consistency["mean_nis"] if consistency["state"] == "over-confident" else 1.0,
-                1.0 if check is None else check.band_scale)
-    if switched:
-        kf, kf_std = ra.x_filt[:, 0], np.sqrt(ra.P_filt[:, 0, 0])
-    kf_std = kf_std * np.sqrt(scale)
+    kf, kf_std, scale, consistency = _band(ra if switched else res, F_tb, R, check)
     source = "kf"
     if check is not None and not check.fusion_holds:
         source = check.best_single
@@ -371,3 +361,18 @@ def estimate(
         kf_noise_scale=float(scale) if source == "kf" else 1.0,
         kf_consistency=consistency,
     )
+
+
+def _band(run: Any, F_tb: Array, R: float, check: FusionCheck | None
+          ) -> tuple[Array, Array, float, dict[str, Any]]:
+    """The reported filter's mean and std, the factor on its noise and its consistency.
+
+    Q, R and P0 scaled by c leave the gain K = P H'(H P H' + R)^-1 as it is and make P
+    c P: where the innovations show the filter over-confident, c is their mean NIS; the
+    training session's held-out likelihood sets its least value.
+    """
+    consistency = nis_consistency((F_tb - run.x_pred[:, 0]) ** 2 / (run.P_pred[:, 0, 0] + R))
+    scale = max(consistency["mean_nis"] if consistency["state"] == "over-confident" else 1.0,
+                1.0 if check is None else check.band_scale)
+    return (run.x_filt[:, 0], np.sqrt(run.P_filt[:, 0, 0] * scale), float(scale),
+            consistency)
