@@ -152,7 +152,8 @@ def test_a_tyre_ramp_is_diagnosed_against_the_two_parameter_curve(tmp_path):
     assert r.exit_code == 1 and "--radius" in r.output and "Traceback" not in r.output
 
 
-def test_the_roller_rigs_creep_law_is_diagnosed_against_its_torque_transducer(tmp_path):
+def test_the_roller_rigs_creep_law_is_diagnosed_against_its_torque_transducer(
+        tmp_path, monkeypatch):
     """The simulated rig's contact is strip theory (its slope some 16 % under Kalker's):
     found from the channels, diagnosed against the roller shaft's torque, the creep
     curve's slope named with its size and the datasheet change that carries it."""
@@ -174,12 +175,27 @@ def test_the_roller_rigs_creep_law_is_diagnosed_against_its_torque_transducer(tm
     # torque under it; from this session's diagnosis, where the slope and a creepage
     # offset stay a set, the verdict (the slope, first of the set) is carried, the set said
     slope = top["params"]["slope_change"]
+    import brakethermo.pipelines.diagnose.rig_roller as diag_mod
+    import brakethermo.pipelines.roller_rig as rr_mod
+
+    reads: list[str] = []
+
+    def counted(load):
+        def wrapper(*args, **kwargs):
+            reads.append(str(args[0]))
+            return load(*args, **kwargs)
+        return wrapper
+
+    for mod in (rr_mod, diag_mod):
+        monkeypatch.setattr(mod, "load_session", counted(mod.load_session))
     runs = {}
     for source in ("none", f"creep_slope={slope}", "creep_slope=0.5",
                    str(tmp_path / "o" / "rr" / "diagnosis.json"), "auto"):
+        reads.clear()
         r = runner.invoke(app, ["roller-rig", str(path), "--r0", "340", "--with-effect",
                                 source, "--out", str(tmp_path / "o"), "--json"])
         assert r.exit_code == 0, r.output
+        assert len(reads) == 1, reads  # auto diagnoses the session already read
         runs[source.rsplit("/", 1)[-1]] = json.loads(r.output)
     assert runs["none"]["filter"]["with_effect"] is None
     given = runs[f"creep_slope={slope}"]

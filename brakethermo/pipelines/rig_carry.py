@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from brakethermo.errors import ConfigError, DataError
+from brakethermo.io.session import Session
 from brakethermo.models.rig_effects import ROLLER_EFFECTS, RigContext, RigEffect
 from brakethermo.models.roller_rig import CreepEffects
 
@@ -160,7 +161,7 @@ def carried_prediction(registry: Mapping[str, RigEffect], chosen: Carried, ctx: 
     return effect.predict(theta, ctx)
 
 
-def creep_effects(text: str, session: str | Path, *, rig: str, creep_law: str,
+def creep_effects(text: str, session: Session, *, rig: str, creep_law: str,
                   aliases: str | Path | None) -> tuple[CreepEffects, dict[str, Any] | None]:
     """The roller rig's creep-curve effects (:class:`CreepEffects`) and their fact."""
 

@@ -296,7 +296,7 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     supply, source = _supply(session, opts, spec, w_w, w_r, free & both)
     dt = session.dt
     t = session.time
-    effects, carried = creep_effects(opts.with_effect, path, rig=opts.rig,
+    effects, carried = creep_effects(opts.with_effect, session, rig=opts.rig,
                                      creep_law=opts.creep_law, aliases=opts.aliases)
     y = np.column_stack([w_w, w_r])
     fd = spec.filter

@@ -46,18 +46,23 @@ AVERAGE_S = 4.0
 
 
 def diagnose_roller_rig(
-    path: str | Path,
+    path: str | Path | Session,
     *,
     rig: str = "roller-rig",
     creep_law: str = "polach",
     aliases: str | Path | None = None,
     effects: str | None = "all",
 ) -> RigDiagnosis:
-    """Diagnose a roller-rig session with the roller torque transducer (module docstring)."""
+    """Diagnose a roller-rig session with the roller torque transducer (module docstring).
+
+    ``path`` may be the session itself, loaded as :func:`run_roller_rig` loads it (its
+    ``--with-effect auto`` reads the file once).
+    """
     t_start = time.perf_counter()
     names = effect_names(effects, ROLLER_EFFECTS, "roller-rig")
     spec = load_roller_rig(rig)
-    session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases)
+    session = path if isinstance(path, Session) else load_session(
+        path, rate_hz=None, channels=CHANNELS, aliases=aliases)
     if not session.has("roller_torque"):
         raise DataError(
             "has no roller torque transducer: diagnose compares the creep law with the"
