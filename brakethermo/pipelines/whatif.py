@@ -61,6 +61,7 @@ from brakethermo.thermal.tyre_radiation import TyreView, tyre_heat
 DENSITY_EXPONENT = 0.8  # h ∝ Re^0.8 ∝ ρ^0.8 (turbulent forced convection)
 H_REL_SIGMA = 0.08  # 1-sigma of the identified law's level, when the law does not say
 MODEL_ERROR_PCT = 10.0  # % of the change: the model's structure is not the disc's
+REPLAY_CHUNK = 512  # steps of the base predictions computed in one batched call
 
 
 @dataclass(frozen=True)
@@ -254,15 +255,21 @@ def replay(est: EstimateResult, scenario: Scenario, options: WhatifOptions,
     share = disc1.heat_share if scenario.heat_share is None else scenario.heat_share
     q1 = q0 * share / disc0.heat_share
     spot_r = float(disc0.spot_radii[options.spot - 1])
-    base = _space_for(ssm, model0, q0, np.repeat(ta0[:, None], S, 1), h0[:, None] * g,
-                      spot_r)
+    # the base model's one-step predictions from the estimate are independent of each
+    # other: one batched call per chunk of steps, member k S + s at step k with draw s
+    base = _space_for(ssm, model0, np.repeat(q0, S), np.repeat(ta0, S),
+                      (h0[:, None] * g).ravel(), spot_r)
     scen = _space_for(ssm, model1, q1, np.repeat(ta1[:, None], S, 1), h1[:, None] * g,
                       float(disc1.spot_radii[options.spot - 1]))
-    Xs = np.empty((K, S, X.shape[1]))
+    n = X.shape[1]
+    Xs = np.empty((K, S, n))
     Xs[0] = X[0]
-    for k in range(K - 1):
-        w = X[k + 1] - base.f(np.repeat(X[k][None, :], S, 0), k)
-        Xs[k + 1] = scen.f(Xs[k], k) + w
+    for a in range(0, K - 1, REPLAY_CHUNK):
+        b = min(K - 1, a + REPLAY_CHUNK)
+        pred = base.f(np.repeat(X[a:b], S, axis=0), np.arange(a * S, b * S))
+        w = X[a + 1:b + 1, None, :] - pred.reshape(b - a, S, n)
+        for k in range(a, b):
+            Xs[k + 1] = scen.f(Xs[k], k) + w[k - a]
     T = Xs[:, :, : model1.n_state]
     # the change (K, S, 5) at spot1..4 and the contact band, anchored to the published
     # estimate: a scenario that changes nothing is the estimate itself
