@@ -22,20 +22,16 @@ from scipy.linalg.blas import dtrsm
 from scipy.stats import chi2
 
 from brakethermo.errors import ConfigError, DataError
+from brakethermo.estimation import store as store_memory
 from brakethermo.estimation.covariance import CovarianceGuard, symmetrise
 from brakethermo.estimation.results import FilterResult
+from brakethermo.estimation.store import gain_dtype
 
 Array = NDArray[np.float64]
 Store = Literal["full", "smoother", "diag"]
 MatrixOrCallable = Array | Callable[[int], Array]
 STORES = ("full", "smoother", "diag")
 _LOG_2PI = math.log(2.0 * math.pi)
-# From this state size on, the smoother's gains are stored as float32 by default: for a
-# 25 000-step race at n = 30 (10 nodes x 3 layers) two float64 (K, n, n) stacks are
-# 360 MB, and first writes to fresh memory (page faults) cost as much as the arithmetic
-# on this class of machine; float32 halves both at ~1e-7 relative precision, far below
-# the temperature uncertainty.
-FLOAT32_STORE_N = 24
 # From this state size on, the posterior's Cholesky factor comes from a compiled rank-1
 # downdate of the prior's (O(n^2)) instead of a fresh factorisation (O(n^3)); below it
 # the call overhead is larger than the saving.
@@ -180,16 +176,6 @@ def readout_matrix(readout: Array | None, n: int) -> Array:
     return M
 
 
-def gain_dtype(n: int, store_dtype: type[np.floating] | np.dtype | None) -> np.dtype:
-    """The dtype the smoother's gains are stored in for state size ``n``."""
-    if store_dtype is None:
-        store_dtype = np.float64 if n < FLOAT32_STORE_N else np.float32
-    dtype = np.dtype(store_dtype)
-    if dtype not in (np.dtype(np.float64), np.dtype(np.float32)):
-        raise ConfigError(f"store_dtype must be float64 or float32, got {store_dtype}")
-    return dtype
-
-
 def allocate(
     K: int,
     n: int,
@@ -219,6 +205,7 @@ def allocate(
     st = np.empty((4, K, n))
     cov = np.empty((3, nf, n, n))
     gs = np.empty((2, ngain, n, n), dtype=store_dtype)
+    store_memory.prefault(gs)
     iv = np.full((2, K, m), np.nan)
     sc = np.zeros((2, K))
     sc[0] = np.nan

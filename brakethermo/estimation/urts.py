@@ -41,7 +41,6 @@ from brakethermo.errors import ConfigError
 from brakethermo.estimation._forward import (
     MatrixOrCallable,
     check_prior,
-    gain_dtype,
     readout_matrix,
 )
 from brakethermo.estimation.covariance import symmetrise
@@ -51,6 +50,7 @@ from brakethermo.estimation.results import (
     SmootherResult,
     WindowedSmootherResult,
 )
+from brakethermo.estimation.store import gain_dtype
 from brakethermo.estimation.ukf import (
     BACKENDS,
     HAVE_NUMBA,
