@@ -237,8 +237,9 @@ class ClampForceEstimates:
     torque_balance : ndarray — eq. 7.
     adaptive, adaptive_std : ndarray — KF with the random-walk stiffness factor.
     stiffness_factor, stiffness_factor_std : ndarray — its factor s.
-    kf_source : str — what ``kf`` is: ``"kf"`` (the fusion), or the single input the
-        training session's held-out check fell back to.
+    kf_source : str — what ``kf`` is: ``"kf"`` (the filter), or what the training
+        session's held-out check fell back to (``stiffness``, ``torque_balance`` or
+        ``ml_fusion``).
     kf_noise_scale : float — factor on the reported filter's Q and R (so on its
         variance) matching its innovations, 1 where they are consistent.
     kf_consistency : dict — :func:`nis_consistency` of the reported filter, before the

@@ -244,6 +244,34 @@ def _model_dict(m: ClampForceModels, path: Path) -> dict[str, Any]:
     }
 
 
+SOURCE_NAMES = {"stiffness": "dynamic-stiffness model (eq. 6)",
+                "torque_balance": "torque-balance model (eq. 7)",
+                "ml_fusion": "ML fusion (eq. 8)"}
+
+
+def _kf_text(res: ClampForceResult) -> str:
+    """What the reported ``kf`` is on this session, in words (summary and page)."""
+    est, check = res.est, res.check
+    if check is not None and est.kf_source != "kf":
+        return (f"the {SOURCE_NAMES[est.kf_source]}, not a Kalman filter: on"
+                " held-out halves of the training session the filter did worse than it"
+                f" ({check.rmse_n['kf'] / 1e3:.3f} against"
+                f" {check.rmse_n[est.kf_source] / 1e3:.3f} kN), so the band is that"
+                " held-out RMSE")
+    if est.kf_switched:
+        text = (f"the adaptive-stiffness filter: the fixed filter's mean NIS is"
+                f" {est.kf_paper_nis:.2f}, its stiffness model no longer holds for these pads")
+    else:
+        q = ("the paper's fixed Q" if check is None or check.q_scale == 1.0 else
+             f"the fixed filter, Q the paper's x {check.q_scale:g} (chosen on held-out halves"
+             " of the training session)")
+        text = f"{q} (its mean NIS {est.kf_paper_nis:.2f} is consistent)"
+    if est.kf_noise_scale != 1.0:
+        text += (f"; its band widened {np.sqrt(est.kf_noise_scale):.2f}x, its noise scaled to"
+                 " what its innovations show (same gain, same estimate)")
+    return text
+
+
 def summary(res: ClampForceResult) -> dict[str, Any]:
     """The ``summary.json`` of OUTPUTS.md "clamp-force" (plus wear and adaptive figures)."""
     force = res.data.force
@@ -257,16 +285,7 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         "rmse_kn_adaptive": r["kf_adaptive"],
         "estimate_kn": estimate_figures(res.est),
         "rmse_kn_kf_paper": r["kf_paper"],
-        "kf_noise": (f"the adaptive-stiffness filter: the fixed filter's mean NIS is"
-                     f" {res.est.kf_paper_nis:.2f}, its stiffness model no longer holds for"
-                     " these pads" if res.est.kf_switched else
-                     (f"the fixed filter, Q the paper's x {res.check.q_scale:g} (held out)"
-                      if res.check is not None and res.check.q_scale != 1.0 else
-                      "the paper's fixed Q") +
-                     f" (its mean NIS {res.est.kf_paper_nis:.2f} is consistent)")
-        + ("" if res.est.kf_noise_scale == 1.0 else
-           f"; its band widened {np.sqrt(res.est.kf_noise_scale):.2f}x, its noise scaled to"
-           " what its innovations show (same gain, same estimate)"),
+        "kf_noise": _kf_text(res),
         "kf_paper_mean_nis": res.est.kf_paper_nis,
         "kf_noise_scale": res.est.kf_noise_scale,
         "kf_consistency": res.est.kf_consistency,
@@ -306,28 +325,35 @@ def _fmt(v: float | None) -> str:
     return "–" if v is None else f"{v:.3f}"
 
 
+def _cards(res: ClampForceResult, summ: dict[str, Any]) -> list[Card]:
+    """The page's headline tiles: RMSEs where the session has the sensor, else forces."""
+    r, e = summ["rmse_kn"], summ["estimate_kn"]
+    kf = "KF" if res.est.kf_source == "kf" else "reported"
+    if res.data.force is not None:
+        return [
+            Card(f"{kf} RMSE", _fmt(r["kf"]), "kN"),
+            Card("ML fusion RMSE", _fmt(r["ml_fusion"]), "kN"),
+            Card("adaptive KF RMSE", _fmt(summ["rmse_kn_adaptive"]), "kN"),
+            Card("final stiffness factor", f"{summ['stiffness_factor_final']:.3f}"),
+        ]
+    return [
+        Card(f"{kf} peak force", f"{e['kf']['peak']:.2f}", "kN"),
+        Card(f"{kf} 95 % band", f"± {e['kf_band95_median']:.2f}", "kN"),
+        Card("mean force applied", _fmt(e["kf"]["mean_applied"]), "kN"),
+        Card("final stiffness factor", f"{summ['stiffness_factor_final']:.3f}"),
+    ]
+
+
 def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     """The report page: RMSE table, traces, stiffness factor, wear."""
     t = res.data.session.time
     force = res.data.force
     r = summ["rmse_kn"]
     e = summ["estimate_kn"]
-    if force is not None:
-        cards = [
-            Card("KF RMSE", _fmt(r["kf"]), "kN"),
-            Card("ML fusion RMSE", _fmt(r["ml_fusion"]), "kN"),
-            Card("adaptive KF RMSE", _fmt(summ["rmse_kn_adaptive"]), "kN"),
-            Card("final stiffness factor", f"{summ['stiffness_factor_final']:.3f}"),
-        ]
-    else:
-        cards = [
-            Card("KF peak force", f"{e['kf']['peak']:.2f}", "kN"),
-            Card("KF 95 % band", f"± {e['kf_band95_median']:.2f}", "kN"),
-            Card("mean force applied", _fmt(e["kf"]["mean_applied"]), "kN"),
-            Card("final stiffness factor", f"{summ['stiffness_factor_final']:.3f}"),
-        ]
     names = ("kf", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
-    labels = ("Kalman filter (eq. 9-13)", "ML fusion (eq. 8)", "dynamic stiffness (eq. 6)",
+    reported = ("Kalman filter (eq. 9-13)" if res.est.kf_source == "kf" else
+                f"reported: the {SOURCE_NAMES[res.est.kf_source]}")
+    labels = (reported, "ML fusion (eq. 8)", "dynamic stiffness (eq. 6)",
               "torque balance (eq. 7)", "adaptive KF (stiffness factor)")
     paper = ("0.29", "0.32", "0.35", "0.61", "–")
     rmse_of = {**r, "kf_adaptive": summ["rmse_kn_adaptive"]}
@@ -340,7 +366,7 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
             f" {res.train.session.rate_hz:.0f} Hz); estimated on {res.data.session.path.name}."
             + ("" if force is not None else " The session has no clamp-force sensor: each"
                " estimator's peak and mean applied force, no RMSE."),
-            f"Reported filter: {summ['kf_noise']}.",
+            f"Reported estimate (kf): {summ['kf_noise']}.",
         ],
         tables=[
             TableBlock(
@@ -402,6 +428,6 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     return Page(
         title=f"clamp-force — {res.data.session.path.name}",
         subtitle="EMB clamp force from resolver and motor current",
-        cards=cards,
+        cards=_cards(res, summ),
         sections=sections,
     )
