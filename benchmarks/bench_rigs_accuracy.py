@@ -77,7 +77,7 @@ def clamp(seeds: int, d: Path) -> None:
         rows.setdefault("nominal KF / ML fusion", []).append(
             kf / rows["nominal ml_fusion (kN)"][-1]
         )
-        rows.setdefault("KF fell back to one input (share of seeds)", []).append(
+        rows.setdefault("KF fell back to an input or ML (share of seeds)", []).append(
             float(nom.est.kf_source != "kf"))
         worn = cf.clamp_force(wv, tr, retrain_path=wt)
         stale = rmse(worn.est.kf / 1e3, t_wv)
