@@ -7,7 +7,7 @@ import pytest
 from scipy.stats import chi2
 
 from brakethermo.estimation import UnscentedKalmanFilter
-from brakethermo.estimation.consistency import nis_consistency
+from brakethermo.estimation.consistency import nis_consistency, variance_scale
 
 
 def _random_walk_run(q_true: float, q_filter: float, seed: int = 3) -> dict:
@@ -42,3 +42,10 @@ def test_the_band_counts_every_measurement_component():
     assert c["chi2_band"] == pytest.approx([lo, hi], rel=1e-12)  # scipy.stats' chi2, here
     assert c["mean_nis"] == 2.0 and c["n"] == 3
     assert nis_consistency(np.full(3, np.nan))["state"] == "no measurements"
+
+
+def test_variance_scale_widens_only_an_over_confident_filter():
+    over = nis_consistency(np.full(400, 3.0), 2)  # mean NIS 3 for 2 components a step
+    assert over["state"] == "over-confident" and variance_scale(over) == pytest.approx(1.5)
+    assert variance_scale(nis_consistency(np.full(400, 1.0))) == 1.0
+    assert variance_scale(nis_consistency(np.full(400, 0.2))) == 1.0  # never narrowed

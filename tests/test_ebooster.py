@@ -175,6 +175,28 @@ def test_ukf_and_ekf_run_the_same_model_and_both_smooth():
         assert np.sqrt(np.mean(inn**2)) < 0.2  # mm: the observer predicts delta at all
 
 
+def test_an_over_confident_observer_widens_its_band_by_its_mean_nis():
+    """With the delta sensor's noise and the disk's process noise set 10x too small the
+    innovations are far larger than the filter admits: the reported band (before the p-V
+    position term) is its spread times the mean NIS, the estimate the filter's own; with
+    the datasheet's noise nothing changes."""
+    from brakethermo.pipelines.ebooster import _run, pv_position_var
+
+    model, y, _, _ = _problem(1500)
+    base = _run(model, "ekf", y[:, 0], smooth=False)
+    assert base.noise_scale == 1.0 and base.consistency["state"] != "over-confident"
+    tight = dataclasses.replace(SPEC, delta_noise_mm=SPEC.delta_noise_mm / 10,
+                                q_zeta=tuple(q / 100 for q in SPEC.q_zeta))
+    m2 = EboosterModel(tight, FIT, model.s2, 1e-3)
+    run = _run(m2, "ekf", y[:, 0], smooth=False)
+    c = run.consistency
+    assert c["state"] == "over-confident" and run.noise_scale == pytest.approx(c["mean_nis"])
+    filt_var = np.clip(run.filt.var_filt[:, 3:5], 0.0, None)
+    np.testing.assert_allclose(run.std[:, 3:5] ** 2, filt_var * run.noise_scale, rtol=1e-9)
+    pv = pv_position_var(m2)[:, None]
+    assert np.all(run.std[:, :3] ** 2 >= pv - 1e-12)
+
+
 def test_training_recovers_pv_curve_and_disk(sessions):
     fit = train(sessions["train"], SPEC)
     assert fit.pv_rmse_mpa < 0.03

@@ -56,3 +56,21 @@ def nis_consistency(nis: ArrayLike, dof: ArrayLike = 1, innovation: ArrayLike | 
     return {"mean_nis": mean, "dof_per_step": float(np.mean(m[ok])),
             "chi2_band": [float(lo), float(hi)], "lag1_autocorrelation": ac, "state": state,
             "n": n}
+
+
+def variance_scale(consistency: dict[str, Any]) -> float:
+    """Factor on a filter's covariance that makes over-confident innovations consistent.
+
+    Q, R and P0 scaled alike by c leave a linear filter's gain and estimate as they are
+    and scale its covariance by c (for the UKF and EKF, to first order); the c that
+    brings the mean NIS per measured component to 1 is that mean itself. Only an
+    over-confident filter (mean NIS above its χ² band: the model is incomplete) gets
+    c > 1; a consistent or under-confident one keeps its band (never narrowed here).
+
+    Parameters
+    ----------
+    consistency : dict — :func:`nis_consistency`'s result.
+    """
+    if consistency["state"] != "over-confident":
+        return 1.0
+    return float(consistency["mean_nis"] / consistency["dof_per_step"])

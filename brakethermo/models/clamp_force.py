@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from brakethermo.errors import ConfigError
-from brakethermo.estimation.consistency import nis_consistency
+from brakethermo.estimation.consistency import nis_consistency, variance_scale
 from brakethermo.estimation.kf import kalman_filter_tv
 from brakethermo.numeric import rmse
 from brakethermo.rigs.emb import (
@@ -373,7 +373,6 @@ def _band(run: Any, F_tb: Array, R: float, check: FusionCheck | None
     training session's held-out likelihood sets its least value.
     """
     consistency = nis_consistency((F_tb - run.x_pred[:, 0]) ** 2 / (run.P_pred[:, 0, 0] + R))
-    scale = max(consistency["mean_nis"] if consistency["state"] == "over-confident" else 1.0,
-                1.0 if check is None else check.band_scale)
+    scale = max(variance_scale(consistency), 1.0 if check is None else check.band_scale)
     return (run.x_filt[:, 0], np.sqrt(run.P_filt[:, 0, 0] * scale), float(scale),
             consistency)

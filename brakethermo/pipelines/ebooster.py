@@ -23,7 +23,7 @@ from scipy.signal import lfilter, ss2tf
 from brakethermo.config import config_dir
 from brakethermo.errors import DataError
 from brakethermo.estimation import ExtendedKalmanFilter, UnscentedKalmanFilter, urts_smooth
-from brakethermo.estimation.consistency import nis_consistency
+from brakethermo.estimation.consistency import nis_consistency, variance_scale
 from brakethermo.estimation.rls import even_powers, rls_fit
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
@@ -261,13 +261,16 @@ def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTr
     else:
         x, var = res.x_filt, res.var_filt
     seconds = time.perf_counter() - t0
-    var = np.clip(var[:, :5], 0.0, None)
+    consistency = nis_consistency(res.nis, res.n_obs, res.innovation)
+    scale = variance_scale(consistency)  # its innovations larger than its noise admits
+    var = np.clip(var[:, :5], 0.0, None) * scale
     var[:, :3] += pv_position_var(model)[:, None]
     x = x[:, :5].copy()
     x[:, :3], var[:, :3] = gauge_pressure(x[:, :3], var[:, :3])
     return ObserverTrack(
         x=x, std=np.sqrt(var),
         residual=res.innovation[:, 0], filt=res, smoothed=smooth, seconds=seconds,
+        consistency=consistency, noise_scale=scale,
     )
 
 
@@ -372,12 +375,14 @@ def _summary(
         "improvement_pct": improvement,
         "pressure_rmse_mpa": p_rmse,
         "coverage_95": cov95,
-        "consistency": {w: nis_consistency(t.filt.nis, t.filt.n_obs, t.filt.innovation)
-                        for w, t in tracks.items()},
+        "consistency": {w: t.consistency for w, t in tracks.items()},
+        "noise_scale": {w: t.noise_scale for w, t in tracks.items()},
         "outside_1sigma": out1,
         "band": {
             "pv_shift_sd_mm": spec.pv_shift_sd_mm,
-            "contains": "the filter's (smoother's) own spread, widened for the pressures by"
+            "contains": "the filter's (smoother's) own spread, times noise_scale where its"
+                        " innovations show it over-confident (their mean NIS), widened for"
+                        " the pressures by"
                         " the p-V curve's slope times pv_shift_sd_mm: where this session's"
                         " curve sits against the training session's, which delta cannot"
                         " resolve (it trades against the pedal force)",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -34,6 +34,9 @@ class ObserverTrack:
     filt : FilterResult — the forward pass.
     smoothed : bool
     seconds : float — wall time of filter + smoother.
+    consistency : dict — the forward pass's NIS against its χ² band.
+    noise_scale : float — factor on the filter's variance in ``std`` (its mean NIS where
+        over-confident, else 1).
     """
 
     x: Array
@@ -42,6 +45,8 @@ class ObserverTrack:
     filt: FilterResult
     smoothed: bool
     seconds: float
+    consistency: dict[str, Any] = field(default_factory=dict)
+    noise_scale: float = 1.0
 
 
 @dataclass(frozen=True)
