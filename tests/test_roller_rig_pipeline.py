@@ -106,6 +106,10 @@ def test_cli_writes_the_output_contract(tmp_path: Path) -> None:
     for key in ("radius_mm", "radius_std_mm", "convergence_time_s", "rmse_vs_ref_mm",
                 "rmse_vs_ref_pct"):  # fmt: skip
         assert summary["runs"][0][key] is not None
+    for run in summary["runs"]:  # widened only where the innovations show over-confidence
+        over = run["consistency"]["state"] == "over-confident"
+        assert run["noise_scale"] == (pytest.approx(run["consistency"]["mean_nis"] / 2)
+                                      if over else 1.0)
     assert summary["reference_radius_mm"] == pytest.approx(348.2)
     assert summary["naive_ratio_radius_mm"] == pytest.approx(348.2, abs=0.1)
     assert {"index.html", "radius.png", "speeds.png", "creep.png"} <= {

@@ -24,7 +24,7 @@ from scipy.optimize import brentq
 
 from brakethermo.errors import ConfigError, DataError
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
-from brakethermo.estimation.consistency import nis_consistency
+from brakethermo.estimation.consistency import nis_consistency, variance_scale
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.roller_rig import CREEP_LAWS, CreepEffects, RollerRigModel
@@ -318,17 +318,19 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         def one_guess(r0: float) -> GuessRun:
             x0 = np.array([w_w[first], w_r[first], r0 * 1e-3])
             res = ukf.run(x0, np.diag(fd.p0), y, store="smoother" if opts.smoother else "diag")
+            consistency = nis_consistency(res.nis, res.n_obs, res.innovation)
+            scale = variance_scale(consistency)  # over-confident: its noise as it shows
             filt_mm = res.x_filt[:, 2] * 1e3
-            filt_std = np.sqrt(res.var_filt[:, 2]) * 1e3
+            filt_std = np.sqrt(res.var_filt[:, 2] * scale) * 1e3
             if opts.smoother:
                 sm = urts_smooth(res)
                 states, var = sm.x_smooth, sm.var_smooth
             else:
                 states, var = res.x_filt, res.var_filt
             return GuessRun(
-                r0, states[:, 2] * 1e3, np.sqrt(var[:, 2]) * 1e3, filt_mm, filt_std, states,
-                convergence_time(t, filt_mm, float(filt_mm[-1]), dt),
-                consistency=nis_consistency(res.nis, res.n_obs, res.innovation),
+                r0, states[:, 2] * 1e3, np.sqrt(var[:, 2] * scale) * 1e3, filt_mm, filt_std,
+                states, convergence_time(t, filt_mm, float(filt_mm[-1]), dt),
+                consistency=consistency, noise_scale=scale,
             )  # fmt: skip
 
         # The guesses are independent and the compiled model and filter steps release the
@@ -534,6 +536,7 @@ def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> di
                 "radius_std_mm": float(run.radius_std_mm[-1]),
                 "creep_model_error_mm_per_knm": run.model_error_mm_per_knm,
                 "consistency": run.consistency,
+                "noise_scale": run.noise_scale,
                 "convergence_time_s": run.convergence_time_s,
                 "rmse_vs_ref_mm": err,
                 "rmse_vs_ref_pct": None if ref is None else 100.0 * err / ref,

@@ -25,6 +25,7 @@ class GuessRun:
     restart: str | None = None  # why the guess was re-started from the speed ratio
     model_error_mm_per_knm: float = 0.0  # the creep law's error in the bands, mm per kN m
     consistency: dict[str, Any] | None = None  # the filter's NIS against its chi-square band
+    noise_scale: float = 1.0  # factor on the filter's variance: its mean NIS if over-confident
 
 
 @dataclass(frozen=True)
