@@ -127,3 +127,24 @@ def test_the_race_judges_the_laws_pyrometer_lag_by_its_own_readings(races, tmp_p
         assert bool(row["significant"]) is dropped, (race, row)
         assert ("sensor_lag" in choice["law_effects_dropped"]) is dropped
         assert ("sensor_lag" in auto.summary["run"]["effects"]) is not dropped
+
+
+@pytest.mark.parametrize("race", ["normal", "low_kz"])
+def test_the_guessed_run_gives_the_sequential_answer(races, monkeypatch, race) -> None:
+    """The filter for "nothing switched on" starts before the decision (pipelines/
+    speculative.py, here on a 4-lap race by lowering the length it needs): used where the
+    race decides so, stopped where it switches k_z on — the numbers the sequential path
+    gives either way."""
+    import brakethermo.pipelines.estimate as est
+
+    path, _ = races[race]
+    opts = EstimateOptions(smoother=True)
+    sequential = estimate_session(path, opts)
+    monkeypatch.setattr(est, "DECISION_LAPS", 1)
+    guessed = estimate_session(path, opts)
+    chose = guessed.summary["run"]["online_choice"]["chosen"]
+    assert chose == sequential.summary["run"]["online_choice"]["chosen"]
+    assert guessed.summary["run"]["timings_s"]["overlapped"] is (not chose)
+    assert bool(chose) is (race == "low_kz")
+    np.testing.assert_array_equal(guessed.frame.to_numpy(), sequential.frame.to_numpy())
+    assert guessed.summary["laps"] == sequential.summary["laps"]

@@ -57,7 +57,6 @@ way.
 
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
@@ -72,6 +71,7 @@ from brakethermo.diagnosis.verdict import (
     unit_sse,
 )
 from brakethermo.io.session import Session
+from brakethermo.pipelines.speculative import free_cores
 from brakethermo.report.braking_zones import detect_zones
 
 if TYPE_CHECKING:
@@ -339,10 +339,11 @@ def _structural_test(run: Any, param: str, lap: np.ndarray, cycles: np.ndarray,
 
 def _run_variants(part: Session, variants: dict[str, tuple[Any, Any]]) -> dict[str, Any]:
     """Filter-only estimates of ``part``, one per (options, calibration) variant. The
-    filter's kernels release the GIL: the variants run side by side on the cores."""
+    filter's kernels release the GIL: the variants run side by side on the cores a
+    speculative run of the estimate leaves (:mod:`brakethermo.pipelines.speculative`)."""
     from brakethermo.pipelines.estimate import estimate_from_session
 
-    with ThreadPoolExecutor(min(len(variants), os.cpu_count() or 1)) as pool:
+    with ThreadPoolExecutor(min(len(variants), free_cores())) as pool:
         futures = {name: pool.submit(estimate_from_session, part, opts, cal)
                    for name, (opts, cal) in variants.items()}
         return {name: f.result() for name, f in futures.items()}

@@ -318,20 +318,7 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         def one_guess(r0: float) -> GuessRun:
             x0 = np.array([w_w[first], w_r[first], r0 * 1e-3])
             res = ukf.run(x0, np.diag(fd.p0), y, store="smoother" if opts.smoother else "diag")
-            consistency = nis_consistency(res.nis, res.n_obs, res.innovation)
-            scale = variance_scale(consistency)  # over-confident: its noise as it shows
-            filt_mm = res.x_filt[:, 2] * 1e3
-            filt_std = np.sqrt(res.var_filt[:, 2] * scale) * 1e3
-            if opts.smoother:
-                sm = urts_smooth(res)
-                states, var = sm.x_smooth, sm.var_smooth
-            else:
-                states, var = res.x_filt, res.var_filt
-            return GuessRun(
-                r0, states[:, 2] * 1e3, np.sqrt(var[:, 2] * scale) * 1e3, filt_mm, filt_std,
-                states, convergence_time(t, filt_mm, float(filt_mm[-1]), dt),
-                consistency=consistency, noise_scale=scale,
-            )  # fmt: skip
+            return _guess_run(r0, res, opts.smoother, t, dt)
 
         # The guesses are independent and the compiled model and filter steps release the
         # GIL: one thread per guess, at most one per core.
@@ -369,6 +356,25 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         }
     )
     return result
+
+
+def _guess_run(r0: float, res: Any, smoother: bool, t: np.ndarray, dt: float) -> GuessRun:
+    """One guess's tracks from its filter run (and the smoother), its spread widened by
+    the mean NIS where the innovations show the filter over-confident."""
+    consistency = nis_consistency(res.nis, res.n_obs, res.innovation)
+    scale = variance_scale(consistency)
+    filt_mm = res.x_filt[:, 2] * 1e3
+    filt_std = np.sqrt(res.var_filt[:, 2] * scale) * 1e3
+    if smoother:
+        sm = urts_smooth(res)
+        states, var = sm.x_smooth, sm.var_smooth
+    else:
+        states, var = res.x_filt, res.var_filt
+    return GuessRun(
+        r0, states[:, 2] * 1e3, np.sqrt(var[:, 2] * scale) * 1e3, filt_mm, filt_std, states,
+        convergence_time(t, filt_mm, float(filt_mm[-1]), dt),
+        consistency=consistency, noise_scale=scale,
+    )  # fmt: skip
 
 
 def _judged(law: RollerRigModel, law_runs: list[GuessRun], changed: RollerRigModel,

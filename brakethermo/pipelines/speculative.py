@@ -1,0 +1,81 @@
+"""A computation started on a guess while the work that decides it goes on.
+
+A race's estimate waits for its online decision (filter passes over its first laps,
+:mod:`brakethermo.pipelines.online_choice`) before its own filter and smoother run. Most
+races switch nothing on and drop nothing of the h law, and the decision's passes leave a
+core idle part of the time: the estimate starts the filter for that outcome at once, on
+its own thread, and uses it when the decision agrees — the same function on the same
+inputs, so the same numbers — or stops it at its next model step when it does not.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from typing import Generic, TypeVar
+
+import numpy as np
+
+T = TypeVar("T")
+
+
+def _finished(_: object) -> None:
+    global _running
+    with _lock:
+        _running -= 1
+
+
+class Cancelled(Exception):
+    """Raised inside a speculative run nobody needs any more."""
+
+
+def cancellable(f: Callable[[np.ndarray, int], np.ndarray], cancel: threading.Event
+                ) -> Callable[[np.ndarray, int], np.ndarray]:
+    """A filter's model step that stops the run once ``cancel`` is set."""
+
+    def step(X: np.ndarray, k: int) -> np.ndarray:
+        if cancel.is_set():
+            raise Cancelled
+        return f(X, k)
+
+    return step
+
+
+_running = 0  # speculative runs on a core of their own right now
+_lock = threading.Lock()
+
+
+def free_cores() -> int:
+    """Cores not taken by a speculative run (at least 1): the decision's passes take
+    these, so that the guessed run keeps its core and both end about together."""
+    with _lock:
+        return max(1, (os.cpu_count() or 1) - _running)
+
+
+class Speculation(Generic[T]):
+    """``fn(cancel)`` running on its own thread from construction on."""
+
+    def __init__(self, fn: Callable[[threading.Event], T]) -> None:
+        global _running
+        self._cancel = threading.Event()
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="brakethermo-speculative")
+        with _lock:
+            _running += 1
+        self._future = self._pool.submit(fn, self._cancel)
+        self._future.add_done_callback(_finished)
+
+    def result(self) -> T:
+        """The run's result (waiting for it); its exception if it raised one."""
+        try:
+            return self._future.result()
+        finally:
+            self._pool.shutdown(wait=False)
+
+    def abandon(self) -> None:
+        """Stop the run (at its next model step) and drop whatever it did or raised."""
+        self._cancel.set()
+        self._future.cancel()
+        self._pool.shutdown(wait=True)
+        del self._future  # with its traceback: the run's memory is free when this returns
