@@ -13,20 +13,37 @@ from brakethermo.pipelines import speculative
 from brakethermo.pipelines.speculative import Cancelled, Speculation, cancellable
 
 
-def test_result_and_the_core_it_held() -> None:
+def test_result_and_the_core_it_holds_while_it_runs() -> None:
+    """A pass waiting for a core gets the guess's the moment the guess is done."""
     cores = os.cpu_count() or 1
-    started = threading.Event()
+    release = threading.Event()
 
     def run(cancel: threading.Event) -> int:
-        started.set()
-        time.sleep(0.05)
+        release.wait()
         return 42
 
     guess = Speculation(run)
-    started.wait()
-    assert speculative.free_cores() == max(1, cores - 1)
+    got: list[float] = []
+    hold = threading.Event()
+
+    def passes() -> None:
+        with speculative.core():
+            got.append(time.perf_counter())
+            hold.wait(10.0)  # a pass holds its core while it runs
+
+    threads = [threading.Thread(target=passes) for _ in range(cores)]
+    for th in threads:
+        th.start()
+    time.sleep(0.1)
+    assert len(got) == cores - 1  # every core but the guess's
+    t_release = time.perf_counter()
+    release.set()
     assert guess.result() == 42
-    assert speculative.free_cores() == cores
+    time.sleep(0.1)
+    assert len(got) == cores and max(got) >= t_release
+    hold.set()
+    for th in threads:
+        th.join()
 
 
 def test_abandon_stops_the_run_at_its_next_step() -> None:
@@ -48,7 +65,8 @@ def test_abandon_stops_the_run_at_its_next_step() -> None:
     done = len(steps)
     time.sleep(0.02)
     assert len(steps) == done  # nothing runs any more
-    assert speculative.free_cores() == (os.cpu_count() or 1)
+    with speculative.core():  # and its core is free again
+        pass
 
 
 def test_cancellable_raises_only_once_cancelled() -> None:

@@ -8,6 +8,7 @@ spots validate the estimate (the paper's Tables 3 and 4).
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from dataclasses import dataclass, field, replace
@@ -490,7 +491,9 @@ def _decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
     guess = null = None
     # a race no longer than the decision's laps has a filter pass as short as one of the
     # decision's: nothing to win there, and the decision would lose a core
-    if chooses is not None and sum(lap.lap >= 1 for lap in session.laps) > DECISION_LAPS:
+    # (and on one core the guess would only queue the decision behind it)
+    if (chooses is not None and sum(lap.lap >= 1 for lap in session.laps) > DECISION_LAPS
+            and (os.cpu_count() or 1) > 1):
         null = replace(tuning, **{ONLINE_FLAGS[c]: False for c in chooses[0]})
         guess = Speculation(partial(_filtered, disc, inputs, y, cal, null, options))
     choice = None if chooses is None else _online_choice(session, options, cal, tuning,

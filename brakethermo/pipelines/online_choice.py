@@ -71,7 +71,7 @@ from brakethermo.diagnosis.verdict import (
     unit_sse,
 )
 from brakethermo.io.session import Session
-from brakethermo.pipelines.speculative import free_cores
+from brakethermo.pipelines.speculative import core
 from brakethermo.report.braking_zones import detect_zones
 
 if TYPE_CHECKING:
@@ -343,9 +343,12 @@ def _run_variants(part: Session, variants: dict[str, tuple[Any, Any]]) -> dict[s
     speculative run of the estimate leaves (:mod:`brakethermo.pipelines.speculative`)."""
     from brakethermo.pipelines.estimate import estimate_from_session
 
-    with ThreadPoolExecutor(min(len(variants), free_cores())) as pool:
-        futures = {name: pool.submit(estimate_from_session, part, opts, cal)
-                   for name, (opts, cal) in variants.items()}
+    def run(opts: EstimateOptions, cal: DiscCalibration) -> Any:
+        with core():
+            return estimate_from_session(part, opts, cal)
+
+    with ThreadPoolExecutor(len(variants)) as pool:
+        futures = {name: pool.submit(run, opts, cal) for name, (opts, cal) in variants.items()}
         return {name: f.result() for name, f in futures.items()}
 
 

@@ -12,19 +12,14 @@ from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from typing import Generic, TypeVar
 
 import numpy as np
 
 T = TypeVar("T")
-
-
-def _finished(_: object) -> None:
-    global _running
-    with _lock:
-        _running -= 1
 
 
 class Cancelled(Exception):
@@ -43,28 +38,28 @@ def cancellable(f: Callable[[np.ndarray, int], np.ndarray], cancel: threading.Ev
     return step
 
 
-_running = 0  # speculative runs on a core of their own right now
-_lock = threading.Lock()
+# One permit per core: a speculative run holds one while it runs, each of the decision's
+# passes one while it runs (:func:`core`), so the guess keeps its core and a pass takes
+# the core it frees the moment it is done.
+_cores = threading.Semaphore(os.cpu_count() or 1)
 
 
-def free_cores() -> int:
-    """Cores not taken by a speculative run (at least 1): the decision's passes take
-    these, so that the guessed run keeps its core and both end about together."""
-    with _lock:
-        return max(1, (os.cpu_count() or 1) - _running)
+@contextmanager
+def core() -> Iterator[None]:
+    """Hold one core's permit for the duration of the block (waiting for one)."""
+    with _cores:
+        yield
 
 
 class Speculation(Generic[T]):
     """``fn(cancel)`` running on its own thread from construction on."""
 
     def __init__(self, fn: Callable[[threading.Event], T]) -> None:
-        global _running
         self._cancel = threading.Event()
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="brakethermo-speculative")
-        with _lock:
-            _running += 1
+        _cores.acquire()
         self._future = self._pool.submit(fn, self._cancel)
-        self._future.add_done_callback(_finished)
+        self._future.add_done_callback(lambda _: _cores.release())
 
     def result(self) -> T:
         """The run's result (waiting for it); its exception if it raised one."""
