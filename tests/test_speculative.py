@@ -76,3 +76,14 @@ def test_cancellable_raises_only_once_cancelled() -> None:
     cancel.set()
     with pytest.raises(Cancelled):
         f(np.ones(2), 1)
+
+
+def test_an_error_of_the_run_reaches_the_caller_and_frees_its_core() -> None:
+    def run(cancel: threading.Event) -> None:
+        raise ValueError("the disc model broke down")
+
+    guess = Speculation(run)
+    with pytest.raises(ValueError, match="broke down"):
+        guess.result()
+    with speculative.core():
+        pass

@@ -496,8 +496,13 @@ def _decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
             and (os.cpu_count() or 1) > 1):
         null = replace(tuning, **{ONLINE_FLAGS[c]: False for c in chooses[0]})
         guess = Speculation(partial(_filtered, disc, inputs, y, cal, null, options))
-    choice = None if chooses is None else _online_choice(session, options, cal, tuning,
-                                                         chooses)
+    try:
+        choice = None if chooses is None else _online_choice(session, options, cal, tuning,
+                                                             chooses)
+    except BaseException:  # a bad session or Ctrl-C: the guess stops with the decision
+        if guess is not None:
+            guess.abandon()
+        raise
     if choice is not None:
         tuning, layering = _race_layering(choice, replace(tuning, **choice.flags), options)
         if layering:

@@ -64,9 +64,12 @@ class Speculation(Generic[T]):
     def result(self) -> T:
         """The run's result (waiting for it); its exception if it raised one."""
         try:
-            return self._future.result()
-        finally:
-            self._pool.shutdown(wait=False)
+            value = self._future.result()
+        except BaseException:  # its own error, or Ctrl-C while waiting: stop it first
+            self.abandon()
+            raise
+        self._pool.shutdown(wait=False)
+        return value
 
     def abandon(self) -> None:
         """Stop the run (at its next model step) and drop whatever it did or raised."""
