@@ -21,8 +21,6 @@ import pandas as pd
 
 from brakethermo import __version__
 from brakethermo.errors import ConfigError, DataError
-from brakethermo.estimation import UnscentedKalmanFilter
-from brakethermo.estimation.urts import urts_smooth_windowed
 from brakethermo.io.session import Session
 from brakethermo.models.disc import (
     BALANCE_MAX,
@@ -38,8 +36,6 @@ from brakethermo.models.effects import true_from_reading
 from brakethermo.models.reduced import (
     MAX_MODES,
     ReducedStateSpace,
-    pod_modes,
-    with_directions,
 )
 from brakethermo.pipelines import scoring
 from brakethermo.pipelines.checks import check_estimate_result
@@ -60,7 +56,8 @@ from brakethermo.pipelines.online_choice import (
     law_without,
 )
 from brakethermo.pipelines.outputs import write_json, write_parquet
-from brakethermo.pipelines.speculative import Speculation, cancellable
+from brakethermo.pipelines.race_filter import filter_space, readout_rows, run_filter, ukf_for
+from brakethermo.pipelines.speculative import Speculation
 from brakethermo.pipelines.tuning import (
     EstimateTuning,
     check_overrides,
@@ -71,10 +68,7 @@ from brakethermo.report.braking_zones import detect_zones
 from brakethermo.results.laps import lap_summaries
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
-from brakethermo.thermal.power import crown_load
 
-AUTO_REDUCE_ABOVE = 64  # temperature states beyond which the filter runs on modes
-SNAPSHOTS = 2000  # open-loop steps per run the modes are taken from
 SENSOR_FLOOR_C = 100.0  # IR pyrometers read nothing useful below this (datasheet floor)
 SIGMA_MEAS_FLOOR_C = 0.5  # degC: never trust a reading beyond its quantisation
 
@@ -463,13 +457,13 @@ def _filtered(disc: DiscSpec, inputs: DiscInputs, y: np.ndarray, cal: DiscCalibr
         y = true_from_reading(y, plan.emissivity_ratio)
     tuning, sigma_meas_source = _reading_noise(y, tuning, options)
     ssm = build_state_space(model, inputs, h, tuning, cal.power_scale, plan, spot_radius)
-    filt, order = _filter_space(ssm, model, inputs, h, cal.power_scale, options.modes)
-    readout = _readout(filt, np.asarray(disc.spot_radii), tuning.adapt_power)
+    filt, order = filter_space(ssm, model, inputs, h, cal.power_scale, options.modes)
+    readout = readout_rows(filt, np.asarray(disc.spot_radii), tuning.adapt_power)
     x0, P0 = filt.prior(model.initial_state(_initial_temperature(y, inputs.t_amb)),
                         tuning.init_sigma_temp)
-    ukf = _filter(filt, tuning, spot_radius, cancel)
+    ukf = ukf_for(filt, tuning, spot_radius, cancel)
     t0 = time.perf_counter()
-    forward, states, out, out_var, windows, forward_s = _run_filter(
+    forward, states, out, out_var, windows, forward_s = run_filter(
         ukf, x0, P0, y, readout, tuning.smoother, options.workers)
     if isinstance(filt, ReducedStateSpace):
         states, x0 = filt.lift(states), filt.lift(x0)  # the full model's nodes, everywhere
@@ -589,55 +583,6 @@ def estimate_from_session(
                           float(spot_radii[options.spot - 1]))
 
 
-def _filter(space: DiscStateSpace | ReducedStateSpace, tuning: EstimateTuning,
-            spot_radius: float, cancel: threading.Event | None = None
-            ) -> UnscentedKalmanFilter:
-    """The UKF of ``space`` fed by the pyrometer at ``spot_radius`` (m); a run that stops
-    at its next step once ``cancel`` is set."""
-    f = space.f if cancel is None else cancellable(space.f, cancel)
-    return UnscentedKalmanFilter(f, space.Q, np.array([[tuning.sigma_meas**2]]),
-                                 H=space.H_measured(spot_radius), alpha=tuning.alpha,
-                                 beta=tuning.beta, kappa=tuning.kappa)
-
-
-def _filter_space(ssm: DiscStateSpace, model: DiscFEModel, inputs: DiscInputs, h: np.ndarray,
-                  power_scale: float, modes: int | None
-                  ) -> tuple[DiscStateSpace | ReducedStateSpace, dict[str, Any]]:
-    """The state space the filter runs on: the full one, or its reduced order
-    (:mod:`brakethermo.models.reduced`) with the modes of the model's own open loop over
-    this session at a spread of braking-power scales and h factors."""
-    n_t = ssm.n_temp
-    if modes == 0 or (modes is None and n_t <= AUTO_REDUCE_ABOVE):
-        return ssm, {"kind": "full", "states": ssm.n}
-    # (power scale, h factor, k_z factor, inner/outer crown tilt) of each open-loop run
-    spread = np.array([(1.0, 1.0, 1.0, 0.0), (0.7, 1.0, 1.0, 0.0), (1.3, 1.0, 1.0, 0.0),
-                       (1.0, 0.7, 1.0, 0.0), (1.0, 1.4, 1.0, 0.0), (1.0, 1.0, 0.5, 0.0),
-                       (1.0, 1.0, 2.0, 0.0), (1.0, 1.0, 1.0, 0.5), (1.0, 1.0, 1.0, -0.5)])
-    B, K = len(spread), inputs.q_brk.size - 1
-    edges = model.disc.crown_edges
-    loads = np.stack([crown_load(model.radii, edges, model.weights * [1 + b, 1.0, 1 - b])
-                      for b in spread[:, 3]])
-    runs = model.run_readout(
-        np.tile(model.initial_state(float(inputs.t_amb[0])), (B, 1)),
-        inputs.q_brk[:-1, None] * power_scale * spread[:, 0], h[:-1, None] * spread[:, 1],
-        inputs.t_amb[:-1], model.kz_ratio * spread[:, 2], loads[None], np.zeros(K, int),
-        np.eye(n_t))
-    stride = max(1, K // SNAPSHOTS)
-    Phi, error = pod_modes(runs[::stride].reshape(-1, n_t),
-                           max_modes=min(modes or MAX_MODES, n_t))
-    # and the directions the crown-split process noise pushes the field in: the filter's
-    # corrections live there, the open loop never goes
-    Phi = with_directions(Phi, ssm.crown_directions())
-    reduced = ReducedStateSpace(ssm, Phi)
-    return reduced, {
-        "kind": "reduced", "modes": reduced.r, "states": reduced.n, "full_states": ssm.n,
-        "snapshot_projection_rms_c": error,
-        "approximation": "node temperatures on the leading POD modes of the model's own open"
-                         " loop over this session (power scale 0.7-1.3, h x 0.7-1.4, k_z x"
-                         " 0.5-2, crown tilt +-0.5); what the modes cannot hold is dropped"
-                         " each step"}
-
-
 def _reading_noise(y: np.ndarray, tuning: EstimateTuning, options: EstimateOptions
                    ) -> tuple[EstimateTuning, str]:
     """The reading noise of this very sensor, from the signal itself, unless the user's
@@ -648,34 +593,6 @@ def _reading_noise(y: np.ndarray, tuning: EstimateTuning, options: EstimateOptio
     noise = max(scoring.reading_noise(y), SIGMA_MEAS_FLOOR_C)
     return (replace(tuning, sigma_meas=noise),
             "measured from the signal (second differences)")
-
-
-def _readout(ssm: DiscStateSpace | ReducedStateSpace, spot_radii: np.ndarray,
-             adapt_power: bool) -> np.ndarray:
-    """What the filter reports beside its state: the four spots, the contact band (the
-    mean of spots 2-4) and, when it is a state, the braking-power scale."""
-    H_spots = ssm.H(spot_radii)
-    readout = np.vstack([H_spots, H_spots[1:4].mean(axis=0, keepdims=True)])
-    if adapt_power:
-        readout = np.vstack([readout, ssm.selector(SCALE_PARAM)])
-    return readout
-
-
-def _run_filter(ukf: UnscentedKalmanFilter, x0: np.ndarray, P0: np.ndarray, y: np.ndarray,
-                readout: np.ndarray, smoother: bool, workers: int) -> tuple[Any, ...]:
-    """Forward filter (and the smoother): the forward result, the states, the readout and
-    its variance, the smoother's windows and the forward pass's seconds."""
-    t0 = time.perf_counter()
-    if smoother:
-        # windows bound the gains' memory whatever the mesh and session length; the
-        # answer is the whole-session smoother's (estimation.urts)
-        run = urts_smooth_windowed(ukf, x0, P0, y[:, None], readout=readout, workers=workers)
-        s = run.smoothed
-        return (run.forward, s.x_smooth, s.readout, s.readout_var, len(run.windows),
-                run.forward_s)
-    forward = ukf.run(x0, P0, y[:, None], store="diag", readout=readout)
-    return (forward, forward.x_filt, forward.readout, forward.readout_var, 1,
-            time.perf_counter() - t0)
 
 
 def _model_facts(cal: DiscCalibration, tuning: EstimateTuning, model: DiscFEModel
