@@ -22,10 +22,9 @@ from scipy.linalg.blas import dtrsm
 from scipy.special import chdtri  # scipy.stats costs 0.5 s of import
 
 from brakethermo.errors import ConfigError, DataError
-from brakethermo.estimation import store as store_memory
 from brakethermo.estimation.covariance import CovarianceGuard, symmetrise
 from brakethermo.estimation.results import FilterResult
-from brakethermo.estimation.store import gain_dtype
+from brakethermo.estimation.store import gain_dtype, prefault
 
 Array = NDArray[np.float64]
 Store = Literal["full", "smoother", "diag"]
@@ -205,7 +204,7 @@ def allocate(
     st = np.empty((4, K, n))
     cov = np.empty((3, nf, n, n))
     gs = np.empty((2, ngain, n, n), dtype=store_dtype)
-    store_memory.prefault(gs)
+    prefault(gs)
     iv = np.full((2, K, m), np.nan)
     sc = np.zeros((2, K))
     sc[0] = np.nan

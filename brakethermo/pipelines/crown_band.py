@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from brakethermo.thermal.model import DiscFEModel
-from brakethermo.thermal.power import normalise_weights
+from brakethermo.thermal.power import crown_load
 
 
 def crown_balance_std(model: DiscFEModel, T0: np.ndarray, q: np.ndarray, h: np.ndarray,
@@ -41,10 +41,9 @@ def crown_balance_std(model: DiscFEModel, T0: np.ndarray, q: np.ndarray, h: np.n
     K, m = q.size, H.shape[0]
     if not sigma_b > 0.0 or not np.all(np.isfinite(model.weights)):
         return np.zeros((K, m))
-    basis = model.crown_basis()
     w = np.asarray(model.weights, float)
-    loads = np.stack([normalise_weights(w * np.array([np.exp(b), 1.0, np.exp(-b)]),
-                                        model.disc.crown_edges) @ basis
+    loads = np.stack([crown_load(model.radii, model.disc.crown_edges,
+                                 w * np.array([np.exp(b), 1.0, np.exp(-b)]))
                       for b in (sigma_b, -sigma_b)])[None]
     runs = model.run_readout(np.tile(T0, (2, 1)), np.repeat(q[:-1, None], 2, axis=1),
                              np.repeat(h[:-1, None], 2, axis=1), t_amb[:-1],
