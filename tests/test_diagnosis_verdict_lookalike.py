@@ -43,3 +43,28 @@ def test_of_look_alikes_the_one_with_fewer_parameters_comes_first() -> None:
     plain = decide(before, [CandidateEvidence("mu_t", a, corr),
                             CandidateEvidence("emissivity", b, corr)], rule)
     assert plain.verdict_set == ["mu_t", "emissivity"]
+
+
+def test_an_undecided_look_alike_stops_a_single_name_but_does_not_lead() -> None:
+    """The dev-seed case of a strong wrong emissivity: μ(T) significant (13.8 % [10.6,
+    17.3]), emissivity undecided (10.3 % [7.0, 13.7]), corrections alike. The verdict is the
+    set, μ(T) first (only a significant effect leads, whatever its parameter count); a μ(T)
+    that beats it clearly, with a different correction, stands alone."""
+    rng = np.random.default_rng(3)
+    before = rng.uniform(50, 150, 40)
+    a = before * rng.uniform(0.70, 0.79, 40)  # ~14 % shrink, lower end above 10 %
+    b = before * rng.uniform(0.74, 0.88, 40)  # ~10 % shrink, interval straddles 10 %
+    corr = np.linspace(-1, 1, 50)
+    rule = VerdictRule()
+    alike = decide(before, [CandidateEvidence("mu_t", a, corr, n_params=2),
+                            CandidateEvidence("emissivity", b, corr, n_params=1)], rule)
+    rows = {r["name"]: r for r in alike.rows}
+    assert rows["mu_t"]["significant"] and not rows["emissivity"]["significant"]
+    assert rows["emissivity"]["shrink_ci95_pct"][1] > rule.min_shrink_pct
+    assert alike.verdict_set == ["mu_t", "emissivity"]
+    assert alike.kind == "set"
+    strong = before * rng.uniform(0.55, 0.65, 40)
+    apart = decide(before, [CandidateEvidence("mu_t", strong, corr, n_params=2),
+                            CandidateEvidence("emissivity", b, corr[::-1] ** 2, n_params=1)],
+                   rule)
+    assert apart.verdict_set == ["mu_t"]

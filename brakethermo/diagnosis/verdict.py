@@ -17,8 +17,9 @@ hands over the sum of squared errors per unit. Everything here resamples those u
   it does not beat clearly — the lower end of the bootstrap interval of the shrink
   *difference* (percentage points, same resamples) not above ``clear_margin_pct``, or
   whose correction correlates with the best's above ``correlated`` while the two shrink
-  intervals overlap (look-alikes). A single name is given only when it beats every other
-  significant candidate clearly;
+  intervals overlap (look-alikes). Undecided candidates (below) are held to the same test
+  and join the set after the significant ones: a single name is given only when it beats
+  every other candidate that may be the cause clearly;
 - **undecided**: candidates whose interval straddles the threshold (the data can neither
   confirm nor rule them out) are listed with what would decide them;
 - **untestable**: candidates the caller knows the data hardly contain the signature of
@@ -250,11 +251,12 @@ class Decision:
                 f" of held-out shrink exceeds {r.min_shrink_pct:g} % (on all held-out data, or"
                 f" on the units where its signature lives while its whole-data interval stays"
                 f" above 0 %); the best significant"
-                f" effect stands alone only when it beats each other significant one by more"
+                f" effect stands alone only when it beats each other significant or undecided"
+                f" one (interval straddling {r.min_shrink_pct:g} %) by more"
                 f" than {r.clear_margin_pct:g} percentage points (lower end of the paired"
                 f" interval) and is no look-alike (corrections correlated above"
                 f" {r.correlated:g} with overlapping shrink intervals), else the verdict is"
-                f" the set of those it does not beat"
+                f" the set of those it does not beat, significant ones first"
                 f" (at most {r.max_set}); none when no effect is significant"),
         }
 
@@ -308,7 +310,9 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
     if significant:
         top = significant[0]
         verdict_set = [top]
-        for name in significant[1:]:
+        # An undecided candidate may be the cause as well: the first stands alone only
+        # when it beats those clearly too.
+        for name in significant[1:] + undecided:
             cols = _common(by_name[top].outputs, by_name[name].outputs)
             d, lo, hi = difference_interval(_total(sse_before, cols), by_name[top].total(cols),
                                             by_name[name].total(cols), rule)
@@ -330,8 +334,9 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
                 reasons.append(f"{top} does not beat {name} clearly: {d:.1f} points (95 %"
                                f" interval {lo:.1f} to {hi:.1f}{alike})"
                                + (f"; {why}" if why else ""))
-        if len(verdict_set) > 1 and all(by_name[n].n_params for n in verdict_set):
-            simplest = min(verdict_set, key=lambda n: by_name[n].n_params)
+        named = [n for n in verdict_set if n in significant]
+        if len(named) > 1 and all(by_name[n].n_params for n in named):
+            simplest = min(named, key=lambda n: by_name[n].n_params)
             if by_name[simplest].n_params < by_name[verdict_set[0]].n_params:
                 reasons.append(f"{simplest} first: of those the data cannot tell apart, it"
                                f" adds the fewest parameters ({by_name[simplest].n_params})")
