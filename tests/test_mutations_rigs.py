@@ -113,3 +113,36 @@ def test_clean_rig_sessions_pass_without_warnings(sessions: dict[str, Path],
         assert res.exit_code == 0, res.output
         summary = json.loads(res.stdout[res.stdout.index("{"):])
         assert not summary.get("warnings"), summary.get("warnings")
+
+
+# (command, the other rig's session it is handed, the command the message must name)
+WRONG_RIG = [
+    ("roller-rig", "embt", "brakethermo clamp-force"),
+    ("clamp-force", "ebv", "brakethermo ebooster"),
+    ("ebooster", "rr", "brakethermo roller-rig"),
+    ("mu-slip", "ebv", "brakethermo ebooster"),
+]
+
+
+@pytest.mark.parametrize(("rig", "src", "reads"), WRONG_RIG, ids=[c[0] for c in WRONG_RIG])
+def test_a_session_of_another_rig_is_refused_naming_the_command_that_reads_it(
+        rig: str, src: str, reads: str, sessions: dict[str, Path], tmp_path: Path) -> None:
+    res = RUNNER.invoke(app, _command(rig, sessions[src], sessions, tmp_path / "out"))
+    assert res.exit_code == 1, res.output
+    assert "Traceback" not in res.output
+    text = " ".join(res.output.split())
+    assert f"{reads} reads it" in text, res.output
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").rglob("*.json"))
+
+
+def test_kind_hint_only_for_a_session_of_another_kind() -> None:
+    from brakethermo.io.kinds import kind_hint, session_kind
+
+    emb = ("motor_angle", "motor_current", "clamp_force")
+    assert session_kind(emb) == "emb"
+    assert session_kind(("speed", "disc_temp")) == "disc"
+    assert session_kind(("speed",)) is None
+    assert "clamp-force" in kind_hint(emb, "wheel_omega")
+    assert kind_hint(("motor_angle", "motor_current"), "clamp_force") == ""  # its own channel
+    assert kind_hint(("speed", "disc_temp"), "brake_pressure_front") == ""
+    assert "estimate" in kind_hint(("speed", "disc_temp"), "pushrod_displacement")

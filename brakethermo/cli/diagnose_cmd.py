@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 import typer
 from rich.markup import escape
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
@@ -99,8 +99,8 @@ def diagnose_command(
     options = DiagnoseOptions(effects=effects, holdout_laps=_laps(holdout_laps), h_law=h_law,
                               disc=disc, tuning=tuning, aliases=aliases, ambient_c=ambient)
     name = sessions[0].name if len(sessions) == 1 else f"{len(sessions)} sessions"
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/"
-                  "{task.total}"), TimeElapsedColumn(), console=console,
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=console, transient=True,
                   disable=as_json) as bar:
         task = bar.add_task(f"diagnosing {escape(name)}", total=None)
 
@@ -138,27 +138,15 @@ RIG_NAMES = {"mu-slip": "tyre"}  # the tyre rig by its command's name
 def _detect_rig(session: Path, aliases: Path | None) -> str | None:
     """The rig a session comes from, from its channels (None: a disc session)."""
     from brakethermo.errors import BrakethermoError
+    from brakethermo.io.kinds import RIG_MARKS, session_kind
     from brakethermo.io.load import load_session
 
     try:
-        s = load_session(session, rate_hz=None, aliases=aliases, channels=(
-            "pushrod_displacement", "reaction_disk_delta", "motor_angle", "motor_current",
-            "wheel_omega", "roller_omega", "drag_force", "wheel_speed"))
+        s = load_session(session, rate_hz=None, aliases=aliases, channels=RIG_MARKS)
     except BrakethermoError:
         return None
-    if any(c.startswith("disc_temp") for c in s.available):
-        return None
-    if s.has("pushrod_displacement") and s.has("reaction_disk_delta"):
-        return "ebooster"
-    if s.has("motor_angle") and s.has("motor_current"):
-        return "emb"
-    if s.has("wheel_omega") and s.has("roller_omega"):
-        return "roller-rig"
-    if s.has("drag_force") and s.has("wheel_speed"):
-        return "mu-slip"
-    return None
-
-
+    kind = session_kind({*s.available, *s.channels})
+    return None if kind == "disc" else kind
 
 
 def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from brakethermo.errors import DataError
+from brakethermo.io.kinds import kind_hint
 from brakethermo.io.units import si_unit
 
 GRID_DT = 0.1  # s, the OUTPUTS.md time base
@@ -163,7 +164,8 @@ class Session:
                 have = ", ".join(self.available) or "none"
                 raise DataError(
                     f"required channel is missing (tried: {tried}); the file has: {have}."
-                    " Add the file's name for it to an alias table and pass --aliases FILE",
+                    + (kind_hint({*self.available, *self.channels}, name) or
+                       " Add the file's name for it to an alias table and pass --aliases FILE"),
                     path=self.path,
                     channel=name,
                 )

@@ -51,9 +51,12 @@ def diagnose_many(paths: Sequence[str | Path], options: DiagnoseOptions | None =
     for s in sessions:
         have = [i for i in range(1, 5) if s.has(f"disc_temp_spot{i}")]
         if len(have) < 4:
+            logs = (f"spot(s) {', '.join(map(str, have))} only" if have else
+                    "the race sensor only (disc_temp)" if s.has("disc_temp") else
+                    "no disc temperature")
             raise DataError(
-                "pooling several sessions needs the four-spot sensor in each; this one logs"
-                f" {len(have)} spot(s): diagnose it alone", path=s.path)
+                f"pooling several sessions needs the four-spot sensor in each; this one logs"
+                f" {logs}: diagnose it alone", path=s.path)
     results = []
     for i, s in enumerate(sessions):
         def tick(label: str, done: int, total: int, i: int = i, name: str = s.path.name
