@@ -308,3 +308,34 @@ def test_the_papers_forty_points_through_the_cli(tmp_path: Path) -> None:
                                    str(tmp_path / "o")])
     assert res.exit_code == 1 and "never passes the μ peak" in res.output
     assert "Traceback" not in res.output
+
+
+def test_a_plain_slip_mu_table_is_a_point_set(tmp_path: Path) -> None:
+    """The paper's case as people keep it: two columns, slip and μ, no time, no forces.
+    Same peak as the same points given with a time column and forces; the page does not
+    call a curve that fits as well as the best family a wrong shape."""
+    import pandas as pd
+    from typer.testing import CliRunner
+
+    from brakethermo.cli import app
+
+    rng = np.random.default_rng(7102)
+    s = rng.uniform(0.01, 0.948, 40)  # unsorted, as a table may be
+    mu = rudd_mu(s, 0.35, 0.15) + rng.normal(0.0, 0.04, 40)
+    plain = tmp_path / "plain.csv"
+    pd.DataFrame({"slip": s, "mu": mu}).to_csv(plain, index=False)
+    full = _point_set(tmp_path / "full.csv", s, mu)
+    out = {}
+    for name, path in (("plain", plain), ("full", full)):
+        res = CliRunner().invoke(app, ["mu-slip", str(path), "--points", "--mu-max", "1.0",
+                                       "--out", str(tmp_path / name), "--json"])
+        assert res.exit_code == 0, res.output
+        out[name] = json.loads(res.stdout)
+    assert out["plain"]["ekf"]["mu_peak"] == pytest.approx(out["full"]["ekf"]["mu_peak"],
+                                                            rel=1e-9)
+    mm = out["plain"]["shape_mismatch"]  # the points come from the two-parameter curve
+    assert mm["rudd_heldout_rmse"] <= 1.05 * mm["best_heldout_rmse"]
+    assert "wrong shape" not in mm["words"]
+    # without --points a table with no time is refused in one line
+    res = CliRunner().invoke(app, ["mu-slip", str(plain), "--out", str(tmp_path / "x")])
+    assert res.exit_code == 1 and "Traceback" not in res.output

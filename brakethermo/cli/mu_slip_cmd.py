@@ -30,8 +30,10 @@ def mu_slip_cmd(
     points: Annotated[
         bool,
         typer.Option("--points", metavar="",
-                     help="The file is a (slip, μ) point set (slip_ratio, drag_force,"
-                          " normal_force), no time ramp: every point with 0 < slip <= 1."),
+                     help="The file is a (slip, μ) point set, no time ramp: slip_ratio with"
+                          " drag_force and normal_force, or with μ (friction_coefficient; a"
+                          " CSV of two columns 'slip,mu' will do); every point with"
+                          " 0 < slip <= 1."),
     ] = False,
     aliases: AliasesOpt = None,
     as_json: JsonOpt = False,

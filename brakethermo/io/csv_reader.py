@@ -105,7 +105,7 @@ def _dialect(text: str, path: Path) -> tuple[str, str]:
     return best, decimal
 
 
-def read_csv(path: Path) -> RawSession:
+def read_csv(path: Path, indexed: bool = False) -> RawSession:
     """Read a CSV session export into native-rate channels.
 
     Parameters
@@ -116,6 +116,9 @@ def read_csv(path: Path) -> RawSession:
         then one column per channel with header ``name [unit]`` or ``name``; an empty
         cell is no sample. Separator ``,`` ``;`` tab or ``|``; decimal comma with ``;``
         or tab.
+    indexed : bool
+        A table of points, not a time series (a (slip, μ) point set): every column is a
+        channel and row ``i`` is at ``i`` seconds.
 
     Raises
     ------
@@ -130,6 +133,8 @@ def read_csv(path: Path) -> RawSession:
                             dtype_backend="numpy_nullable")
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         raise DataError(f"not a readable CSV file ({exc})", path=path) from None
+    if indexed:
+        return _indexed(frame, path)
     if frame.shape[1] < 2 or frame.shape[0] == 0:
         raise DataError(
             "the CSV needs a header row, a time column, at least one channel and one data row"
@@ -175,6 +180,22 @@ def read_csv(path: Path) -> RawSession:
 
 def _name(sep: str) -> str:
     return {",": "commas", ";": "semicolons", "\t": "tabs", "|": "'|'"}[sep]
+
+
+def _indexed(frame: pd.DataFrame, path: Path) -> RawSession:
+    """Every column a channel on the row index (s), for a table of points."""
+    if frame.shape[0] == 0:
+        raise DataError("the CSV holds a header and no data rows", path=path)
+    t = np.arange(frame.shape[0], dtype=float)
+    channels, warnings = [], []
+    for i, (name, unit) in enumerate(_split_header(str(c)) for c in frame.columns):
+        v = _as_float(frame.iloc[:, i], name, path)
+        if v is None:
+            warnings.append(f"column '{name}' holds text, not numbers; ignored")
+            continue
+        keep = ~np.isnan(v)
+        channels.append(RawChannel(name, t[keep], v[keep], unit))
+    return RawSession(path, tuple(channels), {}, None, tuple(warnings))
 
 
 FORMAT = Format("CSV", (".csv",), read_csv)

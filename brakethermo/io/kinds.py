@@ -44,7 +44,8 @@ KINDS: dict[str, SessionKind] = {
          "rolling_radius_ref"), "brakethermo roller-rig"),
     "mu-slip": SessionKind(
         "a tyre (mu-slip) rig", ("drag_force", "wheel_speed"),
-        ("vehicle_speed", "wheel_speed", "drag_force", "normal_force", "slip_ratio"),
+        ("vehicle_speed", "wheel_speed", "drag_force", "normal_force", "slip_ratio",
+         "friction_coefficient"),
         "brakethermo mu-slip"),
     "disc": SessionKind(
         "a track (disc temperature)", ("disc_temp",),

@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from brakethermo.errors import DataError
+from brakethermo.io import csv_reader
 from brakethermo.io.aliases import AliasTable, load_aliases, resolve
 from brakethermo.io.formats import BY_SUFFIX
 from brakethermo.io.laps import lap_length_warnings, laps_from_beacons, validate_beacons
@@ -39,8 +40,11 @@ MAX_GRID_POINTS = 100_000_000
 IR_PREFIX = "disc_temp"
 
 
-def read_raw(path: str | Path) -> RawSession:
+def read_raw(path: str | Path, indexed: bool = False) -> RawSession:
     """Read a session file at native rates, dispatching on the extension.
+
+    ``indexed``: a CSV is a table of points, not a time series (every column a channel,
+    row ``i`` at ``i`` s); the other formats carry their own time axis either way.
 
     The times are settled (:func:`brakethermo.io.timebase.settle`): isolated samples
     far outside the session dropped with a warning, an implausible span refused.
@@ -65,7 +69,8 @@ def read_raw(path: str | Path) -> RawSession:
         )
     if path.stat().st_size == 0:
         raise DataError("the file is empty (0 bytes)", path=path)
-    raw = fmt.read(path)
+    raw = csv_reader.read_csv(path, indexed=True) if indexed and fmt is csv_reader.FORMAT \
+        else fmt.read(path)
     return settle(dataclasses.replace(raw, format=raw.format or fmt.name))
 
 
@@ -189,6 +194,7 @@ def load_session(
     gap_limit_s: float = 1.0,
     rate_hz: float | None = 1.0 / GRID_DT,
     channels: tuple[str, ...] | None = None,
+    indexed: bool = False,
 ) -> Session:
     """Load a session file onto a uniform grid with canonical names and SI units.
 
@@ -208,6 +214,8 @@ def load_session(
     channels : tuple of str, optional
         Canonical channels to load (default: every canonical channel the file maps);
         a rig pipeline names its own so that unrelated channels cost nothing.
+    indexed : bool
+        The file is a table of points, not a time series (:func:`read_raw`).
 
     Returns
     -------
@@ -231,7 +239,7 @@ def load_session(
         if isinstance(aliases, Mapping)
         else load_aliases(aliases)
     )
-    raw = read_raw(path)
+    raw = read_raw(path, indexed)
     path = raw.path
     by_name = {c.name: c for c in raw.channels}
     found = resolve(table, raw.names)

@@ -138,6 +138,7 @@ CANONICAL_UNIT: dict[str, str] = {
     "wheel_speed": "rad/s",
     "drag_force": "N",
     "slip_ratio": "-",
+    "friction_coefficient": "-",
 }
 
 CANONICAL_CHANNELS: tuple[str, ...] = tuple(CANONICAL_UNIT)

@@ -38,7 +38,8 @@ from brakethermo.models.mu_slip import (
 from brakethermo.report.page import Card, Page, Section, TableBlock, consistency_text
 from brakethermo.rigs.tyre import rudd_mu
 
-CHANNELS = ("vehicle_speed", "wheel_speed", "drag_force", "normal_force", "slip_ratio")
+CHANNELS = ("vehicle_speed", "wheel_speed", "drag_force", "normal_force", "slip_ratio",
+            "friction_coefficient")
 RADIUS_FACTS = ("wheel_radius_m", "rolling_radius_m")
 LOCK_SLIP = 0.95  # slip at which the wheel counts as locked
 
@@ -100,16 +101,24 @@ class MuSlipResult:
 def slip_and_mu(
     session: Session, radius_m: float | None
 ) -> tuple[np.ndarray, np.ndarray, float | None]:
-    """Slip (–) and μ (–) on the session grid; the radius used (None with ``slip_ratio``)."""
-    session.require("drag_force", "normal_force")
-    Fz = session.values("normal_force")
-    if np.nanmax(np.abs(Fz)) <= 0.0:
-        raise DataError(
-            "normal force is zero throughout", path=session.path, channel="normal_force"
-        )
-    with np.errstate(divide="ignore", invalid="ignore"):
-        mu = session.values("drag_force") / Fz
-    mu[np.abs(Fz) < 0.05 * np.nanmax(np.abs(Fz))] = np.nan
+    """Slip (–) and μ (–) on the session grid; the radius used (None with ``slip_ratio``).
+
+    μ is the drag over the normal force, or the rig's own ``friction_coefficient`` when the
+    file carries that and not both forces (a (slip, μ) point set as the paper gives one).
+    """
+    if session.has("friction_coefficient") and not (
+            session.has("drag_force") and session.has("normal_force")):
+        mu = session.values("friction_coefficient").astype(float)
+    else:
+        session.require("drag_force", "normal_force")
+        Fz = session.values("normal_force")
+        if np.nanmax(np.abs(Fz)) <= 0.0:
+            raise DataError(
+                "normal force is zero throughout", path=session.path, channel="normal_force"
+            )
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mu = session.values("drag_force") / Fz
+        mu[np.abs(Fz) < 0.05 * np.nanmax(np.abs(Fz))] = np.nan
     if session.has("slip_ratio"):
         return session.values("slip_ratio"), mu, None
     session.require("vehicle_speed", "wheel_speed")
@@ -230,7 +239,8 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
                 ) -> RampPoints:
     """Read a session and keep the points ``mu-slip`` fits: the first braking ramp to lock
     (or every point of a point set), 0 < slip <= 1, μ plausible (DataError otherwise)."""
-    session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases)
+    session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases,
+                           indexed=options.points)
     slip, mu, radius = slip_and_mu(session, options.radius_m)
     if options.points:
         start, lock = 0, slip.size
@@ -286,6 +296,10 @@ def mu_slip(
     )
 
 
+# held-out RMSE within this fraction of the best family's: no shape error worth the name
+SAME_SHAPE = 0.05
+
+
 def shape_mismatch(result: MuSlipResult) -> dict[str, object]:
     """How far the two-parameter curve is from the best family, in words and figures."""
     rudd = next(f for f in result.families if f.name == "rudd")
@@ -296,6 +310,12 @@ def shape_mismatch(result: MuSlipResult) -> dict[str, object]:
         words = (
             "the two-parameter curve fits as well as any family on held-out points;"
             " its peak is the answer"
+        )
+    elif rudd.heldout_rmse <= best.heldout_rmse * (1.0 + SAME_SHAPE):
+        words = (
+            f"the two-parameter curve fits as well as the best family, {best.name}, on"
+            f" held-out points (RMSE {rudd.heldout_rmse:.4f} against {best.heldout_rmse:.4f});"
+            f" their peaks differ by {d_mu:+.1f} % in μ and {d_s:+.3f} in slip"
         )
     else:
         words = (
