@@ -23,14 +23,7 @@ from brakethermo import __version__
 from brakethermo.errors import ConfigError, DataError
 from brakethermo.io.session import Session
 from brakethermo.models.disc import (
-    BALANCE_MAX,
-    BALANCE_PARAM,
-    H_FACTOR_PARAM,
-    KZ_PARAM,
-    SCALE_PARAM,
-    DiscEffects,
     DiscStateSpace,
-    RandomWalkParam,
 )
 from brakethermo.models.effects import true_from_reading
 from brakethermo.models.reduced import (
@@ -56,7 +49,16 @@ from brakethermo.pipelines.online_choice import (
     law_without,
 )
 from brakethermo.pipelines.outputs import write_json, write_parquet
-from brakethermo.pipelines.race_filter import filter_space, readout_rows, run_filter, ukf_for
+from brakethermo.pipelines.race_filter import (
+    EffectPlan,
+    build_state_space,
+    disc_model,
+    effect_plan,
+    filter_space,
+    readout_rows,
+    run_filter,
+    ukf_for,
+)
 from brakethermo.pipelines.speculative import Speculation
 from brakethermo.pipelines.tuning import (
     EstimateTuning,
@@ -263,92 +265,6 @@ def calibrated_tuning(cal: DiscCalibration, options: EstimateOptions) -> Estimat
     return replace(tuning, **options.overrides())
 
 
-def disc_model(
-    disc: DiscSpec, tuning: EstimateTuning, weights: tuple[float, float, float] = (1.0, 1.0, 1.0),
-    kz_ratio: float = 1.0,
-) -> DiscFEModel:
-    """The estimation model: radial nodes x graded through-thickness layers."""
-    return DiscFEModel(disc, tuning.nodes, tuning.layers, weights=weights, kz_ratio=kz_ratio,
-                       layer_growth=tuning.layer_growth)
-
-
-@dataclass(frozen=True)
-class EffectPlan:
-    """How the fitted effects of an h law enter the race filter.
-
-    Attributes
-    ----------
-    fixed : DiscEffects
-        μ(T) and sensor lag at their test-session values.
-    online : tuple of RandomWalkParam
-        Effects one spot can follow: the slipstream h factor (off the brakes) and the
-        through-thickness conductivity factor.
-    emissivity_ratio : float or None
-        ε_disc/ε_set of the pyrometer: readings are converted back to face
-        temperatures before filtering.
-    facts : dict
-        What was done with each effect, for the run facts.
-    """
-
-    fixed: DiscEffects
-    online: tuple[RandomWalkParam, ...]
-    emissivity_ratio: float | None
-    facts: dict[str, dict[str, Any]]
-
-
-def effect_plan(effects: dict[str, dict[str, Any]], tuning: EstimateTuning) -> EffectPlan:
-    """Turn ``[effects.<name>]`` tables and the tuning into fixed and online effects.
-
-    The k_z factor and the slipstream h factor are online whenever the tuning says so
-    (the default), the crown balance when asked for: they are what one spot can follow
-    on a disc the test session never saw; an h law that carries the effect switches
-    them on regardless.
-    """
-    facts: dict[str, dict[str, Any]] = {}
-    fixed = DiscEffects()
-    online: list[RandomWalkParam] = []
-    ratio = None
-    tables = dict(effects)
-    if tuning.adapt_kz:
-        tables.setdefault("thickness_gradient", {})
-    if tuning.adapt_slipstream:
-        tables.setdefault("slipstream", {})
-    if tuning.adapt_balance:
-        tables.setdefault("power_distribution", {})
-    for name, values in tables.items():
-        use = "fixed at the test-session value"
-        if name == "friction_temperature":
-            fixed = replace(fixed, mu_beta=values.get("beta", 0.0),
-                            mu_t_mid_c=values.get("t_mid", 400.0))
-        elif name == "sensor_lag":
-            fixed = replace(fixed, sensor_tau_s=values.get("tau_s", 0.0))
-        elif name == "emissivity_error":
-            ratio = values.get("ratio", 1.0)
-            use = ("readings corrected with the test-session value; a single pyrometer cannot"
-                   " tell its own bias from the disc, so this correction is all there is")
-        elif name == "slipstream":
-            online.append(RandomWalkParam(H_FACTOR_PARAM, 1.0, tuning.init_sigma_h_factor,
-                                          tuning.sigma_h_factor_step, lower=0.3,
-                                          off_brake_only=True))
-            use = "adapted online: an h factor that moves off the brakes"
-        elif name == "thickness_gradient":
-            online.append(RandomWalkParam(KZ_PARAM, 1.0, tuning.init_sigma_kz,
-                                          tuning.sigma_kz_step, lower=0.05))
-            use = ("test-session value, adapted online (a race disc's k_z differs from batch"
-                   " to batch)")
-        elif name == "power_distribution" and not tuning.adapt_balance:
-            use = "in the crown weights of the file"
-        elif name == "power_distribution":
-            online.append(RandomWalkParam(BALANCE_PARAM, 0.0, tuning.init_sigma_balance,
-                                          tuning.sigma_balance_step, lower=-BALANCE_MAX))
-            use = ("crown weights of the file, their inner/outer balance adapted online (one"
-                   " spot cannot tell it from a k_z change)")
-        elif name == "h_speed_knee":
-            use = "in the h law of the file"
-        facts[name] = {"values": values, "use": use}
-    return EffectPlan(fixed, tuple(online), ratio, facts)
-
-
 def _choice_inputs(options: EstimateOptions, cal: DiscCalibration,
                    calibration: DiscCalibration | None
                    ) -> tuple[tuple[str, ...], tuple[str, ...]] | None:
@@ -398,27 +314,6 @@ def _race_layering(choice: OnlineChoice, tuning: EstimateTuning, options: Estima
             f" {row['learned']:.2f} of the law's, a thinner thermal skin")
     return replace(tuning, layers=tuning.thin_skin_layers,
                    layer_growth=tuning.thin_skin_layer_growth), said
-
-
-def build_state_space(
-    model: DiscFEModel, inputs: DiscInputs, h: np.ndarray, tuning: EstimateTuning,
-    power_scale: float = 1.0, plan: EffectPlan | None = None, spot_radius: float | None = None,
-) -> DiscStateSpace:
-    """The estimate filter's state space: nodes (+ braking-power scale, + effects)."""
-    params = []
-    if tuning.adapt_power:
-        scale = RandomWalkParam(
-            SCALE_PARAM, power_scale, tuning.init_sigma_scale, tuning.sigma_scale_step,
-            lower=0.05,
-        )
-        params.append(scale)
-    plan = plan or effect_plan({}, tuning)
-    params.extend(plan.online)
-    return DiscStateSpace(
-        model, inputs.q_brk, inputs.t_amb, h, params,
-        sigma_temp=tuning.sigma_temp, sigma_crown=tuning.sigma_crown,
-        effects=plan.fixed, spot_radius=spot_radius,
-    )  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -17,9 +17,10 @@ import numpy as np
 import pandas as pd
 
 from brakethermo.io.session import GRID_DT
-from brakethermo.pipelines.estimate import EstimateTuning, disc_model
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.pipelines.models import DiscCalibration
+from brakethermo.pipelines.race_filter import disc_model
+from brakethermo.pipelines.tuning import EstimateTuning
 from brakethermo.thermal.disc import DiscSpec
 
 MIN_STRAIGHT_S = 3.0  # s of continuous off-brake cooling a straight needs

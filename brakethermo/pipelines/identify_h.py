@@ -35,13 +35,13 @@ from brakethermo.pipelines import scoring
 from brakethermo.pipelines.estimate import (
     SENSOR_FLOOR_C,
     EstimateOptions,
-    disc_model,
     estimate_from_session,
 )
 from brakethermo.pipelines.h_evidence import law_level, straight_factors
 from brakethermo.pipelines.inputs import MULTI_SPOT, DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, disc_for, shipped_h_law
 from brakethermo.pipelines.outputs import write_json, write_parquet
+from brakethermo.pipelines.race_filter import disc_model
 from brakethermo.pipelines.tuning import EstimateTuning, IdentifyTuning, load_tuning
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.hlaw import HLaw, read_h_law
