@@ -306,3 +306,36 @@ def test_aliases_override_file(tmp_path: Path) -> None:
     assert session.channels["speed"].source == "VelocityMain"
     assert session.aliases["speed"][0] == "VelocityMain"
     assert "vFront" in session.aliases["speed"]  # the shipped names are still tried after
+
+
+@pytest.mark.parametrize("use_chunking", [True, False])
+def test_the_compiled_walk_reads_the_same_in_any_batch(tmp_path: Path, use_chunking: bool,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """The record walk of files without message indexes (``io/_mcap_walk.py``) gives the
+    same session whether it walks a million records per call or three, chunked or not,
+    whole or cut."""
+    from brakethermo.io import _mcap_walk
+
+    full = write_mcap(tmp_path / "full.mcap", index=False, chunk_size=8_192,
+                      use_chunking=use_chunking)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(full.read_bytes()[: int(full.stat().st_size * 0.7)])
+    whole = {p: load_session(p) for p in (full, cut)}
+    monkeypatch.setattr(_mcap_walk, "BATCH", 3)
+    for path, reference in whole.items():
+        small = load_session(path)
+        assert small.frame.equals(reference.frame)
+        assert small.warnings == reference.warnings
+    assert any("truncated" in w for w in whole[cut].warnings)
+
+
+def test_the_walk_stops_at_a_record_longer_than_any_file() -> None:
+    """A length with its top bit set (garbage) is a cut, not a jump backwards."""
+    from brakethermo.io._mcap_walk import OPCODE_MESSAGE, walk
+
+    good = bytes([OPCODE_MESSAGE]) + (3).to_bytes(8, "little") + b"abc"
+    bad = bytes([OPCODE_MESSAGE]) + (1 << 63).to_bytes(8, "little")
+    buf = np.frombuffer(good + bad + good, dtype=np.uint8)
+    messages, others, stop, complete = walk(buf, 0, buf.size)
+    assert messages.tolist() == [0] and others.size == 0
+    assert stop == len(good) and not complete

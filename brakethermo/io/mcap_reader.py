@@ -50,8 +50,6 @@ _OPCODE_MESSAGE = 0x05
 _OPCODE_CHUNK = 0x06
 _OPCODE_MESSAGE_INDEX = 0x07
 _OPCODE_METADATA = 0x0C
-_OPCODE_DATA_END = 0x0F
-_OPCODE_INVALID = 0x00  # reserved by the MCAP spec: no writer emits it (zeroed bytes do)
 _RECORD_HEAD = struct.Struct("<BQ")  # every record: opcode u8, body length u64
 # Message record: opcode u8, length u64, channel_id u16, sequence u32, log_time u64,
 # publish_time u64, then the payload.
@@ -354,10 +352,10 @@ def _read_indexed(f: Any, summary: Summary, out: _Collector) -> None:
 
 
 def _add_records(
-    out: _Collector, channels: dict[int, Channel], data: bytes, offsets: list[int]
+    out: _Collector, channels: dict[int, Channel], data: bytes, offsets: np.ndarray
 ) -> None:
     """Decode message records at ``offsets`` of ``data``, grouped by channel."""
-    if not offsets:
+    if len(offsets) == 0:
         return
     buf = np.frombuffer(data, dtype=np.uint8)
     offset = np.asarray(offsets, dtype=np.int64)
@@ -371,37 +369,31 @@ def _add_records(
 
 
 def _walk(
-    data: bytes, pos: int, end: int, channels: dict[int, Channel], metadata: dict[str, str]
-) -> tuple[list[int], list[int], int, bool]:
+    data: Any, pos: int, end: int, channels: dict[int, Channel], metadata: dict[str, str]
+) -> tuple[np.ndarray, list[int], int, bool]:
     """Walk the records of ``data[pos:end]``.
 
     Returns the offsets of Message records and of Chunk records, the offset just after
     the last complete record, and whether the walk reached the DataEnd record. Channel
     and ``session`` Metadata records are parsed on the way (by the library).
     """
-    messages: list[int] = []
+    from brakethermo.io._mcap_walk import walk
+
+    messages, others, stop, complete = walk(np.frombuffer(data, dtype=np.uint8), pos, end)
     chunks: list[int] = []
-    unpack = _RECORD_HEAD.unpack_from
-    while pos + 9 <= end:
-        opcode, length = unpack(data, pos)
-        nxt = pos + 9 + length
-        if nxt > end or opcode == _OPCODE_INVALID:
-            break  # cut, or zeroed (a sparse or overwritten tail): the rest is unreadable
-        if opcode == _OPCODE_MESSAGE:
-            messages.append(pos)
-        elif opcode == _OPCODE_CHUNK:
-            chunks.append(pos)
+    for at in others.tolist():
+        opcode, length = _RECORD_HEAD.unpack_from(data, at)
+        body = data[at + 9: at + 9 + length]
+        if opcode == _OPCODE_CHUNK:
+            chunks.append(at)
         elif opcode == _OPCODE_CHANNEL:
-            record = Channel.read(ReadDataStream(BytesIO(data[pos + 9 : nxt])))
+            record = Channel.read(ReadDataStream(BytesIO(body)))
             channels[record.id] = record
         elif opcode == _OPCODE_METADATA:
-            meta = Metadata.read(ReadDataStream(BytesIO(data[pos + 9 : nxt])))
+            meta = Metadata.read(ReadDataStream(BytesIO(body)))
             if meta.name == "session":
                 metadata.update(meta.metadata)
-        elif opcode == _OPCODE_DATA_END:
-            return messages, chunks, nxt, True
-        pos = nxt
-    return messages, chunks, pos, False
+    return messages, chunks, stop, complete
 
 
 def _read_sequential(path: Path, out: _Collector) -> tuple[dict[str, str], list[str]]:

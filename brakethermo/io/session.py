@@ -162,10 +162,12 @@ class Session:
             if name not in self.channels:
                 tried = ", ".join(self.aliases.get(name, (name,)))
                 have = ", ".join(self.available) or "none"
+                hint = kind_hint({*self.available, *self.channels}, name)
+                advice = "add the file's name for it to an alias table and pass --aliases FILE"
                 raise DataError(
                     f"required channel is missing (tried: {tried}); the file has: {have}."
-                    + (kind_hint({*self.available, *self.channels}, name) or
-                       " Add the file's name for it to an alias table and pass --aliases FILE"),
+                    + (f"{hint} If the file logs it under another name, {advice}" if hint
+                       else f" {advice[0].upper()}{advice[1:]}"),
                     path=self.path,
                     channel=name,
                 )
