@@ -2,9 +2,15 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 from pathlib import Path
 
 import pytest
+
+# pint's unit answers are cached per user (io/units.py): tests keep their own, so that a
+# run starts from no cache and leaves the user's alone
+os.environ.setdefault("BRAKETHERMO_CACHE_DIR", tempfile.mkdtemp(prefix="brakethermo-cache-"))
 
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import os
 import tomllib
 from pathlib import Path
 
@@ -163,3 +165,33 @@ def test_angle_and_dimensionless_are_told_apart() -> None:
         to_si(np.ones(1), "deg", "slip_ratio")
     with pytest.raises(DataError, match="dimensionless unit but 'motor_angle' is an angle"):
         to_si(np.ones(1), "%", "motor_angle")
+
+
+def test_pint_answers_are_remembered_across_runs(tmp_path: Path) -> None:
+    """A second process converts the units of the first without importing pint, to the
+    same numbers; a damaged cache file is ignored; an unwritable cache folder costs
+    nothing but the speed."""
+    import subprocess
+    import sys
+
+    probe = ("import sys, json; from brakethermo.io.units import parse_unit as p;"
+             " print(json.dumps([[u.dimension, u.scale, u.offset] for u in"
+             " (p('km/h'), p('psi'), p('degF'), p('1/min'))] + ['pint' in sys.modules]))")
+    env = {**os.environ, "BRAKETHERMO_CACHE_DIR": str(tmp_path / "cache")}
+
+    def run() -> list:
+        out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True,
+                             text=True, check=True)
+        return json.loads(out.stdout)
+
+    first, second = run(), run()
+    assert first[-1] is True and second[-1] is False
+    assert first[:-1] == second[:-1]
+    assert first[0] == ["speed", pytest.approx(1 / 3.6), 0.0]
+    for f in (tmp_path / "cache").glob("units-*.json"):
+        f.write_text("{not json")
+    assert run() == first  # pint again, same answers
+    blocker = tmp_path / "a_file"  # a cache folder that cannot be made (even by root)
+    blocker.write_text("")
+    env["BRAKETHERMO_CACHE_DIR"] = str(blocker / "cache")
+    assert run() == first

@@ -8,17 +8,28 @@ Inside brakethermo every quantity is SI except temperature, which stays in degC 
 disc datasheet, the operating window and every output are in degC). A conversion is
 affine, ``si = scale * value + offset``, taken from pint once per unit string, so degF
 and K map onto degC with their offsets right.
+
+pint's answers are kept in the user's cache folder (``BRAKETHERMO_CACHE_DIR`` overrides
+it), keyed by pint's version and the tables below: importing pint and building its
+registry costs about 0.6 s, more than reading a whole session, and the unit strings a
+team's loggers write are few.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import hashlib
+import json
+import os
+from dataclasses import astuple, dataclass
 from functools import cache
+from importlib.metadata import version
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from brakethermo.errors import DataError
+from brakethermo.io.atomic import write_text_atomic
 
 
 @dataclass(frozen=True)
@@ -170,8 +181,45 @@ def _dimension_keys() -> dict[tuple[Any, bool], str]:
     return keys
 
 
+def _memo_path() -> Path:
+    """The cache file of pint's answers for this pint and these tables."""
+    import platformdirs
+
+    root = os.environ.get("BRAKETHERMO_CACHE_DIR") or platformdirs.user_cache_dir("brakethermo")
+    tables = repr((sorted(LOGGER_SPELLINGS.items()), sorted(_CASELESS.items()),
+                   sorted(_DIMENSIONS.items()), _ANGLE_WORDS, version("pint")))
+    return Path(root) / f"units-{hashlib.sha256(tables.encode()).hexdigest()[:16]}.json"
+
+
+@cache
+def _memo() -> dict[str, Unit | None]:
+    """The units pint parsed in earlier runs (empty when there is no readable cache)."""
+    try:
+        raw = json.loads(_memo_path().read_text(encoding="utf-8"))
+        return {k: None if v is None else Unit(str(v[0]), float(v[1]), float(v[2]))
+                for k, v in raw.items()}
+    except (OSError, ValueError, TypeError, IndexError, KeyError, AttributeError):
+        return {}  # absent, unreadable or not ours: pint answers afresh
+
+
 @cache
 def _lookup(key: str) -> Unit | None:
+    """A normalised unit string's conversion (``None``: not a unit we hold), from the
+    cache of earlier runs or else from pint (then remembered)."""
+    memo = _memo()
+    if key in memo and (memo[key] is None or memo[key].dimension in SI_UNIT):
+        return memo[key]
+    unit = _parse(key)
+    memo[key] = unit
+    try:
+        write_text_atomic(_memo_path(), json.dumps(
+            {k: None if u is None else astuple(u) for k, u in memo.items()}))
+    except OSError:
+        pass  # a read-only home: pint answers again next time, nothing else changes
+    return unit
+
+
+def _parse(key: str) -> Unit | None:
     """Parse a normalised unit string with pint; ``None`` if it is not a unit we hold."""
     spelling = LOGGER_SPELLINGS.get(key) or _CASELESS.get(key.casefold()) or key
     if not spelling or any(c in spelling for c in "[]{}=#"):

@@ -22,7 +22,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from brakethermo.config import config_file
 from brakethermo.errors import DataError
@@ -164,6 +163,10 @@ class HLaw:
         lo = [0.0, 0.0] + [-np.inf] * (len(p0) - 2)
         hi = [np.inf, 5.0] + [np.inf] * (len(p0) - 2)
         p0 = np.clip(p0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+        # here, not at the top: every command reads a law, only identify-h fits one
+        # (scipy.optimize is 0.25 s of import)
+        from scipy.optimize import least_squares
+
         sol = least_squares(residual, p0, bounds=(lo, hi), x_scale="jac")
         if robust:
             r = residual(sol.x)
