@@ -167,15 +167,23 @@ def read_csv(path: Path, indexed: bool = False) -> RawSession:
     else:
         t = t * _TIME_SCALE[time_unit]
     (t,), origin = rebase_s([t])
+    channels = _channels(frame, headers, 1, t, path, warnings)
+    return RawSession(path, channels, {}, origin, tuple(warnings))
+
+
+def _channels(frame: pd.DataFrame, headers: list[tuple[str, str | None]], first: int,
+              t: np.ndarray, path: Path, warnings: list[str]) -> tuple[RawChannel, ...]:
+    """Columns ``first``... as channels on times ``t`` (s); a text column is skipped with
+    a warning, an empty cell is no sample."""
     channels = []
-    for i, (name, unit) in enumerate(headers[1:], start=1):
+    for i, (name, unit) in enumerate(headers[first:], start=first):
         v = _as_float(frame.iloc[:, i], name, path)
         if v is None:
             warnings.append(f"column '{name}' holds text, not numbers; ignored")
             continue
         keep = ~np.isnan(v)
         channels.append(RawChannel(name, t[keep], v[keep], unit))
-    return RawSession(path, tuple(channels), {}, origin, tuple(warnings))
+    return tuple(channels)
 
 
 def _name(sep: str) -> str:
@@ -186,16 +194,11 @@ def _indexed(frame: pd.DataFrame, path: Path) -> RawSession:
     """Every column a channel on the row index (s), for a table of points."""
     if frame.shape[0] == 0:
         raise DataError("the CSV holds a header and no data rows", path=path)
-    t = np.arange(frame.shape[0], dtype=float)
-    channels, warnings = [], []
-    for i, (name, unit) in enumerate(_split_header(str(c)) for c in frame.columns):
-        v = _as_float(frame.iloc[:, i], name, path)
-        if v is None:
-            warnings.append(f"column '{name}' holds text, not numbers; ignored")
-            continue
-        keep = ~np.isnan(v)
-        channels.append(RawChannel(name, t[keep], v[keep], unit))
-    return RawSession(path, tuple(channels), {}, None, tuple(warnings))
+    warnings: list[str] = []
+    headers = [_split_header(str(c)) for c in frame.columns]
+    channels = _channels(frame, headers, 0, np.arange(frame.shape[0], dtype=float), path,
+                         warnings)
+    return RawSession(path, channels, {}, None, tuple(warnings))
 
 
 FORMAT = Format("CSV", (".csv",), read_csv)
