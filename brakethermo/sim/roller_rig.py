@@ -80,16 +80,20 @@ class RollerRigSimConfig:
     def validated(self) -> RollerRigSimConfig:
         """Self, after range checks (ConfigError naming the field)."""
         checks = {
-            "speed_kmh": 1.0 <= self.speed_kmh <= 80.0,
-            "duration_s": 5.0 <= self.duration_s <= 3600.0,
-            "rate_hz": 20.0 <= self.rate_hz <= 5000.0,
-            "radius_m": 0.2 <= self.radius_m <= 0.5,
-            "free_s": 0.0 <= 2.0 * self.free_s < self.duration_s,
+            "speed_kmh": (1.0 <= self.speed_kmh <= 80.0, "1 to 80 km/h"),
+            "duration_s": (5.0 <= self.duration_s <= 3600.0, "5 to 3600 s"),
+            "rate_hz": (20.0 <= self.rate_hz <= 5000.0, "20 to 5000 Hz"),
+            "radius_m": (0.2 <= self.radius_m <= 0.5, "0.2 to 0.5 m"),
+            "free_s": (0.0 <= 2.0 * self.free_s < self.duration_s,
+                       f"0 to under half of duration_s={self.duration_s:g} s: the free"
+                       " rolling at the start and at the end leave time for traction;"
+                       " lower free_s or raise duration_s"),
         }
-        for key, ok in checks.items():
+        for key, (ok, allowed) in checks.items():
             if not ok:
                 raise ConfigError(
                     f"roller-rig simulation: {key}={getattr(self, key)!r} out of range"
+                    f" ({allowed})"
                 )
         if self.torque_max is not None and not 0.0 < self.torque_max <= 2000.0:
             raise ConfigError(
