@@ -59,7 +59,7 @@ def walk(buf: np.ndarray, pos: int, end: int) -> tuple[np.ndarray, np.ndarray, i
     offset just after the last complete record, and whether the walk reached DataEnd."""
     messages, others = [], []
     while True:
-        m, o, pos, status = _walk_nb(buf, pos, end, BATCH)
+        m, o, pos, status = _walk_nb(buf, pos, end, min(BATCH, (end - pos) // 9 + 1))
         messages.append(m)
         others.append(o)
         if status:
