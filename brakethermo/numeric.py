@@ -22,3 +22,13 @@ def rmse(estimate: ArrayLike, reference: ArrayLike = 0.0, mask: ArrayLike | None
     if mask is not None:
         ok &= np.asarray(mask, bool)
     return float(np.sqrt(np.mean(d[ok] ** 2))) if ok.any() else float("nan")
+
+
+def noise_std(x: ArrayLike) -> float:
+    """White-noise std of a smooth signal sampled densely: MAD of its first differences
+    over sqrt(2) (finite neighbours only; NaN with fewer than three)."""
+    d = np.diff(np.asarray(x, float))
+    d = d[np.isfinite(d)]
+    if d.size < 3:
+        return float("nan")
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))

@@ -208,6 +208,38 @@ def test_training_recovers_pv_curve_and_disk(sessions):
     assert np.max(np.abs(gap)) < 0.1
 
 
+def test_training_chooses_the_process_noise_its_pressure_sensor_supports(sessions):
+    """Trained on one half, observed on the other: a datasheet whose process noise is 8x
+    too large comes back to a smaller factor (its held-out likelihood is worse at the
+    datasheet's own), the choice is saved with the fit and read back, and the summary
+    says what was chosen and why."""
+    from dataclasses import replace
+
+    from brakethermo.io.atomic import write_text_atomic
+    from brakethermo.pipelines.ebooster import Q_FACTORS, choose_q_factor, load_booster_session
+
+    session = load_booster_session(sessions["train"], training=True)
+    factor, nats = choose_q_factor(session, SPEC)
+    assert factor in Q_FACTORS and len(nats) == len(Q_FACTORS) and np.all(np.isfinite(nats))
+    noisy = replace(SPEC, q_pressure_mpa=tuple(8.0 * q for q in SPEC.q_pressure_mpa),
+                    q_zeta=tuple(8.0 * q for q in SPEC.q_zeta),
+                    q_pm_speed=8.0 * SPEC.q_pm_speed)
+    factor8, nats8 = choose_q_factor(session, noisy)
+    assert factor8 < 1.0 and nats8[Q_FACTORS.index(factor8)] > nats8[Q_FACTORS.index(1.0)]
+    fit = train(sessions["train"], SPEC)
+    assert fit.q_factor == factor and fit.q_heldout_nats == pytest.approx(nats)
+    saved = sessions["train"].with_name("fit.toml")
+    write_text_atomic(saved, fit.toml_text())
+    assert load_fit(saved) == fit
+    res = runner.invoke(app, ["ebooster", str(sessions["closed"]), "--train",
+                              str(sessions["train"]), "--json", "--out",
+                              str(saved.with_name("o"))])
+    assert res.exit_code == 0, res.output
+    choice = json.loads(res.stdout)["noise_choice"]
+    assert choice["q_factor"] == factor and "held-out log-likelihood" in choice["why"]
+    assert load_fit(default_fit_path()).q_factor == 1.0  # a fit file without a choice
+
+
 def test_simulator_chi_square_driver_and_mullins_recovery():
     chi = chi_square_process(np.random.default_rng(0), 200_000, 1e-3, 2, 0.05)
     assert abs(chi.mean() - 2.0) < 0.1 and abs(chi.var() - 4.0) < 0.6  # chi2(2)

@@ -85,6 +85,11 @@ class BoosterFit:
     train_session : str — the training file.
     pv_rmse_mpa : float — MPa, p-V fit residual on the training session.
     disk_rmse_mm : float — mm, disk fit residual on the training session.
+    q_factor : float — factor on the datasheet's process noise of the physical states,
+        chosen by the held-out likelihood of the training session's pressure sensor
+        (1: the datasheet's, or no choice made).
+    q_heldout_nats : tuple of float — that likelihood per reading for each factor tried
+        (empty when no choice was made).
     """
 
     pv_coeffs: tuple[float, float, float, float]
@@ -97,6 +102,8 @@ class BoosterFit:
     train_session: str
     pv_rmse_mpa: float
     disk_rmse_mm: float
+    q_factor: float = 1.0
+    q_heldout_nats: tuple[float, ...] = ()
 
     def toml_text(self) -> str:
         """The fit as TOML (round-trips through :func:`load_fit`; io writes it)."""
@@ -126,6 +133,8 @@ def load_fit(path: str | Path) -> BoosterFit:
             train_session=str(raw["train_session"]),
             pv_rmse_mpa=float(raw["pv_rmse_mpa"]),
             disk_rmse_mm=float(raw["disk_rmse_mm"]),
+            q_factor=float(raw.get("q_factor", 1.0)),
+            q_heldout_nats=tuple(float(v) for v in raw.get("q_heldout_nats", ())),
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise ConfigError(f"not a valid training result ({exc})", path=Path(path)) from None
@@ -254,8 +263,8 @@ class EboosterModel:
         per_ms = self.dt / 1e-3
         # keeps each w_i at unit variance, or the force at the chi-square's variance
         q_w = (1.0 - self.a_pedal**2) * (1.0 if self.chi else self.f_var)
-        return np.diag(np.r_[np.array([*s.q_pressure_mpa, *s.q_zeta]) * per_ms,
-                             np.full(self.N, q_w)])
+        physical = np.array([*s.q_pressure_mpa, *s.q_zeta]) * per_ms * self.fit.q_factor
+        return np.diag(np.r_[physical, np.full(self.N, q_w)])
 
     def Q_of_step(self) -> Callable[[int], Array]:
         """Q(k): the rest value plus a p_m term proportional to the screw speed.
@@ -267,7 +276,8 @@ class EboosterModel:
         """
         base = self.Q()
         speed = np.abs(smoothed_rate(self.s2, self.dt, SPEED_WINDOW_S))
-        extra = self.spec.q_pm_speed * (speed / V_REF_MM_S) * (self.dt / 1e-3)
+        extra = (self.spec.q_pm_speed * (speed / V_REF_MM_S) * (self.dt / 1e-3)
+                 * self.fit.q_factor)
         stack = base.copy()
 
         def Q(k: int) -> Array:

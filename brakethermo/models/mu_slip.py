@@ -225,9 +225,3 @@ def fit_families(s: Array, mu: Array, *, folds: int = 5, seed: int = 0) -> list[
             )
         )
     return out
-
-
-def noise_std(mu: Array) -> float:
-    """Noise std of a smooth signal sampled densely: MAD of first differences / √2."""
-    d = np.diff(np.asarray(mu, float))
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))

@@ -29,7 +29,7 @@ from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.ebooster import STATE_NAMES, BoosterFit, EboosterModel, load_fit
 from brakethermo.models.rig_effects import BOOSTER_EFFECTS, RigContext
-from brakethermo.numeric import rmse
+from brakethermo.numeric import noise_std, rmse
 from brakethermo.pipelines.rig_carry import carried, carried_prediction
 from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
 from brakethermo.results.ebooster import (
@@ -94,7 +94,8 @@ def load_booster_session(path: str | Path, aliases: str | Path | None = None, *,
 
 
 def train(path: str | Path, spec: BoosterSpec, aliases: str | Path | None = None) -> BoosterFit:
-    """Identify the p-V curve and the reaction disk from a training session.
+    """Identify the p-V curve and the reaction disk from a training session, and the
+    observers' process noise by held-out likelihood (:func:`choose_q_factor`).
 
     Parameters
     ----------
@@ -106,6 +107,80 @@ def train(path: str | Path, spec: BoosterSpec, aliases: str | Path | None = None
     BoosterFit
     """
     session = load_booster_session(path, aliases, training=True)
+    fit = fit_training(session, spec)
+    factor, nats = choose_q_factor(session, spec)
+    return replace(fit, q_factor=factor, q_heldout_nats=nats)
+
+
+# Factors on the datasheet's process noise tried on the training session's halves, and
+# the gain in held-out log-likelihood per reading another must show to replace 1.
+Q_FACTORS = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
+Q_MARGIN_NATS = 0.02
+
+
+def _halves(session: Session) -> tuple[Session, Session] | None:
+    """The session cut where the screw is furthest back in its middle third (between two
+    sweeps, when it holds two), or None when it is too short to cut."""
+    s2 = _series(session, S2, MM, gaps=False)
+    K = s2.size
+    if K < 60:
+        return None
+    mid = K // 3 + int(np.argmin(s2[K // 3: 2 * K // 3]))
+    frame = session.frame
+    return (replace(session, frame=frame.iloc[:mid].reset_index(drop=True)),
+            replace(session, frame=frame.iloc[mid:].reset_index(drop=True)))
+
+
+def choose_q_factor(session: Session, spec: BoosterSpec) -> tuple[float, tuple[float, ...]]:
+    """The process-noise factor the training session's pressure sensor supports.
+
+    Trained on one half, observed on the other (both ways): for each factor of
+    :data:`Q_FACTORS` on the datasheet's noise of the physical states, the UKF's filtered
+    p_m is scored by the Gaussian log-likelihood of the measured pressure (its variance
+    plus the sensor's own noise from its first differences). The datasheet's Q (factor
+    1) stays unless another beats it by :data:`Q_MARGIN_NATS` per reading. Returns the
+    factor and the mean log-likelihood per reading of each factor (``()``: the session
+    cannot be cut into two halves a fit can be trained on; the factor is then 1).
+    """
+    halves = _halves(session)
+    if halves is None:
+        return 1.0, ()
+    total = np.zeros(len(Q_FACTORS))
+    count = 0
+    for train_part, test_part in (halves, halves[::-1]):
+        try:
+            fit = fit_training(train_part, spec)
+        except DataError:
+            return 1.0, ()  # a half that does not sweep the pressure range
+        s2 = _series(test_part, S2, MM, gaps=False)
+        delta = _series(test_part, DELTA, MM, gaps=True)
+        p_m = _series(test_part, PRESSURES["p_m"], MPA, gaps=True)
+        sensor_var = noise_std(p_m) ** 2
+        for i, c in enumerate(Q_FACTORS):
+            model = EboosterModel(spec, replace(fit, q_factor=c), s2, test_part.dt)
+            flt = UnscentedKalmanFilter(model.f, model.Q_of_step(), model.R(), H=model.H,
+                                        alpha=spec.alpha, beta=spec.beta, kappa=spec.kappa)
+            x0, P0 = model.prior(float(delta[0]))
+            res = flt.run(x0, P0, delta[:, None], store="diag")
+            var = np.clip(res.var_filt[:, 0], 0.0, None) + sensor_var
+            err = p_m - res.x_filt[:, 0]
+            ok = np.isfinite(err) & (var > 0.0)
+            total[i] += float(np.sum(-0.5 * (np.log(2.0 * np.pi * var[ok])
+                                             + err[ok] ** 2 / var[ok])))
+            if i == 0:
+                count += int(ok.sum())
+    if count == 0:
+        return 1.0, ()
+    nats = total / count
+    best = int(np.argmax(nats))
+    one = Q_FACTORS.index(1.0)
+    chosen = Q_FACTORS[best] if nats[best] > nats[one] + Q_MARGIN_NATS else 1.0
+    return chosen, tuple(float(v) for v in nats)
+
+
+def fit_training(session: Session, spec: BoosterSpec) -> BoosterFit:
+    """The p-V curve (RLS, eq. 12) and the reaction disk (eq. 14) of a loaded training
+    session (DataError when it lacks the sensors or the screw travel)."""
     session.require(PRESSURES["p_m"], PEDAL)
     s2 = _series(session, S2, MM, gaps=False)
     travel = float(np.max(s2) - np.min(s2))
@@ -387,6 +462,7 @@ def _summary(
                         " curve sits against the training session's, which delta cannot"
                         " resolve (it trades against the pedal force)",
         },
+        "noise_choice": _noise_choice(fit),
         "smoothed": smooth,
         "pv_fit": {
             "coefficients_mpa": list(fit.pv_coeffs),
@@ -409,6 +485,23 @@ def _summary(
         "seconds": {"train": t_train, **{w: tracks[w].seconds for w in OBSERVERS}},
         "n_repairs": {w: tracks[w].filt.n_repairs for w in OBSERVERS},
     }
+
+
+def _noise_choice(fit: BoosterFit) -> dict[str, Any]:
+    """``noise_choice`` of summary.json: the process-noise factor and its evidence."""
+    if not fit.q_heldout_nats:
+        why = ("the datasheet's process noise: no training session to choose it on (a fit"
+               " file without a choice, or a training session too short to cut in two)")
+    else:
+        best = Q_FACTORS[int(np.argmax(fit.q_heldout_nats))]
+        why = (f"trained on one half of {Path(fit.train_session).name}, observed on the other"
+               f" (both ways): the held-out log-likelihood of its pressure sensor is highest"
+               f" at {best:g}x the datasheet's process noise; "
+               + (f"{fit.q_factor:g}x used" if fit.q_factor != 1.0 else
+                  f"the datasheet's kept (another must gain {Q_MARGIN_NATS:g} nats per"
+                  " reading)"))
+    return {"q_factor": fit.q_factor, "factors": list(Q_FACTORS) if fit.q_heldout_nats else [],
+            "heldout_loglik_per_reading": list(fit.q_heldout_nats), "why": why}
 
 
 def frame_columns(result: EboosterResult) -> tuple[dict[str, Array], dict[str, str]]:

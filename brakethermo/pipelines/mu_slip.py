@@ -31,10 +31,10 @@ from brakethermo.models.mu_slip import (
     FAMILIES,
     FamilyFit,
     fit_families,
-    noise_std,
     rudd_ekf,
     rudd_lm,
 )
+from brakethermo.numeric import noise_std
 from brakethermo.report.page import Card, Page, Section, TableBlock, consistency_text
 from brakethermo.rigs.tyre import rudd_mu
 

@@ -144,6 +144,9 @@ def booster_page(r: EboosterResult) -> Page:
     ]
     if s["with_effect"] is not None:
         notes.insert(1, "Both observers' p–V carries " + carried_text(s["with_effect"]) + ".")
+    choice = s.get("noise_choice")
+    band_notes = notes[:1] + ([f"Process noise of the physical states: {choice['q_factor']:g}x"
+                               f" the datasheet's — {choice['why']}."] if choice else [])
     smooth = "smoothed (RTS)" if s["smoothed"] else "filtered"
     return Page(
         title=f"E-Booster observation — {r.session.path.name}",
@@ -154,7 +157,7 @@ def booster_page(r: EboosterResult) -> Page:
             Section("Residuals (paper Table 1)", tables=[table1],
                     figures={"residuals": _residual_figure(r)}),
             Section("Pressures and bands", tables=[ptable],
-                    figures={"states": _states_figure(r)}, notes=notes[:1]),
+                    figures={"states": _states_figure(r)}, notes=band_notes),
             Section("Identification", figures={"pv_fit": _pv_figure(r)},
                     paragraphs=[
                         f"Disk quasi-static three-slope fit (eq. 14): breakpoints "
