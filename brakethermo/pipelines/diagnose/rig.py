@@ -55,8 +55,8 @@ from brakethermo.pipelines.ebooster import (
     _series,
     booster_context,
     default_fit_path,
+    fit_training,
     load_booster_session,
-    train,
 )
 from brakethermo.results.ebooster import PRESSURES
 from brakethermo.results.rig_diagnosis import RigDiagnosis
@@ -126,9 +126,9 @@ def diagnose_booster(
     t_start = time.perf_counter()
     names = effect_names(effects, BOOSTER_EFFECTS, "E-Booster")
     spec = load_booster(bench)
-    if fit is None:
-        fit = (train(train_path, spec, aliases) if train_path is not None
-               else load_fit(fit_path or default_fit_path()))
+    if fit is None:  # the p-V relation only: the observers' noise is not diagnosed
+        fit = (fit_training(load_booster_session(train_path, aliases, training=True), spec)
+               if train_path is not None else load_fit(fit_path or default_fit_path()))
     session = load_booster_session(path, aliases)
     channel = PRESSURES["p_m"]
     if not session.has(channel):
