@@ -156,26 +156,25 @@ def choose_q_factor(session: Session, spec: BoosterSpec) -> tuple[float, tuple[f
         delta = _series(test_part, DELTA, MM, gaps=True)
         p_m = _series(test_part, PRESSURES["p_m"], MPA, gaps=True)
         sensor_var = noise_std(p_m) ** 2
+        read = np.isfinite(p_m)
+        count += int(read.sum())
         for i, c in enumerate(Q_FACTORS):
             model = EboosterModel(spec, replace(fit, q_factor=c), s2, test_part.dt)
             flt = UnscentedKalmanFilter(model.f, model.Q_of_step(), model.R(), H=model.H,
                                         alpha=spec.alpha, beta=spec.beta, kappa=spec.kappa)
             x0, P0 = model.prior(float(delta[0]))
             res = flt.run(x0, P0, delta[:, None], store="diag")
-            var = np.clip(res.var_filt[:, 0], 0.0, None) + sensor_var
-            err = p_m - res.x_filt[:, 0]
-            ok = np.isfinite(err) & (var > 0.0)
-            total[i] += float(np.sum(-0.5 * (np.log(2.0 * np.pi * var[ok])
-                                             + err[ok] ** 2 / var[ok])))
-            if i == 0:
-                count += int(ok.sum())
-    if count == 0:
-        return 1.0, ()
-    nats = total / count
-    best = int(np.argmax(nats))
+            var = np.clip(res.var_filt[read, 0], 0.0, None) + sensor_var
+            err = p_m[read] - res.x_filt[read, 0]
+            # every reading scored for every factor: one whose filter lost a step loses
+            total[i] += float(np.sum(-0.5 * (np.log(2.0 * np.pi * var) + err**2 / var)))
     one = Q_FACTORS.index(1.0)
+    if count == 0 or not np.isfinite(total[one]):
+        return 1.0, ()
+    nats = np.where(np.isfinite(total), total / count, np.nan)
+    best = int(np.nanargmax(nats))
     chosen = Q_FACTORS[best] if nats[best] > nats[one] + Q_MARGIN_NATS else 1.0
-    return chosen, tuple(float(v) for v in nats)
+    return chosen, tuple(float(v) for v in nats)  # NaN: a factor whose filter lost a step
 
 
 def fit_training(session: Session, spec: BoosterSpec) -> BoosterFit:
@@ -493,7 +492,7 @@ def _noise_choice(fit: BoosterFit) -> dict[str, Any]:
         why = ("the datasheet's process noise: no training session to choose it on (a fit"
                " file without a choice, or a training session too short to cut in two)")
     else:
-        best = Q_FACTORS[int(np.argmax(fit.q_heldout_nats))]
+        best = Q_FACTORS[int(np.nanargmax(fit.q_heldout_nats))]
         why = (f"trained on one half of {Path(fit.train_session).name}, observed on the other"
                f" (both ways): the held-out log-likelihood of its pressure sensor is highest"
                f" at {best:g}x the datasheet's process noise; "
