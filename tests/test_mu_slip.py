@@ -311,9 +311,10 @@ def test_the_papers_forty_points_through_the_cli(tmp_path: Path) -> None:
 
 
 def test_a_plain_slip_mu_table_is_a_point_set(tmp_path: Path) -> None:
-    """The paper's case as people keep it: two columns, slip and μ, no time, no forces.
-    Same peak as the same points given with a time column and forces; the page does not
-    call a curve that fits as well as the best family a wrong shape."""
+    """The paper's case as people keep it: two columns, slip and μ, no time, no forces, in
+    any row order. Same peak as the same points sorted by slip with a time column and
+    forces; the page does not call a curve that fits as well as the best family a wrong
+    shape."""
     import pandas as pd
     from typer.testing import CliRunner
 
@@ -324,7 +325,8 @@ def test_a_plain_slip_mu_table_is_a_point_set(tmp_path: Path) -> None:
     mu = rudd_mu(s, 0.35, 0.15) + rng.normal(0.0, 0.04, 40)
     plain = tmp_path / "plain.csv"
     pd.DataFrame({"slip": s, "mu": mu}).to_csv(plain, index=False)
-    full = _point_set(tmp_path / "full.csv", s, mu)
+    order = np.argsort(s)
+    full = _point_set(tmp_path / "full.csv", s[order], mu[order])  # sorted: same points
     out = {}
     for name, path in (("plain", plain), ("full", full)):
         res = CliRunner().invoke(app, ["mu-slip", str(path), "--points", "--mu-max", "1.0",

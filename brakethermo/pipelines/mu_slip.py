@@ -9,7 +9,7 @@ fit a real tyre, the best chosen by held-out error.
 from __future__ import annotations
 
 import io
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -96,6 +96,7 @@ class MuSlipResult:
     inflation: float
     points: bool = False
     ekf_noise_scale: float = 1.0  # factor on the EKF's covariance: its mean NIS if over-confident
+    ekf_consistency: dict[str, Any] = field(default_factory=dict)  # of its innovations
 
 
 def slip_and_mu(
@@ -249,6 +250,11 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
     sl = slice(start, lock)
     ok = np.isfinite(slip[sl]) & np.isfinite(mu[sl]) & (slip[sl] > 0.0) & (slip[sl] <= 1.0)
     t, s, m = session.time[sl][ok], slip[sl][ok], mu[sl][ok]
+    if options.points:
+        # a point table has no time order: the EKF's one pass and the noise estimate from
+        # neighbouring points both want the points along the slip axis, as a ramp gives them
+        order = np.argsort(s, kind="stable")
+        t, s, m = t[order], s[order], m[order]
     if s.size < 10:
         raise DataError(f"only {s.size} (slip, μ) points with 0 < slip <= 1; a curve needs"
                         " at least 10", path=session.path)
@@ -271,7 +277,8 @@ def mu_slip(
     ekf = rudd_ekf(s, m, sigma, x0, P0, inflation=options.inflation)
     # over-confident innovations (the two-parameter curve's shape error): the reported
     # spread widened by their mean NIS, as every rig observer's
-    scale = variance_scale(nis_consistency(ekf.nis, ekf.n_obs, ekf.innovation))
+    consistency = nis_consistency(ekf.nis, ekf.n_obs, ekf.innovation)
+    scale = variance_scale(consistency)
     if scale > 1.0:
         ekf = replace(ekf, var_filt=ekf.var_filt * scale, P_filt=ekf.P_filt * scale)
     fams = fit_families(s, m)
@@ -292,6 +299,7 @@ def mu_slip(
         ramp_s=ramp.ramp_s,
         inflation=options.inflation,
         ekf_noise_scale=scale,
+        ekf_consistency=consistency,
         points=options.points,
     )
 
@@ -400,7 +408,7 @@ def summary(res: MuSlipResult) -> dict[str, Any]:
         "ekf": _peak(res.ekf.x_filt[-1], np.sqrt(res.ekf.var_filt[-1])),
         # the EKF's noise is the measured std times the inflation: its NIS says whether
         # that covers the curve's shape error (over-confident: the two-parameter form)
-        "ekf_consistency": nis_consistency(res.ekf.nis, res.ekf.n_obs, res.ekf.innovation),
+        "ekf_consistency": res.ekf_consistency,
         "ekf_noise_scale": res.ekf_noise_scale,
         "lm_one_pass": _peak(*res.lm_one_pass),
         "lm_converged": _peak(*res.lm_converged),
