@@ -160,10 +160,8 @@ def choose_q_factor(session: Session, spec: BoosterSpec) -> tuple[float, tuple[f
         count += int(read.sum())
         for i, c in enumerate(Q_FACTORS):
             model = EboosterModel(spec, replace(fit, q_factor=c), s2, test_part.dt)
-            flt = UnscentedKalmanFilter(model.f, model.Q_of_step(), model.R(), H=model.H,
-                                        alpha=spec.alpha, beta=spec.beta, kappa=spec.kappa)
             x0, P0 = model.prior(float(delta[0]))
-            res = flt.run(x0, P0, delta[:, None], store="diag")
+            res = _observer(model, "ukf").run(x0, P0, delta[:, None], store="diag")
             var = np.clip(res.var_filt[read, 0], 0.0, None) + sensor_var
             err = p_m[read] - res.x_filt[read, 0]
             # every reading scored for every factor: one whose filter lost a step loses
@@ -317,18 +315,20 @@ def gauge_pressure(mean: Array, var: Array) -> tuple[Array, Array]:
     return np.maximum(mean, 0.0), var
 
 
-def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTrack:
+def _observer(model: EboosterModel, which: str) -> UnscentedKalmanFilter | ExtendedKalmanFilter:
+    """The UKF or the EKF on ``model``, with its noise and the bench's sigma-point spread."""
     s = model.spec
     Q, R = model.Q_of_step(), model.R()
+    if which == "ukf":
+        return UnscentedKalmanFilter(model.f, Q, R, H=model.H, alpha=s.alpha, beta=s.beta,
+                                     kappa=s.kappa)
+    return ExtendedKalmanFilter(model.f, Q, R, H=model.H)
+
+
+def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTrack:
     x0, P0 = model.prior(float(y[0]))  # prior() starts a gap at delta = 0
     t0 = time.perf_counter()
-    if which == "ukf":
-        flt: UnscentedKalmanFilter | ExtendedKalmanFilter = UnscentedKalmanFilter(
-            model.f, Q, R, H=model.H, alpha=s.alpha, beta=s.beta, kappa=s.kappa
-        )
-    else:
-        flt = ExtendedKalmanFilter(model.f, Q, R, H=model.H)
-    res = flt.run(x0, P0, y[:, None], store="smoother" if smooth else "diag")
+    res = _observer(model, which).run(x0, P0, y[:, None], store="smoother" if smooth else "diag")
     if smooth:
         sm = urts_smooth(res)
         x, var = sm.x_smooth, sm.var_smooth
