@@ -341,3 +341,36 @@ def test_a_plain_slip_mu_table_is_a_point_set(tmp_path: Path) -> None:
     # without --points a table with no time is refused in one line
     res = CliRunner().invoke(app, ["mu-slip", str(plain), "--out", str(tmp_path / "x")])
     assert res.exit_code == 1 and "Traceback" not in res.output
+
+
+def test_a_point_table_in_per_cent_is_named_and_its_label_honoured(tmp_path: Path) -> None:
+    """μ or slip written in per cent without a unit: one line saying so; the same column
+    labelled '[%]' gives the peak of the plain table."""
+    import pandas as pd
+    from typer.testing import CliRunner
+
+    from brakethermo.cli import app
+
+    rng = np.random.default_rng(7103)
+    s = np.sort(rng.uniform(0.01, 0.948, 40))
+    mu = rudd_mu(s, 0.35, 0.15) + rng.normal(0.0, 0.04, 40)
+    cases = {"mu_pct": ({"slip": s, "mu": 100 * mu}, "friction_coefficient"),
+             "slip_pct": ({"slip": 100 * s, "mu": mu}, "per cent")}
+    for name, (cols, phrase) in cases.items():
+        path = tmp_path / f"{name}.csv"
+        pd.DataFrame(cols).to_csv(path, index=False)
+        res = CliRunner().invoke(app, ["mu-slip", str(path), "--points", "--out",
+                                       str(tmp_path / name)])
+        assert res.exit_code == 1 and "Traceback" not in res.output
+        text = " ".join(res.output.split())
+        assert phrase in text and "'[%]'" in text, res.output
+    peaks = []
+    for name, header in (("plain", "slip"), ("labelled", "slip [%]")):
+        path = tmp_path / f"{name}.csv"
+        pd.DataFrame({header: s if name == "plain" else 100 * s, "mu": mu}).to_csv(
+            path, index=False)
+        res = CliRunner().invoke(app, ["mu-slip", str(path), "--points", "--json", "--out",
+                                       str(tmp_path / f"o_{name}")])
+        assert res.exit_code == 0, res.output
+        peaks.append(json.loads(res.stdout)["ekf"]["mu_peak"])
+    assert peaks[0] == pytest.approx(peaks[1], rel=1e-6)  # x100 then x0.01: rounding only

@@ -107,8 +107,7 @@ def slip_and_mu(
     μ is the drag over the normal force, or the rig's own ``friction_coefficient`` when the
     file carries that and not both forces (a (slip, μ) point set as the paper gives one).
     """
-    if session.has("friction_coefficient") and not (
-            session.has("drag_force") and session.has("normal_force")):
+    if _mu_logged(session):
         mu = session.values("friction_coefficient").astype(float)
     else:
         session.require("drag_force", "normal_force")
@@ -188,28 +187,40 @@ def find_ramp(session: Session, slip: np.ndarray) -> tuple[int, int]:
 MU_PLAUSIBLE = (0.05, 3.0)  # peak friction of any tyre on any surface, –
 
 
+def _mu_logged(session: Session) -> bool:
+    """Whether μ comes from the file's own ``friction_coefficient`` (no pair of forces)."""
+    return session.has("friction_coefficient") and not (
+        session.has("drag_force") and session.has("normal_force"))
+
+
 def _check_plausible_mu(mu: np.ndarray, session: Session) -> None:
-    """μ = drag / normal force through the ramp must look like a tyre's: positive while the
-    wheel is braked, peaking between ice and a racing slick, and moving with the slip;
-    anything else is a sign, unit or sensor fault, named here rather than fitted."""
+    """μ through the ramp must look like a tyre's: positive while the wheel is braked,
+    peaking between ice and a racing slick, and moving with the slip; anything else is a
+    sign, unit or sensor fault, named here rather than fitted."""
     lo, hi = MU_PLAUSIBLE
     peak, spread = float(np.percentile(np.abs(mu), 95)), float(np.ptp(np.percentile(mu, [5, 95])))
+    logged = _mu_logged(session)
+    what, channel = (("μ (friction_coefficient)", "friction_coefficient") if logged
+                     else ("μ = drag_force / normal_force", "drag_force"))
     if np.median(mu) < 0.0:
         raise DataError(
-            f"μ = drag_force / normal_force is negative through the braking ramp (median"
-            f" {float(np.median(mu)):.3f}): one of the two has the wrong sign; braking drag and"
-            " the normal load are both positive", path=session.path, channel="drag_force")
+            f"{what} is negative through the braking ramp (median"
+            f" {float(np.median(mu)):.3f}): " + ("it is logged with the wrong sign" if logged
+            else "one of the two has the wrong sign; braking drag and the normal load are"
+                 " both positive"), path=session.path, channel=channel)
     if peak > hi:
         raise DataError(
-            f"μ = drag_force / normal_force reaches {peak:.3g} in the braking ramp, beyond any"
-            f" tyre (at most about {hi:g}): check the two channels' units (kN logged as N?)",
-            path=session.path, channel="drag_force")
+            f"{what} reaches {peak:.3g} in the braking ramp, beyond any tyre (at most about"
+            f" {hi:g}): " + ("in per cent? label the column '[%]'" if logged else
+                             "check the two channels' units (kN logged as N?)"),
+            path=session.path, channel=channel)
     if peak < lo or spread < 0.5 * lo:
         raise DataError(
-            f"μ = drag_force / normal_force stays at {float(np.median(mu)):.3g}"
+            f"{what} stays at {float(np.median(mu)):.3g}"
             f" ({spread:.3g} between its 5th and 95th percentile) while the wheel slips to"
-            " lock: the drag or load cell is zero, stuck or in the wrong unit",
-            path=session.path, channel="drag_force")
+            " lock: " + ("the channel is zero, stuck or in the wrong unit" if logged else
+                         "the drag or load cell is zero, stuck or in the wrong unit"),
+            path=session.path, channel=channel)
 
 
 def _check_past_peak(best: FamilyFit, s: np.ndarray, session: Session) -> None:
@@ -256,8 +267,11 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
         order = np.argsort(s, kind="stable")
         t, s, m = t[order], s[order], m[order]
     if s.size < 10:
+        beyond = np.isfinite(slip[sl]) & (slip[sl] > 1.0) & (slip[sl] <= 100.0)
+        hint = ("; most slips lie between 1 and 100: in per cent? label the column '[%]'"
+                if beyond.sum() > 0.5 * np.isfinite(slip[sl]).sum() else "")
         raise DataError(f"only {s.size} (slip, μ) points with 0 < slip <= 1; a curve needs"
-                        " at least 10", path=session.path)
+                        f" at least 10{hint}", path=session.path)
     _check_plausible_mu(m, session)
     return RampPoints(session, t, s, m, radius,
                       (float(session.time[start]), float(session.time[min(lock, slip.size - 1)])))
