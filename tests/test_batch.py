@@ -178,6 +178,36 @@ def test_failures_isolated_and_rerun_skips(folder: Path, tmp_path: Path) -> None
     assert {o.status for o in forced.outcomes} == {"ok", "failed"}
 
 
+def test_outputs_replaced_since_are_redone_and_earlier_sessions_kept(
+        folder: Path, tmp_path: Path) -> None:
+    """A session whose results another command replaced since the batch (an estimate
+    with another law into the same --out) is redone, not reported "up to date" with the
+    manifest's numbers; a batch of another folder into the same --out keeps the first
+    batch's sessions on the index."""
+    options = _options(tmp_path)
+    run_batch(folder, options, job=JOB)
+    est = options.out / "race" / "estimate.parquet"
+    est.write_bytes(est.read_bytes() + b"\0")  # as another command's rewrite would
+    again = {o.name: o.status for o in run_batch(folder, options, job=JOB).outcomes}
+    assert again["race"] == "ok" and again["fp1"] == "skipped", again
+    import shutil
+
+    shutil.rmtree(options.out / "fp1" / "lap_00")
+    (options.out / "fp1" / "index.html").unlink()  # estimate --no-report's leftovers
+    assert {o.name: o.status for o in run_batch(folder, options, job=JOB).outcomes
+            }["fp1"] == "ok"
+
+    other = tmp_path / "day2"
+    other.mkdir()
+    write_session_parquet(other / "quali.parquet", 1, seed=7)
+    run_batch(other, options, job=JOB)
+    index = (options.out / "index.html").read_text()
+    assert 'href="quali/index.html"' in index
+    for name in ("race", "fp1", "test_am"):
+        assert f'href="{name}/index.html"' in index, name
+    assert "earlier batch" in index
+
+
 def test_given_h_law_used_and_part_of_the_key(folder: Path, tmp_path: Path) -> None:
     law = tmp_path / "law.toml"
     shipped = (config_dir() / "hlaw" / "cc-340-8.toml").read_text()

@@ -15,7 +15,7 @@ from brakethermo.errors import (
 )
 from brakethermo.io.formats import SUFFIXES as FORMAT_SUFFIXES
 from brakethermo.io.writers import TRUTH_SUFFIX
-from brakethermo.pipelines.batch.tasks import SessionOutcome
+from brakethermo.pipelines.batch.tasks import SessionOutcome, file_sha256
 
 SESSION_SUFFIXES = FORMAT_SUFFIXES  # every registered reader (brakethermo.io.formats)
 MANIFEST = "batch_manifest.json"
@@ -109,15 +109,79 @@ def read_manifest(out_dir: Path) -> dict[str, Any] | None:
         return None
 
 
-def up_to_date(manifest: dict[str, Any] | None, sha: str, key: str) -> bool:
-    return (
+# What a batch wrote that another command sharing the folder may replace (estimate,
+# identify-h): fingerprinted in the manifest so that a later batch redoes the session
+# instead of reporting the manifest's numbers for files that are no longer the batch's.
+FINGERPRINTED = ("summary.json", "estimate.parquet", "h_law.toml")
+
+
+def output_fingerprints(folder: Path) -> dict[str, str]:
+    """SHA-256 of the batch's replaceable outputs present in a session's folder."""
+    return {name: file_sha256(folder / name) for name in FINGERPRINTED
+            if (folder / name).is_file()}
+
+
+def up_to_date(manifest: dict[str, Any] | None, sha: str, key: str,
+               folder: Path | None = None, reports: bool = False) -> bool:
+    """Whether the session's folder still holds this batch's results for this input and
+    these options: the manifest matches, and (given ``folder``) the outputs are the ones
+    the batch wrote — none replaced by another command since, and the lap reports there
+    when ``reports``."""
+    if not (
         manifest is not None
         and manifest.get("input_sha256") == sha
         and manifest.get("options_key") == key
         and manifest.get("version") == __version__
         # Written before the law choice recorded session facts: redo it once.
         and isinstance(manifest.get("facts"), dict)
-    )
+    ):
+        return False
+    if folder is None:
+        return True
+    written = manifest.get("outputs_sha256")
+    if not isinstance(written, dict):
+        return False  # a manifest that predates the fingerprints: redo once
+    if reports and not (folder / "index.html").is_file():
+        return False
+    try:
+        return output_fingerprints(folder) == written
+    except OSError:
+        return False
+
+
+def earlier_sessions(out: Path, current: Iterable[str]) -> list[dict[str, Any]]:
+    """Index records of the session folders an earlier batch left in ``out`` that this
+    batch did not process (another input folder into the same ``--out``): kept and
+    listed, never dropped from the index. Their peaks are the manifest's only while the
+    folder still holds that batch's outputs."""
+    skip = {n.casefold() for n in current}
+    rows = []
+    try:
+        folders = sorted(p for p in out.iterdir() if p.is_dir())
+    except OSError:
+        return rows
+    for folder in folders:
+        manifest = read_manifest(folder)
+        if folder.name.casefold() in skip or not isinstance(manifest, dict):
+            continue
+        try:
+            same = output_fingerprints(folder) == manifest.get("outputs_sha256")
+        except OSError:
+            same = False
+        rows.append({
+            "file": str(manifest.get("input", "")),
+            "name": folder.name,
+            "status": "earlier batch",
+            "kind": manifest.get("kind"),
+            "laps": manifest.get("laps"),
+            "peaks_c": dict(manifest.get("peaks_c") or {}) if same else {},
+            "reason": (f"from an earlier batch of {manifest.get('input', '?')}" if same else
+                       "from an earlier batch; its results were replaced by another"
+                       " command since (peaks on its own page)"),
+            "h_law": manifest.get("h_law_source"),
+            "h_law_reason": manifest.get("h_law_reason", ""),
+        })
+    return rows
 
 
 def skipped_outcome(path: Path, name: str, manifest: dict[str, Any], out: Path) -> SessionOutcome:

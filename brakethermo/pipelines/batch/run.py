@@ -13,6 +13,7 @@ from brakethermo.errors import (
 )
 from brakethermo.pipelines.batch.discovery import (
     discover_sessions,
+    earlier_sessions,
     output_names,
     read_manifest,
     skipped_outcome,
@@ -128,7 +129,7 @@ def run_batch(
             done[path] = SessionOutcome(path, name, "failed", reason=f"{path}: cannot read ({exc})")
             continue
         manifest = None if options.force else read_manifest(out / name)
-        if up_to_date(manifest, sha, key):
+        if up_to_date(manifest, sha, key, out / name, options.reports):
             assert manifest is not None
             if manifest.get("kind") == "multi" or (
                 given_sha is not None and manifest.get("h_law_sha256") == given_sha
@@ -175,5 +176,6 @@ def run_batch(
     if options.reports and files:
         from brakethermo.report.index import write_batch_index
 
-        write_batch_index(out, folder, (o.to_json() for o in result.outcomes))
+        write_batch_index(out, folder, [*(o.to_json() for o in result.outcomes),
+                                        *earlier_sessions(out, names)])
     return result

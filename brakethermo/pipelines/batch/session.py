@@ -22,7 +22,7 @@ from brakethermo.errors import (
 )
 from brakethermo.io.atomic import write_text_atomic
 from brakethermo.io.session import Session
-from brakethermo.pipelines.batch.discovery import MANIFEST
+from brakethermo.pipelines.batch.discovery import MANIFEST, output_fingerprints
 from brakethermo.pipelines.batch.laws import is_multi_spot, session_facts
 from brakethermo.pipelines.batch.tasks import (
     DEFAULT_LAW,
@@ -216,6 +216,7 @@ def _write_outputs(
             "laps": outcome.laps,
             "peaks_c": outcome.peaks,
         }
+        manifest["outputs_sha256"] = output_fingerprints(stage)
         write_text_atomic(stage / MANIFEST, json.dumps(manifest, indent=2) + "\n")
     refresh_page_links(target)
 
