@@ -180,8 +180,14 @@ def test_cli_outputs_and_json(tmp_path: Path) -> None:
     import pyarrow.parquet as pq
 
     tab = pq.read_table(tmp_path / "o" / "e" / "clamp_force.parquet")
-    for col in ("time", "kf", "kf_std", "ml_fusion", "stiffness", "torque_balance"):
+    for col in ("time", "kf", "kf_std", "ml_fusion", "stiffness", "torque_balance",
+                "kf_not_retrained"):
         assert col in tab.column_names
+    # --retrain says the pads changed: the reported estimate is the re-trained models'
+    # (it was computed and then only kept in a side column)
+    for k, v in summ["rmse_kn"].items():
+        assert v == summ["wear"]["rmse_kn_retrained"][k], k
+    assert summ["rmse_kn"]["kf"] != summ["wear"]["rmse_kn_not_retrained"]["kf"]
     assert (tmp_path / "o" / "e" / "index.html").stat().st_size > 0
     on_disk = json.loads((tmp_path / "o" / "e" / "summary.json").read_text())
     assert on_disk["training_session"] == str(tr)
@@ -194,6 +200,15 @@ def test_cli_outputs_and_json(tmp_path: Path) -> None:
     )
     assert res.exit_code == 0, res.output
     assert set(json.loads(res.output)["rmse_kn"].values()) == {None}  # no sensor: no RMSE
+
+
+def test_peak_is_a_force_held_not_a_one_sample_spike() -> None:
+    from brakethermo.pipelines.clamp_force import held_peak
+
+    v = 30e3 * np.sin(np.linspace(0.0, np.pi, 1001))
+    v[400] = 40e3  # the torque balance's inertia term at a current step
+    assert held_peak(v, 1e-3) == pytest.approx(30e3, rel=1e-4)
+    assert held_peak(v[:2], 1e-3) == 30e3 * np.sin(np.pi / 1000)
 
 
 def _run_bad(tmp_path: Path, *args: str) -> str:
@@ -210,6 +225,8 @@ def test_bad_inputs_exit_1(tmp_path: Path) -> None:
         simulate_emb("nominal", seed=6302, duration_s=3, with_sensor=False), tmp_path / "ns.mcap"
     )
     assert "sensor" in _run_bad(tmp_path, str(good), "--train", str(nosensor))
+    assert "--factor-walk" in _run_bad(tmp_path, str(good), "--train", str(good),
+                                       "--factor-walk", "1e6")
     ch = {c.name: c for c in sim.session.channels}
     no_current = write_session(
         tmp_path / "nc.csv", SessionData((ch["motor_angle"], ch["clamp_force"]), {})

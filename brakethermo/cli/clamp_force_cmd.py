@@ -35,6 +35,7 @@ def clamp_force_cmd(
 ) -> None:
     """Clamp force without a force sensor: paper's KF, ML fusion, each model, adaptive KF."""
     from brakethermo.pipelines.clamp_force import (
+        MAX_FACTOR_WALK,
         UNITS,
         clamp_force,
         page,
@@ -44,8 +45,11 @@ def clamp_force_cmd(
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.rig_outputs import write_rig_outputs
 
-    if not (math.isfinite(factor_walk) and factor_walk > 0):
-        raise ConfigError(f"--factor-walk must be a finite number > 0, got {factor_walk}")
+    if not (math.isfinite(factor_walk) and 0 < factor_walk <= MAX_FACTOR_WALK):
+        raise ConfigError(
+            f"--factor-walk {factor_walk:g}: give a random walk in (0, {MAX_FACTOR_WALK:g}]"
+            " 1/√s (default 0.02; pads soften over seconds — a larger walk hands the"
+            " estimate to the torque balance alone and lets the stiffness factor go negative)")
     res = run_with_status(
         as_json,
         "clamp-force…",
@@ -64,7 +68,7 @@ def clamp_force_cmd(
     tab = Table(title=f"clamp-force — {escape(Path(session).name)}")
     tab.add_column("estimator")
     tab.add_column("RMSE (kN)", justify="right")
-    tab.add_column("peak (kN)", justify="right")
+    tab.add_column("peak, held 5 ms (kN)", justify="right")
     tab.add_column("mean applied (kN)", justify="right")
     est = summ["estimate_kn"]
     rmses = {**summ["rmse_kn"], "kf_adaptive": summ["rmse_kn_adaptive"]}
@@ -73,4 +77,7 @@ def clamp_force_cmd(
         tab.add_row(k, "–" if v is None else f"{v:.3f}", f"{est[k]['peak']:.2f}",
                     "–" if m is None else f"{m:.2f}")
     console.print(tab)
+    if "wear" in summ:
+        console.print(f"estimates of the models re-trained on {escape(Path(retrain).name)}"
+                      " (the training session's models' beside them on the page)")
     console.print(f"written: {folder}")

@@ -20,6 +20,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from scipy.ndimage import median_filter
 
 from brakethermo.errors import DataError
 from brakethermo.io.load import load_session
@@ -40,6 +41,8 @@ CHANNELS = ("motor_angle", "motor_current", "clamp_force")
 ESTIMATORS = ("kf", "kf_paper", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
 
 APPLIED_N = 500.0  # N: the caliper is clamping (the mean force is taken over these)
+PEAK_HOLD_S = 0.005  # s: a peak force is one held this long (not a one-sample spike)
+MAX_FACTOR_WALK = 0.5  # 1/sqrt(s): pads soften over seconds, not by half in one
 
 @dataclass(frozen=True)
 class EmbData:
@@ -112,6 +115,17 @@ class ClampForceResult:
     models_retrained: ClampForceModels | None
     est_retrained: ClampForceEstimates | None
     check: FusionCheck | None = None  # the fusion against its inputs, held out in training
+    check_retrained: FusionCheck | None = None
+
+    @property
+    def reported(self) -> ClampForceEstimates:
+        """The session's estimate: the re-trained models' where pads were re-trained (the
+        user's statement that the training session's pads are gone), else the training's."""
+        return self.est if self.est_retrained is None else self.est_retrained
+
+    @property
+    def reported_check(self) -> FusionCheck | None:
+        return self.check if self.est_retrained is None else self.check_retrained
 
 
 def clamp_force(
@@ -130,14 +144,13 @@ def clamp_force(
     est = estimate(models, data.theta, data.current, data.ts, factor_walk=factor_walk,
                    check=check)
     _check_sources(est, data)
-    rt = mr = er = None
+    rt = mr = er = cr = None
     if retrain_path is not None:
         rt = load_emb(retrain_path, need_sensor=True, role="re-training", aliases=aliases)
         mr = train(rt.theta, rt.current, rt.force, rt.ts, structure=models)
-        er = estimate(mr, data.theta, data.current, data.ts, factor_walk=factor_walk,
-                      check=fusion_check(rt.theta, rt.current, rt.force, rt.ts,
-                                            factor_walk=factor_walk) or check)
-    return ClampForceResult(data, tr, models, est, rt, mr, er, check)
+        cr = fusion_check(rt.theta, rt.current, rt.force, rt.ts, factor_walk=factor_walk) or check
+        er = estimate(mr, data.theta, data.current, data.ts, factor_walk=factor_walk, check=cr)
+    return ClampForceResult(data, tr, models, est, rt, mr, er, check, cr)
 
 
 def _check_sources(est: ClampForceEstimates, data: EmbData) -> None:
@@ -176,8 +189,10 @@ def _rmse_kn(est: ClampForceEstimates, force: np.ndarray | None) -> dict[str, fl
 
 
 def result_frame(res: ClampForceResult) -> pd.DataFrame:
-    """The ``clamp_force.parquet`` table, kN (``stiffness_factor`` –)."""
-    e = res.est
+    """The ``clamp_force.parquet`` table, kN (``stiffness_factor`` –): the reported
+    estimate (re-trained where pads were), and with ``--retrain`` the training session's
+    models' estimate beside it as ``<column>_not_retrained``."""
+    e = res.reported
     cols: dict[str, np.ndarray] = {"time": res.data.session.time}
     cols |= {k: v / 1e3 for k, v in estimator_series(e).items()}
     cols["kf_std"] = e.kf_std / 1e3
@@ -185,7 +200,7 @@ def result_frame(res: ClampForceResult) -> pd.DataFrame:
     cols["stiffness_factor"] = e.stiffness_factor
     cols["stiffness_factor_std"] = e.stiffness_factor_std
     if res.est_retrained is not None:
-        cols |= {f"{k}_retrained": v / 1e3 for k, v in estimator_series(res.est_retrained).items()}
+        cols |= {f"{k}_not_retrained": v / 1e3 for k, v in estimator_series(res.est).items()}
     if res.data.force is not None:
         cols["sensor"] = res.data.force / 1e3
     order = ["time", "kf", "kf_std", "ml_fusion", "stiffness", "torque_balance"]
@@ -208,13 +223,24 @@ UNITS = {
 } | {"time": "s"}
 
 
-def estimate_figures(est: ClampForceEstimates) -> dict[str, Any]:
-    """What each estimator says, sensor or not: peak and mean applied force, kN, and the
-    KF's 95 % band (what a session without the sensor still shows)."""
+def held_peak(v: np.ndarray, dt: float) -> float:
+    """The largest value held for :data:`PEAK_HOLD_S` (the maximum of a centred running
+    median), in the units of ``v``: a step of the motor current puts a one- to three-sample
+    spike into the torque balance (its inertia term) and through it into the fusions,
+    up to 10 % above any force the caliper reached."""
+    w = max(3, round(PEAK_HOLD_S / dt) | 1)
+    held = median_filter(v, size=w, mode="nearest") if v.size >= w else v
+    return float(np.max(held))
+
+
+def estimate_figures(est: ClampForceEstimates, dt: float) -> dict[str, Any]:
+    """What each estimator says, sensor or not: peak (held :data:`PEAK_HOLD_S`) and mean
+    applied force, kN, and the KF's 95 % band (what a session without the sensor still
+    shows)."""
     series = estimator_series(est)
     applied = est.kf > APPLIED_N
     out: dict[str, Any] = {
-        name: {"peak": float(np.max(v)) / 1e3,
+        name: {"peak": held_peak(v, dt) / 1e3,
                "mean_applied": float(np.mean(v[applied])) / 1e3 if applied.any() else None}
         for name, v in series.items()}
     out["kf_band95_median"] = float(np.median(1.96 * est.kf_std)) / 1e3
@@ -251,7 +277,7 @@ SOURCE_NAMES = {"stiffness": "dynamic-stiffness model (eq. 6)",
 
 def _kf_text(res: ClampForceResult) -> str:
     """What the reported ``kf`` is on this session, in words (summary and page)."""
-    est, check = res.est, res.check
+    est, check = res.reported, res.reported_check
     if check is not None and est.kf_source != "kf":
         return (f"the {SOURCE_NAMES[est.kf_source]}, not a Kalman filter: on"
                 " held-out halves of the training session the filter did worse than it"
@@ -275,7 +301,7 @@ def _kf_text(res: ClampForceResult) -> str:
 def summary(res: ClampForceResult) -> dict[str, Any]:
     """The ``summary.json`` of OUTPUTS.md "clamp-force" (plus wear and adaptive figures)."""
     force = res.data.force
-    r = _rmse_kn(res.est, force)
+    r = _rmse_kn(res.reported, force)
     out: dict[str, Any] = {
         "session": str(res.data.session.path),
         "rate_hz": round(res.data.session.rate_hz, 6),
@@ -283,20 +309,20 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         "has_sensor": force is not None,
         "rmse_kn": {k: r[k] for k in ("kf", "ml_fusion", "stiffness", "torque_balance")},
         "rmse_kn_adaptive": r["kf_adaptive"],
-        "estimate_kn": estimate_figures(res.est),
+        "estimate_kn": estimate_figures(res.reported, res.data.ts),
         "rmse_kn_kf_paper": r["kf_paper"],
         "kf_noise": _kf_text(res),
-        "kf_paper_mean_nis": res.est.kf_paper_nis,
-        "kf_noise_scale": res.est.kf_noise_scale,
-        "kf_consistency": res.est.kf_consistency,
-        "kf_source": res.est.kf_source,
-        "fusion_check": None if res.check is None else {
-            "heldout_rmse_kn": {k: v / 1e3 for k, v in res.check.rmse_n.items()},
-            "best_input": res.check.best_single,
-            "fusion_holds": res.check.fusion_holds,
-            "q_scale": res.check.q_scale,
+        "kf_paper_mean_nis": res.reported.kf_paper_nis,
+        "kf_noise_scale": res.reported.kf_noise_scale,
+        "kf_consistency": res.reported.kf_consistency,
+        "kf_source": res.reported.kf_source,
+        "fusion_check": None if (check := res.reported_check) is None else {
+            "heldout_rmse_kn": {k: v / 1e3 for k, v in check.rmse_n.items()},
+            "best_input": check.best_single,
+            "fusion_holds": check.fusion_holds,
+            "q_scale": check.q_scale,
             "heldout_rmse_kn_by_q_scale": {f"{q:g}": v / 1e3
-                                           for q, v in (res.check.rmse_by_q or {}).items()},
+                                           for q, v in (check.rmse_by_q or {}).items()},
             "what": "trained on one half of the training session, estimated on the other,"
                     " both ways; the filter's Q is the paper's times the factor with the"
                     " smallest held-out RMSE (the paper's unless another is 1 % better);"
@@ -304,18 +330,19 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
                     " is that (its band the held-out RMSE)",
         },
         "kf_vs_stiffness_pct": None if force is None else 100.0 * (1 - r["kf"] / r["stiffness"]),
-        "stiffness_factor_final": float(res.est.stiffness_factor[-1]),
+        "stiffness_factor_final": float(res.reported.stiffness_factor[-1]),
         "fitted": _model_dict(res.models, res.train.session.path),
         "training_session": str(res.train.session.path),
         "warnings": [*res.data.session.warnings, *res.train.session.warnings],
     }
     if res.est_retrained is not None and res.models_retrained is not None and res.retrain:
-        rr = _rmse_kn(res.est_retrained, force)
         out["wear"] = {
             "retraining_session": str(res.retrain.session.path),
             "retraining_duration_s": round(float(res.retrain.session.time[-1]), 6),
-            "rmse_kn_retrained": rr,
-            "rmse_kn_not_retrained": r,
+            "reported": "re-trained",
+            "rmse_kn_retrained": r,
+            "rmse_kn_not_retrained": _rmse_kn(res.est, force),
+            "estimate_kn_not_retrained": estimate_figures(res.est, res.data.ts),
             "fitted_retrained": _model_dict(res.models_retrained, res.retrain.session.path),
         }
     return out
@@ -328,7 +355,7 @@ def _fmt(v: float | None) -> str:
 def _cards(res: ClampForceResult, summ: dict[str, Any]) -> list[Card]:
     """The page's headline tiles: RMSEs where the session has the sensor, else forces."""
     r, e = summ["rmse_kn"], summ["estimate_kn"]
-    kf = "KF" if res.est.kf_source == "kf" else "reported"
+    kf = "KF" if res.reported.kf_source == "kf" else "reported"
     if res.data.force is not None:
         return [
             Card(f"{kf} RMSE", _fmt(r["kf"]), "kN"),
@@ -351,8 +378,8 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     r = summ["rmse_kn"]
     e = summ["estimate_kn"]
     names = ("kf", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
-    reported = ("Kalman filter (eq. 9-13)" if res.est.kf_source == "kf" else
-                f"reported: the {SOURCE_NAMES[res.est.kf_source]}")
+    reported = ("Kalman filter (eq. 9-13)" if res.reported.kf_source == "kf" else
+                f"reported: the {SOURCE_NAMES[res.reported.kf_source]}")
     labels = (reported, "ML fusion (eq. 8)", "dynamic stiffness (eq. 6)",
               "torque balance (eq. 7)", "adaptive KF (stiffness factor)")
     paper = ("0.29", "0.32", "0.35", "0.61", "–")
@@ -374,7 +401,8 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
                  "mean applied (kN)"],
                 rows,
                 caption="RMSE against the clamp-force sensor (where the session has it),"
-                        " and what each estimator says",
+                        " and what each estimator says (peak: the largest force held"
+                        f" {PEAK_HOLD_S * 1e3:.0f} ms)",
             )
         ],
     )
@@ -384,7 +412,7 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     win = (t >= t0) & (t <= t0 + 2.0)
     if force is not None:
         ax.plot(t[win], force[win] / 1e3, "k", lw=1.6, label="sensor")
-    for name, v in estimator_series(res.est).items():
+    for name, v in estimator_series(res.reported).items():
         ax.plot(t[win], v[win] / 1e3, lw=0.8, label=name)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("clamp force (kN)")
@@ -392,7 +420,7 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     fig.tight_layout()
     main.figures["traces"] = fig
     fig2, ax2 = plt.subplots(figsize=(10, 2.8))
-    sf, sd = res.est.stiffness_factor, res.est.stiffness_factor_std
+    sf, sd = res.reported.stiffness_factor, res.reported.stiffness_factor_std
     ax2.fill_between(t, sf - sd, sf + sd, alpha=0.3)
     ax2.plot(t, sf)
     ax2.set_xlabel("time (s)")
@@ -411,18 +439,24 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     sections = [main, adapt]
     if "wear" in summ:
         w = summ["wear"]
-        rows = [
-            [k, _fmt(w["rmse_kn_not_retrained"][k]), _fmt(w["rmse_kn_retrained"][k])]
-            for k in ESTIMATORS
-        ]
+        if force is not None:
+            head = ["estimator", "RMSE not re-trained (kN)", "RMSE re-trained (kN)"]
+            rows = [[k, _fmt(w["rmse_kn_not_retrained"][k]), _fmt(w["rmse_kn_retrained"][k])]
+                    for k in ESTIMATORS]
+        else:
+            before = w["estimate_kn_not_retrained"]
+            head = ["estimator", "peak not re-trained (kN)", "peak re-trained (kN)"]
+            rows = [[k, f"{before[k]['peak']:.2f}", f"{e[k]['peak']:.2f}"] for k in ESTIMATORS]
         sections.append(
             Section(
                 "Wear: re-training",
                 paragraphs=[
                     f"Re-trained on {Path(w['retraining_session']).name}"
-                    f" ({w['retraining_duration_s']:.0f} s with the sensor)."
+                    f" ({w['retraining_duration_s']:.0f} s with the sensor): every figure above"
+                    " is the re-trained models' estimate; here beside the training session's"
+                    " models' (`<column>_not_retrained` in the table)."
                 ],
-                tables=[TableBlock(["estimator", "not re-trained (kN)", "re-trained (kN)"], rows)],
+                tables=[TableBlock(head, rows)],
             )
         )
     return Page(
