@@ -244,3 +244,25 @@ def test_creep_model_band_measures_the_torque_proportional_departure() -> None:
         inside = np.abs(r - 341.6) <= 1.96 * out.radius_std_mm
         assert 0.9 <= inside.mean() <= 1.0
         assert np.array_equal(out.radius_std_mm[free], std[free])  # free rolling untouched
+
+
+def test_a_model_free_rolling_does_not_follow_is_said_and_admitted(tmp_path: Path) -> None:
+    """A supply frequency given wrong (the motor's torque model then pushes the wheel in
+    free rolling) moved the radius 1.75 mm at a 0.3 mm band, without a word: the
+    departure from the free-rolling speed ratio is now said and in the band; a right one
+    leaves the band as it was."""
+    sim = simulate_roller_rig(RollerRigSimConfig(speed_kmh=30.0, seed=207, duration_s=40.0,
+                                                 free_s=8.0))  # fmt: skip
+    path = write_roller_rig_simulation(sim, tmp_path / "s.parquet")[0]
+    truth = _truth(path)
+    right = run_roller_rig(path, RollerRigOptions(r0_mm=(320.0,), smoother=False))
+    wrong = run_roller_rig(path, RollerRigOptions(r0_mm=(320.0,), smoother=False,
+                                                  supply_hz=15.5))
+    assert not any("speed-ratio radius" in w for w in right.summary["warnings"])
+    assert right.runs[0].ratio_error_mm < 0.05
+    run = wrong.runs[0]
+    assert abs(run.filter_mm[-1] - truth) > 0.5  # the model is wrong here...
+    assert any("speed-ratio radius" in w for w in wrong.summary["warnings"])
+    late = wrong.time - wrong.time[0] > 2.0
+    inside = np.abs(run.radius_mm[late] - truth) <= 1.96 * run.radius_std_mm[late]
+    assert inside.mean() > 0.9  # ...and the band says so

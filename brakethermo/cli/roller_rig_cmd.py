@@ -35,10 +35,14 @@ def render(result: RollerRigResult, folder: Path) -> None:
     for r in s["runs"]:
         table.add_row(
             f"{r['r0_mm']:g}", f"{r['radius_mm']:.3f}", f"{r['radius_std_mm']:.3f}",
-            _fmt(r["convergence_time_s"]), _fmt(r["filter_rmse_vs_ref_mm"], ".3f"),
+            "restarted" if r["restarted"] else _fmt(r["convergence_time_s"]),
+            _fmt(r["filter_rmse_vs_ref_mm"], ".3f"),
             _fmt(r["rmse_vs_ref_mm"], ".3f"), _fmt(r["rmse_vs_ref_pct"], ".3f"),
         )  # fmt: skip
     console.print(table)
+    for r in s["runs"]:
+        if r["restarted"]:
+            console.print(f"[yellow]r0 {r['r0_mm']:g} mm:[/] {r['restarted']}", highlight=False)
     c = s["naive_vs_ukf"]
     line = (
         f"naive ω_r·R_r/ω_w: {_fmt(c['naive_free_mm'], '.3f')} mm free rolling, "

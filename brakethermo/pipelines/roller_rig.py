@@ -51,6 +51,7 @@ REF_EXPECT = Expect("rolling_radius_ref", "m", 2.0, positive=True, role="score")
 
 RADIUS_RANGE_MM = (100.0, 1000.0)  # a tram wheel's rolling radius, and the accepted guesses
 RATIO_TOLERANCE = 0.03  # traction creep moves the speed-ratio radius by well under this
+RATIO_SIGMAS = 2.0  # a free-rolling departure from the ratio beyond this many sigmas is said
 
 @dataclass(frozen=True)
 class RollerRigOptions:
@@ -325,7 +326,8 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         workers = max(1, min(len(opts.r0_mm), os.cpu_count() or 1))
         with ThreadPoolExecutor(max_workers=workers) as pool:
             runs = list(pool.map(one_guess, opts.r0_mm))
-        return [creep_model_band(_checked_guess(run, ratio_mm, one_guess), torque, free & both)
+        return [ratio_band(creep_model_band(_checked_guess(run, ratio_mm, one_guess), torque,
+                                            free & both), ratio_mm, _settled(run, free & both, t))
                 for run in runs]
 
     model = RollerRigModel.from_spec(spec, creep_law=opts.creep_law)
@@ -333,6 +335,9 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     if effects != CreepEffects():
         model, runs = _judged(model, runs, replace(model, effects=effects), guesses, carried,
                               free & both, traction & both)
+    warnings = [*warnings, *dict.fromkeys(
+        w for run in runs
+        if (w := ratio_warning(run, ratio_mm, _settled(run, free & both, t))) is not None)]
     s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2], normal)
     naive = w_r * spec.roller_radius / np.where(np.abs(w_w) > 1e-9, w_w, np.nan) * 1e3
     ref = session.constant("rolling_radius_ref")
@@ -478,6 +483,57 @@ def creep_model_band(run: GuessRun, torque: np.ndarray, free: np.ndarray) -> Gue
     )
 
 
+def _settled(run: GuessRun, free: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The free-rolling samples after the guess's filter converged (its start from a far
+    guess is no model error)."""
+    start = run.convergence_time_s if run.convergence_time_s is not None else 0.5 * (
+        t[-1] - t[0])
+    return free & (t - t[0] >= start)
+
+
+def ratio_band(run: GuessRun, ratio_mm: float, free: np.ndarray) -> GuessRun:
+    """The guess's bands widened by its departure from the free-rolling speed ratio.
+
+    In free rolling the creep is nearly nil, so the speed ratio measures the radius
+    directly (:func:`free_rolling_radius_mm`). A filter whose radius there departs from
+    it more than its own spread allows runs on a model the session does not follow in
+    free rolling — the roller motor's torque model at a low supply frequency, a supply
+    frequency given wrong, drag the datasheet does not hold — and the same model then
+    carries the traction phases. What the departure adds beyond the filter's own spread,
+    ``e^2 = max(0, mean((r - r_ratio)^2 - s^2))`` over the free-rolling samples, is added
+    to both bands in quadrature (0 where the filter agrees with the ratio). ``free``: the
+    free-rolling samples after the filter settled (:func:`_settled`)."""
+    ok = free & np.isfinite(run.radius_mm)
+    if not ok.any():
+        return run
+    d = run.radius_mm[ok] - ratio_mm
+    e2 = float(np.mean(d**2 - run.radius_std_mm[ok] ** 2))
+    e = math.sqrt(max(e2, 0.0))
+    return replace(run, radius_std_mm=np.sqrt(run.radius_std_mm**2 + e**2),
+                   filter_std_mm=np.sqrt(run.filter_std_mm**2 + e**2),
+                   ratio_offset_mm=float(np.mean(d)), ratio_error_mm=e)
+
+
+def ratio_warning(run: GuessRun, ratio_mm: float, free: np.ndarray) -> str | None:
+    """A sentence when the guess's free-rolling radius departs from the speed ratio by more
+    than :data:`RATIO_SIGMAS` times the filter's own spread there, before its widening by
+    the mean NIS (an over-confident filter is the same symptom); None otherwise."""
+    ok = free & np.isfinite(run.radius_mm)
+    if not ok.any() or run.ratio_error_mm == 0.0:
+        return None
+    own = math.sqrt(max(float(np.mean(run.radius_std_mm[ok] ** 2)) - run.ratio_error_mm**2,
+                        1e-12) / run.noise_scale)
+    if abs(run.ratio_offset_mm) <= RATIO_SIGMAS * own:
+        return None
+    return (f"in free rolling the filter's radius sits {run.ratio_offset_mm:+.2f} mm from the"
+            f" speed-ratio radius {ratio_mm:.2f} mm ({abs(run.ratio_offset_mm) / own:.0f}x its"
+            " own spread): the model's free-rolling forces (the roller motor's torque at this"
+            " supply frequency, bearing drag) do not hold on this session, and the same model"
+            f" carries the traction phases; the bands admit it (±{run.ratio_error_mm:.2f} mm,"
+            " 1σ). Check --supply-hz and the rig datasheet; the speed-ratio radius is the"
+            " free-rolling answer")
+
+
 def _supply(
     session: Session,
     opts: RollerRigOptions,
@@ -541,6 +597,8 @@ def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> di
                 "radius_mm": float(run.radius_mm[-1]),
                 "radius_std_mm": float(run.radius_std_mm[-1]),
                 "creep_model_error_mm_per_knm": run.model_error_mm_per_knm,
+                "free_rolling_offset_from_ratio_mm": run.ratio_offset_mm,
+                "ratio_model_error_mm": run.ratio_error_mm,
                 "consistency": run.consistency,
                 "noise_scale": run.noise_scale,
                 "convergence_time_s": run.convergence_time_s,

@@ -121,7 +121,7 @@ def roller_rig_page(result: RollerRigResult) -> Page:
     s = result.summary
     ref = result.reference_mm
     first = s["runs"][0]
-    conv = [r["convergence_time_s"] for r in s["runs"]]
+    conv = [r["convergence_time_s"] for r in s["runs"] if not r["restarted"]]
     conv_ok = [c for c in conv if c is not None]
     cards = [
         Card("rolling radius", f"{first['radius_mm']:.2f}", "mm"),
@@ -143,7 +143,7 @@ def roller_rig_page(result: RollerRigResult) -> Page:
                 "" if ref is None else f" ({r['rmse_vs_ref_pct']:.3f} %)"),
             _fmt(paper_mm, ".4f")
             + ("" if paper_mm is None else f" ({100 * paper_mm / PAPER_RADIUS_MM:.2f} %)"),
-            _fmt(r["convergence_time_s"]),
+            "restarted" if r["restarted"] else _fmt(r["convergence_time_s"]),
             _fmt(r["max_error_after_convergence_mm"], ".3f"),
         ])  # fmt: skip
     out_name = "smoothed" if result.options.smoother else "filter"
@@ -172,6 +172,8 @@ def roller_rig_page(result: RollerRigResult) -> Page:
         + ("unscented RTS smoother on." if result.options.smoother else "filter only (the paper)."),
         f"Roller motor supply {result.supply_hz:.3f} Hz ({result.supply_source}).",
     ]  # fmt: skip
+    text.extend(f"From r0 = {r['r0_mm']:g} mm: {r['restarted']}." for r in s["runs"]
+                if r["restarted"])
     text.append("Filter consistency (speeds), first guess: "
                 + consistency_text(s["runs"][0]["consistency"]) + ".")
     if s["filter"]["with_effect"] is not None:
@@ -197,7 +199,9 @@ def roller_rig_page(result: RollerRigResult) -> Page:
                 ["Bands: ±2σ of each run's posterior, widened by the creep law's error "
                  f"the session shows ({result.runs[0].model_error_mm_per_knm:.3f} mm per kN m"
                  " of traction torque: how far the estimate leaves its free-rolling value "
-                 "under load, which a constant radius cannot do). Dashed: the forward filter"
+                 "under load, which a constant radius cannot do), and by its departure from"
+                 " the free-rolling speed ratio "
+                 f"(±{result.runs[0].ratio_error_mm:.3f} mm, 1σ). Dashed: the forward filter"
                  " (the paper's estimate); solid: the output track."]),
         Section("Naive speed-ratio radius vs the UKF", [naive_text], [TableBlock(
             ["phase", "naive, mm", "naive − ref, mm", "UKF, mm", "UKF − ref, mm"], cmp_rows,

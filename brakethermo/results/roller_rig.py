@@ -26,6 +26,8 @@ class GuessRun:
     model_error_mm_per_knm: float = 0.0  # the creep law's error in the bands, mm per kN m
     consistency: dict[str, Any] | None = None  # the filter's NIS against its chi-square band
     noise_scale: float = 1.0  # factor on the filter's variance: its mean NIS if over-confident
+    ratio_offset_mm: float = 0.0  # mean free-rolling radius minus the speed-ratio radius
+    ratio_error_mm: float = 0.0  # what that departure adds to the bands (1 sigma), mm
 
 
 @dataclass(frozen=True)
