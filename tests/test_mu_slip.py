@@ -141,6 +141,25 @@ def test_cli_writes_all_outputs(tmp_path: Path) -> None:
         assert (folder / name).stat().st_size > 0
 
 
+def test_impossible_answers_are_said_or_refused(tmp_path: Path) -> None:
+    """A radius 33 % off gave a peak μ of -16 with exit 0; an EKF started far from the
+    tyre (--mu-max 0.11) ended at μ -0.89 without a word: the free-rolling slip refuses
+    the first (naming the radius the speeds give), the summary's warnings say the second,
+    and a clean run has none."""
+    path, _ = write_tyre_simulation(simulate_tyre_rig("dry", seed=8107), tmp_path / "r.mcap")
+    clean = summary(mu_slip(path))
+    assert clean["warnings"] == []
+    far = summary(mu_slip(path, MuSlipOptions(mu_range=(0.1, 0.11))))
+    assert any("expected range" in w for w in far["warnings"]), far["warnings"]
+    assert 0.0 < far["peak"]["slip_std"] < 1.0
+    res = CliRunner().invoke(app, ["mu-slip", str(path), "--radius", "0.4",
+                                   "--out", str(tmp_path / "o")])
+    assert res.exit_code == 1 and "free rolling" in res.output and "0.300 m" in res.output, (
+        res.output)
+    assert "--mu-max 0" in CliRunner().invoke(
+        app, ["mu-slip", str(path), "--mu-max", "0", "--out", str(tmp_path / "o")]).output
+
+
 def test_slip_ratio_channel_used(tmp_path: Path) -> None:
     sim = simulate_tyre_rig("wet", seed=8105, log_slip=True)
     chans = tuple(c for c in sim.session.channels if c.name != "wheel_speed")

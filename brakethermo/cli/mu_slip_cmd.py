@@ -81,4 +81,6 @@ def mu_slip_cmd(
     )
     console.print(tab)
     console.print(summ["shape_mismatch"]["words"])
+    for w in summ["warnings"]:
+        console.print(f"[yellow]warning:[/] {escape(w)}", highlight=False)
     console.print(f"written: {folder}")

@@ -65,11 +65,11 @@ class MuSlipOptions:
     points: bool = False
 
     def __post_init__(self) -> None:
-        for name, option, (lo, hi), top in (("mu_range", "--mu-max", self.mu_range, 3.0),
-                                            ("slip_range", "--slip-max", self.slip_range, 1.0)):
+        for name, option, (lo, hi), top in (("peak μ", "--mu-max", self.mu_range, 3.0),
+                                            ("peak slip", "--slip-max", self.slip_range, 1.0)):
             if not 0.0 < lo < hi <= top:
-                raise ConfigError(f"{name} must be 0 < low < high <= {top:g} (the high end is"
-                                  f" {option}), got {lo}, {hi}")
+                raise ConfigError(f"{option} {hi:g}: give the high end of the expected {name}"
+                                  f" above its low end {lo:g} and at most {top:g}")
         if not 1.0 <= self.inflation < float("inf"):
             raise ConfigError(f"inflation must be at least 1, got {self.inflation}")
         if self.radius_m is not None and not 0.05 <= self.radius_m <= 2.0:
@@ -97,6 +97,7 @@ class MuSlipResult:
     points: bool = False
     ekf_noise_scale: float = 1.0  # factor on the EKF's covariance: its mean NIS if over-confident
     ekf_consistency: dict[str, Any] = field(default_factory=dict)  # of its innovations
+    warnings: tuple[str, ...] = ()  # plausibility of the inputs and the result, in words
 
 
 def slip_and_mu(
@@ -245,6 +246,39 @@ class RampPoints:
     mu: np.ndarray  # -
     radius_m: float | None
     ramp_s: tuple[float, float]
+    warnings: tuple[str, ...] = ()
+
+
+FREE_SLIP = (0.02, 0.06)  # |slip| in free rolling: said above the first, refused above the second
+
+
+def free_rolling_check(session: Session, slip: np.ndarray, start: int,
+                       radius_m: float | None, given: bool) -> list[str]:
+    """Slip before the ramp, where the wheel rolls free, must be near nil: a radius a few per
+    cent off shows there first (and moves every slip of the ramp). Returns the warnings;
+    DataError beyond :data:`FREE_SLIP`'s upper bound, naming the radius the speeds give."""
+    free = slip[:start]
+    free = free[np.isfinite(free)]
+    if free.size < 10:
+        return []
+    s0 = float(np.median(free))
+    if abs(s0) <= FREE_SLIP[0]:
+        return []
+    said = ""
+    if radius_m is not None:
+        V, w = session.values("vehicle_speed")[:start], session.values("wheel_speed")[:start]
+        ok = np.isfinite(V) & np.isfinite(w) & (V >= 1.0) & (np.abs(w) > 1e-6)
+        if ok.any():
+            r_free = float(np.median(V[ok] / w[ok]))
+            said = (f" with the wheel radius {radius_m:g} m"
+                    f" ({'--radius' if given else 'the session fact'}); the free-rolling"
+                    f" speeds give {r_free:.3f} m")
+    text = (f"in free rolling before the ramp the slip is {s0:+.3f}, not about 0{said}:"
+            " every slip of the ramp moves with it")
+    if abs(s0) > FREE_SLIP[1]:
+        raise DataError(text + "; fix the radius (or the slip channel)", path=session.path,
+                        channel="slip_ratio" if radius_m is None else "wheel_speed")
+    return [text]
 
 
 def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | None = None
@@ -254,10 +288,13 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
     session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases,
                            indexed=options.points)
     slip, mu, radius = slip_and_mu(session, options.radius_m)
+    warnings = _radius_warning(session, options.radius_m)
     if options.points:
         start, lock = 0, slip.size
     else:
         start, lock = find_ramp(session, slip)
+        warnings += free_rolling_check(session, slip, start, radius,
+                                       options.radius_m is not None)
     sl = slice(start, lock)
     ok = np.isfinite(slip[sl]) & np.isfinite(mu[sl]) & (slip[sl] > 0.0) & (slip[sl] <= 1.0)
     t, s, m = session.time[sl][ok], slip[sl][ok], mu[sl][ok]
@@ -274,7 +311,44 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
                         f" at least 10{hint}", path=session.path)
     _check_plausible_mu(m, session)
     return RampPoints(session, t, s, m, radius,
-                      (float(session.time[start]), float(session.time[min(lock, slip.size - 1)])))
+                      (float(session.time[start]), float(session.time[min(lock, slip.size - 1)])),
+                      tuple(warnings))
+
+
+def _radius_warning(session: Session, radius_m: float | None) -> list[str]:
+    """--radius beside a session fact that says otherwise: the option wins, and says so."""
+    fact = next((k for k in RADIUS_FACTS if k in session.metadata), None)
+    if radius_m is None or fact is None or session.has("slip_ratio"):
+        return []
+    try:
+        logged = float(session.metadata[fact])
+    except ValueError:
+        return []
+    if abs(radius_m - logged) <= 0.02 * logged:
+        return []
+    return [f"--radius {radius_m:g} m replaces the session's {fact} = {logged:g} m"
+            f" ({100 * (radius_m / logged - 1):+.0f} %): slip is computed with --radius"]
+
+
+def result_warnings(options: MuSlipOptions, ekf_peak: np.ndarray, best: FamilyFit,
+                    scale: float) -> list[str]:
+    """The result against what a tyre can do and what the options expected."""
+    out = []
+    mu_e, s_e = float(ekf_peak[0]), float(ekf_peak[1])
+    if not (0.0 < mu_e <= MU_PLAUSIBLE[1] and 0.0 < s_e < 1.0):
+        out.append(f"the EKF's one pass ended at peak μ {mu_e:.3g}, slip {s_e:.3g}, which no"
+                   " tyre has (its start, --mu-max / --slip-max, is far from this tyre); the"
+                   f" reported peak is the {best.name} fit's")
+    (m_lo, m_hi), (s_lo, s_hi) = options.mu_range, options.slip_range
+    if not (m_lo <= best.mu_peak <= m_hi and s_lo <= best.slip_peak <= s_hi):
+        out.append(f"the peak (μ {best.mu_peak:.3f}, slip {best.slip_peak:.3f}) lies outside the"
+                   f" expected range the EKF starts from (μ {m_lo:g}–{m_hi:g}, slip"
+                   f" {s_lo:g}–{s_hi:g}): widen --mu-max / --slip-max to start it nearer")
+    if scale > 4.0:
+        out.append(f"the EKF's innovations are {scale:.1f}x its noise (mean NIS): the"
+                   " two-parameter curve does not follow these points; its band is widened"
+                   " by that, the reported peak is the best family's")
+    return out
 
 
 def mu_slip(
@@ -315,6 +389,8 @@ def mu_slip(
         ekf_noise_scale=scale,
         ekf_consistency=consistency,
         points=options.points,
+        warnings=(*session.warnings, *ramp.warnings,
+                  *result_warnings(options, ekf.x_filt[-1], best, scale)),
     )
 
 
@@ -367,8 +443,11 @@ def peak_band(result: MuSlipResult) -> dict[str, float]:
     (fit) standard deviation. One family's fit noise is far smaller than what another
     plausible shape moves the peak by (on a brush tyre the EKF's 0.005 against 0.15 off)."""
     best = result.best
+    # a family whose own peak no tyre has (a curve still rising at slip 1e13) is no shape
+    # the data allow, whatever its RMSE over the points
     allowed = [f for f in result.families
-               if f.heldout_rmse <= PLAUSIBLE_SHAPE * best.heldout_rmse]
+               if f.heldout_rmse <= PLAUSIBLE_SHAPE * best.heldout_rmse
+               and 0.0 < f.slip_peak <= 1.0 and 0.0 < f.mu_peak <= MU_PLAUSIBLE[1]] or [best]
     sd_fit = np.sqrt(np.maximum(result.ekf.var_filt[-1], 0.0))
     mu_sd = float(np.sqrt(np.mean([(f.mu_peak - best.mu_peak) ** 2 for f in allowed])))
     slip_sd = float(np.sqrt(np.mean([(f.slip_peak - best.slip_peak) ** 2 for f in allowed])))
@@ -440,6 +519,7 @@ def summary(res: MuSlipResult) -> dict[str, Any]:
         "peak": {"mu": res.best.mu_peak, "slip": res.best.slip_peak, "model": res.best.name,
                  **peak_band(res)},
         "shape_mismatch": shape_mismatch(res),
+        "warnings": list(res.warnings),
     }
 
 
