@@ -229,10 +229,12 @@ def _check_past_peak(best: FamilyFit, s: np.ndarray, session: Session) -> None:
     s_peak = float(best.slip_peak)
     beyond = int(np.sum(s > 1.2 * s_peak))
     if not np.isfinite(s_peak) or beyond < 3:
+        where = (f"peaks at slip {s_peak:.3f} and only {beyond} point(s) lie beyond it"
+                 if np.isfinite(s_peak) and s_peak <= 1.0 else "is still rising at the"
+                 " largest slip")
         raise DataError(
-            f"the slip never passes the μ peak: the best curve ({best.name}) peaks at slip"
-            f" {s_peak:.3f} and only {beyond} point(s) lie beyond it (largest slip"
-            f" {float(np.max(s)):.3f}); brake further, toward wheel lock",
+            f"the slip never passes the μ peak: the best curve ({best.name}) {where} (largest"
+            f" slip {float(np.max(s)):.3f}); brake further, toward wheel lock",
             path=session.path)
 
 
