@@ -73,3 +73,22 @@ def test_pv_shift_out_of_range_is_refused():
 
     with pytest.raises(ConfigError, match="pv_shift_mm"):
         simulate_ebooster(EboosterSimConfig("open", pv_shift_mm=3.0))
+
+
+def test_a_band_the_sessions_own_sensor_refutes_is_said(tmp_path):
+    """A curve 0.6 mm off (beyond the 0.25 mm the band admits) left the band covering a
+    third of the applied pressures with no warning, and the pooled coverage counted the
+    idle samples (both sides near 0) as covered: coverage while braking is reported and a
+    low one is said, naming the diagnosis that sizes the shift; a nominal session says
+    nothing."""
+    cfg = EboosterSimConfig("open", seed=25, rate_hz=500.0, duration_s=12.0, pv_shift_mm=0.6)
+    path, _ = write_ebooster_session(simulate_ebooster(cfg), tmp_path / "s.mcap")
+    s = observe(path).summary
+    assert s["coverage_95_braking"]["ukf"] < 0.8
+    assert any("while the brake is applied" in w and "diagnose --rig ebooster" in w
+               for w in s["warnings"]), s["warnings"]
+    nominal = EboosterSimConfig("open", seed=25, rate_hz=500.0, duration_s=12.0)
+    path, _ = write_ebooster_session(simulate_ebooster(nominal), tmp_path / "n.mcap")
+    s = observe(path).summary
+    assert s["coverage_95_braking"]["ukf"] > 0.85
+    assert not any("while the brake is applied" in w for w in s["warnings"])

@@ -77,18 +77,19 @@ def ebooster_command(
     for state in PRESSURES:
         tab.add_column(f"{state} RMSE MPa", justify="right")
     tab.add_column("95 % coverage", justify="right")
+    tab.add_column("while braking", justify="right")
     for w in OBSERVERS:
         pr = s["pressure_rmse_mpa"][w]
-        cov = s["coverage_95"][w]
+        cov, cov_b = s["coverage_95"][w], s["coverage_95_braking"][w]
         tab.add_row(w.upper(), f"{s['residual_rmse_mm'][w]:.4f}",
                     *("–" if pr[k] is None else f"{pr[k]:.3f}" for k in PRESSURES),
-                    "–" if cov is None else f"{100 * cov:.1f} %")
+                    *("–" if c is None else f"{100 * c:.1f} %" for c in (cov, cov_b)))
     console.print(tab)
     console.print(f"UKF improvement over EKF (residual RMSE): {s['improvement_pct']:.1f} %")
     if s["with_effect"] is not None:
         from brakethermo.results.rig_diagnosis import carried_text
 
         console.print(f"p-V carries: {carried_text(s['with_effect'])}", highlight=False)
-    for warning in result.session.warnings:
-        console.print(f"[yellow]warning:[/] {warning}")
+    for warning in s["warnings"]:
+        console.print(f"[yellow]warning:[/] {warning}", highlight=False)
     console.print(f"wrote {folder}")

@@ -56,6 +56,8 @@ CHANNELS = (S2, DELTA, *PRESSURES.values(), PEDAL)
 DEFAULT_FIT = "ebooster_fit"  # configs/rigs/ebooster_fit.toml, trained on a simulated bench
 MM, MPA = 1e3, 1e-6  # SI -> model units
 Z95 = 1.959963984540054
+APPLIED_MPA = 0.2  # a pressure above this: the brake is applied (coverage while braking)
+LOW_COVERAGE = 0.8  # a 95 % band covering less than this on the session's own sensor is said
 
 
 def _series(session: Session, name: str, scale: float, *, gaps: bool) -> Array:
@@ -423,11 +425,12 @@ def _summary(
         improvement = 100.0 * (res["ekf"] - res["ukf"]) / res["ekf"]
     p_rmse: dict[str, dict[str, float | None]] = {}
     cov95: dict[str, float | None] = {}
+    cov95_braking: dict[str, float | None] = {}
     out1: dict[str, dict[str, float | None]] = {}
     for w in OBSERVERS:
         tr = tracks[w]
         p_rmse[w], out1[w] = {}, {}
-        inside, total = 0, 0
+        inside, total, inside_b, total_b = 0, 0, 0, 0
         for i, state in enumerate(("p_m", "p_f", "p_r")):
             if state not in validation:
                 p_rmse[w][state] = None
@@ -440,7 +443,23 @@ def _summary(
             out1[w][state] = float(np.mean(z > 1.0))
             inside += int(np.sum(z <= Z95))
             total += int(ok.sum())
+            # while the brake is applied: idle samples, both sides near 0, flatter the pool
+            applied = validation[state][ok] > APPLIED_MPA
+            inside_b += int(np.sum(z[applied] <= Z95))
+            total_b += int(applied.sum())
         cov95[w] = inside / total if total else None
+        cov95_braking[w] = inside_b / total_b if total_b else None
+    warnings = list(session.warnings)
+    low = {w: c for w, c in cov95_braking.items() if c is not None and c < LOW_COVERAGE}
+    if low:
+        warnings.append(
+            "scored against this session's own pressure sensor, the 95 % band covers "
+            + ", ".join(f"{100 * c:.0f} % ({w.upper()})" for w, c in low.items())
+            + f" while the brake is applied (above {APPLIED_MPA:g} MPa): this booster's"
+            " hydraulics have moved beyond what the band admits since the training session"
+            " (the p–V curve shifted or scaled); `diagnose --rig ebooster` on a session with"
+            " the sensor names and sizes it, and `--with-effect auto` carries it, or retrain"
+            " on a session of the day")
     return {
         "session": str(session.path),
         "samples": len(session.frame),
@@ -449,6 +468,7 @@ def _summary(
         "improvement_pct": improvement,
         "pressure_rmse_mpa": p_rmse,
         "coverage_95": cov95,
+        "coverage_95_braking": cov95_braking,
         "consistency": {w: t.consistency for w, t in tracks.items()},
         "noise_scale": {w: t.noise_scale for w, t in tracks.items()},
         "outside_1sigma": out1,
@@ -480,7 +500,7 @@ def _summary(
             "pedal_dof": spec.pedal_dof,
         },
         "bench": spec.id,
-        "warnings": list(session.warnings),
+        "warnings": warnings,
         "seconds": {"train": t_train, **{w: tracks[w].seconds for w in OBSERVERS}},
         "n_repairs": {w: tracks[w].filt.n_repairs for w in OBSERVERS},
     }

@@ -12,6 +12,7 @@ same folder (``diagnose``'s ``diagnosis.json`` and ``diagnosis/``) stays.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +20,9 @@ import pandas as pd
 
 from brakethermo.io.atomic import atomic_entries, write_bytes_atomic
 from brakethermo.pipelines.outputs import write_json, write_parquet
-from brakethermo.report.page import Page, write_page
+from brakethermo.report.page import Page, Section, write_page
+
+WARNINGS = "Warnings"
 
 
 def write_rig_outputs(
@@ -60,6 +63,10 @@ def write_rig_outputs(
     """
     folder = Path(out) / stem
     meta = {name: {"unit": unit} for name, unit in (units or {}).items() if name in frame}
+    said = [str(w) for w in summary.get("warnings") or ()]
+    if said and not any(s.heading == WARNINGS for s in page.sections):
+        # what the console and summary.json warn of, first on the page too
+        page = replace(page, sections=[Section(WARNINGS, paragraphs=said), *page.sections])
     owned = (f"{pipeline}.parquet", "summary.json", "index.html", "*.png",
              *(attachments or {}))
     with atomic_entries(folder, owned) as tmp:

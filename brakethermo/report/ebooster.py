@@ -116,11 +116,13 @@ def booster_page(r: EboosterResult) -> Page:
         pr, out1 = s["pressure_rmse_mpa"][w], s["outside_1sigma"][w]
         rows.append((w.upper(), *(_fmt(pr[k]) for k in PRESSURES),
                      *(_fmt(None if out1[k] is None else 100 * out1[k], 1) for k in PRESSURES),
-                     _fmt(None if s["coverage_95"][w] is None else 100 * s["coverage_95"][w], 1),
+                     *(_fmt(None if c is None else 100 * c, 1)
+                       for c in (s["coverage_95"][w], s["coverage_95_braking"][w])),
                      f"{s['consistency'][w]['mean_nis']:.2f} ({s['consistency'][w]['state']})"))
     ptable = TableBlock(
         header=("observer", "p_m RMSE MPa", "p_f RMSE MPa", "p_r RMSE MPa", "p_m outside 1σ %",
                 "p_f outside 1σ %", "p_r outside 1σ %", "95 % band coverage %",
+                "… while braking %",
                 "δ mean NIS"),
         rows=rows,
         caption="Against the session's pressure channels (validation only; – where the "
