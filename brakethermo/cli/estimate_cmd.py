@@ -98,14 +98,20 @@ def render_scores(scores: dict[str, Any]) -> None:
             _fmt(row["contact_avg"]), "1.00x" if ratio is None else f"{ratio:.2f}x",
         )  # fmt: skip
     console.print(table)
-    peak = scores["peak"][f"spot{scores['measured_spot']}"]
+    spot = scores["measured_spot"]
+    peaks = ", ".join(
+        f"{k}{' (input)' if k == f'spot{spot}' else ''} |{_fmt(p['mean_abs_pct'])}| %"
+        for k, p in scores["peak"].items())
+    some = scores["peak"][f"spot{spot}"]
+    console.print(f"peak error per braking zone, mean over {some['zones']} of"
+                  f" {some.get('zones_total', some['zones'])} zones: {peaks}")
     cov = ", ".join(f"{k} {v * 100:.0f} %" for k, v in scores["coverage95"].items())
-    console.print(
-        f"peak error at spot {scores['measured_spot']}: mean |{_fmt(peak['mean_abs_pct'])}| %"
-        f" over {peak['zones']} of {peak.get('zones_total', peak['zones'])} braking zones,"
-        f" session peak {_fmt(peak['max_peak_pct'], '+.1f')} %"
-    )
-    console.print(f"95 % band coverage of the unmeasured spots: {cov}")
+    written = ", ".join(f"{k} {v * 100:.0f} %"
+                        for k, v in scores.get("coverage95_written_band", {}).items())
+    console.print(f"95 % coverage of the spots the filter does not read: {cov} by the"
+                  f" filter's own spread; {written} by the band estimate.parquet carries"
+                  " (+ the pyrometer's calibration, which these readings share, and the"
+                  " pads' crown balance)")
 
 
 def preflight(

@@ -669,6 +669,19 @@ def score_estimate(
                                          extra_var=scoring.reading_noise(ref[:, i - 1]) ** 2)
             for i in validation
         },
+        # the band estimate.parquet carries (``spot<i>_std``): the filter's spread, the
+        # pyrometer's calibration (which these readings share, so it is left out above) and
+        # the pads' crown balance
+        "coverage95_written_band": {
+            f"spot{i}": scoring.coverage(smooth[:, i - 1], frame[f"spot{i}_std"].to_numpy(),
+                                         ref[:, i - 1],
+                                         extra_var=scoring.reading_noise(ref[:, i - 1]) ** 2)
+            for i in validation if f"spot{i}_std" in frame
+        },
+        "coverage95_band": "the filter's own spread (plus each reading's noise), without the"
+                           " pyrometer calibration term the readings share and the crown"
+                           " balance term; coverage95_written_band: the band estimate.parquet"
+                           " carries",
     }
 
 

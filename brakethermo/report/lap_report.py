@@ -233,7 +233,8 @@ def _spot_roles(summary: dict[str, Any] | None, measured: tuple[int, ...]) -> st
         return (f"spot {spot} measured (the filter's input); spot{'s' if len(held) > 1 else ''}"
                 f" {listed} compare in sample (the h law was identified on this session)")
     return (f"spot {spot} measured (the filter's input); spot{'s' if len(held) > 1 else ''} "
-            f"{listed} held out to check the estimate")
+            f"{listed} held out to check the estimate (the law identified on another"
+            " session)")
 
 
 def _scores_view(summary: dict[str, Any] | None) -> dict[str, Any] | None:
@@ -252,8 +253,12 @@ def _scores_view(summary: dict[str, Any] | None) -> dict[str, Any] | None:
         "in_sample": bool(scores.get("in_sample")),
         "measured_spot": spot,
         "peak": peak,
+        "peaks": scores.get("peak", {}),
         "coverage": {k: 100.0 * v for k, v in scores.get("coverage95", {}).items()
                      if v is not None},
+        "coverage_written": {k: 100.0 * v
+                             for k, v in scores.get("coverage95_written_band", {}).items()
+                             if v is not None},
     }
 
 
