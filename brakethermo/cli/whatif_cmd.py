@@ -93,7 +93,7 @@ def whatif_cmd(
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.whatif import Scenario, WhatifOptions, whatif_session, write_whatif
     from brakethermo.report.session_links import refresh_page_links
-    from brakethermo.report.whatif_page import write_whatif_page
+    from brakethermo.report.whatif_page import shown, write_whatif_page
     from brakethermo.thermal.tyre_radiation import TyreView
 
     scenarios = [Scenario(cooling=c) for c in cooling or []]
@@ -119,14 +119,16 @@ def whatif_cmd(
     tab.add_column("lap")
     tab.add_column("base peak °C / in window %")
     for lab in labels:
-        tab.add_column(escape(f"{lab}: peak °C (95 %) / in window %"))
+        tab.add_column(escape(f"{shown(lab)}: peak °C (95 %) / in window %"))
     for row in res.summary["laps"]:
         b = row["base"]
-        cells = [str(row["lap"]), f"{_fmt(b['peak_contact_c'])} / {_fmt(b['time_in_window_pct'])}"]
+        cells = ["out-lap" if row["lap"] == 0 else str(row["lap"]),
+                 f"{_fmt(b['peak_contact_c'])} / {_fmt(b['time_in_window_pct'])}"]
         for lab in labels:
             s = row[lab]
             cells.append(f"{_fmt(s['peak_contact_c'])} (±{_fmt(s['peak_contact_band95_c'])})"
                          f" / {_fmt(s['time_in_window_pct'])}")
         tab.add_row(*cells)
     console.print(tab)
+    console.print(f"h law: {escape(str(res.summary['run']['h_law']))}", highlight=False)
     console.print(f"written: {escape(str(folder / 'whatif.parquet'))}, {escape(str(page))}")

@@ -145,13 +145,14 @@ def calibration_for(disc: DiscSpec, h_law: str | Path | None) -> DiscCalibration
     return read_calibration(path)
 
 
-def other_disc(cal: DiscCalibration, disc: DiscSpec) -> str | None:
-    """What to say when the law was identified on another disc than ``disc`` (else None)."""
+def other_disc(cal: DiscCalibration, disc: DiscSpec, option: str = "--disc") -> str | None:
+    """What to say when the law was identified on another disc than ``disc`` (else None);
+    ``option`` is the command's option that names the session's disc."""
     if cal.disc_id is None or cal.disc_id == disc.id:
         return None
     return (f"{cal.source}: this h law was identified on disc '{cal.disc_id}' but the session"
             f" runs disc '{disc.id}': identify-h on a test session of disc '{disc.id}', or"
-            " name the session's disc with --disc if its facts are wrong")
+            f" name the session's disc with {option} if its facts are wrong")
 
 
 def own_h_law(folder: str | Path, session: Session) -> Path | None:

@@ -151,7 +151,13 @@ class WhatifOptions:
 
     def __post_init__(self) -> None:
         if not self.scenarios:
-            raise ConfigError("whatif needs at least one change: --cooling, --disc or --ambient")
+            raise ConfigError("whatif needs at least one change: --cooling, --disc, --ambient,"
+                              " --pads or --scenario")
+        labels = [sc.label for sc in self.scenarios]
+        twice = sorted({lab for lab in labels if labels.count(lab) > 1})
+        if twice:
+            raise ConfigError(f"scenario {', '.join(repr(t) for t in twice)} given twice: give"
+                              " each change once")
         if self.draws < 0 or self.draws > 200:
             raise ConfigError(f"--draws {self.draws}: give 0 to 200 replays")
         if self.h_rel_sigma is not None and not (0.0 <= self.h_rel_sigma < 1.0):
@@ -188,10 +194,23 @@ class WhatifResult:
         return self.estimate.stem
 
 
+
+def _mu_assumption(est: Any) -> str:
+    """Where μ/μ_nom comes from, in words: the law's μ(T), a μ(T) the race dropped (its own
+    evidence), or none identified."""
+    if est.state_space.effects.mu_beta:
+        return "μ/μ_nom from the identified μ(T) of the law"
+    dropped = est.summary["run"].get("online_choice", {}).get("law_effects_dropped", [])
+    if "friction_temperature" in dropped:
+        return ("μ/μ_nom constant: the law carries an identified μ(T), but this race's own"
+                " held-out innovations did not support it and the estimate dropped it (its"
+                " evidence: run.online_choice in the estimate's summary.json)")
+    return "μ/μ_nom constant: the law carries no identified μ(T)"
+
 def _law_extra(h_law: str | Path | None, disc: DiscSpec) -> dict[str, Any]:
     """The ``[extra]`` table of the law; a law of another disc cannot predict this one."""
     cal = calibration_for(disc, h_law)
-    mismatch = other_disc(cal, disc)
+    mismatch = other_disc(cal, disc, "--disc-of-session")
     if mismatch:
         raise ConfigError(mismatch)
     return read_h_law(cal.source).extra
@@ -415,8 +434,7 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
             "heat to the tyre: one disc's inner face to the sidewall annulus, exact view"
             " factor of coaxial parallel annuli, grey bodies, shading ignored (an upper"
             " bound of the direct exchange); two discs on the wheel give twice this",
-            "μ/μ_nom from the identified μ(T) of the law" if est.state_space.effects.mu_beta
-            else "μ/μ_nom constant: the law carries no identified μ(T)",
+            _mu_assumption(est),
         ],
         "run": {
             "brakethermo": __version__,

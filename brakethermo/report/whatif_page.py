@@ -20,10 +20,14 @@ BASE_COLOR = "#444444"
 
 
 def _f(x: float | None, spec: str = ".0f") -> str:
-    return "–" if x is None or not math.isfinite(x) else format(x, spec)
+    if x is None or not math.isfinite(x):
+        return "–"
+    text = format(x, spec)
+    # a change that rounds to nothing is no change: "-0" (or "+0") reads as a direction
+    return text.lstrip("+-") if float(text) == 0.0 else text
 
 
-def _shown(label: str) -> str:
+def shown(label: str) -> str:
     """A scenario label as people read it (the summary keys keep ASCII units)."""
     return label.replace(" degC", " °C")
 
@@ -46,7 +50,7 @@ def contact_figure(frame: pd.DataFrame, labels: Sequence[str], window: Sequence[
         s = frame[f"contact_avg_std{sfx}"].to_numpy()
         col = COLORS[j % len(COLORS)]
         ax.fill_between(t, c - 1.96 * s, c + 1.96 * s, color=col, alpha=0.15, lw=0)
-        ax.plot(t, c, color=col, lw=1.0, label=f"{_shown(lab)} (95 % band)")
+        ax.plot(t, c, color=col, lw=1.0, label=f"{shown(lab)} (95 % band)")
     ax.set_xlabel("time, min")
     ax.set_ylabel("contact band, °C")
     ax.set_title("Contact-band temperature: as run and replayed with each change")
@@ -78,7 +82,7 @@ def lap_figure(laps: Sequence[Mapping[str, Any]], labels: Sequence[str],
             if key == "peak_contact_c" and k != "base":
                 err = np.array([row[k]["peak_contact_band95_c"] for row in laps], float)
             ax.bar(x + (j - (len(keys) - 1) / 2) * width, vals, width, yerr=err, color=col,
-                   alpha=0.85, capsize=2, label="as run" if k == "base" else _shown(k))
+                   alpha=0.85, capsize=2, label="as run" if k == "base" else shown(k))
         if key in ("peak_contact_c", "hottest_radius_c"):
             for w in window:
                 ax.axhline(w, color="#2ca02c", lw=0.8, ls="--")
@@ -95,7 +99,7 @@ def lap_figure(laps: Sequence[Mapping[str, Any]], labels: Sequence[str],
 def _table(laps: Sequence[Mapping[str, Any]], labels: Sequence[str]) -> TableBlock:
     header = ["lap", "as run: peak °C", "in window %"]
     for lab in labels:
-        header += [f"{_shown(lab)}: peak °C (95 %)", "in window %", "above s", "tyre kJ", "μ min"]
+        header += [f"{shown(lab)}: peak °C (95 %)", "in window %", "above s", "tyre kJ", "μ min"]
     rows = []
     for row in laps:
         b = row["base"]
@@ -124,8 +128,8 @@ def whatif_page(summary: Mapping[str, Any], frame: pd.DataFrame) -> Page:
         d = [row[lab]["peak_contact_c"] - row["base"]["peak_contact_c"] for row in flying]
         w = [row[lab]["time_in_window_pct"] - row["base"]["time_in_window_pct"]
              for row in flying]
-        cards.append(Card(f"{_shown(lab)}: peak change", _f(float(np.mean(d)), "+.0f"), "°C"))
-        cards.append(Card(f"{_shown(lab)}: window change", _f(float(np.mean(w)), "+.0f"),
+        cards.append(Card(f"{shown(lab)}: peak change", _f(float(np.mean(d)), "+.0f"), "°C"))
+        cards.append(Card(f"{shown(lab)}: window change", _f(float(np.mean(w)), "+.0f"),
                           "% of lap"))
     main = Section(
         "Contact band as run and with each change",
