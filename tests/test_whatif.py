@@ -199,3 +199,23 @@ def test_simulator_replays_the_same_drive_with_a_change() -> None:
     assert (tc["contact_avg"][late] < tb["contact_avg"][late]).mean() > 0.95
     assert th["contact_avg"][late].mean() > tb["contact_avg"][late].mean()
     assert th["ambient"].mean() == pytest.approx(45.0, abs=0.5)
+
+
+def test_a_change_given_twice_is_refused_and_mu_source_is_said() -> None:
+    """Two equal scenarios shared one key of the summary (one overwrote the other); the
+    page said "the law carries no identified μ(T)" where the race had dropped the law's."""
+    from types import SimpleNamespace
+
+    from brakethermo.pipelines.whatif import _mu_assumption
+
+    with pytest.raises(ConfigError, match="twice"):
+        WhatifOptions(scenarios=(Scenario(cooling=1.2), Scenario(cooling=1.2)))
+
+    def est(beta: bool, dropped: list[str]) -> SimpleNamespace:
+        return SimpleNamespace(
+            state_space=SimpleNamespace(effects=SimpleNamespace(mu_beta=beta)),
+            summary={"run": {"online_choice": {"law_effects_dropped": dropped}}})
+
+    assert "from the identified μ(T)" in _mu_assumption(est(True, []))
+    assert "dropped it" in _mu_assumption(est(False, ["friction_temperature"]))
+    assert "carries no identified" in _mu_assumption(est(False, []))

@@ -155,7 +155,7 @@ def whatif_page(summary: Mapping[str, Any], frame: pd.DataFrame) -> Page:
         f" {run['tyre_view']['tyre_radius_m']:g} m, gap {run['tyre_view']['gap_m']:g} m,"
         f" sidewall {run['tyre_view']['carcass_c']:g} °C, ε {run['tyre_view']['emissivity']:g}.",
     ] + [f"warning: {w}" for w in run.get("warnings", [])])
-    return Page(title="What if", subtitle=", ".join(map(_shown, labels)), cards=cards,
+    return Page(title="What if", subtitle=", ".join(map(shown, labels)), cards=cards,
                 sections=[main, facts], back_href="../index.html",
                 footer=f"brakethermo {run['brakethermo']}")
 
