@@ -376,3 +376,15 @@ def test_folders_not_read_are_said(tmp_path):
             assert any("locked" in n and "cannot be read" in n for n in notes)
     finally:
         os.chmod(root / "locked", 0o755)
+
+
+def test_a_folder_without_sessions_is_an_error(tmp_path: Path) -> None:
+    """`batch emptydir` said "no session files" and exited 0, as if all were done."""
+    from brakethermo.cli import app
+
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "empty" / "notes.txt").write_text("pit board")
+    res = CliRunner().invoke(app, ["batch", str(tmp_path / "empty"), "--out",
+                                   str(tmp_path / "o")])
+    assert res.exit_code == 1 and "no session files" in res.output, res.output
+    assert "Traceback" not in res.output

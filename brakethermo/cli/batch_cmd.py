@@ -124,7 +124,7 @@ def batch(
     as_json: JsonOpt = False,
 ) -> None:
     """Estimate every session in FOLDER and write per-lap reports; failures are isolated."""
-    from brakethermo.pipelines.batch import SESSION_SUFFIXES, BatchOptions, run_batch
+    from brakethermo.pipelines.batch import BatchOptions, run_batch
 
     options = BatchOptions(
         out=out,
@@ -145,12 +145,6 @@ def batch(
         result = _run_with_progress(folder, options)
         for note in result.not_read:
             console.print(f"[yellow]not read:[/] {escape(note)}", highlight=False)
-        if not result.outcomes:
-            console.print(
-                f"[yellow]no session files ({', '.join(SESSION_SUFFIXES)}) under"
-                f" {escape(str(folder))}[/]"
-            )
-            return
         console.print(_table(result, out))
         for o in result.outcomes:
             if o.kind == "single" and o.h_law_reason:

@@ -50,6 +50,7 @@ def identify_command(
 ) -> None:
     """Identify h(V) (joint UKF, h as a random walk) and the disc model's structure."""
     from brakethermo.cli.estimate_cmd import preflight
+    from brakethermo.models.effects import EFFECTS
     from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
     from brakethermo.pipelines.output_dir import check_output_dir
     from brakethermo.pipelines.outputs import to_json
@@ -72,15 +73,21 @@ def identify_command(
     table = Table(title=f"{escape(result.stem)}: h(V) law", title_justify="left")
     table.add_column("speed km/h", justify="right")
     table.add_column("h W/(m² K)", justify="right")
-    table.add_column("UKF-only law", justify="right")
+    table.add_column("UKF samples' law (paper, not used)", justify="right")
+    fitted = result.samples["speed"].to_numpy()[result.fit_mask] * 3.6
+    top = float(fitted.max()) if fitted.size else 0.0
     for v in (50, 100, 150, 200, 250, 280, 300, 330, 350):
-        ukf = "–" if result.law_ukf is None else f"{float(result.law_ukf(v / 3.6)):.1f}"
+        ukf = ("–" if result.law_ukf is None else "beyond the samples" if v > top else
+               f"{float(result.law_ukf(v / 3.6)):.1f}")
         table.add_row(str(v), f"{float(law(v / 3.6)):.1f}", ukf)
     console.print(table)
     fit = result.summary["fit"]
     console.print(
-        f"power law a={law.a:.1f} b={law.b:.3f} below {law.knee:.2f}·V_ref, cubic above; "
-        f"{fit['samples_off_brake']} off-brake samples of {fit['samples_total']}"
+        f"power law a={law.a:.1f} b={law.b:.3f} below {law.knee:.2f}·V_ref"
+        f" (V_ref {law.v_ref * 3.6:.0f} km/h), cubic above; "
+        f"{fit['samples_off_brake']} off-brake samples of {fit['samples_total']}, up to"
+        f" {top:.0f} km/h; the UKF samples' law is the paper's fit to the filter's h alone,"
+        " before the open-loop refit that gives the law written"
     )
     s = result.structure
     if s is not None:
@@ -90,8 +97,10 @@ def identify_command(
             f"({s.nodes} nodes x {s.layers} layers)"
         )
         for name, values in s.effects.items():
+            units = {p.name: p.unit for p in EFFECTS[name].params} if name in EFFECTS else {}
             console.print(f"effect {name}: " + ", ".join(
-                f"{k} = {v:.3g}" for k, v in values.items() if isinstance(v, float)))
+                f"{k} = {v:.3g}{_unit_text(units.get(k, ''))}" for k, v in values.items()
+                if isinstance(v, float)))
         console.print(
             "open-loop RMSE per spot °C: "
             + ", ".join(f"{k} {v:.1f} (uniform {s.rmse_uniform_c[k]:.1f})"
@@ -104,3 +113,8 @@ def identify_command(
         console.print(f"[yellow]warning:[/] {escape(warning)}", soft_wrap=True)
     console.print(f"wrote {escape(str(folder / 'h_law.toml'))}, h_samples.parquet, h_law.png "
                   f"({result.timings['total_s']:.1f} s)")
+
+
+def _unit_text(unit: str) -> str:
+    """A parameter's unit as printed after its value ("" when it is a pure number)."""
+    return {"": "", "-": "", "degC": " °C"}.get(unit, f" {unit}")

@@ -9,9 +9,11 @@ from typing import Any
 
 from brakethermo.errors import (
     ConfigError,
+    DataError,
     Interrupted,
 )
 from brakethermo.pipelines.batch.discovery import (
+    SESSION_SUFFIXES,
     discover_sessions,
     earlier_sessions,
     output_names,
@@ -110,6 +112,11 @@ def run_batch(
     _check_places(folder, out)
     not_read: list[str] = []
     files = discover_sessions(folder, exclude=[out], not_read=not_read)
+    if not files:
+        unread = f"; not read: {'; '.join(not_read)}" if not_read else ""
+        raise DataError(f"no session files ({', '.join(SESSION_SUFFIXES)}) under this folder"
+                        f"{unread}: give the folder the logger's files are in",
+                        path=folder)
     preflight(options)
     names = output_names(files, folder)
     if on_event is not None:

@@ -70,7 +70,8 @@ def disc_data_power(
         lo, hi = float(np.percentile(read, 1)), float(np.percentile(read, 99))
         if lo - air > MAX_COLD_GAP_C:
             out["emissivity_error"] = (
-                f"the readings span {lo:.0f}–{hi:.0f} °C, never within"
+                f"98 % of the readings lie within {lo:.0f}–{hi:.0f} °C (1st to 99th"
+                f" percentile), never within"
                 f" {MAX_COLD_GAP_C:.0f} °C of the air ({air:.0f} °C; the pyrometer reads"
                 f" nothing below {floor_c:.0f} °C): there a wrong emissivity is mostly a power"
                 " scale and an offset the h law absorbs, so a weak one cannot show — a"

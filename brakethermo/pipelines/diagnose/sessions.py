@@ -3,6 +3,7 @@ parquet and the page."""
 
 from __future__ import annotations
 
+import shlex
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -120,10 +121,23 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
 
 
 def write_pooled(summary: dict[str, Any], out_dir: str | Path) -> Path:
-    """``<out>/pooled/diagnosis.json``; returns its path."""
+    """``<out>/pooled/diagnosis.json``; returns its path (``summary``'s suggested commands
+    are given ``--out out_dir``, in place)."""
     from brakethermo.pipelines.outputs import write_json
 
+    summary.update(_with_out(summary, f"--out {shlex.quote(str(out_dir))}"))
     return write_json(Path(out_dir) / "pooled" / "diagnosis.json", summary)
+
+
+def _with_out(value: Any, out: str) -> Any:
+    """``value`` with the placeholder ``--out OUT`` of every suggested command replaced."""
+    if isinstance(value, str):
+        return value.replace("--out OUT", out)
+    if isinstance(value, dict):
+        return {k: _with_out(v, out) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_with_out(v, out) for v in value]
+    return value
 
 
 def write_diagnosis(result: DiagnoseResult, out_dir: str | Path) -> Path:
@@ -142,6 +156,8 @@ def write_diagnosis(result: DiagnoseResult, out_dir: str | Path) -> Path:
 
     folder = Path(out_dir) / result.stem
     folder.mkdir(parents=True, exist_ok=True)
+    # the commands it suggests write where this one did
+    result.summary = _with_out(result.summary, f"--out {shlex.quote(str(out_dir))}")
     cols: dict[str, np.ndarray] = {"time": result.time, "lap": result.lap.astype(np.int64),
                                    "lap_distance": result.lap_distance}
     for i in range(4):
