@@ -10,6 +10,7 @@ written, a small index holds the links (the pages' back links land there).
 from __future__ import annotations
 
 import html
+import json
 from pathlib import Path
 
 from brakethermo.io.atomic import write_text_atomic
@@ -22,10 +23,30 @@ PAGES = (
 START, END = "<!--pages-->", "<!--/pages-->"
 
 
+def _law_of(path: Path) -> str | None:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))["run"]["h_law"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _note(folder: Path, href: str) -> str:
+    """What a reader must know before following a link: a what-if replayed on another h
+    law than the estimate now beside it (a later estimate replaced the one it anchored to).
+    """
+    if href != "whatif/index.html":
+        return ""
+    made, now = _law_of(folder / "whatif" / "summary.json"), _law_of(folder / "summary.json")
+    if made is None or now is None or made == now:
+        return ""
+    return (f" (made with the h law {Path(made).name}; the estimate here now uses"
+            f" {Path(now).name}: run whatif again to compare with it)")
+
+
 def page_links(folder: Path) -> str:
     """The HTML list of the sibling pages present in ``folder``."""
-    items = [f'<a href="{href}">{html.escape(label)}</a>' for href, label in PAGES
-             if (folder / href).exists()]
+    items = [f'<a href="{href}">{html.escape(label)}</a>{html.escape(_note(folder, href))}'
+             for href, label in PAGES if (folder / href).exists()]
     return " · ".join(items)
 
 
