@@ -410,8 +410,10 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
     base_laps = lap_figures(base, lap, braking, dt)
     scen_laps = [lap_figures(r, lap, braking, dt) for r in replays]
     laps = []
+    durations = {lp.lap: lp.duration_s for lp in session.laps}  # as the estimate reports them
     for n, b in base_laps.items():
-        row: dict[str, Any] = {"lap": n, "lap_time_s": float(np.sum(lap == n) * dt), "base": b}
+        t_lap = round(float(durations.get(n, np.sum(lap == n) * dt)), 3)
+        row: dict[str, Any] = {"lap": n, "lap_time_s": t_lap, "base": b}
         for r, figs in zip(replays, scen_laps, strict=True):
             row[r.scenario.label] = figs[n]
         laps.append(row)
