@@ -109,9 +109,10 @@ def effects_figure(effects: list[dict[str, Any]], verdict: str) -> Figure:
     ax.set_ylabel("held-out RMSE [°C]")
     ax.set_title("Which effect: held-out RMSE and shrink [95 % bootstrap interval]", loc="left",
                  fontsize=11)
-    ax.legend(loc="upper right", fontsize=9)
+    # above the axes: inside, it sat on the last bar's label
+    ax.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, fontsize=9, frameon=False)
     ax.set_ylim(0, max([*before, *after, 1.0]) * 1.35)
-    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.2, top=0.88)
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.2, top=0.86)
     return fig
 
 
