@@ -106,6 +106,13 @@ def identify_command(
             + ", ".join(f"{k} {v:.1f} (uniform {s.rmse_uniform_c[k]:.1f})"
                         for k, v in s.rmse_c.items())
         )
+    ev = result.summary.get("evidence")
+    if ev and ev.get("straights", 0) >= 2 and not ev["ci95"][0] <= 1.0 <= ev["ci95"][1]:
+        console.print(
+            f"evidence: on {ev['straights']} off-brake straights the estimate's layered model"
+            f" cools as measured with this law x{ev['factor']:.3f}"
+            f" [{ev['ci95'][0]:.3f}, {ev['ci95'][1]:.3f}] (h_law.png; identify.json"
+            " evidence); the law is written as fitted", highlight=False)
     sel = result.summary["effect_selection"]
     console.print(f"effects carried: {', '.join(sel['selected']) or 'none'} —"
                   f" {escape(sel['why'])}", highlight=False)
