@@ -73,21 +73,19 @@ def identify_command(
     table = Table(title=f"{escape(result.stem)}: h(V) law", title_justify="left")
     table.add_column("speed km/h", justify="right")
     table.add_column("h W/(m² K)", justify="right")
-    table.add_column("UKF samples' law (paper, not used)", justify="right")
     fitted = result.samples["speed"].to_numpy()[result.fit_mask] * 3.6
     top = float(fitted.max()) if fitted.size else 0.0
     for v in (50, 100, 150, 200, 250, 280, 300, 330, 350):
-        ukf = ("–" if result.law_ukf is None else "beyond the samples" if v > top else
-               f"{float(result.law_ukf(v / 3.6)):.1f}")
-        table.add_row(str(v), f"{float(law(v / 3.6)):.1f}", ukf)
+        table.add_row(str(v), f"{float(law(v / 3.6)):.1f}" + (" (beyond the samples)"
+                                                              if v > top else ""))
     console.print(table)
     fit = result.summary["fit"]
     console.print(
         f"power law a={law.a:.1f} b={law.b:.3f} below {law.knee:.2f}·V_ref"
         f" (V_ref {law.v_ref * 3.6:.0f} km/h), cubic above; "
         f"{fit['samples_off_brake']} off-brake samples of {fit['samples_total']}, up to"
-        f" {top:.0f} km/h; the UKF samples' law is the paper's fit to the filter's h alone,"
-        " before the open-loop refit that gives the law written"
+        f" {top:.0f} km/h (the paper's fit to the filter's h samples alone, before the"
+        " open-loop refit: identify.json law_ukf_only and h_law.png)"
     )
     s = result.structure
     if s is not None:
