@@ -210,7 +210,10 @@ def atomic_entries(target: str | Path, owned: tuple[str, ...]) -> Iterator[Path]
                 shutil.rmtree(entry)
             else:
                 entry.unlink()
-        for entry in sorted(stage.iterdir(), key=lambda e: e.name == "index.html"):
-            _swap_in(entry, target / entry.name, tag)  # the index last: its links exist
+        # the index after what it links; a manifest (a command's record that the folder is
+        # complete) after everything, so an interrupt never leaves one beside half the rest
+        for entry in sorted(stage.iterdir(), key=lambda e: (e.name.endswith("manifest.json"),
+                                                            e.name == "index.html")):
+            _swap_in(entry, target / entry.name, tag)
     finally:
         shutil.rmtree(stage, ignore_errors=True)

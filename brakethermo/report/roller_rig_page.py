@@ -116,6 +116,26 @@ def creep_figure(result: RollerRigResult) -> Figure:
 CREEP_NAMES = {"polach": "Polach law", "fastsim": "FASTSIM table (Kalker)"}
 
 
+def _method_text(result: RollerRigResult) -> list[str]:
+    """The page's paragraphs on the filter, the supply, restarts, consistency, the law."""
+    s = result.summary
+    text = [
+        f"Joint UKF on [ω_w, ω_r, r_w] (paper eq. 10-14), α = {s['filter']['alpha']:g}, "
+        f"β = {s['filter']['beta']:g}, κ = {s['filter']['kappa']:g}, RK4 at "
+        f"{s['filter']['rk4_substep_s'] * 1e3:g} ms inside each {result.session.dt * 1e3:g} ms "
+        f"sample; creep law {s['filter']['creep_law']}; tuning '{s['filter']['tuning']}'; "
+        + ("unscented RTS smoother on." if result.options.smoother else "filter only (the paper)."),
+        f"Roller motor supply {result.supply_hz:.3f} Hz ({result.supply_source}).",
+    ]  # fmt: skip
+    text.extend(f"From r0 = {r['r0_mm']:g} mm: {r['restarted']}." for r in s["runs"]
+                if r["restarted"])
+    text.append("Filter consistency (speeds), first guess: "
+                + consistency_text(s["runs"][0]["consistency"]) + ".")
+    if s["filter"]["with_effect"] is not None:
+        text.append("The creep law carries " + carried_text(s["filter"]["with_effect"]) + ".")
+    return text
+
+
 def roller_rig_page(result: RollerRigResult) -> Page:
     """The report page of one roller-rig run (``result``: RollerRigResult)."""
     s = result.summary
@@ -164,20 +184,7 @@ def roller_rig_page(result: RollerRigResult) -> Page:
          _fmt(cmp.get("ukf_traction_error_mm"), "+.3f")],
     ]  # fmt: skip
     drop = cmp["naive_traction_drop_mm"]
-    text = [
-        f"Joint UKF on [ω_w, ω_r, r_w] (paper eq. 10-14), α = {s['filter']['alpha']:g}, "
-        f"β = {s['filter']['beta']:g}, κ = {s['filter']['kappa']:g}, RK4 at "
-        f"{s['filter']['rk4_substep_s'] * 1e3:g} ms inside each {result.session.dt * 1e3:g} ms "
-        f"sample; creep law {s['filter']['creep_law']}; tuning '{s['filter']['tuning']}'; "
-        + ("unscented RTS smoother on." if result.options.smoother else "filter only (the paper)."),
-        f"Roller motor supply {result.supply_hz:.3f} Hz ({result.supply_source}).",
-    ]  # fmt: skip
-    text.extend(f"From r0 = {r['r0_mm']:g} mm: {r['restarted']}." for r in s["runs"]
-                if r["restarted"])
-    text.append("Filter consistency (speeds), first guess: "
-                + consistency_text(s["runs"][0]["consistency"]) + ".")
-    if s["filter"]["with_effect"] is not None:
-        text.append("The creep law carries " + carried_text(s["filter"]["with_effect"]) + ".")
+    text = _method_text(result)
     naive_text = (
         "The naive radius ω_r·R_r/ω_w ignores creep: right in free rolling, it reads low "
         "under traction because the wheel surface runs faster than the roller's."

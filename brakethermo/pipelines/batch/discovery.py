@@ -152,8 +152,9 @@ def up_to_date(manifest: dict[str, Any] | None, sha: str, key: str,
 def earlier_sessions(out: Path, current: Iterable[str]) -> list[dict[str, Any]]:
     """Index records of the session folders an earlier batch left in ``out`` that this
     batch did not process (another input folder into the same ``--out``): kept and
-    listed, never dropped from the index. Their peaks are the manifest's only while the
-    folder still holds that batch's outputs."""
+    listed, never dropped from the index. Their peaks are the manifest's while the
+    folder still holds that batch's outputs (or cannot say: a manifest from before the
+    fingerprints)."""
     skip = {n.casefold() for n in current}
     rows = []
     try:
@@ -164,23 +165,20 @@ def earlier_sessions(out: Path, current: Iterable[str]) -> list[dict[str, Any]]:
         manifest = read_manifest(folder)
         if folder.name.casefold() in skip or not isinstance(manifest, dict):
             continue
+        written = manifest.get("outputs_sha256")
         try:
-            same = output_fingerprints(folder) == manifest.get("outputs_sha256")
+            same = None if written is None else output_fingerprints(folder) == written
         except OSError:
             same = False
-        rows.append({
-            "file": str(manifest.get("input", "")),
-            "name": folder.name,
-            "status": "earlier batch",
-            "kind": manifest.get("kind"),
-            "laps": manifest.get("laps"),
-            "peaks_c": dict(manifest.get("peaks_c") or {}) if same else {},
-            "reason": (f"from an earlier batch of {manifest.get('input', '?')}" if same else
-                       "from an earlier batch; its results were replaced by another"
-                       " command since (peaks on its own page)"),
-            "h_law": manifest.get("h_law_source"),
-            "h_law_reason": manifest.get("h_law_reason", ""),
-        })
+        row = skipped_outcome(Path(str(manifest.get("input", ""))), folder.name, manifest,
+                              out).to_json()
+        row["status"] = "earlier batch"
+        row["reason"] = (f"from an earlier batch of {manifest.get('input', '?')}" + (
+            "" if same else " (not checked since: an older manifest)" if same is None else
+            "; its results were replaced by another command since (peaks on its own page)"))
+        if same is False:
+            row["peaks_c"] = {}
+        rows.append(row)
     return rows
 
 

@@ -80,6 +80,18 @@ def _check_places(folder: Path, out: Path) -> None:
                           " folder outside it")
 
 
+def _sessions_under(folder: Path, out: Path) -> tuple[list[Path], list[str]]:
+    """The session files under ``folder`` and the folders not read; none is an error."""
+    not_read: list[str] = []
+    files = discover_sessions(folder, exclude=[out], not_read=not_read)
+    if not files:
+        unread = f"; not read: {'; '.join(not_read)}" if not_read else ""
+        raise DataError(f"no session files ({', '.join(SESSION_SUFFIXES)}) under this folder"
+                        f"{unread}: give the folder the logger's files are in",
+                        path=folder)
+    return files, not_read
+
+
 def run_batch(
     folder: str | Path,
     options: BatchOptions,
@@ -110,13 +122,7 @@ def run_batch(
     folder = Path(folder)
     out = Path(options.out)
     _check_places(folder, out)
-    not_read: list[str] = []
-    files = discover_sessions(folder, exclude=[out], not_read=not_read)
-    if not files:
-        unread = f"; not read: {'; '.join(not_read)}" if not_read else ""
-        raise DataError(f"no session files ({', '.join(SESSION_SUFFIXES)}) under this folder"
-                        f"{unread}: give the folder the logger's files are in",
-                        path=folder)
+    files, not_read = _sessions_under(folder, out)
     preflight(options)
     names = output_names(files, folder)
     if on_event is not None:
