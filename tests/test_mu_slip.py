@@ -158,6 +158,18 @@ def test_impossible_answers_are_said_or_refused(tmp_path: Path) -> None:
         res.output)
     assert "--mu-max 0" in CliRunner().invoke(
         app, ["mu-slip", str(path), "--mu-max", "0", "--out", str(tmp_path / "o")]).output
+    # a log that starts already braking has no free rolling to judge: the right peak, no
+    # word about the radius (the first version of the check refused it)
+    sim = simulate_tyre_rig("dry", seed=8107)
+    ch = {c.name: c for c in sim.session.channels}
+    v, w = ch["vehicle_speed"], ch["wheel_speed"]
+    slip = 1.0 - np.interp(v.time, w.time, w.value) * 0.3 / np.maximum(v.value, 1.0)
+    t0 = float(v.time[np.flatnonzero(slip > 0.08)[0]])
+    cut = tuple(Channel(c.name, c.unit, c.time[c.time >= t0] - t0, c.value[c.time >= t0])
+                for c in sim.session.channels)
+    late = write_session(tmp_path / "late.parquet", SessionData(cut, sim.session.facts))
+    summ = summary(mu_slip(late))
+    assert summ["warnings"] == [] and abs(summ["peak"]["mu"] - clean["peak"]["mu"]) < 0.05
 
 
 def test_slip_ratio_channel_used(tmp_path: Path) -> None:

@@ -252,33 +252,39 @@ class RampPoints:
 
 
 FREE_SLIP = (0.02, 0.06)  # |slip| in free rolling: said above the first, refused above the second
+FREE_MU = 0.05  # |μ| below this: no brake torque, the wheel rolls free
+MIN_FREE_SAMPLES = 20  # free-rolling samples before the ramp needed to judge the slip there
 
 
-def free_rolling_check(session: Session, slip: np.ndarray, start: int,
+def free_rolling_check(session: Session, slip: np.ndarray, mu: np.ndarray, start: int,
                        radius_m: float | None, given: bool) -> list[str]:
-    """Slip before the ramp, where the wheel rolls free, must be near nil: a radius a few per
-    cent off shows there first (and moves every slip of the ramp). Returns the warnings;
-    DataError beyond :data:`FREE_SLIP`'s upper bound, naming the radius the speeds give."""
-    free = slip[:start]
-    free = free[np.isfinite(free)]
-    if free.size < 10:
+    """Slip where the wheel rolls free — before the ramp and with μ about nil (no brake
+    torque; a session that starts braking has no such samples and is not judged) — must
+    be near nil: a radius a few per cent off shows there first and moves every slip of the
+    ramp. Returns the warnings; DataError beyond :data:`FREE_SLIP`'s upper bound, naming
+    the radius the free-rolling speeds give."""
+    rolling = np.zeros(slip.size, bool)
+    rolling[:start] = True
+    rolling &= np.isfinite(slip) & np.isfinite(mu) & (np.abs(mu) < FREE_MU)
+    if rolling.sum() < MIN_FREE_SAMPLES:
         return []
-    s0 = float(np.median(free))
+    s0 = float(np.median(slip[rolling]))
     if abs(s0) <= FREE_SLIP[0]:
         return []
-    said = ""
-    if radius_m is not None:
-        V, w = session.values("vehicle_speed")[:start], session.values("wheel_speed")[:start]
-        ok = np.isfinite(V) & np.isfinite(w) & (V >= 1.0) & (np.abs(w) > 1e-6)
-        if ok.any():
-            r_free = float(np.median(V[ok] / w[ok]))
-            said = (f" with the wheel radius {radius_m:g} m"
-                    f" ({'--radius' if given else 'the session fact'}); the free-rolling"
-                    f" speeds give {r_free:.3f} m")
-    text = (f"in free rolling before the ramp the slip is {s0:+.3f}, not about 0{said}:"
-            " every slip of the ramp moves with it")
+    if radius_m is None:
+        said, fix = " in the slip_ratio channel", "check the slip channel's zero and unit"
+    else:
+        V, w = session.values("vehicle_speed"), session.values("wheel_speed")
+        ok = rolling & np.isfinite(V) & np.isfinite(w) & (V >= 1.0) & (np.abs(w) > 1e-6)
+        speeds = (f"; the free-rolling speeds give {float(np.median(V[ok] / w[ok])):.3f} m"
+                  if ok.any() else "")
+        said = (f" with the wheel radius {radius_m:g} m"
+                f" ({'--radius' if given else 'the session fact'}){speeds}")
+        fix = "fix the radius"
+    text = (f"in free rolling before the ramp (μ about 0) the slip is {s0:+.3f}, not about"
+            f" 0{said}: every slip of the ramp moves with it")
     if abs(s0) > FREE_SLIP[1]:
-        raise DataError(text + "; fix the radius (or the slip channel)", path=session.path,
+        raise DataError(f"{text}; {fix}", path=session.path,
                         channel="slip_ratio" if radius_m is None else "wheel_speed")
     return [text]
 
@@ -295,7 +301,7 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
         start, lock = 0, slip.size
     else:
         start, lock = find_ramp(session, slip)
-        warnings += free_rolling_check(session, slip, start, radius,
+        warnings += free_rolling_check(session, slip, mu, start, radius,
                                        options.radius_m is not None)
     sl = slice(start, lock)
     ok = np.isfinite(slip[sl]) & np.isfinite(mu[sl]) & (slip[sl] > 0.0) & (slip[sl] <= 1.0)
