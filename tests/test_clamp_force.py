@@ -185,8 +185,8 @@ def test_cli_outputs_and_json(tmp_path: Path) -> None:
         assert col in tab.column_names
     # --retrain says the pads changed: the reported estimate is the re-trained models'
     # (it was computed and then only kept in a side column)
-    for k, v in summ["rmse_kn"].items():
-        assert v == summ["wear"]["rmse_kn_retrained"][k], k
+    kf, before = tab.column("kf").to_numpy(), tab.column("kf_not_retrained").to_numpy()
+    assert not np.allclose(kf, before)  # two estimates, the re-trained one reported
     assert summ["rmse_kn"]["kf"] != summ["wear"]["rmse_kn_not_retrained"]["kf"]
     assert (tmp_path / "o" / "e" / "index.html").stat().st_size > 0
     on_disk = json.loads((tmp_path / "o" / "e" / "summary.json").read_text())
@@ -206,8 +206,10 @@ def test_peak_is_a_force_held_not_a_one_sample_spike() -> None:
     from brakethermo.pipelines.clamp_force import held_peak
 
     v = 30e3 * np.sin(np.linspace(0.0, np.pi, 1001))
-    v[400] = 40e3  # the torque balance's inertia term at a current step
-    assert held_peak(v, 1e-3) == pytest.approx(30e3, rel=1e-4)
+    for width in (1, 2, 3):  # the torque balance's inertia term at a current step
+        spiky = v.copy()
+        spiky[400:400 + width] = 40e3
+        assert held_peak(spiky, 1e-3) == pytest.approx(30e3, rel=1e-4), width
     assert held_peak(v[:2], 1e-3) == 30e3 * np.sin(np.pi / 1000)
 
 

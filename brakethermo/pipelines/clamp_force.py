@@ -41,7 +41,8 @@ CHANNELS = ("motor_angle", "motor_current", "clamp_force")
 ESTIMATORS = ("kf", "kf_paper", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
 
 APPLIED_N = 500.0  # N: the caliper is clamping (the mean force is taken over these)
-PEAK_HOLD_S = 0.005  # s: a peak force is one held this long (not a one-sample spike)
+PEAK_HOLD_S = 0.005  # s: a peak force is one held this long (not a current-step spike)
+PEAK_SPIKE = 3  # samples: the longest torque-balance spike the held peak removes
 MAX_FACTOR_WALK = 0.5  # 1/sqrt(s): pads soften over seconds, not by half in one
 
 @dataclass(frozen=True)
@@ -150,6 +151,7 @@ def clamp_force(
         mr = train(rt.theta, rt.current, rt.force, rt.ts, structure=models)
         cr = fusion_check(rt.theta, rt.current, rt.force, rt.ts, factor_walk=factor_walk) or check
         er = estimate(mr, data.theta, data.current, data.ts, factor_walk=factor_walk, check=cr)
+        _check_sources(er, data)
     return ClampForceResult(data, tr, models, est, rt, mr, er, check, cr)
 
 
@@ -221,14 +223,16 @@ UNITS = {
         "sensor",
     )
 } | {"time": "s"}
+UNITS |= {f"{c}_not_retrained": u for c, u in UNITS.items() if c not in ("time", "sensor")}
 
 
 def held_peak(v: np.ndarray, dt: float) -> float:
-    """The largest value held for :data:`PEAK_HOLD_S` (the maximum of a centred running
-    median), in the units of ``v``: a step of the motor current puts a one- to three-sample
-    spike into the torque balance (its inertia term) and through it into the fusions,
-    up to 10 % above any force the caliper reached."""
-    w = max(3, round(PEAK_HOLD_S / dt) | 1)
+    """The largest value held over :data:`PEAK_HOLD_S` and at least 2 :data:`PEAK_SPIKE` + 1
+    samples (the maximum of a centred running median), in the units of ``v``: a step of
+    the motor current puts a one- to three-sample spike into the torque balance (its
+    inertia term) and through it into the fusions, up to 10 % above any force the caliper
+    reached; a median over that many samples drops it."""
+    w = max(2 * PEAK_SPIKE + 1, round(PEAK_HOLD_S / dt) | 1)
     held = median_filter(v, size=w, mode="nearest") if v.size >= w else v
     return float(np.max(held))
 
@@ -402,7 +406,7 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
                 rows,
                 caption="RMSE against the clamp-force sensor (where the session has it),"
                         " and what each estimator says (peak: the largest force held"
-                        f" {PEAK_HOLD_S * 1e3:.0f} ms)",
+                        f" {PEAK_HOLD_S * 1e3:.0f} ms, a current step's spike dropped)",
             )
         ],
     )
