@@ -58,6 +58,7 @@ MM, MPA = 1e3, 1e-6  # SI -> model units
 Z95 = 1.959963984540054
 APPLIED_MPA = 0.2  # a pressure above this: the brake is applied (coverage while braking)
 LOW_COVERAGE = 0.8  # a 95 % band covering less than this on the session's own sensor is said
+MIN_APPLIED = 200  # applied samples (over the pressures) needed to score the band while braking
 
 
 def _series(session: Session, name: str, scale: float, *, gaps: bool) -> Array:
@@ -443,23 +444,24 @@ def _summary(
             out1[w][state] = float(np.mean(z > 1.0))
             inside += int(np.sum(z <= Z95))
             total += int(ok.sum())
-            # while the brake is applied: idle samples, both sides near 0, flatter the pool
-            applied = validation[state][ok] > APPLIED_MPA
+            # while the brake is applied by either side's account: idle samples, both near
+            # 0, flatter the pool, and the observer's onsets and releases belong in it
+            applied = np.maximum(validation[state][ok], tr.x[ok, i]) > APPLIED_MPA
             inside_b += int(np.sum(z[applied] <= Z95))
             total_b += int(applied.sum())
         cov95[w] = inside / total if total else None
-        cov95_braking[w] = inside_b / total_b if total_b else None
+        cov95_braking[w] = inside_b / total_b if total_b >= MIN_APPLIED else None
     warnings = list(session.warnings)
     low = {w: c for w, c in cov95_braking.items() if c is not None and c < LOW_COVERAGE}
     if low:
         warnings.append(
             "scored against this session's own pressure sensor, the 95 % band covers "
             + ", ".join(f"{100 * c:.0f} % ({w.upper()})" for w, c in low.items())
-            + f" while the brake is applied (above {APPLIED_MPA:g} MPa): this booster's"
-            " hydraulics have moved beyond what the band admits since the training session"
-            " (the p–V curve shifted or scaled); `diagnose --rig ebooster` on a session with"
-            " the sensor names and sizes it, and `--with-effect auto` carries it, or retrain"
-            " on a session of the day")
+            + f" while the brake is applied (above {APPLIED_MPA:g} MPa): the booster does"
+            " not follow the training session's relation here beyond what the band admits —"
+            " its p–V curve shifted or scaled since (seals, fluid), or the pressure sensor or"
+            " its unit is off; `diagnose --rig ebooster` on this session names and sizes a"
+            " shift, `--with-effect auto` carries it, or retrain on a session of the day")
     return {
         "session": str(session.path),
         "samples": len(session.frame),

@@ -326,9 +326,9 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         workers = max(1, min(len(opts.r0_mm), os.cpu_count() or 1))
         with ThreadPoolExecutor(max_workers=workers) as pool:
             runs = list(pool.map(one_guess, opts.r0_mm))
-        return [ratio_band(creep_model_band(_checked_guess(run, ratio_mm, one_guess), torque,
-                                            free & both), ratio_mm, _settled(run, free & both, t))
-                for run in runs]
+        checked = [creep_model_band(_checked_guess(run, ratio_mm, one_guess), torque,
+                                    free & both) for run in runs]
+        return [ratio_band(run, ratio_mm, _settled(run, free & both, t)) for run in checked]
 
     model = RollerRigModel.from_spec(spec, creep_law=opts.creep_law)
     runs = guesses(model)
@@ -484,11 +484,16 @@ def creep_model_band(run: GuessRun, torque: np.ndarray, free: np.ndarray) -> Gue
 
 
 def _settled(run: GuessRun, free: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """The free-rolling samples after the guess's filter converged (its start from a far
-    guess is no model error)."""
-    start = run.convergence_time_s if run.convergence_time_s is not None else 0.5 * (
-        t[-1] - t[0])
-    return free & (t - t[0] >= start)
+    """The free-rolling samples after the guess's filter settled — its estimate within 1 mm
+    of its end (else after the first quarter of the run) and its own spread down from the
+    prior's (within 3x its free-rolling median): its start from a far guess is no model
+    error."""
+    start = (run.convergence_time_s if run.convergence_time_s is not None
+             else 0.25 * (t[-1] - t[0]))
+    out = free & (t - t[0] >= start) & np.isfinite(run.radius_std_mm)
+    if out.any():
+        out &= run.radius_std_mm <= 3.0 * float(np.median(run.radius_std_mm[out]))
+    return out
 
 
 def ratio_band(run: GuessRun, ratio_mm: float, free: np.ndarray) -> GuessRun:
