@@ -109,9 +109,10 @@ def render_scores(scores: dict[str, Any]) -> None:
     written = ", ".join(f"{k} {v * 100:.0f} %"
                         for k, v in scores.get("coverage95_written_band", {}).items())
     console.print(f"95 % coverage of the spots the filter does not read: {cov} by the"
-                  f" filter's own spread; {written} by the band estimate.parquet carries"
-                  " (+ the pyrometer's calibration, which these readings share, and the"
-                  " pads' crown balance)")
+                  " filter's own spread" + (
+                      f"; {written} by the band estimate.parquet carries (+ the pyrometer's"
+                      " calibration, which these readings share, and the pads' crown"
+                      " balance)" if written else ""))
 
 
 def preflight(

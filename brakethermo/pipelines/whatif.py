@@ -194,8 +194,7 @@ class WhatifResult:
         return self.estimate.stem
 
 
-
-def _mu_assumption(est: Any) -> str:
+def _mu_assumption(est: EstimateResult) -> str:
     """Where μ/μ_nom comes from, in words: the law's μ(T), a μ(T) the race dropped (its own
     evidence), or none identified."""
     if est.state_space.effects.mu_beta:
@@ -206,6 +205,7 @@ def _mu_assumption(est: Any) -> str:
                 " held-out innovations did not support it and the estimate dropped it (its"
                 " evidence: run.online_choice in the estimate's summary.json)")
     return "μ/μ_nom constant: the law carries no identified μ(T)"
+
 
 def _law_extra(h_law: str | Path | None, disc: DiscSpec) -> dict[str, Any]:
     """The ``[extra]`` table of the law; a law of another disc cannot predict this one."""
