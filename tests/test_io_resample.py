@@ -179,3 +179,19 @@ def test_no_beacon_is_one_lap_and_beacon_at_zero_has_no_outlap() -> None:
 def test_bad_beacon_value() -> None:
     with pytest.raises(DataError, match="not a lap number"):
         laps_from_beacons(np.array([1.0]), np.array([1.5]), grid(5.0), 5.0)
+
+
+def test_a_clock_that_jumps_back_is_refused_where_rows_are_in_time_order() -> None:
+    """A logger clock reset (the second half 300.0004 s earlier) was sorted into the first
+    half: two recordings interleaved into one session, exit 0. A few samples out of order
+    are still sorted, and MCAP, whose messages may be out of log-time order, is not
+    judged so."""
+    t = np.concatenate([np.arange(0.0, 600.0, 0.1), np.arange(0.0, 600.0, 0.1) + 299.9996])
+    with pytest.raises(DataError, match=r"time goes back by 299\.9\d+ s after sample 6000"):
+        sort_checked(t, np.zeros(t.size), path="f.csv", channel="vFront")
+    sorted_t, _ = sort_checked(t, np.zeros(t.size), path="f.mcap", channel="vFront",
+                               time_ordered=False)
+    assert (np.diff(sorted_t) > 0).all()
+    jitter = np.array([0.0, 0.1, 0.3, 0.2, 0.4])
+    assert sort_checked(jitter, jitter, path="f.csv", channel="x")[0].tolist() == [
+        0.0, 0.1, 0.2, 0.3, 0.4]

@@ -24,7 +24,7 @@ import pandas as pd
 from brakethermo.errors import DataError
 from brakethermo.io import csv_reader
 from brakethermo.io.aliases import AliasTable, load_aliases, resolve
-from brakethermo.io.formats import BY_SUFFIX
+from brakethermo.io.formats import BY_SUFFIX, FORMATS
 from brakethermo.io.laps import lap_length_warnings, laps_from_beacons, validate_beacons
 from brakethermo.io.raw import RawChannel, RawSession
 from brakethermo.io.resample import grid, hampel, resample, sort_checked
@@ -103,12 +103,18 @@ def _refuse_split_session(series: dict, end_s: float, path: Path) -> None:
 _Series = dict[str, tuple[RawChannel, np.ndarray, np.ndarray, str]]
 
 
+def time_ordered(raw: RawSession) -> bool:
+    """Whether the file's format writes samples in time order (:class:`Format`)."""
+    return next((f.time_ordered for f in FORMATS if f.name == raw.format), True)
+
+
 def _gather(raw: RawSession, found: dict[str, str], wanted: tuple[str, ...],
             warnings: list[str]) -> tuple[_Series, dict[str, float], dict[str, str]]:
     """The wanted channels in SI, finite, sorted: series, single-sample constants and
     the unusable ones with why (warnings appended)."""
     path = raw.path
     by_name = {c.name: c for c in raw.channels}
+    ordered = time_ordered(raw)
     series: _Series = {}
     constants: dict[str, float] = {}
     unusable: dict[str, str] = {}
@@ -129,7 +135,7 @@ def _gather(raw: RawSession, found: dict[str, str], wanted: tuple[str, ...],
                 f"channel '{canonical}' ({src.name}): {n_bad} non-finite sample(s) (NaN or"
                 " infinite) dropped"
             )
-        t, v = sort_checked(t, v, path=path, channel=src.name)
+        t, v = sort_checked(t, v, path=path, channel=src.name, time_ordered=ordered)
         if t.size == 1:
             constants[canonical] = float(v[0])
         else:
@@ -256,7 +262,8 @@ def load_session(
     if "lap_beacon" in found:
         src = by_name[found["lap_beacon"]]
         tb, vb, _ = _finite(src)
-        tb, vb = sort_checked(tb, vb, path=path, channel=src.name)
+        tb, vb = sort_checked(tb, vb, path=path, channel=src.name,
+                              time_ordered=time_ordered(raw))
         tb, vb, notes = validate_beacons(tb, vb, path=path, channel=src.name)
         warnings.extend(notes)
         laps, lap = laps_from_beacons(tb, vb, t_grid, raw.end_s, path=path, channel=src.name)

@@ -516,4 +516,4 @@ def read_mcap(path: Path) -> RawSession:
     return out.build(metadata, warnings)
 
 
-FORMAT = Format("MCAP", (".mcap",), read_mcap)
+FORMAT = Format("MCAP", (".mcap",), read_mcap, time_ordered=False)

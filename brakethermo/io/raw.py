@@ -121,8 +121,13 @@ class Format:
         ``read(path) -> RawSession``: the file at native rates, times in s from the
         earliest sample. Aliases, units, time sanity, gaps, laps and resampling are
         shared (:mod:`brakethermo.io.load`), not the reader's business.
+    time_ordered : bool
+        The format writes each channel's samples in time order (rows of a table, records
+        of a channel group), so a step back in time is a clock reset; False where it may
+        legitimately hold them out of order (MCAP's messages).
     """
 
     name: str
     suffixes: tuple[str, ...]
     read: Callable[[Path], RawSession]
+    time_ordered: bool = True

@@ -54,22 +54,39 @@ class Resampled:
     spikes: int = 0
 
 
+MAX_BACK_S = 1.0  # s: a step back in time beyond this is a clock reset, not buffering
+
+
 def grid(end_s: float, dt: float = GRID_DT) -> np.ndarray:
     """The grid ``0, dt, 2 dt, ...`` covering ``[0, end_s]``, s (10 Hz by default)."""
     n = int(np.floor(end_s / dt + 0.5)) + 1
     return np.arange(n) * dt
 
 
-def sort_checked(t: np.ndarray, v: np.ndarray, *, path: object, channel: str
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Sort samples by time and reject duplicate timestamps.
+def sort_checked(t: np.ndarray, v: np.ndarray, *, path: object, channel: str,
+                 time_ordered: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Sort samples by time and reject duplicate timestamps and a clock that jumps back.
+
+    A logger may write a few samples out of order (threads, buffers): those are sorted.
+    In a format that writes samples in time order (``time_ordered``), a step back of more
+    than :data:`MAX_BACK_S` is a clock reset or two logs joined, and sorting would
+    interleave them into one garbage session.
 
     Raises
     ------
     DataError
-        Two samples of the channel share a timestamp (names the count and the first time).
+        Two samples of the channel share a timestamp (names the count and the first time),
+        or the time goes back by more than :data:`MAX_BACK_S` (names where and by how much).
     """
     if t.size > 1 and not (np.diff(t) > 0).all():
+        step = np.diff(t)
+        k = int(np.argmin(step))
+        if time_ordered and step[k] < -MAX_BACK_S:
+            raise DataError(
+                f"the time goes back by {-float(step[k]):.3f} s after sample {k + 1} (t ="
+                f" {float(t[k]):.3f} s from the session start): the logger's clock was reset"
+                " or two logs were joined; split the file there and give each part alone",
+                path=path, channel=channel)
         order = np.argsort(t, kind="stable")
         t, v = t[order], v[order]
     dup = np.diff(t) == 0
