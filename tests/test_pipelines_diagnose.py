@@ -179,3 +179,23 @@ def test_pooled_sessions_and_pooling_bad_input(lag_session: Path, tmp_path: Path
     result = runner.invoke(app, ["diagnose", str(lag_session), str(race), "--out",
                                  str(tmp_path / "o"), *args])
     assert result.exit_code == 1 and "four-spot" in result.output
+
+
+def test_pooling_refuses_a_session_twice_or_two_of_one_name(tmp_path) -> None:
+    """Two files of one name shared OUT/<name>/ (one diagnosis lost, exit 0); one file
+    given twice counted its evidence twice and narrowed the interval."""
+    from brakethermo.errors import ConfigError
+    from brakethermo.pipelines.diagnose._common import filled
+    from brakethermo.pipelines.diagnose.sessions import diagnose_many
+
+    a, b = tmp_path / "kz.mcap", tmp_path / "day2" / "kz.mcap"
+    with pytest.raises(ConfigError, match="given twice"):
+        diagnose_many([a, a])
+    with pytest.raises(ConfigError, match="share the name 'kz'"):
+        diagnose_many([a, b])
+    summary = {"next_steps": ["brakethermo identify-h s.mcap --out OUT"],
+               "effects": [{"next_step": "ebooster X --with-effect DIR/<stem>/diagnosis.json"}]}
+    done = filled(summary, {"--out OUT": "--out 'my out'",
+                            "DIR/<stem>/diagnosis.json": "o/s/diagnosis.json"})
+    assert done["next_steps"] == ["brakethermo identify-h s.mcap --out 'my out'"]
+    assert done["effects"][0]["next_step"].endswith("--with-effect o/s/diagnosis.json")

@@ -210,7 +210,8 @@ def _effects_table(effects: list[dict], unit: str, digits: int) -> Table:
 
 def _next_steps(s: dict) -> None:
     for step in s["next_steps"]:
-        console.print(f"  next: {escape(step)}", highlight=False)
+        # soft-wrapped: a command cut mid-line by the console no longer pastes
+        console.print(f"  next: {escape(step)}", highlight=False, soft_wrap=True)
 
 
 def _verdict_text(s: dict) -> str:

@@ -92,3 +92,16 @@ class DiagnoseResult:
     def stem(self) -> str:
         return self.session.path.stem
 
+
+def filled(value: Any, fills: dict[str, str]) -> Any:
+    """``value`` (a summary: dicts, lists, strings) with each placeholder of ``fills``
+    replaced in every string — the suggested commands name where this run wrote."""
+    if isinstance(value, str):
+        for key, text in fills.items():
+            value = value.replace(key, text)
+        return value
+    if isinstance(value, dict):
+        return {k: filled(v, fills) for k, v in value.items()}
+    if isinstance(value, list):
+        return [filled(v, fills) for v in value]
+    return value

@@ -26,6 +26,7 @@ it cannot be compared with anything and is refused with one line.
 from __future__ import annotations
 
 import itertools
+import shlex
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,6 +49,7 @@ from brakethermo.io.session import Session
 from brakethermo.models.ebooster import BoosterFit, load_fit
 from brakethermo.models.rig_effects import BOOSTER_EFFECTS, EMB_EFFECTS, RigContext, RigEffect
 from brakethermo.numeric import rmse
+from brakethermo.pipelines.diagnose._common import filled
 from brakethermo.pipelines.ebooster import (
     MM,
     MPA,
@@ -353,6 +355,8 @@ def write_rig_diagnosis(result: RigDiagnosis, out_dir: str | Path) -> Path:
     from brakethermo.report.rig_diagnosis_page import rig_diagnosis_page
 
     folder = Path(out_dir) / result.stem
+    result.summary = filled(result.summary, {
+        "DIR/<stem>/diagnosis.json": shlex.quote(str(folder / "diagnosis.json"))})
     s = result.summary
     cols = {"time": result.time, "input": result.x, "measured": result.measured,
             "reference": result.reference}

@@ -15,8 +15,13 @@ from brakethermo.diagnosis.verdict import (
     CandidateEvidence,
     decide,
 )
-from brakethermo.errors import DataError
-from brakethermo.pipelines.diagnose._common import RULE, DiagnoseOptions, DiagnoseResult
+from brakethermo.errors import ConfigError, DataError
+from brakethermo.pipelines.diagnose._common import (
+    RULE,
+    DiagnoseOptions,
+    DiagnoseResult,
+    filled,
+)
 from brakethermo.pipelines.diagnose.four_spot import diagnose_session
 from brakethermo.pipelines.inputs import load_timed
 from brakethermo.pipelines.models import disc_for
@@ -43,6 +48,7 @@ def diagnose_many(paths: Sequence[str | Path], options: DiagnoseOptions | None =
         Sessions of different discs, or a session without the four spots pooling needs.
     """
     options = options or DiagnoseOptions()
+    _distinct(paths)
     sessions = [load_timed(p, options.aliases)[0] for p in paths]
     discs = {s.path.name: disc_for(s, options.disc).id for s in sessions}
     if len(set(discs.values())) > 1:
@@ -68,6 +74,21 @@ def diagnose_many(paths: Sequence[str | Path], options: DiagnoseOptions | None =
     return results, pool(results)
 
 
+def _distinct(paths: Sequence[str | Path]) -> None:
+    """Each session once and each in its own output folder (``OUT/<stem>/``): a file given
+    twice would count its evidence twice, two files of one stem would share a folder."""
+    seen: dict[str, Path] = {}
+    for p in map(Path, paths):
+        other = seen.get(p.stem.casefold())
+        if other is not None and other.resolve() == p.resolve():
+            raise ConfigError(f"{p} is given twice: pool each session once")
+        if other is not None:
+            raise ConfigError(f"{other} and {p} share the name '{p.stem}', and each session's"
+                              " diagnosis goes to OUT/<name>/: rename one (or diagnose them"
+                              " in separate calls)")
+        seen[p.stem.casefold()] = p
+
+
 def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
     """One verdict from several sessions: their held-out braking cycles resampled together.
 
@@ -86,8 +107,8 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
         for n in names if all(n in b for b in by_session)]
     blind_sets = [{u["name"]: u["why"] for u in r.summary.get("untestable", [])}
                   for r in results]
-    blind = {n: f"in every session — {why}" for n, why in blind_sets[0].items()
-             if all(n in b for b in blind_sets)}
+    blind = {n: f"in every session (in {results[0].stem}: {why})"
+             for n, why in blind_sets[0].items() if all(n in b for b in blind_sets)}
     decision = decide(ref, evidence, RULE, untestable=blind)
     stems = [r.stem for r in results]
     seen_in = {n: [r.stem for r in results for e in r.summary["effects"]
@@ -97,8 +118,18 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
         per = {r.stem: next(e["shrink_pct"] for e in r.summary["effects"]
                             if e["name"] == row["name"]) for r in results}
         rows.append({**row, "per_session_shrink_pct": per, "significant_in": seen_in[row["name"]]})
-    notes = [f"{n} is significant in {seen_in[n][0]} only: a one-off of that run, or an effect"
-             " the other runs cannot show" for n in names if len(seen_in[n]) == 1]
+    shrinks = {row["name"]: row["per_session_shrink_pct"] for row in rows}
+    notes = [f"{n} is significant in {seen_in[n][0]} only (held-out shrink per session: "
+             + ", ".join(f"{k} {v:+.0f} %" for k, v in shrinks.get(n, {}).items())
+             + "): a one-off of that run (a gusty day, one set of pads) or a difference"
+             " between the runs" for n in names if len(seen_in[n]) == 1]
+    own = {r.stem: r.summary["verdict"] for r in results if r.summary["verdict"] != "none"}
+    if len(set(own.values())) > 1:
+        notes.append("the sessions' own verdicts differ ("
+                     + "; ".join(f"{k}: {v}" for k, v in own.items())
+                     + "): the pooled figures weigh each run's braking cycles by the size of"
+                     " its gap, so the run with the larger gap leads them — read the"
+                     " per-session verdicts")
     gaps = [r.summary["gap"]["rmse_c"] for r in results]
     first = results[0].summary
     return {
@@ -125,19 +156,8 @@ def write_pooled(summary: dict[str, Any], out_dir: str | Path) -> Path:
     are given ``--out out_dir``, in place)."""
     from brakethermo.pipelines.outputs import write_json
 
-    summary.update(_with_out(summary, f"--out {shlex.quote(str(out_dir))}"))
+    summary.update(filled(summary, {"--out OUT": f"--out {shlex.quote(str(out_dir))}"}))
     return write_json(Path(out_dir) / "pooled" / "diagnosis.json", summary)
-
-
-def _with_out(value: Any, out: str) -> Any:
-    """``value`` with the placeholder ``--out OUT`` of every suggested command replaced."""
-    if isinstance(value, str):
-        return value.replace("--out OUT", out)
-    if isinstance(value, dict):
-        return {k: _with_out(v, out) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_with_out(v, out) for v in value]
-    return value
 
 
 def write_diagnosis(result: DiagnoseResult, out_dir: str | Path) -> Path:
@@ -157,7 +177,8 @@ def write_diagnosis(result: DiagnoseResult, out_dir: str | Path) -> Path:
     folder = Path(out_dir) / result.stem
     folder.mkdir(parents=True, exist_ok=True)
     # the commands it suggests write where this one did
-    result.summary = _with_out(result.summary, f"--out {shlex.quote(str(out_dir))}")
+    result.summary = filled(result.summary,
+                            {"--out OUT": f"--out {shlex.quote(str(out_dir))}"})
     cols: dict[str, np.ndarray] = {"time": result.time, "lap": result.lap.astype(np.int64),
                                    "lap_distance": result.lap_distance}
     for i in range(4):
