@@ -128,7 +128,7 @@ def test_session_page_says_which_spot_fed_the_filter_and_shows_self_scores(repor
     assert "spot 3 measured (the filter&#39;s input); spots 1, 2, 4 held out" in index or (
         "spot 3 measured (the filter's input); spots 1, 2, 4 held out" in index)
     assert "How well the estimate did" in index and "0.29x" in index
-    assert "over 7 of 8 braking zones" in index and "spot4 97 %" in index
+    assert "over 7 of 8 zones" in index and "spot4 97 %" in index
     assert "identified from this session by identify-h" in index
     assert 'alt="the h(V) law and the straights it rests on' in index
     assert '<a href="../index.html">&larr; all sessions</a>' in index
@@ -207,3 +207,14 @@ def test_a_measured_spot_above_the_window_shows_even_if_the_estimate_stays_insid
     assert result.laps.loc[lap, "meas_above_spot4_s"] == pytest.approx(4.0, abs=0.25)
     page = (out / f"lap_{lap:02d}" / "index.html").read_text()
     assert re.search(r'S4 <span class="hot">[34]\.[0-9] s above, peak 900 °C', page)
+
+
+def test_a_cut_last_lap_is_marked_partial() -> None:
+    """A truncated log's last lap (72 s on a 1:56 track) read as a lap time."""
+    from brakethermo.io.session import Lap
+    from brakethermo.results.laps import partial_laps
+
+    laps = (Lap(0, 0.0, 150.0), Lap(1, 150.0, 116.0), Lap(2, 266.0, 115.8),
+            Lap(3, 381.8, 116.2), Lap(4, 498.0, 72.2))
+    assert partial_laps(laps) == {4}
+    assert partial_laps(laps[:3]) == set()  # two flying laps: nothing to judge by

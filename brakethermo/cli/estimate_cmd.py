@@ -67,7 +67,9 @@ def render_laps(result: EstimateResult) -> None:
         hot_text = temp_text(hot.get("temp_c")) + (f"@{radius:.0f}" if radius is not None else "")
         above_hot = hot.get("time_above_window_s", 0.0)
         table.add_row(
-            lap_label(lap["lap"]), lap_time_text(lap["lap_time_s"]), *[temp_text(p) for p in peaks],
+            lap_label(lap["lap"]),
+            lap_time_text(lap["lap_time_s"]) + (" partial" if lap.get("partial") else ""),
+            *[temp_text(p) for p in peaks],
             f"[bold red]{hot_text}[/]" if above_hot > 0 else hot_text,
             f"{lap['time_below_window_s']:.0f}/{lap['time_in_window_s']:.0f}/"
             f"{lap['time_above_window_s']:.0f}",

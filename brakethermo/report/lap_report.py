@@ -47,6 +47,7 @@ from brakethermo.results.laps import (
     lap_name,
     lap_time_text,
     node_columns,
+    partial_laps,
     temp_text,
 )
 from brakethermo.thermal.disc import DiscSpec, load_disc
@@ -322,6 +323,7 @@ def _stats_with_readings(estimate: pd.DataFrame, session: Session | None, disc: 
         # count of steps differs by up to a step)
         beacon = {lap.lap: lap.duration_s for lap in session.laps}
         stats["lap_time_s"] = [beacon.get(int(n), t) for n, t in stats["lap_time_s"].items()]
+        stats["partial"] = [int(n) in partial_laps(session.laps) for n in stats.index]
     stats["zones"] = zones_df.groupby("lap").size().reindex(stats.index, fill_value=0)
     # What the sensors read beats any estimate: a measured spot above the window counts
     # even when the model (e.g. with unmodelled pad asymmetry) keeps its estimate inside.

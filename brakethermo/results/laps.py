@@ -59,6 +59,20 @@ def temp_text(x: float | None) -> str:
     return "–" if r is None else str(int(math.copysign(math.floor(abs(r) + 0.5), r)))
 
 
+SHORT_LAP = 0.8  # a flying lap under this share of the typical one is partial (cut, in-lap)
+
+
+def partial_laps(laps: tuple[Lap, ...]) -> set[int]:
+    """Flying laps shorter than :data:`SHORT_LAP` of the median flying lap (with three or
+    more to judge by): the session ended in them, or the rider came in — their times and
+    peaks are not a lap's."""
+    flying = {lap.lap: lap.duration_s for lap in laps if lap.lap >= 1 and lap.duration_s > 0}
+    if len(flying) < 3:
+        return set()
+    typical = float(np.median(list(flying.values())))
+    return {n for n, d in flying.items() if d < SHORT_LAP * typical}
+
+
 def lap_time_text(seconds: float | None) -> str:
     """A lap time as every output shows it: ``m:ss.sss`` from the beacon's lap duration."""
     if seconds is None or not math.isfinite(seconds):
@@ -122,6 +136,7 @@ def lap_summaries(
     spots = {s: frame[s].to_numpy() for s in SPOTS}
     hot, hot_idx = hottest_radius(frame)
     records = []
+    partial = partial_laps(laps)
     for lap in laps:
         sel = lap_col == lap.lap
         if not sel.any():
@@ -144,6 +159,7 @@ def lap_summaries(
             "lap": int(lap.lap),
             "label": lap_label(lap.lap),
             "lap_time_s": round(float(lap.duration_s), 3),
+            "partial": lap.lap in partial,
             "start_s": round(float(lap.start_s), 1),
             "peak": peaks,
             "time_below_window_s": round(float(np.sum(c < lo) * dt), 1),

@@ -19,6 +19,7 @@ from brakethermo.report.braking_zones import (
     zone_clusters,
 )
 from brakethermo.report.braking_zones import lap_distance as track_distance
+from brakethermo.results.laps import partial_laps
 
 
 def lap_distance(inputs: DiscInputs, session: Session) -> np.ndarray:
@@ -67,10 +68,8 @@ def split_laps(session: Session, inputs: DiscInputs, holdout: Sequence[int] | No
     """Training and held-out flying laps (out-lap and partial last lap excluded)."""
     present = sorted(int(v) for v in np.unique(inputs.lap) if v >= 1)
     durations = {lap.lap: lap.duration_s for lap in session.laps}
-    full = [lap for lap in present if durations.get(lap, 0.0) > 0]
-    if len(full) >= 3:
-        typical = float(np.median([durations[lap] for lap in full]))
-        full = [lap for lap in full if durations[lap] >= 0.8 * typical]
+    short = partial_laps(session.laps)
+    full = [lap for lap in present if durations.get(lap, 0.0) > 0 and lap not in short]
     if len(full) < 2:
         raise DataError(
             f"diagnose needs at least two flying laps to fit on some and check on others; the"
