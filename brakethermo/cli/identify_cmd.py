@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.markup import escape
@@ -20,6 +20,9 @@ from brakethermo.cli._options import (
     OutDir,
     TuningOpt,
 )
+
+if TYPE_CHECKING:
+    from brakethermo.io.session import Session
 
 
 @app.command("identify-h")
@@ -91,8 +94,8 @@ def identify_command(
     if s is not None:
         console.print(
             f"crown weights w = [{s.weights[0]:.3f}, {s.weights[1]:.3f}, {s.weights[2]:.3f}], "
-            f"k_z ratio {s.kz_ratio:.3f}, power scale {s.power_scale:.3f} "
-            f"({s.nodes} nodes x {s.layers} layers)"
+            f"k_z ratio {s.kz_ratio:.3f} ({_kz_text(s.kz_ratio, result.session, disc)}), power"
+            f" scale {s.power_scale:.3f} ({s.nodes} nodes x {s.layers} layers)", highlight=False
         )
         for name, values in s.effects.items():
             units = {p.name: p.unit for p in EFFECTS[name].params} if name in EFFECTS else {}
@@ -123,3 +126,14 @@ def identify_command(
 def _unit_text(unit: str) -> str:
     """A parameter's unit as printed after its value ("" when it is a pure number)."""
     return {"": "", "-": "", "degC": " °C"}.get(unit, f" {unit}")
+
+
+def _kz_text(ratio: float, session: Session, disc_option: str | Path | None) -> str:
+    """What the law's k_z ratio (to the in-plane k(T), the model's base; ``kz_factor`` of
+    an effect carries the same base) means in W/(m K) and against the datasheet's k_z."""
+    from brakethermo.pipelines.models import disc_for
+
+    spec = disc_for(session, disc_option)
+    k = ratio * float(spec.conductivity(400.0))
+    vs = f", {k / spec.k_z:.2f} x the datasheet's {spec.k_z:g}" if spec.k_z else ""
+    return f"of the in-plane k(T): k_z {k:.1f} W/(m K) at 400 °C{vs}"
