@@ -190,14 +190,17 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
                   f" ({s['units']}s {s['heldout_units']} held out)")
     console.print(_effects_table(s["effects"], u, 3))
     console.print(f"verdict: [bold]{escape(_verdict_text(s))}[/]")
+    for reason in s.get("verdict_reasons", []):
+        console.print(f"  {escape(reason)}", highlight=False)
     _next_steps(s)
     console.print(f"wrote {escape(str(folder / 'diagnosis.json'))} and "
                   f"{escape(str(folder / 'diagnosis' / 'index.html'))}")
 
 
 def _effects_table(effects: list[dict], unit: str, digits: int) -> Table:
-    """The candidates ranked by held-out shrink, as a console table."""
-    table = Table(title="Effects ranked by held-out shrink", title_justify="left")
+    """The candidates in the verdict's order, as a console table."""
+    table = Table(title="Effects in the verdict's order (held-out shrink)",
+                  title_justify="left")
     for col in ("effect", f"before {unit}", f"after {unit}", "shrink %", "95 % interval"):
         table.add_column(col, justify="left" if col == "effect" else "right", no_wrap=True)
     for e in effects:

@@ -268,6 +268,12 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
         "effects": effects_out,
         **decision.summary(),
         "negligible_below": case.floor,
+        "verdict_reasons": [*decision.summary()["verdict_reasons"], *(
+            f"{n} shrinks the gap by {rows[n]['shrink_pct']:.0f} %"
+            f" [{rows[n]['shrink_ci95_pct'][0]:.0f}, {rows[n]['shrink_ci95_pct'][1]:.0f}] but"
+            f" corrects it by {size[n]:.3g} {case.unit} RMS, below the sensor floor"
+            f" {case.floor:g} {case.unit}: set aside as negligible"
+            for n in sorted(negligible) if rows[n]["shrink_ci95_pct"][0] > RULE.min_shrink_pct)],
         "negligible": sorted(negligible),
         "combined": {"effects": [best] if best else []},
         "warnings": list(session.warnings),
