@@ -196,3 +196,20 @@ def test_spelling_and_defaults_are_the_same_everywhere():
         text = CliRunner().invoke(app, [command, "--help"], env={"COLUMNS": "200"}).output
         assert "--no-reports" in text and "--no-report " not in text
         assert "--out" in text and "[default: out]" in " ".join(text.split())
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (("--rig", "tyre", "--effects", "sensor_lag"), "not read for --rig tyre"),
+    (("--rig", "tyre", "--set", "seed=5"), "give the seed with --seed"),
+    (("--format", "mcap"), "--format mcap for a file named .parquet"),
+    (("--grouped",), "--grouped is an MCAP layout"),
+])
+def test_simulate_options_that_would_be_ignored_are_refused(tmp_path, args, needle) -> None:
+    """Each of these used to run with exit 0 and do something else than asked (the seed
+    of --set won over --seed, an MCAP file named .parquet the readers then refused)."""
+    from brakethermo.cli import app
+
+    res = CliRunner().invoke(app, ["simulate", "--laps", "1", *args,
+                                   "--out", str(tmp_path / "s.parquet")])
+    assert res.exit_code == 1 and needle in res.output, res.output
+    assert not (tmp_path / "s.parquet").exists()

@@ -14,6 +14,7 @@ from rich.table import Table
 
 from brakethermo.cli._app import app, console
 from brakethermo.cli._options import JsonOpt
+from brakethermo.errors import ConfigError
 from brakethermo.sim.effects import EFFECT_NAMES, STRENGTH_MAX, parse_effects
 from brakethermo.sim.rigs import RIG_SIMULATORS
 
@@ -77,7 +78,16 @@ def simulate_cmd(
 
     check_output_file(out)
     fmt = infer_format(out, fmt)
+    if grouped and fmt != "mcap":
+        raise ConfigError(f"--grouped is an MCAP layout; {out.name} is {fmt}")
     if rig is not None:
+        disc_only = [name for name, given in (
+            ("--effects", effects != ""), ("--sensor", sensor != "multi"),
+            ("--track", track != "mugello-like"), ("--laps", laps != 5),
+            ("--disc", disc != "cc-340-8"), ("--grouped", grouped)) if given]
+        if disc_only:
+            raise ConfigError(f"{', '.join(disc_only)}: disc-session options, not read for"
+                              f" --rig {rig}; its settings go with --set KEY=VALUE")
         _simulate_rig(rig, rig_set or [], seed, out, fmt, as_json)
         return
     cfg = SimConfig(
@@ -120,8 +130,6 @@ DISC_SETTINGS = ("cooling", "ambient_c")
 
 def _disc_settings(settings: list[str]) -> dict[str, float]:
     """``--set cooling=1.2 --set ambient_c=35`` for a disc session."""
-    from brakethermo.errors import ConfigError
-
     out: dict[str, float] = {}
     for item in settings:
         key, sep, value = item.partition("=")

@@ -59,11 +59,14 @@ class SessionData:
 
 def infer_format(path: str | Path, fmt: str | None = None) -> str:
     """The output format: ``fmt`` if given, else from the file extension."""
+    ext = Path(path).suffix.lower().lstrip(".")
     if fmt:
         if fmt not in FORMATS:
             raise ConfigError(f"unknown format '{fmt}'; use one of {', '.join(FORMATS)}")
+        if ext in FORMATS and ext != fmt:
+            raise ConfigError(f"--format {fmt} for a file named .{ext}: the readers go by the"
+                              f" extension; name it .{fmt} or drop --format", path=path)
         return fmt
-    ext = Path(path).suffix.lower().lstrip(".")
     if ext not in FORMATS:
         raise ConfigError(
             f"cannot infer the format from the extension '.{ext}'; use .mcap, .parquet or"

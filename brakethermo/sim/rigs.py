@@ -118,9 +118,13 @@ def rig_config(rig: str, settings: Sequence[str], seed: int) -> Any:
     for item in settings:
         key, sep, text = item.partition("=")
         key = key.strip()
-        if not sep or key not in fields:
+        if key == "seed":
+            raise ConfigError(f"--set {item!r}: give the seed with --seed (the session's"
+                              " facts and the title report that one)")
+        if not sep or key not in fields - {"seed"}:
             raise ConfigError(
-                f"--set {item!r}: expected KEY=VALUE with KEY one of {', '.join(sorted(fields))}"
+                f"--set {item!r}: expected KEY=VALUE with KEY one of"
+                f" {', '.join(sorted(fields - {'seed'}))}"
             )
         values[key] = _convert(text.strip(), hints[key], key)
     return cls(**values)
