@@ -209,7 +209,8 @@ def test_simulate_options_that_would_be_ignored_are_refused(tmp_path, args, need
     of --set won over --seed, an MCAP file named .parquet the readers then refused)."""
     from brakethermo.cli import app
 
-    res = CliRunner().invoke(app, ["simulate", "--laps", "1", *args,
+    laps = () if "--rig" in args else ("--laps", "1")
+    res = CliRunner().invoke(app, ["simulate", *laps, *args,
                                    "--out", str(tmp_path / "s.parquet")])
     assert res.exit_code == 1 and needle in res.output, res.output
     assert not (tmp_path / "s.parquet").exists()
