@@ -195,3 +195,16 @@ def test_a_clock_that_jumps_back_is_refused_where_rows_are_in_time_order() -> No
     jitter = np.array([0.0, 0.1, 0.3, 0.2, 0.4])
     assert sort_checked(jitter, jitter, path="f.csv", channel="x")[0].tolist() == [
         0.0, 0.1, 0.2, 0.3, 0.4]
+
+
+def test_a_csv_cut_inside_its_last_row_drops_that_row_and_says_so(tmp_path) -> None:
+    """A copy cut mid-number read 18 rad/s for 185.15 in the last row, without a word."""
+    from brakethermo.io.csv_reader import read_csv
+
+    path = tmp_path / "cut.csv"
+    path.write_text("time [s],wheel_speed [rad/s]\n0.0,185.0\n0.1,185.1\n0.2,18")
+    raw = read_csv(path)
+    assert raw.channels[0].v.tolist() == [185.0, 185.1]
+    assert any("ends inside its last row" in w for w in raw.warnings)
+    path.write_text("time [s],wheel_speed [rad/s]\n0.0,185.0\n0.1,185.1\n")
+    assert read_csv(path).warnings == ()

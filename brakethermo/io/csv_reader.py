@@ -105,6 +105,16 @@ def _dialect(text: str, path: Path) -> tuple[str, str]:
     return best, decimal
 
 
+def _cut_last_row(text: str) -> str | None:
+    """The text without its last row when the file ends inside it (no line end after a
+    data row: ``185.15`` cut to ``18``), else None. A file of one line is left to the
+    header checks."""
+    if not text or text.endswith(("\n", "\r")):
+        return None
+    head, sep, _ = text.rpartition("\n")
+    return head + sep if sep and "\n" in head else None
+
+
 def read_csv(path: Path, indexed: bool = False) -> RawSession:
     """Read a CSV session export into native-rate channels.
 
@@ -127,6 +137,11 @@ def read_csv(path: Path, indexed: bool = False) -> RawSession:
         mixing numbers and text (a column of text only is skipped with a warning).
     """
     text = _text(path)
+    # a time series cut short loses its last sample; a point table (hand-made, often
+    # without a final line end) keeps every point
+    cut = None if indexed else _cut_last_row(text)
+    if cut is not None:
+        text = cut
     sep, decimal = _dialect(text, path)
     try:
         frame = pd.read_csv(io.StringIO(text), sep=sep, decimal=decimal, skipinitialspace=True,
@@ -158,7 +173,9 @@ def read_csv(path: Path, indexed: bool = False) -> RawSession:
         row = int(np.argmax(np.isnan(t)))
         raise DataError(f"empty time in data row {row + 1}; every row needs a time", path=path,
                         channel=time_name)
-    warnings = []
+    warnings = [] if cut is None else [
+        "the file ends inside its last row (no line end: a copy or a log cut short); that"
+        " row is dropped"]
     if time_unit is None and pd.api.types.is_integer_dtype(column.dtype):
         scale, note = integer_time_scale(t, path=path, column=time_name)
         if note:
