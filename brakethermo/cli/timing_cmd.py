@@ -52,8 +52,8 @@ def timing_check(
     """Estimate each lap on its own; fail (exit 1) if the slowest lap exceeds its budget.
 
     The paper's budget check: each lap as the filter would meet it live. A whole-race
-    `estimate` costs more than the sum — reading, the race's online decision on its
-    first laps, the smoother and the reports (README, Speed).
+    `estimate` costs more than the sum — the race's online decision on its first laps
+    (one lap alone has nothing to decide on) and the reports (README, Speed).
     """
     from brakethermo.cli.estimate_cmd import preflight
     from brakethermo.io.load import load_session
@@ -72,7 +72,7 @@ def timing_check(
         console.print(
             f"start-up {report.startup_s:.2f} s, total {report.total_s:.2f} s for "
             f"{len(report.laps)} laps, each estimated alone (a whole-race estimate adds the"
-            " race's online decision, the smoother and the reports)", highlight=False
+            " race's online decision on its first laps and the reports)", highlight=False
         )
     if not report.passed:
         worst = report.worst
