@@ -81,13 +81,9 @@ def simulate_cmd(
     if grouped and fmt != "mcap":
         raise ConfigError(f"--grouped is an MCAP layout; {out.name} is {fmt}")
     if rig is not None:
-        disc_only = [name for name, given in (
-            ("--effects", effects != ""), ("--sensor", sensor != "multi"),
-            ("--track", track != "mugello-like"), ("--laps", laps != 5),
-            ("--disc", disc != "cc-340-8"), ("--grouped", grouped)) if given]
-        if disc_only:
-            raise ConfigError(f"{', '.join(disc_only)}: disc-session options, not read for"
-                              f" --rig {rig}; its settings go with --set KEY=VALUE")
+        _no_disc_options(rig, {"--effects": effects != "", "--sensor": sensor != "multi",
+                               "--track": track != "mugello-like", "--laps": laps != 5,
+                               "--disc": disc != "cc-340-8", "--grouped": grouped})
         _simulate_rig(rig, rig_set or [], seed, out, fmt, as_json)
         return
     cfg = SimConfig(
@@ -126,6 +122,14 @@ def simulate_cmd(
 
 
 DISC_SETTINGS = ("cooling", "ambient_c")
+
+
+def _no_disc_options(rig: str, given: dict[str, bool]) -> None:
+    """A rig session reads none of the disc session's options: refuse those given."""
+    named = [name for name, was in given.items() if was]
+    if named:
+        raise ConfigError(f"{', '.join(named)}: disc-session options, not read for --rig"
+                          f" {rig}; its settings go with --set KEY=VALUE")
 
 
 def _disc_settings(settings: list[str]) -> dict[str, float]:
