@@ -78,6 +78,8 @@ def test_missing_required_channel(tmp_path: Path) -> None:
                              "channel 'wheel_omega'", "tried: wheel_omega, wWheel",
                              "the file has: vFront", "--aliases")
     assert str(path) in line
+    # a name that is no channel at all is said so (it read "missing, tried: bogus")
+    assert_user_error([str(path), "--require", "bogus"], "not a canonical channel")
 
 
 def test_missing_file_directory_unknown_extension_empty(tmp_path: Path) -> None:

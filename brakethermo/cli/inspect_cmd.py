@@ -15,6 +15,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
+from brakethermo.errors import ConfigError
 
 if TYPE_CHECKING:
     from brakethermo.io import Session
@@ -142,7 +143,12 @@ def inspect(
 ) -> None:
     """Channels, units, rates, gaps and laps of a logged session."""
     from brakethermo.io import load_session
+    from brakethermo.io.units import CANONICAL_CHANNELS
 
+    unknown = [c for c in require or () if c not in CANONICAL_CHANNELS]
+    if unknown:
+        raise ConfigError(f"--require {', '.join(unknown)}: not a canonical channel; the"
+                          f" channels are {', '.join(CANONICAL_CHANNELS)}")
     session = load_session(session_file, aliases=aliases, gap_limit_s=gap_limit)
     session.require(*(require or ()))
     if as_json:
