@@ -14,6 +14,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from brakethermo.report.page import Card, Page, Section, TableBlock, write_page
+from brakethermo.results.laps import lap_label
 
 COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
 BASE_COLOR = "#444444"
@@ -97,14 +98,15 @@ def lap_figure(laps: Sequence[Mapping[str, Any]], labels: Sequence[str],
 
 
 def _table(laps: Sequence[Mapping[str, Any]], labels: Sequence[str]) -> TableBlock:
-    header = ["lap", "as run: peak °C", "in window %"]
+    header = ["lap", "as run: peak °C", "in window %", "tyre kJ", "μ min"]
     for lab in labels:
         header += [f"{shown(lab)}: peak °C (95 %)", "in window %", "above s", "tyre kJ", "μ min"]
     rows = []
     for row in laps:
         b = row["base"]
-        cells: list[object] = [row["lap"], _f(b["peak_contact_c"]),
-                               _f(b["time_in_window_pct"])]
+        cells: list[object] = [lap_label(row["lap"]), _f(b["peak_contact_c"]),
+                               _f(b["time_in_window_pct"]), _f(b.get("tyre_heat_kj"), ".1f"),
+                               _f(b.get("mu_rel_min"), ".2f")]
         for lab in labels:
             s = row[lab]
             cells += [f"{_f(s['peak_contact_c'])} ± {_f(s['peak_contact_band95_c'])}",
