@@ -62,7 +62,7 @@ def summary(session: Session) -> dict[str, Any]:
 def _render(session: Session) -> None:
     from brakethermo.io.aliases import resolve
     from brakethermo.io.units import si_unit
-    from brakethermo.results.laps import lap_time_text
+    from brakethermo.results.laps import lap_time_text, partial_laps
 
     found = resolve(session.aliases, session.available)
     channels = Table(title=escape(f"{session.path.name} ({session.format}): channels"),
@@ -94,14 +94,21 @@ def _render(session: Session) -> None:
         console.print("[dim]not mapped to a canonical channel:[/] "
                       + escape(", ".join(info["unmapped"])), highlight=False)
 
-    laps = Table(title="laps", title_justify="left")
-    laps.add_column("lap", justify="right")
-    laps.add_column("start s", justify="right")
-    laps.add_column("lap time", justify="right")
-    for lap in session.laps:
-        label = "out-lap" if lap.lap == 0 else str(lap.lap)
-        laps.add_row(label, f"{lap.start_s:.2f}", lap_time_text(lap.duration_s))
-    console.print(laps)
+    if all(lap.lap == 0 for lap in session.laps):
+        # a rig session, or a log without a lap marker: one stretch, no lap to time
+        console.print(f"laps: none marked (one stretch of {session.time[-1]:.1f}"
+                      " s, no lap to time)", highlight=False)
+    else:
+        laps = Table(title="laps", title_justify="left")
+        laps.add_column("lap", justify="right")
+        laps.add_column("start s", justify="right")
+        laps.add_column("lap time", justify="right")
+        partial = partial_laps(session.laps)
+        for lap in session.laps:
+            label = "out-lap" if lap.lap == 0 else str(lap.lap)
+            laps.add_row(label, f"{lap.start_s:.2f}", lap_time_text(lap.duration_s)
+                         + (" partial" if lap.lap in partial else ""))
+        console.print(laps)
 
     facts = Table(title="session", title_justify="left", show_header=False)
     facts.add_column("key")
