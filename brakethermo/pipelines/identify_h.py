@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import os
+import shlex
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -640,10 +641,16 @@ def identify_h(path: str | Path, options: IdentifyOptions | None = None) -> Iden
     return result
 
 
-def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
-    """Write ``h_law.toml``, ``h_samples.parquet``, ``identify.json`` and the h(V) plot."""
+def write_identify(result: IdentifyResult, out_dir: str | Path,
+                   shown_out: str | Path | None = None) -> Path:
+    """Write ``h_law.toml``, ``h_samples.parquet``, ``identify.json`` and the h(V) plot
+    (``shown_out``: the ``--out`` its suggested commands name, when ``out_dir`` is a
+    staging folder)."""
+    from brakethermo.pipelines.diagnose._common import filled
     from brakethermo.report.hplot import plot_h_law
 
+    result.summary = filled(result.summary, {
+        "--out OUT": f"--out {shlex.quote(str(shown_out or out_dir))}"})
     folder = Path(out_dir) / result.stem
     folder.mkdir(parents=True, exist_ok=True)
     cal = result.calibration
@@ -673,5 +680,6 @@ def write_identify(result: IdentifyResult, out_dir: str | Path) -> Path:
     write_json(folder / "identify.json", result.summary)
     plot_h_law(result.samples, result.fit_mask, result.law, folder / "h_law.png",
                title=result.stem, law_ukf=result.law_ukf if result.structure else None,
-               straights=result.straights, level=result.summary.get("evidence"))
+               straights=result.straights, level=result.summary.get("evidence"),
+               carried=tuple(cal.effects))
     return folder

@@ -20,10 +20,19 @@ from brakethermo.thermal.hlaw import HLaw
 KMH = 3.6
 
 
+def _carried_note(ax: Any, carried: tuple[str, ...]) -> None:
+    """Say on the plot that straights are judged against the bare law (slipstream)."""
+    if "slipstream" in carried:
+        ax.text(0.99, 0.98, "the law carries slipstream: straights in another bike's wake sit"
+                " below\nthe bare law drawn here and pull its level's range down",
+                transform=ax.transAxes, ha="right", va="top", fontsize=8,
+                bbox={"fc": "white", "ec": "0.7", "alpha": 0.9})
+
+
 def plot_h_law(
     samples: pd.DataFrame, fit_mask: np.ndarray, law: HLaw, path: Path, title: str = "",
     law_ukf: HLaw | None = None, straights: pd.DataFrame | None = None,
-    level: dict[str, Any] | None = None,
+    level: dict[str, Any] | None = None, carried: tuple[str, ...] = (),
 ) -> Path:
     """The written h(V) law and the evidence it was fitted to.
 
@@ -50,6 +59,9 @@ def plot_h_law(
         ``speed_kmh``, ``h``, ``h_sd``, ``lap`` per straight.
     level : dict, optional
         ``factor`` and ``ci95`` of the law's level from the straights, ``scatter_pct``.
+    carried : tuple of str
+        Effects the law carries that change h on some straights (``slipstream``): the
+        straights are judged against the bare law, and the figure says so.
     """
     fig = Figure(figsize=(9.0, 5.5), dpi=110)
     ax = fig.add_subplot()
@@ -87,6 +99,7 @@ def plot_h_law(
         cb = fig.colorbar(sc, ax=ax, pad=0.01, ticks=np.unique(laps))
         cb.set_label("lap")
         ax.set_title(f"Convection h(V) and the straights it rests on — {title}".rstrip(" —"))
+        _carried_note(ax, carried)
     else:
         other = ~fit_mask & ~braking
         ax.scatter(v[braking], h[braking], s=3, c="#d62728", alpha=0.25, lw=0,

@@ -267,12 +267,12 @@ class PipelineRunner:
             ident = identify_from_session(session, IdentifyOptions(aliases=options.aliases))
             timings["identify_s"] = time.perf_counter() - t
             t = time.perf_counter()
-            _flatten(write_identify(ident, stage), stage)
+            _flatten(write_identify(ident, stage, options.out), stage)
             if ident.diagnosis is not None:
                 # the effect selection diagnosed the session: its verdict is a page too
                 from brakethermo.pipelines.diagnose import write_diagnosis
 
-                _flatten(write_diagnosis(ident.diagnosis, stage), stage)
+                _flatten(write_diagnosis(ident.diagnosis, stage, options.out), stage)
             timings["write_s"] = time.perf_counter() - t
             law_out = stage / "h_law.toml"
             h_law = law_out

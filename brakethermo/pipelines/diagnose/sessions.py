@@ -160,11 +160,14 @@ def write_pooled(summary: dict[str, Any], out_dir: str | Path) -> Path:
     return write_json(Path(out_dir) / "pooled" / "diagnosis.json", summary)
 
 
-def write_diagnosis(result: DiagnoseResult, out_dir: str | Path) -> Path:
+def write_diagnosis(result: DiagnoseResult, out_dir: str | Path,
+                    shown_out: str | Path | None = None) -> Path:
     """Write ``<out>/<stem>/diagnosis.json``, ``diagnosis.parquet`` and the report page.
 
     The page and its PNGs go to ``<out>/<stem>/diagnosis/`` (staged and swapped in whole)
     so they never mix with the estimate's per-lap reports in the same session folder.
+    ``shown_out``: the ``--out`` the suggested commands name, when ``out_dir`` is a
+    staging folder (batch).
     """
     import pandas as pd
 
@@ -177,8 +180,8 @@ def write_diagnosis(result: DiagnoseResult, out_dir: str | Path) -> Path:
     folder = Path(out_dir) / result.stem
     folder.mkdir(parents=True, exist_ok=True)
     # the commands it suggests write where this one did
-    result.summary = filled(result.summary,
-                            {"--out OUT": f"--out {shlex.quote(str(out_dir))}"})
+    result.summary = filled(result.summary, {
+        "--out OUT": f"--out {shlex.quote(str(shown_out or out_dir))}"})
     cols: dict[str, np.ndarray] = {"time": result.time, "lap": result.lap.astype(np.int64),
                                    "lap_distance": result.lap_distance}
     for i in range(4):
