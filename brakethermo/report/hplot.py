@@ -23,9 +23,9 @@ KMH = 3.6
 def _carried_note(ax: Any, carried: tuple[str, ...]) -> None:
     """Say on the plot that straights are judged against the bare law (slipstream)."""
     if "slipstream" in carried:
-        ax.text(0.99, 0.98, "the law carries slipstream: straights in another bike's wake sit"
-                " below\nthe bare law drawn here and pull its level's range down",
-                transform=ax.transAxes, ha="right", va="top", fontsize=8,
+        ax.text(0.99, 0.09, "the law carries slipstream: straights in another\nbike's wake"
+                " sit below the bare law drawn here\nand pull its level's range down",
+                transform=ax.transAxes, ha="right", va="bottom", fontsize=8,
                 bbox={"fc": "white", "ec": "0.7", "alpha": 0.9})
 
 
