@@ -122,7 +122,7 @@ def heldout_trace(time: np.ndarray, lap: np.ndarray, y: np.ndarray, ref: np.ndar
     fig = Figure(figsize=(11.0, 3.8), dpi=110)
     ax = fig.add_subplot()
     m = lap == held_lap
-    for i in (1, 2, 3):
+    for i in range(y.shape[1]):  # every spot (spot 1's error was the largest, and hidden)
         ax.plot(time[m], y[m, i], color=SPOT_COLOURS[i], lw=1.0, label=f"spot {i + 1} measured")
         ax.plot(time[m], ref[m, i], color=SPOT_COLOURS[i], lw=0.9, ls=":")
         if best is not None:
@@ -137,6 +137,14 @@ def heldout_trace(time: np.ndarray, lap: np.ndarray, y: np.ndarray, ref: np.ndar
     ax.legend(loc="upper right", fontsize=8, ncol=2)
     fig.subplots_adjust(left=0.07, right=0.98, bottom=0.15, top=0.88)
     return fig
+
+
+def _scored_on_fewer(effects: list[dict[str, Any]]) -> list[str]:
+    """Why an effect's 'before' differs from the others': it is scored on fewer spots."""
+    every = max((len(e.get("scored_spots", [])) for e in effects), default=0)
+    return [f"{e['name']} is scored on {', '.join(e['scored_spots'])} (the race spot placed"
+            " its held-out straights), so its 'before' is the reference on those"
+            for e in effects if 0 < len(e.get("scored_spots", [])) < every]
 
 
 def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
@@ -208,7 +216,7 @@ def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
                      "Δ log-lik", "significant", "evidence (reference residuals)"],
                     which_rows)],
         {"effects": effects_figure(effects, verdict)} if effects else {},
-        list(summary.get("warnings", [])),
+        [*_scored_on_fewer(effects), *summary.get("warnings", [])],
     )
     if sizes and any(text for _, text in sizes):
         which_section.tables.insert(0, TableBlock(["effect", "size (fitted on training laps)"],
