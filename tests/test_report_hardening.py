@@ -217,4 +217,6 @@ def test_a_cut_last_lap_is_marked_partial() -> None:
     laps = (Lap(0, 0.0, 150.0), Lap(1, 150.0, 116.0), Lap(2, 266.0, 115.8),
             Lap(3, 381.8, 116.2), Lap(4, 498.0, 72.2))
     assert partial_laps(laps) == {4}
-    assert partial_laps(laps[:3]) == set()  # two flying laps: nothing to judge by
+    assert partial_laps(laps[:3]) == set()  # two full flying laps
+    assert partial_laps((*laps[:2], Lap(2, 266.0, 63.3))) == {2}  # a log cut in lap 2
+    assert partial_laps(laps[:2]) == set()  # one lap alone cannot be judged

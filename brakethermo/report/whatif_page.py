@@ -130,9 +130,10 @@ def whatif_page(summary: Mapping[str, Any], frame: pd.DataFrame) -> Page:
         d = [row[lab]["peak_contact_c"] - row["base"]["peak_contact_c"] for row in flying]
         w = [row[lab]["time_in_window_pct"] - row["base"]["time_in_window_pct"]
              for row in flying]
-        cards.append(Card(f"{shown(lab)}: peak change", _f(float(np.mean(d)), "+.0f"), "°C"))
-        cards.append(Card(f"{shown(lab)}: window change", _f(float(np.mean(w)), "+.0f"),
-                          "% of lap"))
+        cards.append(Card(f"{shown(lab)}: lap peak change, mean of the flying laps",
+                          _f(float(np.mean(d)), "+.0f"), "°C"))
+        cards.append(Card(f"{shown(lab)}: window change, mean of the flying laps",
+                          _f(float(np.mean(w)), "+.0f"), "% of lap"))
     main = Section(
         "Contact band as run and with each change",
         paragraphs=[

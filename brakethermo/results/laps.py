@@ -63,12 +63,16 @@ SHORT_LAP = 0.8  # a flying lap under this share of the typical one is partial (
 
 
 def partial_laps(laps: tuple[Lap, ...]) -> set[int]:
-    """Flying laps shorter than :data:`SHORT_LAP` of the median flying lap (with three or
-    more to judge by): the session ended in them, or the rider came in — their times and
-    peaks are not a lap's."""
+    """Flying laps shorter than :data:`SHORT_LAP` of the typical flying lap: the session
+    ended in them, or the rider came in — their times and peaks are not a lap's. The
+    typical lap is the median of three or more; of two, the longer one, and only the last
+    lap can then be the short one (a log cut short); one lap alone cannot be judged."""
     flying = {lap.lap: lap.duration_s for lap in laps if lap.lap >= 1 and lap.duration_s > 0}
-    if len(flying) < 3:
+    if len(flying) < 2:
         return set()
+    if len(flying) == 2:
+        first, last = sorted(flying)
+        return {last} if flying[last] < SHORT_LAP * flying[first] else set()
     typical = float(np.median(list(flying.values())))
     return {n for n, d in flying.items() if d < SHORT_LAP * typical}
 
