@@ -91,8 +91,17 @@ def test_estimate_mdf_out_option_writes_beside_the_estimate(
     monkeypatch.setattr(estimate_mod, "estimate_from_session", lambda *_a, **_k: result)
     out = tmp_path / "out"
     run = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out), "--no-report",
-                                   "--mdf-out", "--json"])
+                                   "--mdf-out", "--mcap-out", "--json"])
     assert run.exit_code == 0, run.output
     with MDF(out / "race" / "estimate.mf4") as mdf:
         np.testing.assert_array_equal(mdf.get("BT_contact_avg").samples,
                                       frame["contact_avg"].to_numpy())
+    # --mcap-out was batch's only; estimate writes the same MCAP beside
+    import json
+
+    from mcap.reader import make_reader
+
+    with (out / "race" / "estimate.mcap").open("rb") as fh:
+        spot3 = [json.loads(m.data)["value"] for _, _, m in
+                 make_reader(fh).iter_messages(topics=["/brakethermo/spot3"])]
+    np.testing.assert_allclose(spot3, frame["spot3"].round(3), atol=1e-9)

@@ -135,8 +135,10 @@ def preflight(
         load_disc(disc)
 
 
-def _write_outputs(result: EstimateResult, out: Path, mdf_out: bool, reports: bool) -> Path:
-    """The estimate's folder, swapped in whole: parquet, summary, MDF, lap pages, links."""
+def _write_outputs(result: EstimateResult, out: Path, mdf_out: bool, reports: bool,
+                   mcap_out: bool = False) -> Path:
+    """The estimate's folder, swapped in whole: parquet, summary, MDF / MCAP, lap pages,
+    links."""
     from brakethermo.pipelines.estimate import disc_of, write_estimate
     from brakethermo.pipelines.output_dir import replace_session_dir
     from brakethermo.report.session_links import refresh_page_links
@@ -152,6 +154,14 @@ def _write_outputs(result: EstimateResult, out: Path, mdf_out: bool, reports: bo
                                start_epoch_s=result.session.start_epoch_s,
                                source=result.session.path.name,
                                date=result.session.metadata.get("date"))
+        if mcap_out:
+            from brakethermo.report.mcap_export import write_estimate_mcap
+
+            write_estimate_mcap(result.frame, stage / "estimate.mcap",
+                                node_radii=result.node_radii,
+                                spot_radii=result.disc.spot_radii,
+                                start_epoch_s=result.session.start_epoch_s,
+                                source=result.session.path.name)
         if reports:
             from brakethermo.report.lap_report import write_session_report
 
@@ -180,6 +190,14 @@ def _render(result: EstimateResult, folder: Path, law_reason: str, mdf_out: bool
            if reports else ""),
         soft_wrap=True,
     )
+
+
+MdfOutOpt = Annotated[bool, typer.Option(
+    "--mdf-out", help="Also write OUT/<session>/estimate.mf4 (ASAM MDF4, for WinTAX / ATLAS /"
+    " asammdf beside the source log).")]
+McapOutOpt = Annotated[bool, typer.Option(
+    "--mcap-out", help="Also write OUT/<session>/estimate.mcap (MCAP, for Foxglove beside the"
+    " source log; as batch --mcap-out).")]
 
 
 @app.command("estimate")
@@ -227,11 +245,8 @@ def estimate_command(
     ambient: AmbientOpt = None,
     no_reports: NoReportsOpt = False,
     legacy_report: LegacyReportOpt = None,
-    mdf_out: Annotated[
-        bool,
-        typer.Option("--mdf-out", help="Also write OUT/<session>/estimate.mf4 (ASAM MDF4, "
-                     "for WinTAX / ATLAS / asammdf beside the source log)."),
-    ] = False,
+    mdf_out: MdfOutOpt = False,
+    mcap_out: McapOutOpt = False,
     as_json: JsonOpt = False,
     workers: Annotated[
         int,
@@ -274,7 +289,7 @@ def estimate_command(
     run["timings_s"]["read_s"] = read_s
     run["wall_time_s"] += read_s
     run["h_law_choice"] = law_reason
-    folder = _write_outputs(result, out, mdf_out, reports)
+    folder = _write_outputs(result, out, mdf_out, reports, mcap_out)
     if as_json:
         print(to_json({**result.summary, "output": str(folder)}))
         return
