@@ -56,17 +56,27 @@ def preflight(options: BatchOptions) -> None:
         read_calibration(options.h_law)
 
 
-def _interrupted(files: list[Path], names: list[str], done: dict[Path, SessionOutcome]
-                 ) -> Interrupted:
+def _interrupted(files: list[Path], names: list[str], done: dict[Path, SessionOutcome],
+                 force: bool = False) -> Interrupted:
     """What an interrupt leaves: finished sessions complete, the others untouched."""
     finished = [o.name for o in done.values() if o.status in ("ok", "skipped")]
     pending = [n for p, n in zip(files, names, strict=True)
                if p not in done or done[p].status == "deferred"]
+    resume = (" (without --force, which redoes every session, finished sessions are"
+              " skipped)" if force else " (finished sessions are skipped)")
     return Interrupted(
         f"interrupted: {len(finished)} of {len(files)} sessions finished"
         f" ({', '.join(finished) or 'none'}) and their outputs are complete; not done:"
         f" {', '.join(pending) or 'none'}, their folders as before. Run the same command"
-        " again to resume (finished sessions are skipped)")
+        f" again to resume{resume}")
+
+
+def _write_index(out: Path, folder: Path, outcomes: list[SessionOutcome]) -> None:
+    """``out/index.html``: these sessions, then those earlier batches left in ``out``."""
+    from brakethermo.report.index import write_batch_index
+
+    write_batch_index(out, folder, [*(o.to_json() for o in outcomes),
+                                    *earlier_sessions(out, [o.name for o in outcomes])])
 
 
 def _check_places(folder: Path, out: Path) -> None:
@@ -184,11 +194,11 @@ def run_batch(
                                            + first_pass.timings["read_s"])
                 done[o.path] = o
     except KeyboardInterrupt:
-        raise _interrupted(files, names, done) from None
+        if options.reports:  # the finished sessions' pages link back to it
+            _write_index(out, folder, [o for o in done.values()
+                                       if o.status in ("ok", "skipped")])
+        raise _interrupted(files, names, done, options.force) from None
     result = BatchResult([done[p] for p in files], time.perf_counter() - t0, not_read)
     if options.reports and files:
-        from brakethermo.report.index import write_batch_index
-
-        write_batch_index(out, folder, [*(o.to_json() for o in result.outcomes),
-                                        *earlier_sessions(out, names)])
+        _write_index(out, folder, result.outcomes)
     return result
