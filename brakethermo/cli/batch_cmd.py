@@ -55,7 +55,7 @@ def _table(result: BatchResult, out: Path) -> Table:
     table.add_column("wall s", justify="right")
     for i in range(1, 5):
         table.add_column(f"S{i}", justify="right")
-    table.add_column("h law")
+    table.add_column("h law", min_width=7, no_wrap=True)
     for o in result.outcomes:
         peaks = [temp_text(o.peaks[s]) if s in o.peaks else "-" for s in SPOTS]
         table.add_row(

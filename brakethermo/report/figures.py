@@ -366,7 +366,8 @@ class LapFigures:
         # so rather than promising lines a lap inside the window never shows.
         ax.set_title(
             f"Disc temperature across the radius; window {self.window_c[0]:.0f}–"
-            f"{self.window_c[1]:.0f} °C marked on the colour bar (white dashed where crossed)",
+            f"{self.window_c[1]:.0f} °C marked on the colour bar where it spans them (white"
+            " dashed where crossed)",
             loc="left",
         )
 
