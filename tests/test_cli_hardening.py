@@ -214,3 +214,23 @@ def test_simulate_options_that_would_be_ignored_are_refused(tmp_path, args, need
                                    "--out", str(tmp_path / "s.parquet")])
     assert res.exit_code == 1 and needle in res.output, res.output
     assert not (tmp_path / "s.parquet").exists()
+
+
+def test_a_write_interrupted_leaves_no_empty_folder_and_keeps_an_old_one(tmp_path):
+    """An interrupted batch left an empty OUT/<session>/ for every session it had not
+    finished; a folder that held results before keeps them."""
+    from brakethermo.io.atomic import atomic_entries
+
+    new = tmp_path / "race_a"
+    with pytest.raises(KeyboardInterrupt), atomic_entries(new, ("*.json",)) as stage:
+        (stage / "summary.json").write_text("{}")
+        raise KeyboardInterrupt
+    assert not new.exists()
+    old = tmp_path / "race_b"
+    old.mkdir()
+    (old / "summary.json").write_text('{"old": 1}')
+    with pytest.raises(KeyboardInterrupt), atomic_entries(old, ("*.json",)) as stage:
+        (stage / "summary.json").write_text("{}")
+        raise KeyboardInterrupt
+    assert (old / "summary.json").read_text() == '{"old": 1}'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["race_b"]  # no stage left

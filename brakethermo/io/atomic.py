@@ -198,10 +198,19 @@ def atomic_entries(target: str | Path, owned: tuple[str, ...]) -> Iterator[Path]
     as it was. A failure or an interrupt inside the ``with`` leaves ``target`` untouched.
     """
     target = Path(target)
+    created = not target.exists()
     target.mkdir(parents=True, exist_ok=True)
     stage, tag = _new_stage(target)
     try:
-        yield stage
+        try:
+            yield stage
+        except BaseException:
+            # a folder made for this write and never filled is not left behind (an
+            # interrupted batch left one per session it had not finished)
+            shutil.rmtree(stage, ignore_errors=True)
+            if created and not any(target.iterdir()):
+                target.rmdir()
+            raise
         produced = {e.name for e in stage.iterdir()}
         for entry in list(target.iterdir()):
             if entry.name in produced or not owns(entry.name, owned):
