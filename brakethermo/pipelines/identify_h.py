@@ -14,7 +14,6 @@
 from __future__ import annotations
 
 import os
-import shlex
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -646,11 +645,10 @@ def write_identify(result: IdentifyResult, out_dir: str | Path,
     """Write ``h_law.toml``, ``h_samples.parquet``, ``identify.json`` and the h(V) plot
     (``shown_out``: the ``--out`` its suggested commands name, when ``out_dir`` is a
     staging folder)."""
-    from brakethermo.pipelines.diagnose._common import filled
+    from brakethermo.pipelines.diagnose._common import with_out
     from brakethermo.report.hplot import plot_h_law
 
-    result.summary = filled(result.summary, {
-        "--out OUT": f"--out {shlex.quote(str(shown_out or out_dir))}"})
+    result.summary = with_out(result.summary, shown_out or out_dir)
     folder = Path(out_dir) / result.stem
     folder.mkdir(parents=True, exist_ok=True)
     cal = result.calibration

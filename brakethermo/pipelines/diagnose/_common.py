@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -105,3 +106,9 @@ def filled(value: Any, fills: dict[str, str]) -> Any:
     if isinstance(value, list):
         return [filled(v, fills) for v in value]
     return value
+
+
+def with_out(summary: Any, out: str | Path) -> Any:
+    """``summary`` with the ``--out OUT`` placeholder of its suggested commands set to
+    ``out`` (quoted for a shell), as :func:`filled` does."""
+    return filled(summary, {"--out OUT": f"--out {shlex.quote(str(out))}"})

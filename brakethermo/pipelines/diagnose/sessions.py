@@ -3,7 +3,6 @@ parquet and the page."""
 
 from __future__ import annotations
 
-import shlex
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -20,7 +19,7 @@ from brakethermo.pipelines.diagnose._common import (
     RULE,
     DiagnoseOptions,
     DiagnoseResult,
-    filled,
+    with_out,
 )
 from brakethermo.pipelines.diagnose.four_spot import diagnose_session
 from brakethermo.pipelines.inputs import load_timed
@@ -156,7 +155,7 @@ def write_pooled(summary: dict[str, Any], out_dir: str | Path) -> Path:
     are given ``--out out_dir``, in place)."""
     from brakethermo.pipelines.outputs import write_json
 
-    summary.update(filled(summary, {"--out OUT": f"--out {shlex.quote(str(out_dir))}"}))
+    summary.update(with_out(summary, out_dir))
     return write_json(Path(out_dir) / "pooled" / "diagnosis.json", summary)
 
 
@@ -180,8 +179,7 @@ def write_diagnosis(result: DiagnoseResult, out_dir: str | Path,
     folder = Path(out_dir) / result.stem
     folder.mkdir(parents=True, exist_ok=True)
     # the commands it suggests write where this one did
-    result.summary = filled(result.summary, {
-        "--out OUT": f"--out {shlex.quote(str(shown_out or out_dir))}"})
+    result.summary = with_out(result.summary, shown_out or out_dir)
     cols: dict[str, np.ndarray] = {"time": result.time, "lap": result.lap.astype(np.int64),
                                    "lap_distance": result.lap_distance}
     for i in range(4):
