@@ -37,6 +37,8 @@ Backend = Literal["auto", "numba", "numpy"]
 BACKENDS = ("auto", "numba", "numpy")
 NUMBA_MAX_N = 64
 BatchedTransition = Callable[[Array, int], Array]
+CompiledSteps = Callable[..., None]  # the model fused into the step loop: UKF ``steps``
+STEPS_PER_CALL = 256  # steps of one compiled call: a stop request waits at most this long
 
 
 def use_numba(backend: Backend, h: object | None, n: int) -> bool:
@@ -64,6 +66,12 @@ class UnscentedKalmanFilter:
     gate : float, optional — reject a measurement whose NIS exceeds the chi-square
         quantile of this probability (e.g. 0.9999); ``None`` uses every measurement.
     eig_floor : float — absolute eigenvalue floor of covariance repairs, squared state units.
+    steps : callable, optional — ``f`` and ``Q`` compiled into the kernel's step loop:
+        ``steps(k0, k1, offset, work, W, par, thr, H, R, y, M, *stacks)`` runs steps
+        ``k0 .. k1 - 1`` with the model at step ``k + offset`` and :func:`_kernels.ukf_step`
+        (e.g. :meth:`DiscStateSpace.compiled_steps`). The numba backend then calls it once
+        per :data:`STEPS_PER_CALL` steps instead of ``f`` and ``Q`` every step (a constant
+        H and R only); it must compute what ``f`` and ``Q`` do.
     backend : {"auto", "numba", "numpy"} — "numba" runs all per-step filter arithmetic
         in one compiled kernel around the model call (linear H only); "numpy" uses
         BLAS-backed numpy. "auto" takes numba for a linear H and n <= 64 (measured faster
@@ -89,6 +97,7 @@ class UnscentedKalmanFilter:
         gate: float | None = None,
         eig_floor: float = 1e-12,
         backend: Backend = "auto",
+        steps: CompiledSteps | None = None,
     ) -> None:
         if backend not in BACKENDS:
             raise ConfigError(f"backend must be one of {BACKENDS}, got {backend!r}")
@@ -109,6 +118,7 @@ class UnscentedKalmanFilter:
         self.gate = gate
         self.eig_floor = eig_floor
         self.backend = backend
+        self.steps = steps
 
     def weights(self, n: int) -> MerweWeights:
         """Sigma-point weights for an ``n``-dimensional state."""
@@ -235,6 +245,11 @@ class UnscentedKalmanFilter:
         ks.first(_kernels.ukf_first, work, par, y)
         step = _kernels.ukf_step
         Q_of, H_of, R_of, Qc, Hc, Rc = ks.Q_of, ks.H_of, ks.R_of, ks.Qc, ks.Hc, ks.Rc
+        if self.steps is not None and Hc is not None and Rc is not None:
+            for k0 in range(0, K - 1, STEPS_PER_CALL):
+                self.steps(k0, min(k0 + STEPS_PER_CALL, K - 1), 0, work, W, par, thr, Hc, Rc,
+                           y, M, *tail)
+            return ks.result(P)
         for k in range(K - 1):
             Xf = f(X, k)  # eq. 35, all sigma points in one call
             if Xf.shape != X.shape:

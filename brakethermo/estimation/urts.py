@@ -164,8 +164,15 @@ def _window_filter(ukf: UnscentedKalmanFilter, a: int) -> UnscentedKalmanFilter:
     return UnscentedKalmanFilter(
         _from_step(a, ukf.f), shift(ukf.Q), shift(ukf.R), H=shift(ukf.H), h=_from_step(a, ukf.h),
         alpha=ukf.alpha, beta=ukf.beta, kappa=ukf.kappa, gate=ukf.gate,
-        eig_floor=ukf.eig_floor, backend=ukf.backend,
+        eig_floor=ukf.eig_floor, backend=ukf.backend, steps=_steps_from(a, ukf.steps),
     )  # fmt: skip
+
+
+def _steps_from(a: int, steps: Callable | None) -> Callable | None:
+    """Compiled ``steps`` of a UKF with the model's steps counted from ``a``."""
+    if steps is None or a == 0:
+        return steps
+    return lambda k0, k1, offset, *args: steps(k0, k1, offset + a, *args)
 
 
 def window_steps(

@@ -24,13 +24,15 @@ conserves power, a crown read hotter than predicted makes its neighbours cooler.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from brakethermo.errors import DataError
-from brakethermo.models.effects import lag_alpha, mu_ratio
+from brakethermo.models import _disc_kernels
+from brakethermo.models.effects import MU_SPAN_C, lag_alpha, mu_ratio
 from brakethermo.thermal.model import DiscFEModel
 from brakethermo.thermal.power import crown_areas, crown_load
 
@@ -252,6 +254,52 @@ class DiscStateSpace:
             face = out[:, : self.n_temp] @ self._sensor_row
             out[:, self.sensor_index] = s + self._sensor_alpha * (face - s)
         return out
+
+    def compiled_steps(self) -> Callable[..., None] | None:
+        """:meth:`f` and :meth:`Q` fused into the UKF kernel's step loop
+        (:mod:`brakethermo.models._disc_kernels`): ``steps(k0, k1, offset, work, *args)``
+        runs filter steps ``k0 .. k1 - 1`` on model steps ``k + offset``. None where the
+        model does not compile."""
+        if not (self.model.use_numba and _disc_kernels.available()):
+            return None
+        cols = np.full(6, -1, dtype=np.int64)
+        for c, name in ((_disc_kernels.COL_H, H_PARAM), (_disc_kernels.COL_FACTOR, H_FACTOR_PARAM),
+                        (_disc_kernels.COL_SCALE, SCALE_PARAM), (_disc_kernels.COL_KZ, KZ_PARAM),
+                        (_disc_kernels.COL_BALANCE, BALANCE_PARAM)):
+            cols[c] = self.index.get(name, -1)
+        if self.lagging:
+            cols[_disc_kernels.COL_SENSOR] = self.sensor_index
+        lower = np.full(self.n, -np.inf)
+        lower[self._param_idx] = self._lower
+        load = np.ascontiguousarray(self.model.load[None, :], dtype=np.float64)
+        tilt = ((self._load0, self._dload) if BALANCE_PARAM in self.index
+                else (np.zeros(self.model.n_nodes), np.zeros(self.model.n_nodes)))
+        spec = (
+            (self.q_brk, self.t_amb, np.zeros(0) if self.h is None else self.h),
+            cols, lower,
+            (float(self.model.kz_ratio), float(self.effects.mu_beta),
+             float(self.effects.mu_t_mid_c), MU_SPAN_C, BALANCE_MAX,
+             self._sensor_alpha if self.lagging else 0.0),
+            self._contact_face.astype(np.int64),
+            (load, *(np.ascontiguousarray(a[None, :], dtype=np.float64) for a in tilt)),
+            self._sensor_row if self.lagging else np.zeros(self.n_temp),
+            (self._Q_base, self._S_crown, self._param_idx.astype(np.int64),
+             self._step_var.astype(np.float64), self._moving.astype(np.float64)),
+            self.model._kernel_args,
+        )
+        dt = self.model.dt
+
+        def steps(k0: int, k1: int, offset: int, work: np.ndarray, *args: Any) -> None:
+            try:
+                _disc_kernels.run_steps(spec, k0, k1, offset, work, *args)
+            except (ZeroDivisionError, FloatingPointError):
+                raise DataError(
+                    f"the disc model broke down between t = {(k0 + offset) * dt:.1f} and"
+                    f" {(k1 + offset) * dt:.1f} s: the temperatures left any physical range;"
+                    " check the h law and tuning values"
+                ) from None
+
+        return steps
 
     def Q(self, k: int) -> np.ndarray:
         """Process noise of the step ``k -> k + 1``, squared state units."""

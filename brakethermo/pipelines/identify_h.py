@@ -171,7 +171,7 @@ def identify_h_samples(
     x0, P0 = ssm.prior(np.repeat(T0, model.layers), tuning.init_sigma_temp)
     ukf = UnscentedKalmanFilter(
         ssm.f, ssm.Q, np.eye(4) * tuning.sigma_meas**2, H=ssm.H(spot_radii),
-        alpha=tuning.alpha, beta=tuning.beta, kappa=tuning.kappa,
+        alpha=tuning.alpha, beta=tuning.beta, kappa=tuning.kappa, steps=ssm.compiled_steps(),
     )  # fmt: skip
     sel = ssm.selector(H_PARAM)
     forward = ukf.run(x0, P0, y, store="smoother", readout=sel)

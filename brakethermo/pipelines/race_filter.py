@@ -29,7 +29,7 @@ from brakethermo.models.disc import (
 )
 from brakethermo.models.reduced import MAX_MODES, ReducedStateSpace, pod_modes, with_directions
 from brakethermo.pipelines.inputs import DiscInputs
-from brakethermo.pipelines.speculative import cancellable
+from brakethermo.pipelines.speculative import cancellable, cancellable_steps
 from brakethermo.pipelines.tuning import EstimateTuning
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
@@ -152,9 +152,12 @@ def ukf_for(space: DiscStateSpace | ReducedStateSpace, tuning: EstimateTuning,
     """The UKF of ``space`` fed by the pyrometer at ``spot_radius`` (m); a run that stops
     at its next step once ``cancel`` is set."""
     f = space.f if cancel is None else cancellable(space.f, cancel)
+    steps = space.compiled_steps() if isinstance(space, DiscStateSpace) else None
+    if cancel is not None:
+        steps = cancellable_steps(steps, cancel)
     return UnscentedKalmanFilter(f, space.Q, np.array([[tuning.sigma_meas**2]]),
                                  H=space.H_measured(spot_radius), alpha=tuning.alpha,
-                                 beta=tuning.beta, kappa=tuning.kappa)
+                                 beta=tuning.beta, kappa=tuning.kappa, steps=steps)
 
 
 def filter_space(ssm: DiscStateSpace, model: DiscFEModel, inputs: DiscInputs, h: np.ndarray,

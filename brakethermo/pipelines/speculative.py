@@ -38,6 +38,21 @@ def cancellable(f: Callable[[np.ndarray, int], np.ndarray], cancel: threading.Ev
     return step
 
 
+def cancellable_steps(steps: Callable[..., None] | None, cancel: threading.Event
+                      ) -> Callable[..., None] | None:
+    """A filter's compiled steps (:meth:`DiscStateSpace.compiled_steps`) that stop the
+    run once ``cancel`` is set, at the start of their next call."""
+    if steps is None:
+        return None
+
+    def run(*args: object) -> None:
+        if cancel.is_set():
+            raise Cancelled
+        steps(*args)
+
+    return run
+
+
 # One permit per core: a speculative run holds one while it runs, each of the decision's
 # passes one while it runs (:func:`core`), so the guess keeps its core and a pass takes
 # the core it frees the moment it is done.

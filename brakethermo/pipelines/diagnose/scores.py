@@ -77,7 +77,8 @@ def consistency(model: DiscFEModel, inputs: DiscInputs, y: np.ndarray, law_h: np
     ssm = DiscStateSpace(model, inputs.q_brk * scale, inputs.t_amb, law_h, (),
                          sigma_temp=sigma_temp, sigma_crown=0.0)
     x0, P0 = ssm.prior(T0, init_sigma)
-    ukf = UnscentedKalmanFilter(ssm.f, ssm.Q, np.diag(sigma_meas**2), H=ssm.H(spot_radii))
+    ukf = UnscentedKalmanFilter(ssm.f, ssm.Q, np.diag(sigma_meas**2), H=ssm.H(spot_radii),
+                                steps=ssm.compiled_steps())
     res = ukf.run(x0, P0, y, store="diag")
     nis_spot = res.innovation**2 / res.innovation_var
     out: dict[str, Any] = {"per_spot": {}, "sigma_meas_c": [float(s) for s in sigma_meas]}
