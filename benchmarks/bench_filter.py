@@ -1,7 +1,8 @@
 """Seconds per lap (1000 steps at 10 Hz) of our UKF (+ unscented RTS smoother) vs filterpy.
 
 Both filters run the SAME disc model (``DiscFEModel``, the 1-layer paper model) on the
-SAME simulated data:
+SAME simulated data — filterpy as a Python model call per sigma point, ours compiled into
+its step loop (``DiscStateSpace.compiled_steps``, the estimator's own path):
 
 * ``estimate`` — state = N node temperatures, spot 3 measured (linear interpolation);
 * ``identify-h`` — N = 51, state = [T_1..T_51, h] with h a random walk, four spots.
@@ -35,6 +36,7 @@ from filterpy_reference import run_filterpy_ukf
 from threadpoolctl import threadpool_limits
 
 from brakethermo.estimation import UnscentedKalmanFilter, urts_smooth
+from brakethermo.models.disc import H_PARAM, DiscStateSpace, RandomWalkParam
 from brakethermo.thermal.disc import load_disc
 from brakethermo.thermal.model import DiscFEModel
 
@@ -60,19 +62,30 @@ class Case:
         q = braking_power(K)
         rng = np.random.default_rng(seed)
         self.kind, self.N = kind, N
+        ta = np.full(K, T_AMB)
         if kind == "estimate":
+            ssm = DiscStateSpace(model, q, ta, np.full(K, H_TRUE), (),
+                                 sigma_temp=np.sqrt(0.5), sigma_crown=0.0)
             H = model.spot_matrix([disc.spot_radii[2]])
+            x_true = model.initial_state(150.0)
+            x0, P0 = model.initial_state(140.0), np.eye(N) * 100.0
+        else:
+            walk = RandomWalkParam(H_PARAM, 60.0, 20.0, 2.0)
+            ssm = DiscStateSpace(model, q, ta, None, (walk,), sigma_temp=np.sqrt(0.5),
+                                 sigma_crown=0.0)
+            H = ssm.H(disc.spot_radii)
+            x_true = np.r_[model.initial_state(150.0), H_TRUE]
+            x0 = np.r_[model.initial_state(140.0), 60.0]
+            P0 = np.diag(np.r_[np.full(N, 100.0), 400.0])
+        # the model both filters run: eq. 15 through every sigma point, given to filterpy
+        # as the plain model call (the lightest Python f, the fairest to it); ours runs the
+        # same arithmetic compiled inside its step loop (DiscStateSpace.compiled_steps)
+        if kind == "estimate":
 
             def f(X: np.ndarray, k: int) -> np.ndarray:
                 return model.step(X, q[k], H_TRUE, T_AMB)
 
-            n = N
-            Q = np.eye(n) * 0.5
-            x_true = model.initial_state(150.0)
-            x0, P0 = model.initial_state(140.0), np.eye(n) * 100.0
         else:
-            Hs = model.spot_matrix(disc.spot_radii)
-            H = np.hstack([Hs, np.zeros((Hs.shape[0], 1))])
 
             def f(X: np.ndarray, k: int) -> np.ndarray:
                 out = np.empty_like(X)
@@ -80,11 +93,8 @@ class Case:
                 out[:, N] = X[:, N]
                 return out
 
-            n = N + 1
-            Q = np.diag(np.r_[np.full(N, 0.5), 4.0])
-            x_true = np.r_[model.initial_state(150.0), H_TRUE]
-            x0 = np.r_[model.initial_state(140.0), 60.0]
-            P0 = np.diag(np.r_[np.full(N, 100.0), 400.0])
+        n, Q = ssm.n, ssm.Q(0)
+        self.steps = ssm.compiled_steps()
         m = H.shape[0]
         R = np.eye(m) * 4.0
         y = np.empty((K, m))
@@ -95,9 +105,12 @@ class Case:
         self.f, self.Q, self.R, self.H, self.y, self.x0, self.P0, self.n = f, Q, R, H, y, x0, P0, n
 
 
-def time_ours(case: Case, smoother: bool, repeat: int) -> tuple[float, float, np.ndarray]:
-    """(filter s/lap, smoother s/lap, filtered means), best of ``repeat`` runs."""
-    ukf = UnscentedKalmanFilter(case.f, case.Q, case.R, H=case.H, alpha=ALPHA, beta=BETA)
+def time_ours(case: Case, smoother: bool, repeat: int, fused: bool = True
+              ) -> tuple[float, float, np.ndarray]:
+    """(filter s/lap, smoother s/lap, filtered means), best of ``repeat`` runs; ``fused``
+    False calls the model and Q from Python every step (the loop before the fusion)."""
+    ukf = UnscentedKalmanFilter(case.f, case.Q, case.R, H=case.H, alpha=ALPHA, beta=BETA,
+                                steps=case.steps if fused else None)
     store = "smoother" if smoother else "diag"
     warm = ukf.run(case.x0, case.P0, case.y[:3], store=store)  # compile / warm up
     if smoother:
@@ -134,6 +147,7 @@ def row(
     t_f, t_s, xs = time_ours(case, smoother=True, repeat=repeat)
     if not smoother:
         t_f, _, xs = time_ours(case, smoother=False, repeat=repeat)
+    t_py = time_ours(case, smoother=smoother, repeat=repeat, fused=False)[0]  # as t_f
     k_fp = min(fp_steps, steps)
     t_fp, xs_fp = time_filterpy(case, k_fp, repeat)
     dx = float(np.max(np.abs(xs[:k_fp] - xs_fp)))
@@ -141,7 +155,7 @@ def row(
     total = t_f + t_s if smoother else t_f
     out(
         f"{kind:>10} {N:>4} {case.n:>4} {t_f:>9.4f} {t_s:>9.4f} {total:>9.4f} {t_fp:>9.3f}"
-        f" {k_fp:>6} {t_fp / t_f:>7.1f} {dx:>9.1e} "
+        f" {k_fp:>6} {t_fp / t_f:>7.1f} {dx:>9.1e} {t_py:>9.4f} {t_f / t_py:>6.2f} "
         + ("" if target is None else f"{target:>6}  {'ok' if total <= target else 'MISSED'}")
     )
 
@@ -196,11 +210,13 @@ def main() -> None:
     print(f"each time is the best of {args.repeat} runs (the machine is shared)")
     print(
         "ratio = filterpy / ours (filter only); |dx| = max |ours - filterpy| of the filtered"
-        " means over the filterpy steps, degC"
+        " means over the filterpy steps, degC; py_loop = ours with the model and Q called"
+        " from Python every step (filter only), fused/py = ours_filt / py_loop"
     )
     print(
         f"{'case':>10} {'N':>4} {'n':>4} {'ours_filt':>9} {'ours_smth':>9} {'ours_tot':>9}"
-        f" {'filterpy':>9} {'fp_stp':>6} {'ratio':>7} {'|dx|':>9} target"
+        f" {'filterpy':>9} {'fp_stp':>6} {'ratio':>7} {'|dx|':>9} {'py_loop':>9}"
+        f" {'fused/py':>6} target"
     )
     with threadpool_limits(args.threads):
         for N in map(int, args.nodes.split(",")):

@@ -33,7 +33,8 @@ if njit is not None:
                         geometry):  # pragma: no cover - compiled; equal to f (tested)
         """``Xf = f(X, j)`` of :class:`DiscStateSpace` (eq. 15, 50) by loops.
 
-        ``inputs`` = (q_brk, t_amb, h) per step (h empty when it is a state); ``cols`` the
+        ``inputs`` = (q_brk, t_amb, h), (K, 1) or (K, B): per step, shared or one column
+        per member (h (0, 1) when it is a state); ``cols`` the
         state columns of :data:`COL_H` ...; ``lower`` each column's floor (``max(theta,
         lower)``); ``floats`` = (k_z ratio of the model, μ β, μ T_mid, μ span, balance cap,
         sensor gain); ``loads`` = (the model's load (1, N), load at b = 0, dload/db).
@@ -45,11 +46,12 @@ if njit is not None:
         h = np.empty(B)
         kz = np.empty(B)
         Qs = np.empty(B)
-        ta = np.full(B, t_amb[j])
+        ta = np.empty(B)
         T = np.empty((B, n_temp))
         for b in range(B):
+            ta[b] = t_amb[j, b if t_amb.shape[1] > 1 else 0]
             c = cols[COL_H]
-            h[b] = h_k[j] if c < 0 else max(X[b, c], lower[c])
+            h[b] = h_k[j, b if h_k.shape[1] > 1 else 0] if c < 0 else max(X[b, c], lower[c])
             c = cols[COL_FACTOR]
             if c >= 0:
                 h[b] *= max(X[b, c], lower[c])
@@ -61,7 +63,7 @@ if njit is not None:
                     t_c += X[b, i]
                 u = (t_c / contact.size - t_mid) / span
                 scale *= 1.0 + beta * min(max(u, -1.0), 1.0)
-            Qs[b] = q_brk[j] * scale
+            Qs[b] = q_brk[j, b if q_brk.shape[1] > 1 else 0] * scale
             c = cols[COL_KZ]
             kz[b] = kz0 if c < 0 else max(X[b, c], lower[c]) * kz0
             for i in range(n_temp):
@@ -95,7 +97,7 @@ if njit is not None:
         braking power, the parameters' random walks (:meth:`DiscStateSpace.noise`)."""
         base, crown, param_idx, step_var, moving = noise
         n = Q.shape[0]
-        q2 = q_brk[j] * q_brk[j]
+        q2 = q_brk[j, 0] * q_brk[j, 0]
         for a in range(n):
             for b in range(n):
                 Q[a, b] = base[a, b] + q2 * crown[a, b]
@@ -122,6 +124,21 @@ if njit is not None:
             disc_noise(j, Q, noise, inputs[0])
             ukf_step(k, Xf, work, W, par, thr, Q, H, R, y, M, st, cov, gs, iv, sc, ic, rej,
                      ro)
+
+
+    @njit(cache=True, nogil=True)
+    def disc_replay(Xs, w, k0, inputs, cols, lower, floats, contact, loads, sensor_row,
+                    geometry):  # pragma: no cover - compiled; equal to the loop (tested)
+        """``Xs[k + 1] = f(Xs[k], k0 + k) + w[k]`` for every k, in place: the model
+        stepped through the session with a correction added after each step (``whatif``)."""
+        K, B, n = Xs.shape
+        Xf = np.empty((B, n))
+        for k in range(K - 1):
+            disc_transition(Xs[k], k0 + k, Xf, inputs, cols, lower, floats, contact, loads,
+                            sensor_row, geometry)
+            for b in range(B):
+                for i in range(n):
+                    Xs[k + 1, b, i] = Xf[b, i] + w[k, b, i]
 
 
 def available() -> bool:

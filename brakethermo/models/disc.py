@@ -255,13 +255,9 @@ class DiscStateSpace:
             out[:, self.sensor_index] = s + self._sensor_alpha * (face - s)
         return out
 
-    def compiled_steps(self) -> Callable[..., None] | None:
-        """:meth:`f` and :meth:`Q` fused into the UKF kernel's step loop
-        (:mod:`brakethermo.models._disc_kernels`): ``steps(k0, k1, offset, work, *args)``
-        runs filter steps ``k0 .. k1 - 1`` on model steps ``k + offset``. None where the
-        model does not compile."""
-        if not (self.model.use_numba and _disc_kernels.available()):
-            return None
+    def _kernel_spec(self) -> tuple[Any, ...]:
+        """What :func:`_disc_kernels.disc_transition` takes after the step: the inputs
+        as (K, 1) or (K, B) columns, the parameter columns and floors, the constants."""
         cols = np.full(6, -1, dtype=np.int64)
         for c, name in ((_disc_kernels.COL_H, H_PARAM), (_disc_kernels.COL_FACTOR, H_FACTOR_PARAM),
                         (_disc_kernels.COL_SCALE, SCALE_PARAM), (_disc_kernels.COL_KZ, KZ_PARAM),
@@ -274,8 +270,14 @@ class DiscStateSpace:
         load = np.ascontiguousarray(self.model.load[None, :], dtype=np.float64)
         tilt = ((self._load0, self._dload) if BALANCE_PARAM in self.index
                 else (np.zeros(self.model.n_nodes), np.zeros(self.model.n_nodes)))
-        spec = (
-            (self.q_brk, self.t_amb, np.zeros(0) if self.h is None else self.h),
+
+        def column(a: np.ndarray | None) -> np.ndarray:
+            if a is None:
+                return np.zeros((0, 1))
+            return np.ascontiguousarray(a.reshape(a.shape[0], -1), dtype=np.float64)
+
+        return (
+            (column(self.q_brk), column(self.t_amb), column(self.h)),
             cols, lower,
             (float(self.model.kz_ratio), float(self.effects.mu_beta),
              float(self.effects.mu_t_mid_c), MU_SPAN_C, BALANCE_MAX,
@@ -283,23 +285,52 @@ class DiscStateSpace:
             self._contact_face.astype(np.int64),
             (load, *(np.ascontiguousarray(a[None, :], dtype=np.float64) for a in tilt)),
             self._sensor_row if self.lagging else np.zeros(self.n_temp),
-            (self._Q_base, self._S_crown, self._param_idx.astype(np.int64),
-             self._step_var.astype(np.float64), self._moving.astype(np.float64)),
             self.model._kernel_args,
         )
-        dt = self.model.dt
+
+    def _breakdown(self, k0: int, k1: int) -> DataError:
+        return DataError(
+            f"the disc model broke down between t = {k0 * self.model.dt:.1f} and"
+            f" {k1 * self.model.dt:.1f} s: the temperatures left any physical range; check"
+            " the h law and tuning values")
+
+    def compiled_steps(self) -> Callable[..., None] | None:
+        """:meth:`f` and :meth:`Q` fused into the UKF kernel's step loop
+        (:mod:`brakethermo.models._disc_kernels`): ``steps(k0, k1, offset, work, *args)``
+        runs filter steps ``k0 .. k1 - 1`` on model steps ``k + offset``. None where the
+        model does not compile."""
+        if not (self.model.use_numba and _disc_kernels.available()):
+            return None
+        *head, geometry = self._kernel_spec()
+        noise = (self._Q_base, self._S_crown, self._param_idx.astype(np.int64),
+                 self._step_var.astype(np.float64), self._moving.astype(np.float64))
+        spec = (*head, noise, geometry)
 
         def steps(k0: int, k1: int, offset: int, work: np.ndarray, *args: Any) -> None:
             try:
                 _disc_kernels.run_steps(spec, k0, k1, offset, work, *args)
             except (ZeroDivisionError, FloatingPointError):
-                raise DataError(
-                    f"the disc model broke down between t = {(k0 + offset) * dt:.1f} and"
-                    f" {(k1 + offset) * dt:.1f} s: the temperatures left any physical range;"
-                    " check the h law and tuning values"
-                ) from None
+                raise self._breakdown(k0 + offset, k1 + offset) from None
 
         return steps
+
+    def replay(self, X0: np.ndarray, w: np.ndarray, k0: int = 0) -> np.ndarray:
+        """Members stepped through the session from step ``k0`` with a correction after
+        each step: ``X[k + 1] = f(X[k], k0 + k) + w[k]`` from ``X[0] = X0`` (B, n); ``w``
+        (K - 1, B, n). Returns (K, B, n). Compiled where the model compiles."""
+        K = w.shape[0] + 1
+        Xs = np.empty((K, *X0.shape))
+        Xs[0] = X0
+        if not (self.model.use_numba and _disc_kernels.available()):
+            for k in range(K - 1):
+                Xs[k + 1] = self.f(Xs[k], k0 + k) + w[k]
+            return Xs
+        try:
+            _disc_kernels.disc_replay(Xs, np.ascontiguousarray(w, dtype=np.float64), k0,
+                                      *self._kernel_spec())
+        except (ZeroDivisionError, FloatingPointError):
+            raise self._breakdown(k0, k0 + K - 1) from None
+        return Xs
 
     def Q(self, k: int) -> np.ndarray:
         """Process noise of the step ``k -> k + 1``, squared state units."""

@@ -287,8 +287,7 @@ def replay(est: EstimateResult, scenario: Scenario, options: WhatifOptions,
         b = min(K - 1, a + REPLAY_CHUNK)
         pred = base.f(np.repeat(X[a:b], S, axis=0), np.arange(a * S, b * S))
         w = X[a + 1:b + 1, None, :] - pred.reshape(b - a, S, n)
-        for k in range(a, b):
-            Xs[k + 1] = scen.f(Xs[k], k) + w[k - a]
+        Xs[a:b + 1] = scen.replay(Xs[a], w, a)
     T = Xs[:, :, : model1.n_state]
     # the change (K, S, 5) at spot1..4 and the contact band, anchored to the published
     # estimate: a scenario that changes nothing is the estimate itself
