@@ -21,7 +21,7 @@ from brakethermo.models.disc import (
 from brakethermo.thermal.disc import load_disc
 from brakethermo.thermal.model import DiscFEModel
 
-K = 400
+K = 700
 
 CASES = {
     "plain": ((SCALE_PARAM,), DiscEffects()),
@@ -85,16 +85,64 @@ def test_compiled_steps_equal_the_python_loop(case: str) -> None:
 
 def test_windowed_smoother_counts_the_model_steps_from_each_window() -> None:
     """The bounded-memory smoother re-runs windows from their own first step: the
-    compiled loop must step the model from there too (the offset), equal to one pass."""
+    compiled loop must step the model from there too (the offset; a window longer than
+    one compiled span, so spans start inside windows), equal to the Python loop's."""
     params, effects = CASES["every online state, μ(T), lag"]
     ssm = _space(params, effects, True)
-    _, fused = _filters(ssm)
+    loop, fused = _filters(ssm)
     x0, P0 = ssm.prior(ssm.model.initial_state(30.0), 5.0)
     y = _readings(ssm)
-    whole = urts_smooth(fused.run(x0, P0, y, store="smoother"), store="diag")
-    windowed = urts_smooth_windowed(fused, x0, P0, y, window=120)
-    assert len(windowed.windows) > 2
+    whole = urts_smooth(loop.run(x0, P0, y, store="smoother"), store="diag")
+    windowed = urts_smooth_windowed(fused, x0, P0, y, window=300, workers=2)
+    assert len(windowed.windows) == 3
     np.testing.assert_allclose(windowed.smoothed.x_smooth, whole.x_smooth, atol=1e-6)
+
+
+def test_a_power_shape_model_on_one_layer() -> None:
+    """The paper's one-layer model with a radial power shape (no crown weights)."""
+    model = DiscFEModel(load_disc(), 12, 1, power_shape=lambda r: r**2)
+    q = np.where(np.arange(K) % 60 < 15, 50e3, 0.0)
+    ssm = DiscStateSpace(model, q, np.full(K, 25.0), np.full(K, 90.0),
+                         [RandomWalkParam(SCALE_PARAM, *INIT[SCALE_PARAM][:3])],
+                         sigma_temp=0.5, sigma_crown=0.0)
+    loop, fused = _filters(ssm)
+    x0, P0 = ssm.prior(model.initial_state(30.0), 5.0)
+    y = _readings(ssm)
+    np.testing.assert_allclose(fused.run(x0, P0, y).x_filt, loop.run(x0, P0, y).x_filt,
+                               rtol=1e-10, atol=1e-9)
+
+
+def test_a_run_past_the_inputs_is_refused() -> None:
+    """The compiled loop reads its inputs unchecked: a filter longer than the state
+    space's inputs must not read past them."""
+    ssm = _space((SCALE_PARAM,), DiscEffects(), True)
+    _, fused = _filters(ssm)
+    x0, P0 = ssm.prior(ssm.model.initial_state(30.0), 5.0)
+    y = np.vstack([_readings(ssm)] * 2)
+    with pytest.raises(ValueError, match=f"compiled steps up to .* of {K}"):
+        fused.run(x0, P0, y)
+    X0 = np.tile(x0, (3, 1))
+    with pytest.raises(ValueError, match=f"of {K}"):
+        ssm.replay(X0, np.zeros((10, 3, ssm.n)), K - 5)
+    with pytest.raises(ValueError, match="corrections of shape"):
+        ssm.replay(X0, np.zeros((10, 2, ssm.n)))
+
+
+def test_a_cancelled_speculative_run_stops() -> None:
+    """The estimate's guess stops on request on the compiled path too."""
+    import threading
+
+    from brakethermo.pipelines.speculative import Cancelled, cancellable, cancellable_steps
+
+    ssm = _space((SCALE_PARAM,), DiscEffects(), True)
+    cancel = threading.Event()
+    cancel.set()
+    ukf = UnscentedKalmanFilter(cancellable(ssm.f, cancel), ssm.Q, np.array([[4.0]]),
+                                H=ssm.H_measured(0.15),
+                                steps=cancellable_steps(ssm.compiled_steps(), cancel))
+    x0, P0 = ssm.prior(ssm.model.initial_state(30.0), 5.0)
+    with pytest.raises(Cancelled):
+        ukf.run(x0, P0, _readings(ssm))
 
 
 def test_a_breakdown_names_the_time_span() -> None:

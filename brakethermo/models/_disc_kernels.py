@@ -15,12 +15,12 @@ from typing import Any
 
 import numpy as np
 
-from brakethermo.estimation._kernels import ukf_step
-from brakethermo.thermal._fe_kernels import step_nb
-
 try:
     from numba import njit
-except ImportError:  # pragma: no cover - numba is a dependency; the loop in Python remains
+
+    from brakethermo.estimation._kernels import ukf_step
+    from brakethermo.thermal._fe_kernels import step_nb
+except ImportError:  # pragma: no cover - numba is a dependency; f and Q in Python remain
     njit = None
 
 # columns of the transition's parameter table (-1: the state has no such parameter)

@@ -294,11 +294,23 @@ class DiscStateSpace:
             f" {k1 * self.model.dt:.1f} s: the temperatures left any physical range; check"
             " the h law and tuning values")
 
+    def _check_span(self, inputs: tuple[np.ndarray, ...], k_end: int, B: int, n: int) -> None:
+        """The compiled loop reads ``inputs`` unchecked: steps up to ``k_end`` must exist
+        and the members be (B, n) with inputs shared or one column per member."""
+        given = [a for a in inputs if a.size]
+        K = min(a.shape[0] for a in given)
+        widths = {a.shape[1] for a in given} - {1}
+        if k_end > K or n != self.n or widths - {B}:
+            raise ValueError(
+                f"compiled steps up to {k_end} of {K} on ({B}, {n}) members: the state space"
+                f" has {self.n} states and inputs of width {sorted(widths) or [1]}")
+
     def compiled_steps(self) -> Callable[..., None] | None:
         """:meth:`f` and :meth:`Q` fused into the UKF kernel's step loop
         (:mod:`brakethermo.models._disc_kernels`): ``steps(k0, k1, offset, work, *args)``
         runs filter steps ``k0 .. k1 - 1`` on model steps ``k + offset``. None where the
-        model does not compile."""
+        model does not compile. The inputs, constants and model are taken now: change
+        none of them after (``f`` and ``Q`` would see the change, these steps not)."""
         if not (self.model.use_numba and _disc_kernels.available()):
             return None
         *head, geometry = self._kernel_spec()
@@ -307,9 +319,11 @@ class DiscStateSpace:
         spec = (*head, noise, geometry)
 
         def steps(k0: int, k1: int, offset: int, work: np.ndarray, *args: Any) -> None:
+            # the last step reads its inputs at k1 - 1 + offset
+            self._check_span(head[0], k1 + offset, 2 * work.shape[1] + 1, work.shape[1])
             try:
                 _disc_kernels.run_steps(spec, k0, k1, offset, work, *args)
-            except (ZeroDivisionError, FloatingPointError):
+            except ZeroDivisionError:
                 raise self._breakdown(k0 + offset, k1 + offset) from None
 
         return steps
@@ -325,10 +339,15 @@ class DiscStateSpace:
             for k in range(K - 1):
                 Xs[k + 1] = self.f(Xs[k], k0 + k) + w[k]
             return Xs
+        B, n = X0.shape
+        spec = self._kernel_spec()
+        self._check_span(spec[0], k0 + K - 1, B, n)
+        if w.shape[1:] != (B, n):
+            raise ValueError(f"corrections of shape {w.shape[1:]} for ({B}, {n}) members")
         try:
             _disc_kernels.disc_replay(Xs, np.ascontiguousarray(w, dtype=np.float64), k0,
-                                      *self._kernel_spec())
-        except (ZeroDivisionError, FloatingPointError):
+                                      *spec)
+        except ZeroDivisionError:
             raise self._breakdown(k0, k0 + K - 1) from None
         return Xs
 

@@ -150,7 +150,7 @@ def ukf_for(space: DiscStateSpace | ReducedStateSpace, tuning: EstimateTuning,
             spot_radius: float, cancel: threading.Event | None = None
             ) -> UnscentedKalmanFilter:
     """The UKF of ``space`` fed by the pyrometer at ``spot_radius`` (m); a run that stops
-    at its next step once ``cancel`` is set."""
+    at its next step (its next compiled span of steps) once ``cancel`` is set."""
     f = space.f if cancel is None else cancellable(space.f, cancel)
     steps = space.compiled_steps() if isinstance(space, DiscStateSpace) else None
     if cancel is not None:

@@ -5,7 +5,8 @@ A race's estimate waits for its online decision (filter passes over its first la
 races switch nothing on and drop nothing of the h law, and the decision's passes leave a
 core idle part of the time: the estimate starts the filter for that outcome at once, on
 its own thread, and uses it when the decision agrees — the same function on the same
-inputs, so the same numbers — or stops it at its next model step when it does not.
+inputs, so the same numbers — or stops it at its next model step (within its compiled
+span of 256 steps) when it does not.
 """
 
 from __future__ import annotations
@@ -87,7 +88,8 @@ class Speculation(Generic[T]):
         return value
 
     def abandon(self) -> None:
-        """Stop the run (at its next model step) and drop whatever it did or raised."""
+        """Stop the run (at its next model step or compiled span of steps) and drop
+        whatever it did or raised."""
         self._cancel.set()
         self._future.cancel()
         self._pool.shutdown(wait=True)
