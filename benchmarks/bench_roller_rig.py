@@ -76,7 +76,7 @@ def main() -> None:
         )
         free = np.abs(torque) <= 0.02 * np.abs(torque).max()
         Q = np.diag(spec.filter.q_measured)
-        R = np.diag([speed_noise_var(w_w, free, s.dt), speed_noise_var(w_r, free, s.dt)])
+        R = np.diag([speed_noise_var(w_w, free), speed_noise_var(w_r, free)])
         H = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
         y = np.column_stack([w_w, w_r])
         fd = spec.filter
