@@ -84,8 +84,8 @@ def _pv_figure(r: EboosterResult) -> Figure:
         sl = _every(r.time.size)
         ax.plot(r.s2[sl], r.validation["p_m"][sl], ".", ms=1.5, alpha=0.4,
                 label="this session (sensor)")
-    ax.set_xlabel("s2 mm")
-    ax.set_ylabel("p_m MPa")
+    ax.set_xlabel("screw displacement s2, mm")
+    ax.set_ylabel("master-cylinder pressure p_m, MPa")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
