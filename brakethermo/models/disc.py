@@ -285,7 +285,7 @@ class DiscStateSpace:
             self._contact_face.astype(np.int64),
             (load, *(np.ascontiguousarray(a[None, :], dtype=np.float64) for a in tilt)),
             self._sensor_row if self.lagging else np.zeros(self.n_temp),
-            self.model._kernel_args,
+            self.model.kernel_geometry,
         )
 
     def _breakdown(self, k0: int, k1: int) -> DataError:

@@ -55,6 +55,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -253,6 +254,13 @@ class DiscFEModel:
             self._z_geo.ravel().copy(), area.ravel().copy(), self._rad_geo,
             ramp_table(*self._c_tab), ramp_table(*self._k_tab), ramp_table(*self._z_tab),
         )  # fmt: skip
+
+    @property
+    def kernel_geometry(self) -> tuple[Any, ...]:
+        """What the compiled step takes after its per-member arrays (``step_nb``'s
+        ``*geometry``: mesh sizes, time step, geometric factors, property tables), for
+        compiled loops built on it elsewhere (:mod:`brakethermo.models._disc_kernels`)."""
+        return self._kernel_args
 
     # ------------------------------------------------------------------ helpers
     def _batch(self, T: np.ndarray) -> tuple[np.ndarray, bool]:
