@@ -234,6 +234,9 @@ def test_bad_inputs_exit_1(tmp_path: Path) -> None:
         tmp_path / "nc.csv", SessionData((ch["motor_angle"], ch["clamp_force"]), {})
     )
     assert "motor_current" in _run_bad(tmp_path, str(no_current), "--train", str(good))
+    short = write_emb_simulation(simulate_emb("nominal", seed=6303, duration_s=1),
+                                 tmp_path / "short.mcap")[0]
+    assert "at least 2.5 s" in _run_bad(tmp_path, str(good), "--train", str(short))
     still = write_session(
         tmp_path / "still.csv",
         SessionData(

@@ -313,3 +313,37 @@ def test_bad_input_exits_1_with_one_clear_line(tmp_path):
     good.write_text(text)
     res = runner.invoke(app, ["ebooster", str(good), "--out", str(tmp_path)])
     assert res.exit_code == 1 and "wibble" in res.output and "reaction_disk_delta" in res.output
+
+
+@pytest.mark.parametrize(("edit", "said"), [
+    (("pv_coeffs", "[31.1]"), "'pv_coeffs' holds 1 values"),
+    (("pv_coeffs", "[]"), "'pv_coeffs' holds 0 values"),
+    (("pv_coeffs", "[" + ", ".join(["1.0"] * 500) + "]"), "'pv_coeffs' holds 500"),
+    (("disk", "[1.0, 2.0]"), "'disk' holds 2 values"),
+    (("omega_n", "-3.0"), "'omega_n' = -3 is not > 0"),
+    (("tau_z", "nan"), "'tau_z' is not finite"),
+])
+def test_a_malformed_training_result_is_refused_before_the_run(tmp_path, edit, said):
+    """--fit files with wrong counts or impossible values: one line, exit 1 (were
+    tracebacks, or a 100 000-term p-V curve accepted)."""
+    key, value = edit
+    lines = [f"{key} = {value}" if line.startswith(f"{key} =") else line
+             for line in default_fit_path().read_text().splitlines()]
+    bad = tmp_path / "fit.toml"
+    bad.write_text("\n".join(lines) + "\n")
+    sim = simulate_ebooster(EboosterSimConfig("closed", seed=2, rate_hz=200.0, duration_s=1.0))
+    session, _ = write_ebooster_session(sim, tmp_path / "s.parquet")
+    res = runner.invoke(app, ["ebooster", str(session), "--fit", str(bad),
+                              "--out", str(tmp_path / "o")])
+    assert res.exit_code == 1 and said in res.output and "--save-fit" in res.output
+    assert "Traceback" not in res.output
+
+
+def test_save_fit_onto_a_folder_is_refused_before_the_run(tmp_path):
+    sim = simulate_ebooster(EboosterSimConfig("closed", seed=2, rate_hz=200.0, duration_s=1.0))
+    session, _ = write_ebooster_session(sim, tmp_path / "s.parquet")
+    (tmp_path / "adir").mkdir()
+    res = runner.invoke(app, ["ebooster", str(session), "--save-fit", str(tmp_path / "adir"),
+                              "--out", str(tmp_path / "o")])
+    assert res.exit_code == 1 and "is a folder, but --save-fit needs a file name" in res.output
+    assert not (tmp_path / "o").exists()  # refused before any work

@@ -54,6 +54,10 @@ def ebooster_command(
     from brakethermo.pipelines.rig_outputs import write_rig_outputs
     from brakethermo.report.ebooster import booster_page
 
+    if save_fit is not None:  # before the run, not after it
+        from brakethermo.pipelines.output_dir import check_output_file
+
+        check_output_file(save_fit, "--save-fit")
     result = run_with_status(
         as_json, f"observing {session.name} ...",
         lambda: observe(session, train_path=train, fit_path=fit, bench=bench, aliases=aliases,

@@ -41,6 +41,7 @@ average, against 0.8 % with the clip), so the clip stays.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -122,7 +123,7 @@ def load_fit(path: str | Path) -> BoosterFit:
     """Read a training result written by :meth:`BoosterFit.write`."""
     raw = load_toml(path)
     try:
-        return BoosterFit(
+        fit = BoosterFit(
             pv_coeffs=tuple(float(v) for v in raw["pv_coeffs"]),  # type: ignore[arg-type]
             stroke_mm=float(raw["stroke_mm"]),
             disk=tuple(float(v) for v in raw["disk"]),  # type: ignore[arg-type]
@@ -138,6 +139,34 @@ def load_fit(path: str | Path) -> BoosterFit:
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise ConfigError(f"not a valid training result ({exc})", path=Path(path)) from None
+    problem = _fit_problem(fit)
+    if problem:
+        raise ConfigError(f"not a valid training result: {problem}; write one with"
+                          " `brakethermo ebooster TRAIN --train TRAIN --save-fit FILE`",
+                          path=Path(path))
+    return fit
+
+
+# what a training result holds: (key, count or None for a scalar, must be > 0)
+_FIT_SHAPE = (("pv_coeffs", 4, False), ("disk", 5, False), ("stroke_mm", None, True),
+              ("omega_n", None, True), ("damping", None, False), ("tau_z", None, False),
+              ("pedal_scale_n", None, True), ("q_factor", None, True))
+
+
+def _fit_problem(fit: BoosterFit) -> str | None:
+    """What makes ``fit`` unusable (wrong counts, non-finite or impossible values)."""
+    for key, count, positive in _FIT_SHAPE:
+        value = getattr(fit, key)
+        values = value if count is not None else (value,)
+        if count is not None and len(values) != count:
+            return f"'{key}' holds {len(values)} values, the model takes {count}"
+        if not all(math.isfinite(v) for v in values):
+            return f"'{key}' is not finite"
+        if count is None and positive and not value > 0:
+            return f"'{key}' = {value:g} is not > 0"
+        if count is None and value < 0:
+            return f"'{key}' = {value:g} is negative"
+    return None
 
 
 @numba.njit(cache=True)

@@ -26,6 +26,7 @@ from brakethermo.errors import DataError
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.clamp_force import (
+    CV_BLOCK_S,
     ClampForceEstimates,
     ClampForceModels,
     FusionCheck,
@@ -44,6 +45,7 @@ APPLIED_N = 500.0  # N: the caliper is clamping (the mean force is taken over th
 PEAK_HOLD_S = 0.005  # s: a peak force is one held this long (not a current-step spike)
 PEAK_SPIKE = 3  # samples: the longest torque-balance spike the held peak removes
 MAX_FACTOR_WALK = 0.5  # 1/sqrt(s): pads soften over seconds, not by half in one
+MIN_TRAIN_S = 1.25 * CV_BLOCK_S  # s: both folds of eq. 7's cross-validation hold samples
 
 @dataclass(frozen=True)
 class EmbData:
@@ -92,6 +94,13 @@ def load_emb(
             path=session.path,
             channel="motor_angle",
         )
+    duration = float(session.time[-1] - session.time[0])
+    if need_sensor and duration < MIN_TRAIN_S:
+        raise DataError(
+            f"is {duration:.1f} s long; a {role} session needs at least {MIN_TRAIN_S:g} s of"
+            f" applies (eq. 7's choices are cross-validated on {CV_BLOCK_S:g} s blocks): log"
+            " a longer one",
+            path=session.path, channel="clamp_force")
     notes = check_rig_channels(session, (
         Expect("motor_angle", "rad", 2e3), Expect("motor_current", "A", 500.0),
         Expect("clamp_force", "N", 1e5, positive=True,
