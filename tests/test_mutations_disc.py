@@ -342,3 +342,20 @@ def test_pyrometer_in_kelvin_labelled_degc_is_said(tmp_path):
         assert res.exit_code == 0, res.output
         assert any("kelvin labelled degC" in w
                    for w in json.loads(res.stdout)["run"]["warnings"]), res.stdout
+
+
+def test_brake_pressure_in_mpa_labelled_bar_is_said(tmp_path):
+    """Brake pressure a tenth of the truth (MPa read as bar) passes the input checks; the
+    filter then scales the braking power about tenfold to follow the pyrometer, which no
+    pad's friction does: a loud warning (the estimate was silent, exit 0)."""
+    from brakethermo.pipelines.checks import check_power_scale
+
+    path = _scaled("brake_pressure_front", 0.1)(tmp_path / "mpa.parquet")
+    res, elapsed = _run("estimate", path, "--out", tmp_path / "o", "--no-smoother",
+                        "--no-reports", "--json", "--nodes", "12")
+    assert elapsed < CASE_BUDGET_S and res.exit_code == 0, res.output
+    said = [w for w in json.loads(res.stdout)["run"]["warnings"] if "had to be scaled" in w]
+    assert len(said) == 1 and "brake_pressure_front" in said[0], res.stdout
+    braking = np.ones(100, dtype=bool)
+    assert check_power_scale(np.full(100, 1.4), braking) == []  # pads do vary
+    assert check_power_scale(np.full(100, 0.2), braking)  # kPa read as bar

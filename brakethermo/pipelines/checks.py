@@ -12,6 +12,9 @@ import numpy as np
 MIN_TEMP_C = -60.0  # below any air a disc meets
 MAX_TEMP_C = 1300.0  # carbon discs run to ~1000 °C; beyond this the input is wrong
 MAX_MEAN_NIS = 5.0  # clean sessions give ≈1
+# the friction level against the h law's: pads, temperature and bedding move it by tens
+# of %, not threefold (brake pressure in MPa read as bar needs x10)
+MAX_POWER_SCALE = 3.0
 
 
 def check_estimate_result(temps_c: np.ndarray, nis: np.ndarray) -> list[str]:
@@ -49,3 +52,27 @@ def check_estimate_result(temps_c: np.ndarray, nis: np.ndarray) -> list[str]:
             "is likely wrong (brake pressure, wheel speed); do not trust these temperatures"
         )
     return out
+
+
+def check_power_scale(scale: np.ndarray, braking: np.ndarray) -> list[str]:
+    """A warning when the filter had to scale the braking power by more than
+    :data:`MAX_POWER_SCALE` (or less than its inverse) to follow the pyrometer.
+
+    Parameters
+    ----------
+    scale : ndarray (K,) — dimensionless, the power-scale state against the h law's level
+    braking : ndarray (K,) of bool — the steps with braking power
+    """
+    values = np.asarray(scale, dtype=float)[np.asarray(braking, dtype=bool)]
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return []
+    level = float(np.median(values))
+    if 1.0 / MAX_POWER_SCALE <= level <= MAX_POWER_SCALE:
+        return []
+    return [
+        f"IMPLAUSIBLE RESULT: the braking power had to be scaled by {level:.2f} (median while"
+        " braking) to follow the pyrometer; no pad's friction changes that much — check the"
+        " unit of brake_pressure_front (MPa read as bar gives x10, kPa as bar x0.01) and"
+        " the disc's heat share, or the h law (of another disc or session?)"
+    ]

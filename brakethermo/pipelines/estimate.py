@@ -31,7 +31,7 @@ from brakethermo.models.reduced import (
     ReducedStateSpace,
 )
 from brakethermo.pipelines import scoring
-from brakethermo.pipelines.checks import check_estimate_result
+from brakethermo.pipelines.checks import check_estimate_result, check_power_scale
 from brakethermo.pipelines.crown_band import crown_balance_std
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import (
@@ -434,6 +434,8 @@ def estimate_from_session(
                           inputs.q_brk * cal.power_scale, h, inputs.t_amb, spot_radii,
                           options.spot)
     frame = _estimate_frame(inputs, model, run.states, out, band, tuning, h, online)
+    if "power_scale" in frame:
+        warnings.extend(check_power_scale(frame["power_scale"].to_numpy(), inputs.q_brk > 0))
     open_loop = scores = None
     if options.score and len(inputs.measured) > 1:
         open_loop, scores = _self_scores(session, inputs, model, cal, x0, h, frame, std,
