@@ -325,3 +325,22 @@ def test_simulate_rig_emb_writes_a_readable_session(tmp_path: Path) -> None:
     )
     assert bad.exit_code == 1 and "scenario='rusty'" in bad.output
     assert "Traceback" not in bad.output
+
+
+@pytest.mark.parametrize("which", ["estimated", "training"])
+def test_motor_angle_in_degrees_labelled_rad_is_refused(tmp_path: Path, which: str) -> None:
+    """One file's angle in degrees labelled rad: 57x the other's spread. Both files are
+    named (the estimate was 329 000 kN with no warning; a wrong training file blamed the
+    other for a reversed sign)."""
+    good = write_emb_simulation(simulate_emb("nominal", seed=6311, duration_s=3),
+                                tmp_path / "good.mcap")[0]
+    sim = simulate_emb("nominal", seed=6312, duration_s=3)
+    ch = {c.name: c for c in sim.session.channels}
+    deg = replace(ch["motor_angle"], value=np.degrees(ch["motor_angle"].value))
+    bad = write_session(tmp_path / "deg.csv", SessionData(
+        (deg, ch["motor_current"], ch["clamp_force"]), {}))
+    args = (str(bad), "--train", str(good)) if which == "estimated" else (
+        str(good), "--train", str(bad))
+    said = _run_bad(tmp_path, *args)
+    assert "'motor_angle'" in said and "x apart" in said and "deg read as rad" in said
+    assert "good.mcap" in said or "deg.csv" in said

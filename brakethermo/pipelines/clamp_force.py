@@ -46,6 +46,11 @@ PEAK_HOLD_S = 0.005  # s: a peak force is one held this long (not a current-step
 PEAK_SPIKE = 3  # samples: the longest torque-balance spike the held peak removes
 MAX_FACTOR_WALK = 0.5  # 1/sqrt(s): pads soften over seconds, not by half in one
 MIN_TRAIN_S = 1.25 * CV_BLOCK_S  # s: both folds of eq. 7's cross-validation hold samples
+# an input's spread (1st to 99th percentile) between the training session and another:
+# harder applies widen it a few times; a unit slip (deg read as rad: x57) far more
+MAX_SPREAD_RATIO = 20.0
+MAX_FORCE_N = 1e5  # what the force sensor's check allows: no caliper clamps harder
+
 
 @dataclass(frozen=True)
 class EmbData:
@@ -149,6 +154,7 @@ def clamp_force(
     """Train on ``train_path`` (and ``retrain_path``), estimate on ``path``."""
     tr = load_emb(train_path, need_sensor=True, role="training", aliases=aliases)
     data = load_emb(path, need_sensor=False, role="estimation", aliases=aliases)
+    _check_like(tr, data, "estimation")
     models = train(tr.theta, tr.current, tr.force, tr.ts)
     check = fusion_check(tr.theta, tr.current, tr.force, tr.ts, factor_walk=factor_walk)
     est = estimate(models, data.theta, data.current, data.ts, factor_walk=factor_walk,
@@ -157,6 +163,7 @@ def clamp_force(
     rt = mr = er = cr = None
     if retrain_path is not None:
         rt = load_emb(retrain_path, need_sensor=True, role="re-training", aliases=aliases)
+        _check_like(tr, rt, "re-training")
         mr = train(rt.theta, rt.current, rt.force, rt.ts, structure=models)
         cr = fusion_check(rt.theta, rt.current, rt.force, rt.ts, factor_walk=factor_walk) or check
         er = estimate(mr, data.theta, data.current, data.ts, factor_walk=factor_walk, check=cr)
@@ -164,12 +171,38 @@ def clamp_force(
     return ClampForceResult(data, tr, models, est, rt, mr, er, check, cr)
 
 
+def _check_like(train: EmbData, data: EmbData, role: str) -> None:
+    """The inputs of ``data`` in the units of the training session's: their spreads
+    within :data:`MAX_SPREAD_RATIO` of each other (which of the two is wrong, only the
+    user can tell, so both files are named)."""
+    for channel, a, b in (("motor_angle", train.theta, data.theta),
+                          ("motor_current", train.current, data.current)):
+        sa, sb = (float(np.subtract(*np.nanpercentile(v, [99, 1]))) for v in (a, b))
+        if min(sa, sb) > 0 and max(sa, sb) / min(sa, sb) > MAX_SPREAD_RATIO:
+            unit = "rad" if channel == "motor_angle" else "A"
+            raise DataError(
+                f"spans {sb:.3g} {unit} in this {role} session and {sa:.3g} {unit} in the"
+                f" training session {train.session.path.name}:"
+                f" {max(sa, sb) / min(sa, sb):.0f}x apart, so one of the two files has it in"
+                " another unit (deg read as rad gives 57x, mA as A 1000x); fix the unit in"
+                " that file",
+                path=data.session.path, channel=channel)
+
+
 def _check_sources(est: ClampForceEstimates, data: EmbData) -> None:
     """Each input's own estimate of the force — the stiffness curve's from the angle, the
-    torque balance's from the current — must press: a clamp force pulling in the hardest
-    applies means that input's sign is reversed against the training session."""
+    torque balance's from the current — must press (a clamp force pulling in the hardest
+    applies means that input's sign is reversed against the training session) and stay
+    below what any caliper clamps (:data:`MAX_FORCE_N`)."""
     for series, channel in ((est.stiffness, "motor_angle"), (est.torque_balance,
                                                               "motor_current")):
+        peak = float(np.nanmax(np.abs(series), initial=0.0))
+        if peak > MAX_FORCE_N:
+            raise DataError(
+                f"the clamp force estimated from '{channel}' alone reaches {peak / 1e3:.0f}"
+                f" kN, beyond any caliper ({MAX_FORCE_N / 1e3:.0f} kN): check the channel's"
+                " unit against the training session's",
+                path=data.session.path, channel=channel)
         strong = series[np.abs(series) >= np.percentile(np.abs(series), 90)]
         pull = float(np.median(strong)) / 1e3 if strong.size else 0.0
         if pull < 0.0:
