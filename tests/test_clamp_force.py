@@ -344,3 +344,23 @@ def test_motor_angle_in_degrees_labelled_rad_is_refused(tmp_path: Path, which: s
     said = _run_bad(tmp_path, *args)
     assert "'motor_angle'" in said and "x apart" in said and "deg read as rad" in said
     assert "good.mcap" in said or "deg.csv" in said
+
+
+def test_a_gap_in_the_scoring_sensor_is_scored_around_and_said(tmp_path: Path) -> None:
+    """One gap in the estimated session's force sensor: the RMSEs are taken on the rest
+    and the gap is said on the console (the sensor was dropped without a word)."""
+    good = write_emb_simulation(simulate_emb("nominal", seed=6321, duration_s=3),
+                                tmp_path / "good.mcap")[0]
+    sim = simulate_emb("nominal", seed=6322, duration_s=4)
+    ch = {c.name: c for c in sim.session.channels}
+    keep = (ch["clamp_force"].time < 1.0) | (ch["clamp_force"].time > 2.5)
+    gap = replace(ch["clamp_force"], time=ch["clamp_force"].time[keep],
+                  value=ch["clamp_force"].value[keep])
+    gapped = write_session(tmp_path / "gap.csv", SessionData(
+        (ch["motor_angle"], ch["motor_current"], gap), {}))
+    res = CliRunner().invoke(app, ["clamp-force", str(gapped), "--train", str(good),
+                                   "--out", str(tmp_path / "o")])
+    assert res.exit_code == 0, res.output
+    assert "gap" in res.output and "warning" in res.output
+    summ = json.loads(next((tmp_path / "o").rglob("summary.json")).read_text())
+    assert summ["has_sensor"] and summ["rmse_kn"]["kf"] < 1.0

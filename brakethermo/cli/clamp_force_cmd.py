@@ -77,6 +77,11 @@ def clamp_force_cmd(
         tab.add_row(k, "–" if v is None else f"{v:.3f}", f"{est[k]['peak']:.2f}",
                     "–" if m is None else f"{m:.2f}")
     console.print(tab)
+    if all(v is None for v in rmses.values()):
+        console.print("RMSE –: this session has no usable clamp-force sensor to score against"
+                      " (the estimates do not need it)", highlight=False)
+    for w in summ["warnings"]:
+        console.print(f"[yellow]warning:[/] {escape(w)}", highlight=False)
     if "wear" in summ:
         console.print(f"estimates of the models re-trained on {escape(Path(retrain).name)}"
                       " (the training session's models' beside them on the page)")
