@@ -359,3 +359,12 @@ def test_brake_pressure_in_mpa_labelled_bar_is_said(tmp_path):
     braking = np.ones(100, dtype=bool)
     assert check_power_scale(np.full(100, 1.4), braking) == []  # pads do vary
     assert check_power_scale(np.full(100, 0.2), braking)  # kPa read as bar
+
+
+def test_diagnose_says_a_misplaced_beacon_on_the_console(tmp_path):
+    """diagnose builds its lap split on the beacon: the session's lap warnings are
+    printed with its own (they were only in diagnosis.json's run.input_warnings)."""
+    path = _beacons(tmp_path / "s.parquet", [96.0, 136.0, 288.0], [1.0, 2.0, 3.0])
+    res, elapsed = _run("diagnose", path, "--out", tmp_path / "o", "--effects", "sensor_lag")
+    assert elapsed < CASE_BUDGET_S and res.exit_code == 0, res.output
+    assert "implausibly different length" in res.output

@@ -107,6 +107,17 @@ def test_bad_input_is_one_clear_message(lag_session: Path, tmp_path: Path) -> No
     result = runner.invoke(app, ["diagnose", str(spot1_only), "--out", str(tmp_path),
                                  "--ambient", "20"])
     assert result.exit_code == 1 and "race sensor" in result.output
+    # an h law whose effect table misses a parameter: refused as estimate refuses it
+    # (diagnose read only its a, b and weights and went on)
+    from brakethermo.io.load import load_session
+    from brakethermo.pipelines.models import disc_for, shipped_h_law
+
+    law = tmp_path / "law.toml"
+    law.write_text(shipped_h_law(disc_for(load_session(lag_session))).read_text()
+                   + "\n[effects.sensor_lag]\n")
+    result = runner.invoke(app, ["diagnose", str(lag_session), "--out", str(tmp_path),
+                                 "--h-law", str(law)])
+    assert result.exit_code == 1 and "effects.sensor_lag.tau_s" in result.output
 
 
 def test_single_spot_race_gives_what_one_spot_can(tmp_path: Path) -> None:

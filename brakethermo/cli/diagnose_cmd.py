@@ -241,7 +241,9 @@ def _render(result: Any, folder: Path) -> None:  # a DiagnoseResult (imported la
     console.print(f"verdict: [bold]{escape(_verdict_text(s))}[/]; combined model: "
                   f"{' + '.join(s['combined']['effects']) or 'none'}")
     _next_steps(s)
-    for w in s["warnings"]:
+    # the session's own warnings too (a renumbered or misplaced lap beacon, gaps): the
+    # lap split above is built on them
+    for w in [*s["warnings"], *s["run"].get("input_warnings", [])]:
         console.print(f"[yellow]warning:[/] {escape(w)}")
     console.print(f"wrote {escape(str(folder / 'diagnosis.json'))} and "
                   f"{escape(str(folder / 'diagnosis' / 'index.html'))} "

@@ -11,9 +11,8 @@ from scipy.optimize import least_squares
 
 from brakethermo.models.disc_effects import ExtendedDisc
 from brakethermo.pipelines.diagnose._common import PRIOR_WEIGHT_C
-from brakethermo.pipelines.models import shipped_h_law
+from brakethermo.pipelines.models import read_calibration, shipped_h_law
 from brakethermo.thermal.disc import DiscSpec
-from brakethermo.thermal.hlaw import read_h_law
 from brakethermo.thermal.model import DiscFEModel
 
 
@@ -89,8 +88,8 @@ def _reference_start(disc: DiscSpec, h_law: str | Path | None
     path = Path(h_law) if h_law else shipped_h_law(disc)
     if path is None:
         return 100.0, 0.8, np.ones(3)
-    record = read_h_law(path)
-    return record.law.a, record.law.b, np.asarray(record.weights, float)
+    cal = read_calibration(path)  # checked as estimate checks it: a bad law is no start
+    return cal.law.a, cal.law.b, np.asarray(cal.weights, float)
 
 
 def _gauss_ll(result: Any) -> np.ndarray:
