@@ -388,3 +388,30 @@ def test_a_folder_without_sessions_is_an_error(tmp_path: Path) -> None:
                                    str(tmp_path / "o")])
     assert res.exit_code == 1 and "no session files" in res.output, res.output
     assert "Traceback" not in res.output
+
+
+def test_an_interrupt_says_which_sessions_finished(tmp_path: Path) -> None:
+    """Ctrl-C after two of four sessions: the message names those two as finished (the
+    outcomes reached the batch only when every session was done, so it said none)."""
+    from brakethermo.errors import Interrupted
+    from brakethermo.pipelines.batch.tasks import SessionOutcome
+
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for name in ("a", "b", "c", "d"):
+        (folder / f"{name}.parquet").write_bytes(name.encode())
+    calls: list[str] = []
+
+    def job(task):
+        calls.append(task.name)
+        if len(calls) > 2:
+            raise KeyboardInterrupt
+        return SessionOutcome(task.path, task.name, "ok", kind="single")
+
+    options = BatchOptions(out=tmp_path / "out", reports=False, workers=1,
+                           h_law=config_dir() / "hlaw" / "cc-340-8.toml")
+    with pytest.raises(Interrupted) as info:
+        run_batch(folder, options, job=job)
+    said = str(info.value)
+    assert f"2 of 4 sessions finished ({calls[0]}, {calls[1]})" in said, said
+    assert calls[2] in said.split("not done:")[1]

@@ -52,22 +52,23 @@ def executor_for(options: BatchOptions) -> Iterator[Executor | None]:
 
 def run_tasks(
     tasks: list[SessionTask], executor: Executor | None, job: Job, on_event: Event | None
-) -> list[SessionOutcome]:
-    outcomes: list[SessionOutcome] = []
+) -> Iterator[SessionOutcome]:
+    """Each task's outcome as it finishes (a generator: an interrupt leaves the caller
+    holding every outcome finished before it, not none of them)."""
 
-    def finished(outcome: SessionOutcome) -> None:
-        outcomes.append(outcome)
+    def finished(outcome: SessionOutcome) -> SessionOutcome:
         if on_event is not None and outcome.status != "deferred":
             on_event("done", outcome)
+        return outcome
 
     if executor is None:
         for task in tasks:
             if job is process_session and on_event is not None:
                 # In this process the session can tell where it is; a worker cannot.
-                finished(process_session(task, progress=lambda p: on_event("phase", p)))
+                yield finished(process_session(task, progress=lambda p: on_event("phase", p)))
             else:
-                finished(job(task))
-        return outcomes
+                yield finished(job(task))
+        return
     futures: dict[Future, SessionTask] = {executor.submit(job, t): t for t in tasks}
     for fut in as_completed(futures):
         task = futures[fut]
@@ -75,5 +76,4 @@ def run_tasks(
             outcome = fut.result()
         except Exception as exc:  # a worker died; the session is lost, not the batch
             outcome = SessionOutcome(task.path, task.name, "failed", reason=failure_reason(exc))
-        finished(outcome)
-    return outcomes
+        yield finished(outcome)
