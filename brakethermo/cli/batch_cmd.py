@@ -48,7 +48,7 @@ def _table(result: BatchResult, out: Path) -> Table:
         show_edge=False,
         pad_edge=False,
     )
-    table.add_column("file", overflow="fold", min_width=12)
+    table.add_column("file", overflow="fold", min_width=8)
     table.add_column("kind", min_width=6)
     table.add_column("laps", justify="right", min_width=4)
     table.add_column("status", min_width=7)
