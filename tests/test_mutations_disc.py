@@ -247,6 +247,15 @@ def test_mdf_channel_in_two_groups_is_said(tmp_path):
     said = [w for w in session.warnings if "channel 'disc_temp' is in groups 0, 1" in w]
     assert len(said) == 1 and "using group 1 (600 samples, the most)" in said[0]
     assert "disc_temp [group 0]" in said[0] and "+100" in said[0]
+    # a copy in another unit: its units said, not a difference of numbers in two units
+    mdf = MDF(version="4.10")
+    mdf.append([Signal(np.full(300, 673.15), t_old, name="disc_temp", unit="K"),
+                Signal(np.full(300, 30.0), t_old, name="speed", unit="m/s")])
+    mdf.append([Signal(np.full(600, 400.0), t_new, name="disc_temp", unit="degC")])
+    mdf.save(tmp_path / "kelvin.mf4")
+    mdf.close()
+    said = [w for w in load_session(tmp_path / "kelvin.mf4").warnings if "groups 0, 1" in w]
+    assert len(said) == 1 and "in K, not degC" in said[0] and "-273" not in said[0]
 
 
 @pytest.mark.parametrize(("table", "words"), [

@@ -105,7 +105,7 @@ def _unit(signal: Any) -> str | None:
 
 
 def _label_copies(names: list[str], groups: list[int], values: list[np.ndarray],
-                  warnings: list[str]) -> list[str]:
+                  units: list[str | None], warnings: list[str]) -> list[str]:
     """Labels for channels, one plain name per channel name and a warning per copy.
 
     A name in several groups (a stale copy, a second raster) keeps its plain name on the
@@ -122,16 +122,19 @@ def _label_copies(names: list[str], groups: list[int], values: list[np.ndarray],
             if i != keep:
                 labels[i] = f"{name} [group {groups[i]}]"
         others = [i for i in idx if i != keep]
-        diff = [float(np.nanmean(values[keep]) - np.nanmean(values[i])) for i in others]
         why = ("the most" if any(values[i].size < values[keep].size for i in others)
                else "a tie: the later group")
+        # an average difference means something only between copies in one unit
+        differ = ", ".join(
+            f"{float(np.nanmean(values[keep]) - np.nanmean(values[i])):+.3g} on average"
+            if units[i] == units[keep] else f"in {units[i] or 'no unit'}, not"
+            f" {units[keep] or 'no unit'}" for i in others)
         warnings.append(
             f"channel '{name}' is in groups {', '.join(str(groups[i]) for i in idx)}: using "
             f"group {groups[keep]} ({values[keep].size} samples, "
             f"{why});"
-            f" the other copies ({', '.join(labels[i] for i in others)}) differ by "
-            f"{', '.join(f'{d:+.3g}' for d in diff)} on average and are not used — drop the"
-            " stale copy from the export if this is the wrong one"
+            f" the other copies ({', '.join(labels[i] for i in others)}) differ ({differ})"
+            " and are not used — drop the stale copy from the export if this is the wrong one"
         )
     return labels
 
@@ -204,7 +207,7 @@ def read_mdf(path: Path) -> RawSession:
         times.append(np.asarray(sig.timestamps, dtype=np.float64))
         values.append(samples.astype(np.float64))
         units.append(_unit(sig))
-    names = _label_copies(names, groups, values, warnings)
+    names = _label_copies(names, groups, values, units, warnings)
     if not names:
         why = (" It looks like a raw bus log (CAN/LIN frames): decode it with the DBC first"
                " (asammdf: extract_bus_logging) and read the decoded file"
