@@ -185,3 +185,21 @@ def test_invalid_alias_file(tmp_path: Path) -> None:
     shape = tmp_path / "shape.toml"
     shape.write_text("[aliases]\nspeed = [1, 2]\n")
     assert_user_error([str(session), "--aliases", str(shape)], "list of non-empty texts")
+
+
+def test_inspect_fits_80_columns_with_names_whole(tmp_path, monkeypatch) -> None:
+    """At 80 columns every line fits and the logged topic names stay whole (a source
+    folded into 'disc_te / mp.spot / 1' read as three names)."""
+    from brakethermo.sim.session import SimConfig, simulate, write_simulation
+
+    path = write_simulation(simulate(SimConfig(laps=1, sensor="multi", seed=4441)),
+                            tmp_path / "grouped.mcap", grouped=True)[0]
+    from brakethermo.cli import _app
+
+    monkeypatch.setattr(_app.console, "_width", 80)  # read from COLUMNS at import
+    result = CliRunner().invoke(app, ["inspect", str(path)])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    assert max(len(line) for line in lines) <= 80
+    row = next(line for line in lines if line.startswith("disc_temp_spot1"))
+    assert "disc_temp.spot1" in row, result.output

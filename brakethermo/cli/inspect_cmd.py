@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
+from rich import box
 from rich.markup import escape
 from rich.table import Table
 
@@ -66,12 +67,16 @@ def _render(session: Session) -> None:
 
     found = resolve(session.aliases, session.available)
     channels = Table(title=escape(f"{session.path.name} ({session.format}): channels"),
-                     title_justify="left",
+                     title_justify="left", box=box.SIMPLE_HEAD, show_edge=False,
+                     collapse_padding=True,
+                     pad_edge=False,
                      caption="source '=': logged under the canonical name; gaps: count,"
                              " then the longest (s) and where it starts (t, s)",
                      caption_justify="left")
     channels.add_column("channel", no_wrap=True)
-    channels.add_column("source", overflow="fold", min_width=6)
+    # names stay whole (a source folded into "disc_te / mp.spot / 1" reads as three);
+    # the gaps' text wraps instead
+    channels.add_column("source", no_wrap=True, min_width=6)
     channels.add_column("unit", no_wrap=True)
     for col in ("rate Hz", "samples", "gaps", "spikes"):
         channels.add_column(col, justify="right", no_wrap=col != "gaps")
