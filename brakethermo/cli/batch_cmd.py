@@ -47,6 +47,7 @@ def _table(result: BatchResult, out: Path) -> Table:
         box=box.SIMPLE_HEAD,
         show_edge=False,
         pad_edge=False,
+        collapse_padding=True,  # room for the session names at 80 columns
     )
     table.add_column("file", overflow="fold", min_width=8)
     table.add_column("kind", min_width=6)
