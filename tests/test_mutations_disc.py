@@ -377,3 +377,18 @@ def test_diagnose_says_a_misplaced_beacon_on_the_console(tmp_path):
     res, elapsed = _run("diagnose", path, "--out", tmp_path / "o", "--effects", "sensor_lag")
     assert elapsed < CASE_BUDGET_S and res.exit_code == 0, res.output
     assert "implausibly different length" in res.output
+
+
+def test_a_first_reading_far_above_the_floor_after_a_silent_start_is_said():
+    """A race's pyrometer is silent while the disc is below its floor and first reads it
+    near the floor; the same readings in kelvin labelled degC first read ~380 °C (the
+    estimate was silent: peaks of 1000 °C, exit 0)."""
+    from brakethermo.io.plausibility import check_pyrometer
+
+    t = np.arange(3000) * 0.1
+    temps = np.where(t < 31.4, np.nan, 106.0 + 2.0 * (t - 31.4))
+    braking = (t % 100.0) < 5.0
+    assert not any("silent" in w for w in check_pyrometer(temps, braking, 25.0, 0.1))
+    said = [w for w in check_pyrometer(temps + 273.15, braking, 25.0, 0.1)
+            if "silent for the first 31 s" in w]
+    assert len(said) == 1 and "kelvin labelled degC" in said[0]

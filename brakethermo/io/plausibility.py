@@ -26,6 +26,9 @@ KELVIN_OFFSET = 273.15
 PRE_BRAKE_EXCESS_C = 200.0  # a disc before the first stop is not this far above ambient
 STUCK_SPAN_S = 60.0  # a pyrometer that does not move for this long is stuck
 STUCK_TOLERANCE_C = 0.01
+FLOOR_C = 100.0  # degC: IR pyrometers on discs read nothing below about this
+SILENT_START_S = 5.0  # s: a channel empty this long at the start began below its floor
+FIRST_READ_EXCESS_C = 150.0  # a disc heating past the floor is first read within this
 
 
 def _finite(values: np.ndarray) -> np.ndarray:
@@ -135,10 +138,10 @@ def check_pyrometer(temps: np.ndarray, braking: np.ndarray, ambient_c: float,
         raise DataError(f"constant at {t[0]:.1f} °C for the whole session: the pyrometer is "
                         "stuck or frozen; drop the channel or fix the sensor",
                         path=path, channel=source)
+    warnings = _late_start(temps, dt, source)
     first = int(np.argmax(braking)) if braking.any() else temps.size
     before = temps[:first]
     before = before[np.isfinite(before)]
-    warnings: list[str] = []
     if before.size and np.median(before) > ambient_c + PRE_BRAKE_EXCESS_C:
         if (abs(np.median(before) - KELVIN_OFFSET - ambient_c) < 30.0
                 and np.ptp(before) < 15.0 and before.size * dt >= 10.0):
@@ -156,6 +159,22 @@ def check_pyrometer(temps: np.ndarray, braking: np.ndarray, ambient_c: float,
             + ("the values are kelvin labelled degC (then set the unit to K)" if kelvin
                else "a unit or sensor problem") + "; check the channel if the disc was cold")
     return warnings + _stuck_spans(temps, dt, source)
+
+
+def _late_start(temps: np.ndarray, dt: float, source: str) -> list[str]:
+    """A pyrometer silent at the start (a cold disc below its floor) is first read near
+    its floor as the disc heats past it; a first reading far above says another unit
+    (kelvin labelled degC: floor + 273) or a sensor problem."""
+    finite = np.isfinite(temps)
+    i = int(np.argmax(finite))
+    if not finite.any() or i * dt < SILENT_START_S or temps[i] <= FLOOR_C + FIRST_READ_EXCESS_C:
+        return []
+    kelvin = abs(temps[i] - KELVIN_OFFSET - FLOOR_C) < FIRST_READ_EXCESS_C
+    return [f"{source}: silent for the first {i * dt:.0f} s, then first reads {temps[i]:.0f}"
+            f" °C, where a disc heating past a pyrometer's floor (about {FLOOR_C:.0f} °C) is"
+            " first read near it: "
+            + ("the values look like kelvin labelled degC (then set the unit to K)" if kelvin
+               else "a unit or sensor problem") + "; check the channel"]
 
 
 def _stuck_spans(temps: np.ndarray, dt: float, source: str) -> list[str]:
