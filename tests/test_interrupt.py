@@ -109,3 +109,30 @@ def test_an_interrupt_while_the_cli_imports_is_one_line(monkeypatch, capsys) -> 
     assert stop.value.code == 130
     err = capsys.readouterr().err
     assert err.startswith("interrupted:") and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.skipif(os.name != "posix", reason="SIGINT semantics of POSIX")
+def test_an_interrupt_during_shutdown_is_ignored(tmp_path: Path) -> None:
+    """After the command (its outputs written) the interpreter still tears down; an
+    interrupt there raised in the teardown or killed the process (exit -2, once an
+    abort). Here the teardown is held open by an exit hook: the interrupt is ignored and
+    the process ends with the command's own code, saying nothing more."""
+    script = (
+        "import atexit, sys, time\n"
+        "import brakethermo.cli\n"
+        "from brakethermo.__main__ import main\n"
+        "atexit.register(time.sleep, 3)\n"
+        "print('ready', flush=True)\n"
+        "sys.argv = ['brakethermo', '--version']\n"
+        "main()\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+    assert proc.stdout is not None
+    assert proc.stdout.readline().strip() == "ready"
+    time.sleep(1.5)  # --version is printed and the exit hook is sleeping
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=30)
+    assert proc.returncode == 0, stderr
+    assert "brakethermo" in stdout and not stderr.strip(), stderr
