@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any, TypeVar
 
 import click
@@ -72,6 +72,14 @@ def _root(
 
 
 R = TypeVar("R")
+
+
+def print_warnings(lines: Iterable[str], *, soft_wrap: bool = False) -> None:
+    """One ``warning:`` line per warning, printed as text (they quote file and channel
+    names, which must not be read as markup); ``soft_wrap`` leaves each line unwrapped."""
+    for warning in lines:
+        console.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False,
+                      soft_wrap=soft_wrap)
 
 
 def run_with_status(quiet: bool, message: str, work: Callable[[], R]) -> R:

@@ -10,7 +10,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from brakethermo.cli._app import app, console, run_with_status
+from brakethermo.cli._app import app, console, print_warnings, run_with_status
 from brakethermo.cli._options import AliasesOpt, JsonOpt, OutDir
 from brakethermo.errors import ConfigError
 
@@ -80,8 +80,7 @@ def clamp_force_cmd(
     if all(v is None for v in rmses.values()):
         console.print("RMSE –: this session has no usable clamp-force sensor to score against"
                       " (the estimates do not need it)", highlight=False)
-    for w in summ["warnings"]:
-        console.print(f"[yellow]warning:[/] {escape(w)}", highlight=False)
+    print_warnings(summ["warnings"])
     if "wear" in summ:
         console.print(f"estimates of the models re-trained on {escape(Path(retrain).name)}"
                       " (the training session's models' beside them on the page)")

@@ -10,7 +10,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from brakethermo.cli._app import app, console
+from brakethermo.cli._app import app, console, print_warnings
 from brakethermo.cli._options import (
     SESSION_FORMATS,
     AliasesOpt,
@@ -243,8 +243,7 @@ def _render(result: Any, folder: Path) -> None:  # a DiagnoseResult (imported la
     _next_steps(s)
     # the session's own warnings too (a renumbered or misplaced lap beacon, gaps): the
     # lap split above is built on them
-    for w in [*s["warnings"], *s["run"].get("input_warnings", [])]:
-        console.print(f"[yellow]warning:[/] {escape(w)}")
+    print_warnings([*s["warnings"], *s["run"].get("input_warnings", [])])
     console.print(f"wrote {escape(str(folder / 'diagnosis.json'))} and "
                   f"{escape(str(folder / 'diagnosis' / 'index.html'))} "
                   f"({s['run']['wall_time_s']:.1f} s)")

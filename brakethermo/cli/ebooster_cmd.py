@@ -10,7 +10,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from brakethermo.cli._app import app, console, run_with_status
+from brakethermo.cli._app import app, console, print_warnings, run_with_status
 from brakethermo.cli._options import AliasesOpt, JsonOpt, OutDir
 
 
@@ -94,6 +94,5 @@ def ebooster_command(
         from brakethermo.results.rig_diagnosis import carried_text
 
         console.print(f"p-V carries: {carried_text(s['with_effect'])}", highlight=False)
-    for warning in s["warnings"]:
-        console.print(f"[yellow]warning:[/] {warning}", highlight=False)
+    print_warnings(s["warnings"])
     console.print(f"wrote {folder}")

@@ -10,7 +10,7 @@ from rich import box
 from rich.markup import escape
 from rich.table import Table
 
-from brakethermo.cli._app import app, console, run_with_status
+from brakethermo.cli._app import app, console, print_warnings, run_with_status
 from brakethermo.cli._options import (
     SESSION_FORMATS,
     AliasesOpt,
@@ -180,8 +180,7 @@ def _render(result: EstimateResult, folder: Path, law_reason: str, mdf_out: bool
     if result.scores:
         render_scores(result.scores)
     console.print(f"h law: {escape(str(run['h_law']))} ({law_reason})", soft_wrap=True)
-    for warning in run["warnings"]:
-        console.print(f"[yellow]warning:[/] {escape(warning)}", soft_wrap=True)
+    print_warnings(run["warnings"], soft_wrap=True)
     console.print(
         f"wrote {escape(str(folder / 'estimate.parquet'))}"
         f"{', estimate.mf4' if mdf_out else ''} and summary.json "

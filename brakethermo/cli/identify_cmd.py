@@ -9,7 +9,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from brakethermo.cli._app import app, console, run_with_status
+from brakethermo.cli._app import app, console, print_warnings, run_with_status
 from brakethermo.cli._options import (
     SESSION_FORMATS,
     AliasesOpt,
@@ -117,8 +117,7 @@ def identify_command(
     sel = result.summary["effect_selection"]
     console.print(f"effects carried: {', '.join(sel['selected']) or 'none'} —"
                   f" {escape(sel['why'])}", highlight=False)
-    for warning in result.summary["run"]["warnings"]:
-        console.print(f"[yellow]warning:[/] {escape(warning)}", soft_wrap=True)
+    print_warnings(result.summary["run"]["warnings"], soft_wrap=True)
     console.print(f"wrote {escape(str(folder / 'h_law.toml'))}, h_samples.parquet, h_law.png "
                   f"({result.timings['total_s']:.1f} s)")
 

@@ -15,7 +15,7 @@ from rich import box
 from rich.markup import escape
 from rich.table import Table
 
-from brakethermo.cli._app import app, console
+from brakethermo.cli._app import app, console, print_warnings
 from brakethermo.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -128,8 +128,7 @@ def _render(session: Session) -> None:
     if session.start_epoch_s is not None:
         facts.add_row("start (epoch s)", f"{session.start_epoch_s:.3f}")
     console.print(facts)
-    for warning in session.warnings:
-        console.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False)
+    print_warnings(session.warnings)
 
 
 @app.command("inspect")

@@ -9,7 +9,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from brakethermo.cli._app import app, console, run_with_status
+from brakethermo.cli._app import app, console, print_warnings, run_with_status
 from brakethermo.cli._options import AliasesOpt, JsonOpt, OutDir
 
 
@@ -81,6 +81,5 @@ def mu_slip_cmd(
     )
     console.print(tab)
     console.print(summ["shape_mismatch"]["words"])
-    for w in summ["warnings"]:
-        console.print(f"[yellow]warning:[/] {escape(w)}", highlight=False)
+    print_warnings(summ["warnings"])
     console.print(f"written: {folder}")

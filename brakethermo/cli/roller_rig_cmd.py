@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 from rich.table import Table
 
-from brakethermo.cli._app import app, console, run_with_status
+from brakethermo.cli._app import app, console, print_warnings, run_with_status
 from brakethermo.cli._options import SESSION_FORMATS, AliasesOpt, JsonOpt, OutDir
 from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS
 
@@ -55,8 +55,7 @@ def render(result: RollerRigResult, folder: Path) -> None:
         from brakethermo.results.rig_diagnosis import carried_text
 
         console.print(f"creep law carries: {carried_text(carried)}", highlight=False)
-    for w in s["warnings"]:
-        console.print(f"[yellow]warning:[/] {w}", highlight=False)
+    print_warnings(s["warnings"])
     console.print(f"wrote {folder}", highlight=False)
 
 

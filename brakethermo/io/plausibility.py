@@ -26,7 +26,7 @@ KELVIN_OFFSET = 273.15
 PRE_BRAKE_EXCESS_C = 200.0  # a disc before the first stop is not this far above ambient
 STUCK_SPAN_S = 60.0  # a pyrometer that does not move for this long is stuck
 STUCK_TOLERANCE_C = 0.01
-FLOOR_C = 100.0  # degC: IR pyrometers on discs read nothing below about this
+SENSOR_FLOOR_C = 100.0  # degC: IR pyrometers read nothing useful below this (datasheet floor)
 SILENT_START_S = 5.0  # s: a channel empty this long at the start began below its floor
 FIRST_READ_EXCESS_C = 150.0  # a disc heating past the floor is first read within this
 
@@ -167,11 +167,12 @@ def _late_start(temps: np.ndarray, dt: float, source: str) -> list[str]:
     (kelvin labelled degC: floor + 273) or a sensor problem."""
     finite = np.isfinite(temps)
     i = int(np.argmax(finite))
-    if not finite.any() or i * dt < SILENT_START_S or temps[i] <= FLOOR_C + FIRST_READ_EXCESS_C:
+    floor = SENSOR_FLOOR_C
+    if not finite.any() or i * dt < SILENT_START_S or temps[i] <= floor + FIRST_READ_EXCESS_C:
         return []
-    kelvin = abs(temps[i] - KELVIN_OFFSET - FLOOR_C) < FIRST_READ_EXCESS_C
+    kelvin = abs(temps[i] - KELVIN_OFFSET - floor) < FIRST_READ_EXCESS_C
     return [f"{source}: silent for the first {i * dt:.0f} s, then first reads {temps[i]:.0f}"
-            f" °C, where a disc heating past a pyrometer's floor (about {FLOOR_C:.0f} °C) is"
+            f" °C, where a disc heating past a pyrometer's floor (about {floor:.0f} °C) is"
             " first read near it: "
             + ("the values look like kelvin labelled degC (then set the unit to K)" if kelvin
                else "a unit or sensor problem") + "; check the channel"]

@@ -294,12 +294,16 @@ class DiscStateSpace:
             f" {k1 * self.model.dt:.1f} s: the temperatures left any physical range; check"
             " the h law and tuning values")
 
-    def _check_span(self, inputs: tuple[np.ndarray, ...], k_end: int, B: int, n: int) -> None:
-        """The compiled loop reads ``inputs`` unchecked: steps up to ``k_end`` must exist
-        and the members be (B, n) with inputs shared or one column per member."""
+    @staticmethod
+    def _span(inputs: tuple[np.ndarray, ...]) -> tuple[int, set[int]]:
+        """The steps ``inputs`` hold and their widths other than 1 (shared)."""
         given = [a for a in inputs if a.size]
-        K = min(a.shape[0] for a in given)
-        widths = {a.shape[1] for a in given} - {1}
+        return min(a.shape[0] for a in given), {a.shape[1] for a in given} - {1}
+
+    def _check_span(self, span: tuple[int, set[int]], k_end: int, B: int, n: int) -> None:
+        """The compiled loop reads its inputs unchecked: steps up to ``k_end`` must exist
+        and the members be (B, n) with inputs shared or one column per member."""
+        K, widths = span
         if k_end > K or n != self.n or widths - {B}:
             raise ValueError(
                 f"compiled steps up to {k_end} of {K} on ({B}, {n}) members: the state space"
@@ -317,10 +321,11 @@ class DiscStateSpace:
         noise = (self._Q_base, self._S_crown, self._param_idx.astype(np.int64),
                  self._step_var.astype(np.float64), self._moving.astype(np.float64))
         spec = (*head, noise, geometry)
+        span = self._span(head[0])
 
         def steps(k0: int, k1: int, offset: int, work: np.ndarray, *args: Any) -> None:
             # the last step reads its inputs at k1 - 1 + offset
-            self._check_span(head[0], k1 + offset, 2 * work.shape[1] + 1, work.shape[1])
+            self._check_span(span, k1 + offset, 2 * work.shape[1] + 1, work.shape[1])
             try:
                 _disc_kernels.run_steps(spec, k0, k1, offset, work, *args)
             except ZeroDivisionError:
@@ -341,7 +346,7 @@ class DiscStateSpace:
             return Xs
         B, n = X0.shape
         spec = self._kernel_spec()
-        self._check_span(spec[0], k0 + K - 1, B, n)
+        self._check_span(self._span(spec[0]), k0 + K - 1, B, n)
         if w.shape[1:] != (B, n):
             raise ValueError(f"corrections of shape {w.shape[1:]} for ({B}, {n}) members")
         try:

@@ -49,7 +49,7 @@ MIN_TRAIN_S = 1.25 * CV_BLOCK_S  # s: both folds of eq. 7's cross-validation hol
 # an input's spread (1st to 99th percentile) between the training session and another:
 # harder applies widen it a few times; a unit slip (deg read as rad: x57) far more
 MAX_SPREAD_RATIO = 20.0
-MAX_FORCE_N = 1e5  # what the force sensor's check allows: no caliper clamps harder
+MAX_FORCE_N = 1e5  # N: no caliper clamps harder (the sensor's check and the estimates')
 MIN_SCORED_SHARE = 0.5  # of an estimated session's force samples, finite, to score on it
 
 
@@ -109,7 +109,7 @@ def load_emb(
             path=session.path, channel="clamp_force")
     notes = check_rig_channels(session, (
         Expect("motor_angle", "rad", 2e3), Expect("motor_current", "A", 500.0),
-        Expect("clamp_force", "N", 1e5, positive=True,
+        Expect("clamp_force", "N", MAX_FORCE_N, positive=True,
                role="input" if need_sensor else "score")))
     if notes:
         session = replace(session, warnings=(*session.warnings, *notes))

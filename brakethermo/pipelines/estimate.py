@@ -21,6 +21,7 @@ import pandas as pd
 
 from brakethermo import __version__
 from brakethermo.errors import ConfigError, DataError
+from brakethermo.io.plausibility import SENSOR_FLOOR_C  # one floor for every command
 from brakethermo.io.session import Session
 from brakethermo.models.disc import (
     DiscStateSpace,
@@ -71,7 +72,6 @@ from brakethermo.results.laps import lap_summaries
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
 
-SENSOR_FLOOR_C = 100.0  # IR pyrometers read nothing useful below this (datasheet floor)
 SIGMA_MEAS_FLOOR_C = 0.5  # degC: never trust a reading beyond its quantisation
 
 
