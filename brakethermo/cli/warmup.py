@@ -74,7 +74,7 @@ def run_stream(name: str) -> list[str]:
                 try:
                     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
                         code = app(list(args), standalone_mode=False)
-                except BaseException as exc:  # noqa: BLE001 - reported, never fatal
+                except (Exception, SystemExit) as exc:  # reported, never fatal: see above
                     code = f"{type(exc).__name__}: {exc}"
                 if code not in (None, 0):
                     failed.append(f"{' '.join(args[:2])}: {code}")
