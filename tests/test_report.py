@@ -16,8 +16,9 @@ from mcap.reader import make_reader
 from PIL import Image
 
 from brakethermo.report.braking_zones import BAR, ZoneDetection, detect_zones, zone_table
-from brakethermo.report.lap_report import lap_stats, read_estimate, write_session_report
+from brakethermo.report.lap_report import read_estimate, write_session_report
 from brakethermo.report.mcap_export import write_estimate_mcap
+from brakethermo.results.laps import lap_stats
 
 WINDOW = (250.0, 850.0)
 

@@ -14,10 +14,11 @@ from hypothesis import strategies as st
 from brakethermo.io.session import Lap
 from brakethermo.report.figures import LapFigures
 from brakethermo.report.index import write_batch_index
-from brakethermo.report.lap_report import _colour_range, lap_stats, write_session_report
+from brakethermo.report.lap_report import _colour_range, write_session_report
 from brakethermo.results.laps import (
     flying_laps,
     lap_label,
+    lap_stats,
     lap_summaries,
     round_temp,
     temp_text,

@@ -41,10 +41,10 @@ from brakethermo.report.figures import (
 from brakethermo.report.page import template_environment
 from brakethermo.results.laps import (
     flying_laps,
-    hottest_radius,
     lap_folder,
     lap_label,
     lap_name,
+    lap_stats,
     lap_time_text,
     node_columns,
     partial_laps,
@@ -102,67 +102,6 @@ def read_estimate(path: str | Path) -> tuple[pd.DataFrame, np.ndarray | None]:
                 return table.to_pandas(), None
             radii.append(float(meta[b"radius_m"]))
     return table.to_pandas(), np.asarray(radii)
-
-
-def lap_stats(
-    estimate: pd.DataFrame, window_c: tuple[float, float], node_radii: np.ndarray | None = None
-) -> pd.DataFrame:
-    """Per-lap statistics of an estimate frame.
-
-    Returns
-    -------
-    DataFrame indexed by lap
-        ``lap_time_s``, ``peak_spot1..4`` (degC), ``peak_spot1..4_t`` (lap time of the
-        peak, s), ``above_spot1..4_s`` (each spot above the window, s), ``peak_contact``,
-        ``mean_contact`` (degC), ``below_s``, ``inside_s``, ``above_s`` (contact band vs
-        the window, s), ``inside_pct`` (% of the lap), ``peak_hot`` (hottest radius,
-        degC), ``peak_hot_radius_mm`` (where, NaN without radii) and ``above_hot_s``
-        (hottest radius above the window, s).
-    """
-    time = estimate["time"].to_numpy(dtype=float)
-    dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
-    lo, hi = window_c
-    contact = estimate["contact_avg"].to_numpy(dtype=float)
-    hot, hot_idx = hottest_radius(estimate)
-    radii_mm = (
-        np.asarray(node_radii, dtype=float) * 1e3 if node_radii is not None
-        else np.full(max(len(node_columns(estimate)), 1), np.nan)
-    )
-    lap_time = time - estimate.groupby("lap")["time"].transform("min").to_numpy()
-    work = pd.DataFrame(
-        {
-            "lap": estimate["lap"].to_numpy(),
-            "t": lap_time,
-            "contact": contact,
-            "below": (contact < lo) * dt,
-            "above": (contact > hi) * dt,
-            "valid": np.isfinite(contact) * dt,
-            "hot": hot,
-            "hot_r": np.where(hot_idx >= 0, radii_mm[np.maximum(hot_idx, 0)], np.nan),
-            "above_hot": (hot > hi) * dt,
-            **{s: estimate[s].to_numpy(dtype=float) for s in SPOTS},
-            **{f"above_{s}": (estimate[s].to_numpy(dtype=float) > hi) * dt for s in SPOTS},
-        }
-    )
-    g = work.groupby("lap", sort=True)
-    out = pd.DataFrame({"lap_time_s": g["t"].max() + dt})
-    for s in SPOTS:
-        out[f"peak_{s}"] = g[s].max()
-        idx = work[s].fillna(-np.inf).groupby(work["lap"]).idxmax()
-        out[f"peak_{s}_t"] = work.loc[idx.to_numpy(), "t"].to_numpy()
-        out[f"above_{s}_s"] = g[f"above_{s}"].sum()
-    out["peak_hot"] = g["hot"].max()
-    hot_at = work["hot"].fillna(-np.inf).groupby(work["lap"]).idxmax()
-    out["peak_hot_radius_mm"] = work.loc[hot_at.to_numpy(), "hot_r"].to_numpy()
-    out["above_hot_s"] = g["above_hot"].sum()
-    out["peak_contact"] = g["contact"].max()
-    out["mean_contact"] = g["contact"].mean()
-    out["below_s"] = g["below"].sum()
-    out["above_s"] = g["above"].sum()
-    out["inside_s"] = g["valid"].sum() - out["below_s"] - out["above_s"]
-    out["inside_pct"] = 100.0 * out["inside_s"] / out["lap_time_s"]
-    out.index.name = "lap"
-    return out
 
 
 def _aligned(session: Session | None, time: np.ndarray, name: str) -> np.ndarray:

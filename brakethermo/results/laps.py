@@ -113,11 +113,79 @@ def hottest_radius(frame: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     return hot, idx
 
 
+def lap_stats(
+    estimate: pd.DataFrame, window_c: tuple[float, float], node_radii: np.ndarray | None = None
+) -> pd.DataFrame:
+    """Per-lap statistics of an estimate frame: the one computation behind summary.json's
+    ``laps`` (:func:`lap_summaries`) and the lap pages.
+
+    Returns
+    -------
+    DataFrame indexed by lap
+        ``start_s`` (first sample of the lap, session time, s), ``lap_time_s`` (from the
+        samples, s), ``peak_spot1..4`` (degC), ``peak_spot1..4_t`` (lap time of the peak,
+        s), ``above_spot1..4_s`` (each spot above the window, s), ``peak_contact``,
+        ``mean_contact`` (degC), ``below_s``, ``inside_s``, ``above_s`` (contact band vs
+        the window, s), ``inside_pct`` (% of the lap), ``peak_hot`` (hottest radius,
+        degC), ``peak_hot_t`` (lap time of it, s), ``peak_hot_radius_mm`` (where, NaN
+        without radii) and ``above_hot_s`` (hottest radius above the window, s).
+    """
+    time = estimate["time"].to_numpy(dtype=float)
+    dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
+    lo, hi = window_c
+    contact = estimate["contact_avg"].to_numpy(dtype=float)
+    hot, hot_idx = hottest_radius(estimate)
+    radii_mm = (
+        np.asarray(node_radii, dtype=float) * 1e3 if node_radii is not None
+        else np.full(max(len(node_columns(estimate)), 1), np.nan)
+    )
+    start = estimate.groupby("lap")["time"].transform("min").to_numpy()
+    work = pd.DataFrame(
+        {
+            "lap": estimate["lap"].to_numpy(),
+            "t": time - start,
+            "start": start,
+            "contact": contact,
+            "below": (contact < lo) * dt,
+            "above": (contact > hi) * dt,
+            "valid": np.isfinite(contact) * dt,
+            "hot": hot,
+            "hot_r": np.where(hot_idx >= 0, radii_mm[np.maximum(hot_idx, 0)], np.nan),
+            "above_hot": (hot > hi) * dt,
+            **{s: estimate[s].to_numpy(dtype=float) for s in SPOTS},
+            **{f"above_{s}": (estimate[s].to_numpy(dtype=float) > hi) * dt for s in SPOTS},
+        }
+    )
+    g = work.groupby("lap", sort=True)
+    out = pd.DataFrame({"start_s": g["start"].first(), "lap_time_s": g["t"].max() + dt})
+    for s in SPOTS:
+        out[f"peak_{s}"] = g[s].max()
+        idx = work[s].fillna(-np.inf).groupby(work["lap"]).idxmax()
+        out[f"peak_{s}_t"] = work.loc[idx.to_numpy(), "t"].to_numpy()
+        out[f"above_{s}_s"] = g[f"above_{s}"].sum()
+    out["peak_hot"] = g["hot"].max()
+    hot_at = work["hot"].fillna(-np.inf).groupby(work["lap"]).idxmax()
+    out["peak_hot_t"] = work.loc[hot_at.to_numpy(), "t"].to_numpy()
+    out["peak_hot_radius_mm"] = work.loc[hot_at.to_numpy(), "hot_r"].to_numpy()
+    out["above_hot_s"] = g["above_hot"].sum()
+    out["peak_contact"] = g["contact"].max()
+    out["mean_contact"] = g["contact"].mean()
+    out["below_s"] = g["below"].sum()
+    out["above_s"] = g["above"].sum()
+    out["inside_s"] = g["valid"].sum() - out["below_s"] - out["above_s"]
+    out["inside_pct"] = 100.0 * out["inside_s"] / out["lap_time_s"]
+    out.index.name = "lap"
+    return out
+
+
 def lap_summaries(
     frame: pd.DataFrame, laps: tuple[Lap, ...], window_c: tuple[float, float],
     node_radii: np.ndarray | None = None,
 ) -> list[dict[str, Any]]:
-    """One record per lap: lap time, peaks per spot, time vs the operating window.
+    """One record per lap (summary.json): lap time, peaks per spot, time vs the window.
+
+    The figures are :func:`lap_stats`'s; here the lap time is the beacon's and a peak's
+    time is session time (the lap pages give it from the lap's start).
 
     Parameters
     ----------
@@ -132,33 +200,16 @@ def lap_summaries(
     node_radii : ndarray — m, optional
         Radius of each ``node_<k>``, to report where the hottest radius lies.
     """
-    lo, hi = window_c
-    lap_col = frame["lap"].to_numpy()
-    time = frame["time"].to_numpy()
-    dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
-    contact = frame["contact_avg"].to_numpy()
-    spots = {s: frame[s].to_numpy() for s in SPOTS}
-    hot, hot_idx = hottest_radius(frame)
-    records = []
+    stats = lap_stats(frame, window_c, node_radii)
     partial = partial_laps(laps)
+    records = []
     for lap in laps:
-        sel = lap_col == lap.lap
-        if not sel.any():
+        if lap.lap not in stats.index:
             continue
-        t_lap = time[sel]
-        peaks = {}
-        above_by_spot = {}
-        for s, spot in spots.items():
-            vals = spot[sel]
-            if np.isfinite(vals).any():
-                j = int(np.nanargmax(vals))
-                peaks[s] = {
-                    "temp_c": _finite_or_none(vals[j]),
-                    "time_s": round(float(t_lap[j]), 1),
-                }
-                above_by_spot[s] = round(float(np.sum(vals > hi) * dt), 1)
-        c = contact[sel]
-        h = hot[sel]
+        row = stats.loc[lap.lap]
+        peaks = {s: {"temp_c": _finite_or_none(row[f"peak_{s}"]),
+                     "time_s": round(float(row["start_s"] + row[f"peak_{s}_t"]), 1)}
+                 for s in SPOTS if np.isfinite(row[f"peak_{s}"])}
         record: dict[str, Any] = {
             "lap": int(lap.lap),
             "label": lap_label(lap.lap),
@@ -166,22 +217,20 @@ def lap_summaries(
             "partial": lap.lap in partial,
             "start_s": round(float(lap.start_s), 1),
             "peak": peaks,
-            "time_below_window_s": round(float(np.sum(c < lo) * dt), 1),
-            "time_in_window_s": round(float(np.sum((c >= lo) & (c <= hi)) * dt), 1),
-            "time_above_window_s": round(float(np.sum(c > hi) * dt), 1),
-            "time_above_window_by_spot_s": above_by_spot,
-            "mean_contact_c": _finite_or_none(np.nanmean(c)) if np.isfinite(c).any() else None,
+            "time_below_window_s": round(float(row["below_s"]), 1),
+            "time_in_window_s": round(float(row["inside_s"]), 1),
+            "time_above_window_s": round(float(row["above_s"]), 1),
+            "time_above_window_by_spot_s": {s: round(float(row[f"above_{s}_s"]), 1)
+                                            for s in peaks},
+            "mean_contact_c": _finite_or_none(row["mean_contact"]),
         }
-        if np.isfinite(h).any():
-            j = int(np.nanargmax(h))
-            k = int(hot_idx[sel][j])
+        if np.isfinite(row["peak_hot"]):
+            r_mm = row["peak_hot_radius_mm"]
             record["hottest"] = {
-                "temp_c": _finite_or_none(h[j]),
-                "time_s": round(float(t_lap[j]), 1),
-                "radius_mm": (
-                    round(float(node_radii[k]) * 1e3, 1) if node_radii is not None else None
-                ),
-                "time_above_window_s": round(float(np.sum(h > hi) * dt), 1),
+                "temp_c": _finite_or_none(row["peak_hot"]),
+                "time_s": round(float(row["start_s"] + row["peak_hot_t"]), 1),
+                "radius_mm": round(float(r_mm), 1) if np.isfinite(r_mm) else None,
+                "time_above_window_s": round(float(row["above_hot_s"]), 1),
             }
         records.append(record)
     return records
