@@ -117,24 +117,6 @@ def render_scores(scores: dict[str, Any]) -> None:
                       " balance)" if written else ""))
 
 
-def preflight(
-    *, tuning: Path | None = None, h_law: Path | None = None, aliases: Path | None = None,
-    disc: str | None = None,
-) -> None:
-    """Validate the configuration files a run was given, before reading any session."""
-    from brakethermo.io.aliases import load_aliases
-    from brakethermo.pipelines.models import read_calibration
-    from brakethermo.pipelines.tuning import load_tuning
-    from brakethermo.thermal.disc import load_disc
-
-    load_tuning(tuning)
-    load_aliases(aliases)
-    if h_law is not None:
-        read_calibration(h_law)
-    if disc is not None:
-        load_disc(disc)
-
-
 def _write_outputs(result: EstimateResult, out: Path, mdf_out: bool, reports: bool,
                    mcap_out: bool = False) -> Path:
     """The estimate's folder, swapped in whole: parquet, summary, MDF / MCAP, lap pages,
@@ -266,12 +248,11 @@ def estimate_command(
     )
     from brakethermo.pipelines.inputs import load_timed
     from brakethermo.pipelines.models import choose_h_law, disc_for
-    from brakethermo.pipelines.output_dir import check_output_dir
     from brakethermo.pipelines.outputs import to_json
+    from brakethermo.pipelines.preflight import preflight
 
     reports = not no_reports and legacy_report is not False
-    check_output_dir(out)
-    preflight(tuning=tuning, h_law=h_law, aliases=aliases, disc=disc)
+    preflight(out=out, tuning=tuning, h_law=h_law, aliases=aliases, disc=disc)
     loaded, read_s = run_with_status(as_json, f"reading {session.name} ...",
                                      lambda: load_timed(session, aliases))
     law, law_reason = choose_h_law(h_law, out / session.stem, loaded, disc_for(loaded, disc))

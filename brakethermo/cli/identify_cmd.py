@@ -52,11 +52,11 @@ def identify_command(
     as_json: JsonOpt = False,
 ) -> None:
     """Identify h(V) (joint UKF, h as a random walk) and the disc model's structure."""
-    from brakethermo.cli.estimate_cmd import preflight
     from brakethermo.models.effects import EFFECTS
     from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
     from brakethermo.pipelines.output_dir import check_output_dir
     from brakethermo.pipelines.outputs import to_json
+    from brakethermo.pipelines.preflight import preflight
 
     check_output_dir(out)
     preflight(tuning=tuning, aliases=aliases, disc=disc)

@@ -55,9 +55,9 @@ def timing_check(
     `estimate` costs more than the sum — the race's online decision on its first laps
     (one lap alone has nothing to decide on) and the reports (README, Speed).
     """
-    from brakethermo.cli.estimate_cmd import preflight
     from brakethermo.io.load import load_session
     from brakethermo.pipelines.estimate import EstimateOptions, estimate_from_session
+    from brakethermo.pipelines.preflight import preflight
     from brakethermo.pipelines.timing import time_laps
     from brakethermo.results.laps import lap_name
 

@@ -28,7 +28,7 @@ from brakethermo.pipelines.batch.discovery import (
     read_manifest,
 )
 from brakethermo.pipelines.batch.laws import LawChoice, choose_law, is_multi_spot, session_facts
-from brakethermo.pipelines.batch.run import preflight, run_batch
+from brakethermo.pipelines.batch.run import run_batch
 from brakethermo.pipelines.batch.scheduling import SCHEDULER_TIMEOUT_S, WORKER_PRELOAD
 from brakethermo.pipelines.batch.session import Phase, PipelineRunner, process_session
 from brakethermo.pipelines.batch.tasks import (
@@ -47,6 +47,6 @@ __all__ = [
     "DEFAULT_LAW", "MANIFEST", "SCHEDULER_TIMEOUT_S", "SESSION_SUFFIXES", "STEPS",
     "WORKER_PRELOAD", "BatchOptions", "BatchResult", "LawChoice", "Phase", "PipelineRunner",
     "RunOutput", "SessionOutcome", "SessionRunner", "SessionTask", "choose_law",
-    "discover_sessions", "file_sha256", "is_multi_spot", "output_names", "preflight",
+    "discover_sessions", "file_sha256", "is_multi_spot", "output_names",
     "process_session", "read_manifest", "run_batch", "session_facts",
 ]  # fmt: skip

@@ -34,26 +34,7 @@ from brakethermo.pipelines.batch.tasks import (
     SessionTask,
     file_sha256,
 )
-
-
-def preflight(options: BatchOptions) -> None:
-    """The user's errors, before any session is touched (exit 1, not a batch of failures).
-
-    Raises
-    ------
-    ConfigError
-        An output place that cannot be written, a broken ``--h-law`` or ``--aliases``.
-    """
-    from brakethermo.io.aliases import load_aliases
-    from brakethermo.pipelines.models import read_calibration
-    from brakethermo.pipelines.output_dir import check_output_dir
-    from brakethermo.pipelines.tuning import check_overrides
-
-    check_output_dir(options.out)
-    check_overrides({"nodes": options.nodes}, "--nodes:")
-    load_aliases(options.aliases)
-    if options.h_law is not None:
-        read_calibration(options.h_law)
+from brakethermo.pipelines.preflight import preflight
 
 
 def _interrupted(files: list[Path], names: list[str], done: dict[Path, SessionOutcome],
@@ -133,7 +114,7 @@ def run_batch(
     out = Path(options.out)
     _check_places(folder, out)
     files, not_read = _sessions_under(folder, out)
-    preflight(options)
+    preflight(out=out, nodes=options.nodes, aliases=options.aliases, h_law=options.h_law)
     names = output_names(files, folder)
     if on_event is not None:
         on_event("start", len(files))
