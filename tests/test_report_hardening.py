@@ -152,6 +152,28 @@ def test_heatmap_scale_follows_the_flying_laps_and_title_promises_nothing_unseen
         figs.close()
 
 
+def test_heatmap_title_names_only_the_window_marks_the_colour_bar_shows():
+    from brakethermo.report.figures import AxisScales
+
+    def title_and_marks(temp_range):
+        figs = LapFigures(RADII, (0.111, 0.130, 0.146, 0.162), (250.0, 850.0), 0.1, 0.17,
+                          AxisScales((0.0, 900.0), (200.0, 900.0), 300.0, 20.0),
+                          temp_range_c=temp_range)
+        try:
+            cax = figs.fig_heatmap.axes[-1]
+            marks = sorted({round(float(line.get_ydata()[0])) for line in cax.lines})
+            return figs.ax_heatmap.get_title(loc="left"), marks
+        finally:
+            figs.close()
+
+    title, marks = title_and_marks((250.0, 760.0))  # the lower edge at the bar's very end
+    assert marks == [] and "beyond the colour bar" in title and "marked" not in title
+    title, marks = title_and_marks((200.0, 760.0))
+    assert marks == [250] and "window edge 250 °C marked" in title
+    title, marks = title_and_marks((0.0, 1000.0))
+    assert marks == [250, 850] and "window 250–850 °C marked" in title
+
+
 # ------------------------------------------------------------- item 16: one definition each
 def test_out_lap_and_lap_counts_have_one_name(report):
     out, frame = report

@@ -357,17 +357,16 @@ class LapFigures:
         cax = fig.add_axes((RIGHT + 0.045, 0.17, 0.015, 0.69))
         cbar = fig.colorbar(self.image, cax=cax, extend="both")  # clipped ends are marked
         cbar.set_label("temperature [°C]")
-        for edge in self.window_c:
+        # Only an edge strictly inside the bar is a visible mark; the title names what is
+        # drawn (a bar of 250-760 degC shows neither edge of a 250-850 degC window).
+        inside = [e for e in self.window_c if self.norm.vmin < e < self.norm.vmax]
+        for edge in inside:
             cax.axhline(edge, color="white", linewidth=1.6)
             cax.axhline(edge, color=WINDOW_COLOUR, linewidth=1.0, linestyle="--")
         ax.set_xlabel("lap time [s]")
         ax.set_ylabel("radius [mm]")
-        # The window contours appear only where the disc crosses an edge; the title says
-        # so rather than promising lines a lap inside the window never shows.
         ax.set_title(
-            f"Disc temperature across the radius; window {self.window_c[0]:.0f}–"
-            f"{self.window_c[1]:.0f} °C marked on the colour bar where it spans them (white"
-            " dashed where crossed)",
+            "Disc temperature across the radius; " + _window_words(self.window_c, inside),
             loc="left",
         )
 
@@ -539,3 +538,17 @@ def trend_figure(
     png = png_bytes(fig)
     plt.close(fig)
     return png
+
+
+
+def _window_words(window_c: tuple[float, float], inside: list[float]) -> str:
+    """What the heat map shows of the window: the edges marked on its colour bar (those
+    inside the bar's range), and white dashed contours where a lap crosses one."""
+    lo, hi = window_c
+    if not inside:
+        shown = f"window {lo:.0f}–{hi:.0f} °C beyond the colour bar"
+    elif len(inside) == 1:
+        shown = f"window edge {inside[0]:.0f} °C marked on the colour bar"
+    else:
+        shown = f"window {lo:.0f}–{hi:.0f} °C marked on the colour bar"
+    return shown + "; white dashed where crossed"
