@@ -167,11 +167,13 @@ def test_heatmap_title_names_only_the_window_marks_the_colour_bar_shows():
             figs.close()
 
     title, marks = title_and_marks((250.0, 760.0))  # the lower edge at the bar's very end
-    assert marks == [] and "beyond the colour bar" in title and "marked" not in title
+    assert marks == [] and "both edges beyond the colour bar" in title
+    assert "marked" not in title
     title, marks = title_and_marks((200.0, 760.0))
-    assert marks == [250] and "window edge 250 °C marked" in title
+    assert marks == [250] and "; 250 °C marked on the colour bar" in title
     title, marks = title_and_marks((0.0, 1000.0))
-    assert marks == [250, 850] and "window 250–850 °C marked" in title
+    assert marks == [250, 850] and "both edges marked on the colour bar" in title
+    assert "window 250–850 °C white dashed where crossed" in title
 
 
 # ------------------------------------------------------------- item 16: one definition each

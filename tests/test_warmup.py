@@ -27,3 +27,21 @@ def test_a_failing_command_is_reported_not_raised(monkeypatch: pytest.MonkeyPatc
     assert len(failed) == 1 and failed[0].startswith("estimate missing.mcap")
     assert warmup.main(["probe"]) == 1
     assert tmp_path.exists() and not (tmp_path / "out").exists()
+
+
+def test_an_interrupt_stops_the_stream(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
+    import brakethermo.cli as cli
+
+    ran: list[str] = []
+
+    def fake_app(args, standalone_mode=True):
+        ran.append(args[0])
+        return 130  # what the CLI returns for Ctrl-C
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(cli, "app", fake_app)
+    monkeypatch.setitem(warmup.STREAMS, "probe", (("estimate", "x"), ("diagnose", "y")))
+    with pytest.raises(KeyboardInterrupt):
+        warmup.run_stream("probe")
+    assert ran == ["estimate"]
+    assert warmup.main(["probe"]) == 130

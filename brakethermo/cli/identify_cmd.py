@@ -54,12 +54,10 @@ def identify_command(
     """Identify h(V) (joint UKF, h as a random walk) and the disc model's structure."""
     from brakethermo.models.effects import EFFECTS
     from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
-    from brakethermo.pipelines.output_dir import check_output_dir
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.preflight import preflight
 
-    check_output_dir(out)
-    preflight(tuning=tuning, aliases=aliases, disc=disc)
+    preflight(out=out, tuning=tuning, aliases=aliases, disc=disc)
     options = IdentifyOptions(disc=disc, tuning=tuning, nodes=nodes, aliases=aliases,
                               ambient_c=ambient, fit_structure=structure,
                               with_effects=with_effect)

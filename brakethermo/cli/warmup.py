@@ -2,12 +2,14 @@
 
 numba compiles a kernel the first time it is called and caches the machine code beside
 its source (``__pycache__``). Without this module a fresh install paid that on its first
-run of each command: the roller-rig's first run took 3x a later one. The editable
+run of each command: the roller-rig's first run took 3.9x a later one. The editable
 install's build hook (``hatch_build.py``) runs this module, which runs each command on
 small simulated sessions, so every kernel is compiled for the argument types the
 commands give it (read-only arrays from the readers, float32 stores, ...), not for a
 list that would drift from the code. The disc and the rig commands run side by side.
-Nothing but numba's cache is kept.
+The sessions and outputs go to a temporary folder and are removed; what stays is
+numba's cache (and the per-user cache of unit conversions the readers keep anyway).
+An interrupt stops both streams.
 
     python -m brakethermo.cli.warmup          # both streams, as the build hook runs it
     python -m brakethermo.cli.warmup rigs     # one stream, in this process
@@ -23,6 +25,10 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import click
+
+from brakethermo.errors import EXIT_INTERRUPTED
 
 # Each stream: the commands of one family, in order (later ones read earlier outputs).
 # Sessions are as short as each command accepts, so compiling dominates.
@@ -74,8 +80,12 @@ def run_stream(name: str) -> list[str]:
                 try:
                     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
                         code = app(list(args), standalone_mode=False)
+                except click.Abort:  # the CLI's own word for an interrupt
+                    raise KeyboardInterrupt from None
                 except (Exception, SystemExit) as exc:  # reported, never fatal: see above
                     code = f"{type(exc).__name__}: {exc}"
+                if code == EXIT_INTERRUPTED:
+                    raise KeyboardInterrupt
                 if code not in (None, 0):
                     failed.append(f"{' '.join(args[:2])}: {code}")
         finally:
@@ -85,6 +95,15 @@ def run_stream(name: str) -> list[str]:
 
 def main(argv: list[str]) -> int:
     """Both streams as child processes (or the one named in ``argv``, in this process)."""
+    try:
+        return _run(argv)
+    except KeyboardInterrupt:
+        print("brakethermo: warm-up interrupted; each command compiles what is missing on"
+              " first use", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def _run(argv: list[str]) -> int:
     if argv:
         failed = run_stream(argv[0])
         for line in failed:
@@ -93,13 +112,19 @@ def main(argv: list[str]) -> int:
     t0 = time.perf_counter()
     children = {name: subprocess.Popen([sys.executable, "-m", __spec__.name, name])
                 for name in STREAMS}
-    codes = {}
-    for name, child in children.items():
-        try:
-            codes[name] = child.wait(timeout=max(TIMEOUT_S - (time.perf_counter() - t0), 1.0))
-        except subprocess.TimeoutExpired:
-            child.kill()
-            codes[name] = "timed out"
+    codes: dict[str, int | str] = {}
+    try:
+        for name, child in children.items():
+            try:
+                codes[name] = child.wait(timeout=max(TIMEOUT_S - (time.perf_counter() - t0),
+                                                     1.0))
+            except subprocess.TimeoutExpired:
+                codes[name] = "timed out"
+    finally:  # an interrupt or a timeout ends every stream, not only this process
+        for child in children.values():
+            if child.poll() is None:
+                child.kill()
+                child.wait()
     print(f"brakethermo: kernels compiled in {time.perf_counter() - t0:.0f} s"
           + "".join(f"; {n} stream: {c}" for n, c in codes.items() if c != 0), file=sys.stderr)
     return 0 if all(c == 0 for c in codes.values()) else 1

@@ -1,6 +1,7 @@
-"""The user's errors before any session is read: every command that takes configuration
-files checks them here, once, so a broken file is one line and exit 1 rather than a
-failure per session (batch) or after minutes of work (estimate, identify-h)."""
+"""The user's errors before any session is read, checked in one place: estimate,
+identify-h, timing-check and batch validate their configuration files, output place and
+overrides here, so a broken file is one line and exit 1 rather than a failure per
+session (batch) or after minutes of work (estimate, identify-h)."""
 
 from __future__ import annotations
 

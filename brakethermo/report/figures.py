@@ -540,15 +540,13 @@ def trend_figure(
     return png
 
 
-
 def _window_words(window_c: tuple[float, float], inside: list[float]) -> str:
-    """What the heat map shows of the window: the edges marked on its colour bar (those
-    inside the bar's range), and white dashed contours where a lap crosses one."""
+    """What the heat map shows of the window: white dashed contours where a lap crosses an
+    edge, and the edges marked on its colour bar (those inside the bar's range)."""
     lo, hi = window_c
+    words = f"window {lo:.0f}–{hi:.0f} °C white dashed where crossed"
     if not inside:
-        shown = f"window {lo:.0f}–{hi:.0f} °C beyond the colour bar"
-    elif len(inside) == 1:
-        shown = f"window edge {inside[0]:.0f} °C marked on the colour bar"
-    else:
-        shown = f"window {lo:.0f}–{hi:.0f} °C marked on the colour bar"
-    return shown + "; white dashed where crossed"
+        return words + "; both edges beyond the colour bar"
+    if len(inside) == 1:
+        return words + f"; {inside[0]:.0f} °C marked on the colour bar"
+    return words + "; both edges marked on the colour bar"

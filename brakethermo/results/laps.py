@@ -126,7 +126,8 @@ def lap_stats(
         samples, s), ``peak_spot1..4`` (degC), ``peak_spot1..4_t`` (lap time of the peak,
         s), ``above_spot1..4_s`` (each spot above the window, s), ``peak_contact``,
         ``mean_contact`` (degC), ``below_s``, ``inside_s``, ``above_s`` (contact band vs
-        the window, s), ``inside_pct`` (% of the lap), ``peak_hot`` (hottest radius,
+        the window, s), ``inside_pct`` (% of the lap), ``finite_spot1..4`` (the lap has
+        a finite value of that spot), ``peak_hot`` (hottest radius,
         degC), ``peak_hot_t`` (lap time of it, s), ``peak_hot_radius_mm`` (where, NaN
         without radii) and ``above_hot_s`` (hottest radius above the window, s).
     """
@@ -148,12 +149,13 @@ def lap_stats(
             "contact": contact,
             "below": (contact < lo) * dt,
             "above": (contact > hi) * dt,
-            "valid": np.isfinite(contact) * dt,
+            "inside": ((contact >= lo) & (contact <= hi)) * dt,
             "hot": hot,
             "hot_r": np.where(hot_idx >= 0, radii_mm[np.maximum(hot_idx, 0)], np.nan),
             "above_hot": (hot > hi) * dt,
             **{s: estimate[s].to_numpy(dtype=float) for s in SPOTS},
             **{f"above_{s}": (estimate[s].to_numpy(dtype=float) > hi) * dt for s in SPOTS},
+            **{f"finite_{s}": np.isfinite(estimate[s].to_numpy(dtype=float)) for s in SPOTS},
         }
     )
     g = work.groupby("lap", sort=True)
@@ -163,6 +165,7 @@ def lap_stats(
         idx = work[s].fillna(-np.inf).groupby(work["lap"]).idxmax()
         out[f"peak_{s}_t"] = work.loc[idx.to_numpy(), "t"].to_numpy()
         out[f"above_{s}_s"] = g[f"above_{s}"].sum()
+        out[f"finite_{s}"] = g[f"finite_{s}"].any()
     out["peak_hot"] = g["hot"].max()
     hot_at = work["hot"].fillna(-np.inf).groupby(work["lap"]).idxmax()
     out["peak_hot_t"] = work.loc[hot_at.to_numpy(), "t"].to_numpy()
@@ -172,7 +175,7 @@ def lap_stats(
     out["mean_contact"] = g["contact"].mean()
     out["below_s"] = g["below"].sum()
     out["above_s"] = g["above"].sum()
-    out["inside_s"] = g["valid"].sum() - out["below_s"] - out["above_s"]
+    out["inside_s"] = g["inside"].sum()
     out["inside_pct"] = 100.0 * out["inside_s"] / out["lap_time_s"]
     out.index.name = "lap"
     return out
@@ -209,7 +212,7 @@ def lap_summaries(
         row = stats.loc[lap.lap]
         peaks = {s: {"temp_c": _finite_or_none(row[f"peak_{s}"]),
                      "time_s": round(float(row["start_s"] + row[f"peak_{s}_t"]), 1)}
-                 for s in SPOTS if np.isfinite(row[f"peak_{s}"])}
+                 for s in SPOTS if row[f"finite_{s}"]}
         record: dict[str, Any] = {
             "lap": int(lap.lap),
             "label": lap_label(lap.lap),
