@@ -29,3 +29,23 @@ def test_links_what_exists_and_marks_a_whatif_of_another_law(tmp_path: Path) -> 
     index = refresh_page_links(folder)  # no lap reports: a small index holds the links
     assert index is not None and "run whatif again" in index.read_text()
     assert 'href="diagnosis/index.html"' not in index.read_text()
+
+
+def test_an_estimate_beside_a_batch_keeps_the_back_link(sim_race_session, tmp_path: Path
+                                                         ) -> None:
+    """`estimate … --out OUT` into a batch's folder dropped the session page's
+    "← all sessions" link while the batch index still listed the session."""
+    from typer.testing import CliRunner
+
+    from brakethermo.cli import app
+
+    race = sim_race_session[0]
+    for batch_index in (False, True):
+        out = tmp_path / f"out{int(batch_index)}"
+        out.mkdir()
+        if batch_index:
+            (out / "index.html").write_text("<html>sessions</html>")
+        res = CliRunner().invoke(app, ["estimate", str(race), "--out", str(out)])
+        assert res.exit_code == 0, res.output
+        page = (out / race.stem / "index.html").read_text()
+        assert ('href="../index.html"' in page) is batch_index

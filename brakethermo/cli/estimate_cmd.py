@@ -147,9 +147,11 @@ def _write_outputs(result: EstimateResult, out: Path, mdf_out: bool, reports: bo
         if reports:
             from brakethermo.report.lap_report import write_session_report
 
+            # Beside a batch's sessions the page keeps the batch index's back link.
+            up = "../index.html" if (Path(out) / "index.html").is_file() else None
             write_session_report(result.frame, result.session, stage,
                                  node_radii=result.node_radii, disc=disc_of(result),
-                                 summary=result.summary)
+                                 summary=result.summary, back_href=up)
     refresh_page_links(folder)
     return folder
 
