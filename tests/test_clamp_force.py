@@ -200,6 +200,10 @@ def test_cli_outputs_and_json(tmp_path: Path) -> None:
     )
     assert res.exit_code == 0, res.output
     assert set(json.loads(res.output)["rmse_kn"].values()) == {None}  # no sensor: no RMSE
+    table = CliRunner().invoke(app, ["clamp-force", str(ns), "--train", str(tr), "--out",
+                                     str(tmp_path / "o")], env={"COLUMNS": "120"})
+    assert table.exit_code == 0, table.output
+    assert "kf 95 % band: ± " in table.output and "no usable clamp-force sensor" in table.output
 
 
 def test_peak_is_a_force_held_not_a_one_sample_spike() -> None:
