@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from brakethermo.config import config_file
-from brakethermo.errors import DataError
+from brakethermo.errors import ConfigError, DataError
 
 KMH = 1.0 / 3.6  # m/s per km/h
 TABLE_SPEEDS_KMH = np.arange(0.0, 361.0, 10.0)
@@ -267,6 +267,12 @@ def read_h_law(path: str | Path) -> HLawRecord:
     """
     path = Path(path)
     raw = config_file(path)
+    law_keys = ("v_ref_kmh", "v_ref_mps", "knee", "power", "cubic")
+    if not any(raw.has(k) for k in law_keys):
+        raise ConfigError(
+            f"not an h law: none of {', '.join(law_keys)} is set (its tables:"
+            f" {', '.join(sorted(raw.raw)) or 'none'}); give the h_law.toml that"
+            " `brakethermo identify-h` wrote", path=path)
     if raw.has("v_ref_mps"):
         v_ref = raw.number("v_ref_mps", positive=True)
     else:
