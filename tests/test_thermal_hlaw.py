@@ -116,3 +116,17 @@ def test_invalid_files_raise_config_error(tmp_path: Path, text: str, match: str)
     with pytest.raises(ConfigError, match=match) as info:
         read_h_law(path)
     assert str(path) in str(info.value)
+
+
+def test_a_toml_that_is_no_h_law_is_said_so(tmp_path) -> None:
+    """A valid TOML of another kind (the tuning file, a booster fit) read as an h law said
+    "key 'v_ref_kmh': … missing", as if a law had lost one key."""
+    import pytest
+
+    from brakethermo.errors import ConfigError
+    from brakethermo.thermal.hlaw import read_h_law
+
+    path = tmp_path / "fit.toml"
+    path.write_text("[estimate]\nnodes = 10\n")
+    with pytest.raises(ConfigError, match=r"not an h law: .*it sets: estimate.*identify-h"):
+        read_h_law(path)

@@ -270,7 +270,7 @@ def read_h_law(path: str | Path) -> HLawRecord:
     law_keys = ("v_ref_kmh", "v_ref_mps", "knee", "power", "cubic")
     if not any(raw.has(k) for k in law_keys):
         raise ConfigError(
-            f"not an h law: none of {', '.join(law_keys)} is set (its tables:"
+            f"not an h law: none of {', '.join(law_keys)} is set (it sets:"
             f" {', '.join(sorted(raw.raw)) or 'none'}); give the h_law.toml that"
             " `brakethermo identify-h` wrote", path=path)
     if raw.has("v_ref_mps"):
