@@ -415,3 +415,18 @@ def test_an_interrupt_says_which_sessions_finished(tmp_path: Path) -> None:
     said = str(info.value)
     assert f"2 of 4 sessions finished ({calls[0]}, {calls[1]})" in said, said
     assert calls[2] in said.split("not done:")[1]
+
+
+def test_a_refused_folder_or_effect_is_one_line_alone(tmp_path: Path) -> None:
+    """The progress bar drew (or left a blank line) before the error's one line."""
+    from brakethermo.cli import app
+
+    res = CliRunner().invoke(app, ["batch", str(tmp_path / "missing"), "--out",
+                                   str(tmp_path / "o")])
+    assert res.exit_code == 1
+    assert res.output.strip().splitlines() == res.output.splitlines(), res.output
+    assert len(res.output.splitlines()) == 1 and "is not a folder" in res.output
+    (tmp_path / "s.mcap").write_bytes(b"")
+    res = CliRunner().invoke(app, ["diagnose", str(tmp_path / "s.mcap"), "--effects",
+                                   "frictoin_temperature", "--out", str(tmp_path / "o")])
+    assert res.exit_code == 1 and res.output.splitlines()[0].startswith("error:"), res.output

@@ -177,25 +177,30 @@ def _run_with_progress(folder: Path, options: BatchOptions) -> BatchResult:
         TimeElapsedColumn(),
         console=console,
     )
-    with progress:
-        files = progress.add_task("sessions", total=None, last="")
-        current = progress.add_task("waiting", total=None, last="", visible=False)
+    # Drawn once the sessions are found: a bad folder or option is then one line alone.
+    files = progress.add_task("sessions", total=None, last="")
+    current = progress.add_task("waiting", total=None, last="", visible=False)
 
-        def on_event(kind: str, payload: object) -> None:
-            if kind == "start":
-                progress.update(files, total=int(payload))  # type: ignore[call-overload]
-                if options.workers > 1 or options.scheduler:
-                    progress.update(files, last=f"on {options.workers} workers")
-                return
-            if kind == "phase":
-                assert isinstance(payload, Phase)
-                total = payload.total or None
-                progress.reset(current, total=total, completed=payload.done, visible=True,
-                               description=escape(f"{payload.name}: {payload.phase}"),
-                               last="laps" if total else "")
-                return
-            assert isinstance(payload, SessionOutcome)
-            progress.update(files, advance=1, last=escape(f"{payload.name}: {payload.status}"))
-            progress.update(current, visible=False)
+    def on_event(kind: str, payload: object) -> None:
+        if kind == "start":
+            progress.start()
+            progress.update(files, total=int(payload))  # type: ignore[call-overload]
+            if options.workers > 1 or options.scheduler:
+                progress.update(files, last=f"on {options.workers} workers")
+            return
+        if kind == "phase":
+            assert isinstance(payload, Phase)
+            total = payload.total or None
+            progress.reset(current, total=total, completed=payload.done, visible=True,
+                           description=escape(f"{payload.name}: {payload.phase}"),
+                           last="laps" if total else "")
+            return
+        assert isinstance(payload, SessionOutcome)
+        progress.update(files, advance=1, last=escape(f"{payload.name}: {payload.status}"))
+        progress.update(current, visible=False)
 
+    try:
         return run_batch(folder, options, on_event=on_event)
+    finally:  # not started when the folder or an option was refused: nothing to close
+        if progress.live.is_started:
+            progress.stop()

@@ -99,9 +99,11 @@ def diagnose_command(
     options = DiagnoseOptions(effects=effects, holdout_laps=_laps(holdout_laps), h_law=h_law,
                               disc=disc, tuning=tuning, aliases=aliases, ambient_c=ambient)
     name = sessions[0].name if len(sessions) == 1 else f"{len(sessions)} sessions"
+    # A transient bar is erased when done; off a terminal it cannot be drawn, and only
+    # left a blank line before the output (or before an error's one line).
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TimeElapsedColumn(), console=console, transient=True,
-                  disable=as_json) as bar:
+                  disable=as_json or not console.is_terminal) as bar:
         task = bar.add_task(f"diagnosing {escape(name)}", total=None)
 
         def progress(label: str, done: int, total: int) -> None:
