@@ -108,6 +108,9 @@ class AxisScales:
     pressure_bar: float
 
 
+BAND_ROOM_C = 25.0  # degC: most of a ±1σ band the spot plot's range makes room for
+
+
 def time_axis_end(t_max: float) -> float:
     """End of a lap's time axis, s: the lap length rounded up to 10 s."""
     return 10.0 * max(1.0, float(np.ceil(t_max / 10.0 - 1e-9)))
@@ -420,8 +423,11 @@ class LapFigures:
             self.spot_lines[i].set_data(t, lap.spot[i])
             self.meas_lines[i].set_data(t, lap.measured[i])
         self.zone_spots.update(lap.zones_t, lap.zone_names)
-        # From the estimate and the readings: a wide start-up band must not stretch the axis.
-        spots_ylim = _rounded_range((lap.spot, lap.measured), self.scales.spots)
+        # From the estimate and the readings, and the bands up to BAND_ROOM_C beyond them: a
+        # peak's band stays whole, a wide start-up band does not stretch the axis.
+        room = np.minimum(lap.spot_std, BAND_ROOM_C)
+        spots_ylim = _rounded_range((lap.spot - room, lap.spot + room, lap.measured),
+                                    self.scales.spots)
         self.ax_spots.set_ylim(*spots_ylim)
 
         field = self._interp @ lap.nodes[self._node_order]
