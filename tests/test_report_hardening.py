@@ -245,3 +245,27 @@ def test_a_cut_last_lap_is_marked_partial() -> None:
     assert partial_laps(laps[:3]) == set()  # two full flying laps
     assert partial_laps((*laps[:2], Lap(2, 266.0, 63.3))) == {2}  # a log cut in lap 2
     assert partial_laps(laps[:2]) == set()  # one lap alone cannot be judged
+
+
+def test_contact_band_legend_gives_the_bands_size_and_spot_axis_keeps_the_band():
+    """A ±7.6 °C band on the contact plot's 0–900 °C axis is a hairline: the legend says
+    its size; the spot plot's axis stopped at the estimate's peak and cut its band."""
+    from brakethermo.report.figures import AxisScales, LapData
+
+    figs = LapFigures(RADII, (0.111, 0.130, 0.146, 0.162), WINDOW, 0.1, 0.17,
+                      AxisScales((0.0, 900.0), (200.0, 900.0), 300.0, 20.0))
+    try:
+        n = 50
+        t = np.arange(n) * 0.1
+        spot = np.full((4, n), 600.0)
+        spot[1, 10] = 699.0  # a peak just under 700 °C with a 20 °C band
+        std = np.full((4, n), 20.0)
+        lap = LapData(t, spot, std, np.full((4, n), np.nan), np.full(n, 600.0),
+                      np.full(n, 7.6), np.full((len(RADII), n), 600.0), np.full(n, 200.0),
+                      np.zeros(n), np.zeros((0, 2)))
+        figs.render(lap)
+        texts = [x.get_text() for x in figs.ax_contact.get_legend().get_texts()]
+        assert "±1σ ≈ 7.6 °C" in texts, texts
+        assert figs.ax_spots.get_ylim()[1] >= 699.0 + 20.0
+    finally:
+        figs.close()

@@ -390,7 +390,8 @@ class LapFigures:
         ax.set_xlabel("lap time [s]")
         ax.set_ylabel("temperature [°C]")
         ax.set_title("Contact-band average (spots 2–4) against the operating window", loc="left")
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+        legend = ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+        self._band_label = next(t for t in legend.get_texts() if t.get_text() == "±1σ")
 
     def _build_context(self) -> None:
         fig = self.fig_context = _figure(3.0)
@@ -446,6 +447,10 @@ class LapFigures:
             )
 
         self.contact_band.set_data(t, lap.contact - lap.contact_std, lap.contact + lap.contact_std)
+        # On a 600 °C axis a band of a few degrees is a hairline: the legend gives its size
+        # (the lap's median σ).
+        std = lap.contact_std[np.isfinite(lap.contact_std)]
+        self._band_label.set_text(f"±1σ ≈ {np.median(std):.1f} °C" if std.size else "±1σ")
         self.contact_line.set_data(t, lap.contact)
         self.zone_contact.update(lap.zones_t, lap.zone_names)
 
