@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 EXIT_OK = 0
 EXIT_BAD_INPUT = 1
 EXIT_USAGE = 2
@@ -9,6 +11,15 @@ EXIT_BATCH_PARTIAL = 3
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 # every output is staged and swapped in whole: an interrupted run leaves nothing half-written
 INTERRUPTED_TEXT = "nothing of this run was written; earlier outputs are as they were"
+
+
+def interrupted_text(written: Sequence[object]) -> str:
+    """What an interrupt leaves, given the outputs the run had committed (paths)."""
+    if not written:
+        return INTERRUPTED_TEXT
+    names = ", ".join(str(p) for p in written[:3]) + (", …" if len(written) > 3 else "")
+    return (f"this run had written {len(written)} output(s) complete before it ({names});"
+            " nothing after them was done; other outputs are as they were")
 
 
 class BrakethermoError(Exception):

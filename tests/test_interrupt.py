@@ -136,3 +136,27 @@ def test_an_interrupt_during_shutdown_is_ignored(tmp_path: Path) -> None:
     stdout, stderr = proc.communicate(timeout=30)
     assert proc.returncode == 0, stderr
     assert "brakethermo" in stdout and not stderr.strip(), stderr
+
+
+def test_an_interrupt_after_the_outputs_says_they_are_complete(sim_race_session, tmp_path,
+                                                               monkeypatch) -> None:
+    """An interrupt between the atomic write and the console table said "nothing of this
+    run was written" while the estimate's folder was complete."""
+    from typer.testing import CliRunner
+
+    import brakethermo.cli.estimate_cmd as estimate_cmd
+    from brakethermo.cli import app
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(estimate_cmd, "_render", interrupted)
+    race = sim_race_session[0]
+    out = tmp_path / "out"
+    res = CliRunner().invoke(app, ["estimate", str(race), "--out", str(out), "--no-report"],
+                             env={"COLUMNS": "300"})
+    assert res.exit_code == 130, res.output
+    assert (out / race.stem / "estimate.parquet").is_file()
+    assert "nothing of this run was written" not in res.output
+    assert "written" in res.output and str(out / race.stem) in res.output
+    assert "units" not in res.output  # the per-user unit cache is no output of the run

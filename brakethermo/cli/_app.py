@@ -14,7 +14,8 @@ from rich.markup import escape
 from typer.core import TyperGroup
 
 from brakethermo import __version__
-from brakethermo.errors import EXIT_INTERRUPTED, INTERRUPTED_TEXT, BrakethermoError
+from brakethermo.errors import EXIT_INTERRUPTED, BrakethermoError, interrupted_text
+from brakethermo.io.atomic import committed_outputs, forget_committed
 
 console = Console()
 err_console = Console(stderr=True)
@@ -30,6 +31,7 @@ class _UserErrorGroup(TyperGroup):
     """
 
     def invoke(self, ctx: click.Context) -> Any:
+        forget_committed()
         try:
             with warnings.catch_warnings(), np.errstate(all="ignore"):
                 warnings.simplefilter("ignore", RuntimeWarning)
@@ -40,8 +42,10 @@ class _UserErrorGroup(TyperGroup):
                               soft_wrap=True)
             ctx.exit(exc.exit_code)
         except KeyboardInterrupt:
-            err_console.print(f"[bold red]interrupted:[/] {INTERRUPTED_TEXT}",
-                              highlight=False)
+            # The outputs' names are text, not markup.
+            err_console.print(f"[bold red]interrupted:[/] "
+                              f"{escape(interrupted_text(committed_outputs()))}",
+                              highlight=False, soft_wrap=True)
             ctx.exit(EXIT_INTERRUPTED)
 
 

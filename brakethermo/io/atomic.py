@@ -14,6 +14,25 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+# Outputs this process has committed (renamed into place) since the last
+# forget_committed(): an interrupt after them can say what is complete.
+_committed: list[Path] = []
+
+
+def committed_outputs() -> list[Path]:
+    """Outputs committed since :func:`forget_committed` that are still in place, in
+    order; a staged file swapped into its folder is listed as the folder."""
+    seen: dict[Path, None] = {}
+    for p in _committed:
+        if p.exists() and not any(_STAGE in part for part in p.parts):
+            seen[p] = None
+    return list(seen)
+
+
+def forget_committed() -> None:
+    """Start a new record of committed outputs (each command does, on entry)."""
+    _committed.clear()
+
 
 def _umask() -> int:
     mask = os.umask(0)
@@ -22,10 +41,13 @@ def _umask() -> int:
 
 
 @contextmanager
-def atomic_path(target: str | Path, suffix: str | None = None) -> Iterator[Path]:
+def atomic_path(target: str | Path, suffix: str | None = None, output: bool = True
+                ) -> Iterator[Path]:
     """Yield a temporary path beside ``target``; rename it onto ``target`` on success.
 
     On any exception the temporary file is removed and ``target`` is left as it was.
+    ``output=False`` for a file that is no result of the command (a cache): it is not
+    listed among the outputs an interrupt reports (:func:`committed_outputs`).
     Use it with writers that take a path (``pyarrow.parquet.write_table``,
     ``Figure.savefig``)::
 
@@ -47,17 +69,19 @@ def atomic_path(target: str | Path, suffix: str | None = None) -> Iterator[Path]
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+    if output:
+        _committed.append(target)
 
 
-def write_bytes_atomic(target: str | Path, data: bytes) -> None:
-    """Write ``data`` to ``target`` atomically."""
-    with atomic_path(target) as tmp:
+def write_bytes_atomic(target: str | Path, data: bytes, output: bool = True) -> None:
+    """Write ``data`` to ``target`` atomically (``output`` as in :func:`atomic_path`)."""
+    with atomic_path(target, output=output) as tmp:
         tmp.write_bytes(data)
 
 
-def write_text_atomic(target: str | Path, text: str) -> None:
-    """Write UTF-8 ``text`` to ``target`` atomically."""
-    write_bytes_atomic(target, text.encode("utf-8"))
+def write_text_atomic(target: str | Path, text: str, output: bool = True) -> None:
+    """Write UTF-8 ``text`` to ``target`` atomically (``output`` as in :func:`atomic_path`)."""
+    write_bytes_atomic(target, text.encode("utf-8"), output=output)
 
 
 _STAGE = ".stage."
@@ -224,5 +248,6 @@ def atomic_entries(target: str | Path, owned: tuple[str, ...]) -> Iterator[Path]
         for entry in sorted(stage.iterdir(), key=lambda e: (e.name.endswith("manifest.json"),
                                                             e.name == "index.html")):
             _swap_in(entry, target / entry.name, tag)
+        _committed.append(target)
     finally:
         shutil.rmtree(stage, ignore_errors=True)

@@ -213,7 +213,7 @@ def _lookup(key: str) -> Unit | None:
     memo[key] = unit
     try:
         write_text_atomic(_memo_path(), json.dumps(
-            {k: None if u is None else astuple(u) for k, u in memo.items()}))
+            {k: None if u is None else astuple(u) for k, u in memo.items()}), output=False)
     except OSError:
         pass  # a read-only home: pint answers again next time, nothing else changes
     return unit
