@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 1
@@ -11,6 +12,26 @@ EXIT_BATCH_PARTIAL = 3
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 # every output is staged and swapped in whole: an interrupted run leaves nothing half-written
 INTERRUPTED_TEXT = "nothing of this run was written; earlier outputs are as they were"
+
+
+# Outputs this process has committed (renamed into place, by io.atomic) since the last
+# forget_committed(): an interrupt after them can say what is complete.
+_committed: list[Path] = []
+
+
+def record_output(path: str | Path) -> None:
+    """Note an output committed whole (a file renamed into place, a staged folder)."""
+    _committed.append(Path(path))
+
+
+def committed_outputs() -> list[Path]:
+    """The outputs recorded since :func:`forget_committed` still in place, in order."""
+    return list(dict.fromkeys(p for p in _committed if p.exists()))
+
+
+def forget_committed() -> None:
+    """Start a new record of committed outputs (each command does, on entry)."""
+    _committed.clear()
 
 
 def interrupted_text(written: Sequence[object]) -> str:

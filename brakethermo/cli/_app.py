@@ -14,8 +14,13 @@ from rich.markup import escape
 from typer.core import TyperGroup
 
 from brakethermo import __version__
-from brakethermo.errors import EXIT_INTERRUPTED, BrakethermoError, interrupted_text
-from brakethermo.io.atomic import committed_outputs, forget_committed
+from brakethermo.errors import (
+    EXIT_INTERRUPTED,
+    BrakethermoError,
+    committed_outputs,
+    forget_committed,
+    interrupted_text,
+)
 
 console = Console()
 err_console = Console(stderr=True)

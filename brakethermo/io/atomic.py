@@ -14,24 +14,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-# Outputs this process has committed (renamed into place) since the last
-# forget_committed(): an interrupt after them can say what is complete.
-_committed: list[Path] = []
-
-
-def committed_outputs() -> list[Path]:
-    """Outputs committed since :func:`forget_committed` that are still in place, in
-    order; a staged file swapped into its folder is listed as the folder."""
-    seen: dict[Path, None] = {}
-    for p in _committed:
-        if p.exists() and not any(_STAGE in part for part in p.parts):
-            seen[p] = None
-    return list(seen)
-
-
-def forget_committed() -> None:
-    """Start a new record of committed outputs (each command does, on entry)."""
-    _committed.clear()
+from brakethermo.errors import record_output
 
 
 def _umask() -> int:
@@ -69,8 +52,8 @@ def atomic_path(target: str | Path, suffix: str | None = None, output: bool = Tr
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    if output:
-        _committed.append(target)
+    if output and not any(_STAGE in part for part in target.parts):
+        record_output(target)
 
 
 def write_bytes_atomic(target: str | Path, data: bytes, output: bool = True) -> None:
@@ -248,6 +231,6 @@ def atomic_entries(target: str | Path, owned: tuple[str, ...]) -> Iterator[Path]
         for entry in sorted(stage.iterdir(), key=lambda e: (e.name.endswith("manifest.json"),
                                                             e.name == "index.html")):
             _swap_in(entry, target / entry.name, tag)
-        _committed.append(target)
+        record_output(target)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
