@@ -30,7 +30,7 @@ def atomic_path(target: str | Path, suffix: str | None = None, output: bool = Tr
 
     On any exception the temporary file is removed and ``target`` is left as it was.
     ``output=False`` for a file that is no result of the command (a cache): it is not
-    listed among the outputs an interrupt reports (:func:`committed_outputs`).
+    listed among the outputs an interrupt reports (:func:`brakethermo.errors.committed_outputs`).
     Use it with writers that take a path (``pyarrow.parquet.write_table``,
     ``Figure.savefig``)::
 
