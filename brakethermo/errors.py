@@ -25,8 +25,10 @@ def record_output(path: str | Path) -> None:
 
 
 def committed_outputs() -> list[Path]:
-    """The outputs recorded since :func:`forget_committed` still in place, in order."""
-    return list(dict.fromkeys(p for p in _committed if p.exists()))
+    """The outputs recorded since :func:`forget_committed` still in place, in order; one
+    inside another recorded (a page in a session folder) is counted with it."""
+    kept = list(dict.fromkeys(p for p in _committed if p.exists()))
+    return [p for p in kept if not any(q != p and q in p.parents for q in kept)]
 
 
 def forget_committed() -> None:

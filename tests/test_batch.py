@@ -131,10 +131,18 @@ def test_out_that_is_or_holds_the_input_is_refused(tmp_path: Path) -> None:
 
 
 def test_failures_isolated_and_rerun_skips(folder: Path, tmp_path: Path) -> None:
+    from brakethermo.errors import committed_outputs, forget_committed
+
     options = _options(tmp_path)
     events: list[str] = []
+    forget_committed()
     result = run_batch(folder, options, job=JOB, on_event=lambda k, p: events.append(k))
     by_name = {o.name: o for o in result.outcomes}
+    # sessions written in worker processes are recorded by the batch (what an interrupt
+    # after them reports), each folder once, its pages counted with it
+    recorded = committed_outputs()
+    assert {options.out / n for n in ("test_am", "test_pm", "race", "fp1")} <= set(recorded)
+    assert not any(p.parent.name in by_name for p in recorded)
     assert set(by_name) == {"test_am", "test_pm", "race", "fp1", "truncated", "garbage"}
     assert result.exit_code == EXIT_BATCH_PARTIAL
     assert {o.name for o in result.failed} == {"truncated", "garbage"}

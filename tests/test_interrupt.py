@@ -158,5 +158,20 @@ def test_an_interrupt_after_the_outputs_says_they_are_complete(sim_race_session,
     assert res.exit_code == 130, res.output
     assert (out / race.stem / "estimate.parquet").is_file()
     assert "nothing of this run was written" not in res.output
-    assert "written" in res.output and str(out / race.stem) in res.output
-    assert "units" not in res.output  # the per-user unit cache is no output of the run
+    assert "written 1 output(s)" in res.output and str(out / race.stem) in res.output
+
+
+def test_the_record_of_outputs_leaves_out_caches_stages_and_nested_pages(tmp_path) -> None:
+    from brakethermo.errors import committed_outputs, forget_committed
+    from brakethermo.io.atomic import atomic_dir, atomic_entries, write_text_atomic
+
+    forget_committed()
+    write_text_atomic(tmp_path / "cache.json", "{}", output=False)  # e.g. the unit memo
+    with atomic_entries(tmp_path / "race", ("*",)) as stage:
+        write_text_atomic(stage / "summary.json", "{}")  # inside a stage: not yet output
+    write_text_atomic(tmp_path / "race" / "index.html", "<html/>")  # inside the folder
+    with atomic_dir(tmp_path / "race" / "diagnosis") as d:
+        (d / "index.html").write_text("<html/>")
+    user = tmp_path / "run.stage.2"  # a user's folder that only looks like a stage
+    write_text_atomic(user / "h_law.toml", "x = 1")
+    assert committed_outputs() == [tmp_path / "race", user / "h_law.toml"]

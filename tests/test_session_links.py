@@ -38,14 +38,17 @@ def test_an_estimate_beside_a_batch_keeps_the_back_link(sim_race_session, tmp_pa
     from typer.testing import CliRunner
 
     from brakethermo.cli import app
+    from brakethermo.report.index import BATCH_MARK
 
     race = sim_race_session[0]
-    for batch_index in (False, True):
-        out = tmp_path / f"out{int(batch_index)}"
+    for kind in ("none", "other site", "batch"):
+        out = tmp_path / kind.replace(" ", "_")
         out.mkdir()
-        if batch_index:
-            (out / "index.html").write_text("<html>sessions</html>")
+        if kind == "other site":
+            (out / "index.html").write_text("<html>the team's own pages</html>")
+        if kind == "batch":
+            (out / "index.html").write_text(f"<html><head>{BATCH_MARK}</head></html>")
         res = CliRunner().invoke(app, ["estimate", str(race), "--out", str(out)])
         assert res.exit_code == 0, res.output
         page = (out / race.stem / "index.html").read_text()
-        assert ('href="../index.html"' in page) is batch_index
+        assert ('href="../index.html"' in page) is (kind == "batch"), kind

@@ -77,10 +77,10 @@ def clamp_force_cmd(
         tab.add_row(k, "–" if v is None else f"{v:.3f}", f"{est[k]['peak']:.2f}",
                     "–" if m is None else f"{m:.2f}")
     console.print(tab)
-    band = est.get("kf_band95_median")
-    if band is not None:
-        console.print(f"kf 95 % band: ± {band:.2f} kN (median over the session)",
-                      highlight=False)
+    # The band of the reported estimate: the KF's, or the fallback's held-out RMSE.
+    label = "KF" if summ.get("kf_source", "kf") == "kf" else "reported"
+    console.print(f"{label} 95 % band: ± {est['kf_band95_median']:.2f} kN (median over the"
+                  " session)", highlight=False)
     if all(v is None for v in rmses.values()):
         console.print("RMSE –: this session has no usable clamp-force sensor to score against"
                       " (the estimates do not need it)", highlight=False)

@@ -145,10 +145,11 @@ def _write_outputs(result: EstimateResult, out: Path, mdf_out: bool, reports: bo
                                 start_epoch_s=result.session.start_epoch_s,
                                 source=result.session.path.name)
         if reports:
+            from brakethermo.report.index import is_batch_index
             from brakethermo.report.lap_report import write_session_report
 
             # Beside a batch's sessions the page keeps the batch index's back link.
-            up = "../index.html" if (Path(out) / "index.html").is_file() else None
+            up = "../index.html" if is_batch_index(Path(out) / "index.html") else None
             write_session_report(result.frame, result.session, stage,
                                  node_radii=result.node_radii, disc=disc_of(result),
                                  summary=result.summary, back_href=up)

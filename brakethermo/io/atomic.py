@@ -52,8 +52,8 @@ def atomic_path(target: str | Path, suffix: str | None = None, output: bool = Tr
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    if output and not any(_STAGE in part for part in target.parts):
-        record_output(target)
+    if output:
+        _record(target)
 
 
 def write_bytes_atomic(target: str | Path, data: bytes, output: bool = True) -> None:
@@ -68,6 +68,13 @@ def write_text_atomic(target: str | Path, text: str, output: bool = True) -> Non
 
 
 _STAGE = ".stage."
+
+
+def _record(target: Path) -> None:
+    """Record ``target`` as committed unless it sits in a staging folder (it is then part
+    of an output committed later, when the stage is swapped in)."""
+    if not any(part.startswith(".") and _STAGE in part for part in target.parts):
+        record_output(target)
 _NAME_KEEP = 100  # a temp name adds ~40 characters; file names stop at 255
 
 
@@ -165,6 +172,7 @@ def atomic_dir(target: str | Path) -> Iterator[Path]:
     os.replace(tmp, target)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+    _record(target)
 
 
 def write_atomic_with(target: str | Path, writer: Callable[[Path], None]) -> None:
@@ -231,6 +239,6 @@ def atomic_entries(target: str | Path, owned: tuple[str, ...]) -> Iterator[Path]
         for entry in sorted(stage.iterdir(), key=lambda e: (e.name.endswith("manifest.json"),
                                                             e.name == "index.html")):
             _swap_in(entry, target / entry.name, tag)
-        record_output(target)
+        _record(target)
     finally:
         shutil.rmtree(stage, ignore_errors=True)

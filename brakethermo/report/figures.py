@@ -425,8 +425,8 @@ class LapFigures:
             self.meas_lines[i].set_data(t, lap.measured[i])
         self.zone_spots.update(lap.zones_t, lap.zone_names)
         # From the estimate and the readings, and the bands up to BAND_ROOM_C beyond them: a
-        # peak's band stays whole, a wide start-up band does not stretch the axis.
-        room = np.minimum(lap.spot_std, BAND_ROOM_C)
+        # peak's band stays whole, a wide start-up band stretches the axis by 25 °C at most.
+        room = np.minimum(np.nan_to_num(lap.spot_std), BAND_ROOM_C)
         spots_ylim = _rounded_range((lap.spot - room, lap.spot + room, lap.measured),
                                     self.scales.spots)
         self.ax_spots.set_ylim(*spots_ylim)

@@ -12,6 +12,17 @@ from brakethermo.io.atomic import write_text_atomic
 from brakethermo.report.page import template_environment
 from brakethermo.results.laps import temp_text
 
+BATCH_MARK = '<meta name="generator" content="brakethermo batch index">'
+
+
+def is_batch_index(path: Path) -> bool:
+    """Whether ``path`` is an index a batch wrote (the sessions' pages may link up to it)."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            return BATCH_MARK in f.read(4096)
+    except OSError:
+        return False
+
 
 def _diagnosis_cell(folder: Path) -> str | None:
     """The verdict of the diagnosis beside a session's results, in a few words (or None)."""

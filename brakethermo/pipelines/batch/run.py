@@ -11,6 +11,7 @@ from brakethermo.errors import (
     ConfigError,
     DataError,
     Interrupted,
+    record_output,
 )
 from brakethermo.pipelines.batch.discovery import (
     SESSION_SUFFIXES,
@@ -50,6 +51,16 @@ def _interrupted(files: list[Path], names: list[str], done: dict[Path, SessionOu
         f" ({', '.join(finished) or 'none'}) and their outputs are complete; not done:"
         f" {', '.join(pending) or 'none'}, their folders as before. Run the same command"
         f" again to resume{resume}")
+
+
+def _finish(out: Path, folder: Path, result: BatchResult, index: bool) -> None:
+    """Record the sessions written (in worker processes, whose records the CLI does not
+    see: an interrupt after this reports them) and write the batch index."""
+    for o in result.outcomes:
+        if o.status == "ok":
+            record_output(out / o.name)
+    if index:
+        _write_index(out, folder, result.outcomes)
 
 
 def _write_index(out: Path, folder: Path, outcomes: list[SessionOutcome]) -> None:
@@ -180,6 +191,5 @@ def run_batch(
                                        if o.status in ("ok", "skipped")])
         raise _interrupted(files, names, done, options.force) from None
     result = BatchResult([done[p] for p in files], time.perf_counter() - t0, not_read)
-    if options.reports and files:
-        _write_index(out, folder, result.outcomes)
+    _finish(out, folder, result, index=options.reports and bool(files))
     return result
