@@ -250,7 +250,12 @@ def test_a_cut_last_lap_is_marked_partial() -> None:
 def test_contact_band_legend_gives_the_bands_size_and_spot_axis_keeps_the_band():
     """A ±7.6 °C band on the contact plot's 0–900 °C axis is a hairline: the legend says
     its size; the spot plot's axis stopped at the estimate's peak and cut its band."""
-    from brakethermo.report.figures import AxisScales, LapData
+    import io
+    from dataclasses import replace
+
+    from PIL import Image
+
+    from brakethermo.report.figures import RIGHT, AxisScales, LapData
 
     figs = LapFigures(RADII, (0.111, 0.130, 0.146, 0.162), WINDOW, 0.1, 0.17,
                       AxisScales((0.0, 900.0), (200.0, 900.0), 300.0, 20.0))
@@ -263,9 +268,15 @@ def test_contact_band_legend_gives_the_bands_size_and_spot_axis_keeps_the_band()
         lap = LapData(t, spot, std, np.full((4, n), np.nan), np.full(n, 600.0),
                       np.full(n, 7.6), np.full((len(RADII), n), 600.0), np.full(n, 200.0),
                       np.zeros(n), np.zeros((0, 2)))
-        figs.render(lap)
-        texts = [x.get_text() for x in figs.ax_contact.get_legend().get_texts()]
-        assert "±1σ ≈ 7.6 °C" in texts, texts
+        first = figs.render(lap)["contact"]
+        assert figs._band_label.get_text() == "σ ≈ 7.6 °C (median)"
         assert figs.ax_spots.get_ylim()[1] >= 699.0 + 20.0
+        # the next lap's page shows its own σ (the legend was in the cached background)
+        second = figs.render(replace(lap, contact_std=np.full(n, 3.2)))["contact"]
+        legend_part = []
+        for png in (first, second):
+            img = np.asarray(Image.open(io.BytesIO(png)).convert("L"))
+            legend_part.append(img[:, int(img.shape[1] * (RIGHT + 0.01)):])
+        assert not np.array_equal(*legend_part)
     finally:
         figs.close()

@@ -390,8 +390,11 @@ class LapFigures:
         ax.set_xlabel("lap time [s]")
         ax.set_ylabel("temperature [°C]")
         ax.set_title("Contact-band average (spots 2–4) against the operating window", loc="left")
-        legend = ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
-        self._band_label = next(t for t in legend.get_texts() if t.get_text() == "±1σ")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+        # The band's size under the legend, drawn per lap (a legend entry would be part of
+        # the cached background and keep the first lap's value).
+        self._band_label = ax.text(1.02, 0.5, "", transform=ax.transAxes, va="top",
+                                   fontsize="small", color="#555555")
 
     def _build_context(self) -> None:
         fig = self.fig_context = _figure(3.0)
@@ -450,7 +453,7 @@ class LapFigures:
         # On a 600 °C axis a band of a few degrees is a hairline: the legend gives its size
         # (the lap's median σ).
         std = lap.contact_std[np.isfinite(lap.contact_std)]
-        self._band_label.set_text(f"±1σ ≈ {np.median(std):.1f} °C" if std.size else "±1σ")
+        self._band_label.set_text(f"σ ≈ {np.median(std):.1f} °C (median)" if std.size else "")
         self.contact_line.set_data(t, lap.contact)
         self.zone_contact.update(lap.zones_t, lap.zone_names)
 
@@ -476,7 +479,8 @@ class LapFigures:
                 (x_end,), [self.image, *contours, *self.spot_marks]
             ),
             "contact": self._blit["contact"].png(
-                (x_end,), [self.zone_contact.spans, self.contact_band, self.contact_line]
+                (x_end,), [self.zone_contact.spans, self.contact_band, self.contact_line,
+                           self._band_label]
             ),
             "context": self._blit["context"].png(
                 (x_end,),
