@@ -27,6 +27,9 @@ from scipy.signal import lfilter, savgol_filter
 Array = NDArray[np.float64]
 
 
+DECONVOLVE_WINDOW_S = 0.011  # s, derivative window of :func:`sensor_delagged`
+
+
 def stiffness_regressors(theta: Array) -> Array:
     """Columns [θ³, θ², θ, 1] of the input part of eq. 6, shape (K, 4)."""
     theta = np.asarray(theta, dtype=float)
@@ -133,6 +136,35 @@ def torque_balance_force(
     return (np.asarray(current, float) - p.inertia * acc - p.offset * sgn - p.bias) / (
         p.gamma + p.mu * sgn
     )
+
+
+def torque_balance_current(F: Array, p: TorqueBalance, rates: tuple[Array, Array]) -> Array:
+    """Motor current of eq. 7 for a clamp force F (N) and the motor ``rates`` of
+    :func:`motor_rates`, A: I = (γ + μ sgn ω) F + J θ̈ + A sgn ω + T0."""
+    omega, acc = rates
+    sgn = friction_sign(omega, p.omega_s)
+    return (p.gamma + p.mu * sgn) * np.asarray(F, float) + p.inertia * acc + p.offset * sgn + p.bias
+
+
+def sensor_delagged(F: Array, lag_s: float, ts: float) -> Array:
+    """The force behind a first-order sensor of time constant τ, N: F + τ dF/dt, the
+    exact inverse of its lag (τ dy/dt + y = F), the derivative a Savitzky-Golay cubic
+    over :data:`DECONVOLVE_WINDOW_S` (its noise, white and independent of any estimate,
+    adds alike to every estimate's error against it). A gap stays a gap."""
+    F = np.asarray(F, dtype=float)
+    if lag_s <= 0.0:
+        return F
+    ok = np.isfinite(F)
+    if not ok.any():
+        return F
+    n = max(5, round(DECONVOLVE_WINDOW_S / ts) | 1)
+    t = np.arange(F.size) * ts
+    filled = np.interp(t, t[ok], F[ok])
+    if filled.size < n:
+        return F
+    out = filled + lag_s * savgol_filter(filled, n, 3, deriv=1, delta=ts, mode="interp")
+    out[~ok] = np.nan
+    return out
 
 
 def fit_torque_balance(

@@ -164,6 +164,7 @@ def diagnose_emb(
     """Diagnose an EMB caliper session with the clamp-force sensor (module docstring)."""
     from brakethermo.models.clamp_force import train as train_emb
     from brakethermo.pipelines.clamp_force import load_emb
+    from brakethermo.rigs.emb import sensor_delagged
 
     t_start = time.perf_counter()
     names = effect_names(effects, EMB_EFFECTS, "EMB")
@@ -177,13 +178,15 @@ def diagnose_emb(
             path=data.session.path, channel="clamp_force")
     models = train_emb(tr.theta, tr.current, tr.force, tr.ts)
     ds = models.stiffness
+    # the rig's sensor as training found it: its lag taken out, as the models were fitted
+    force = sensor_delagged(data.force, models.sensor_lag_s, data.ts)
     theta = data.theta
     rest = float(np.percentile(theta, 5) + 0.05 * np.ptp(theta))
     case = RigCase(
         "emb", data.session, {n: EMB_EFFECTS[n] for n in names},
         RigContext(theta, smoothed_rate(theta, data.ts, SPEED_WINDOW_S),
                    data.session.time - data.session.time[0], lambda x: ds.simulate(x) / 1e3),
-        data.force / 1e3, rest=rest,
+        force / 1e3, rest=rest,
         # a load cell's accuracy (0.5 % of a 40 kN range), or the model's own residual
         floor=max(0.2, 2.0 * models.sigma_ds / 1e3), unit="kN", input_name="motor angle",
         input_unit="rad",
