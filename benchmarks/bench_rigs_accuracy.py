@@ -129,8 +129,9 @@ def stress(seeds: int) -> None:
             th, cur, F = (_channel(tr, c) for c in ("motor_angle", "motor_current",
                                                     "clamp_force"))
             F = F * 1e3
-            models = train(th, cur, F, TS)
-            check = fusion_check(th, cur, F, TS)
+            lag = cf.choose_sensor_lag(th, cur, F, TS)
+            models = train(th, cur, F, TS, sensor_lag_s=lag.lag_s, eq7=lag.eq7)
+            check = fusion_check(th, cur, F, TS, sensor_lag_s=lag.lag_s)
             ev = simulate_emb("nominal", seed=s + 1, duration_s=60, caliper=cal)
             th2, cur2 = _channel(ev, "motor_angle"), _channel(ev, "motor_current")
             truth = ev.truth.column("clamp_force").to_numpy()
@@ -141,6 +142,7 @@ def stress(seeds: int) -> None:
             rows.setdefault("ML fusion", []).append(rmse(e.ml_fusion / 1e3, truth))
             rows.setdefault("stiffness", []).append(rmse(e.stiffness / 1e3, truth))
             rows.setdefault("Q factor", []).append(check.q_scale if check else 1.0)
+            rows.setdefault("sensor lag ms", []).append(lag.lag_s * 1e3)
         print(f" {name}: " + ", ".join(f"{k} {np.mean(v):.3f}" for k, v in rows.items()))
 
 

@@ -81,12 +81,8 @@ def clamp_force_cmd(
     label = "KF" if summ.get("kf_source", "kf") == "kf" else "reported"
     console.print(f"{label} 95 % band: ± {est['kf_band95_median']:.2f} kN (median over the"
                   " session)", highlight=False)
-    lag = summ["fitted"]["sensor_lag_s"]
-    if lag:
-        scored = "" if all(v is None for v in rmses.values()) else (
-            "; the RMSE is against this session's sensor de-lagged likewise")
-        console.print(f"the training session's force sensor lags {lag * 1e3:g} ms: the models"
-                      f" are fitted to it with that lag taken out{scored}", highlight=False)
+    if summ["sensor_lag"]["text"]:
+        console.print(summ["sensor_lag"]["text"], highlight=False)
     if all(v is None for v in rmses.values()):
         console.print("RMSE –: this session has no usable clamp-force sensor to score against"
                       " (the estimates do not need it)", highlight=False)

@@ -29,10 +29,11 @@ with its held-out RMSE as the band. The fixed filter stays as ``kf_paper``.
 The training sensor is not taken as the truth: a load cell behind an amplifier filter
 reads the force late, and models fitted to it learn the lag (the paper's filter, trained
 on a 5 ms sensor, 0.59 kN from the true force with a 95 % band covering it 69 % of the
-time). The motor current answers the load at once, so :func:`sensor_lag` finds the lag
-as the one whose de-lagged sensor (F + τ dF/dt) lets eq. 7 predict the current best on
-held-out blocks; the models are fitted to, and the held-out check scores against, the
-sensor with that lag taken out (the same 5 ms caliper: 0.28 kN, coverage 94 %).
+time). The motor current answers the load at once: :func:`lag_scores` scores each
+candidate lag by how well its de-lagged sensor (F + τ dF/dt) lets eq. 7 predict the
+current on held-out blocks (the pipeline adopts one only where the data clearly show
+it); the models are fitted to, and the held-out check scores against, the sensor with
+that lag taken out (the same 5 ms caliper: 0.28 kN, coverage 94 %).
 
 The reported filter's band admits what its innovations show: where its mean NIS lies
 above the χ² band (over-confident: the pads moved further than its noise allows), its Q
@@ -59,10 +60,10 @@ from brakethermo.rigs.emb import (
     TorqueBalance,
     fit_dynamic_stiffness,
     fit_torque_balance,
+    friction_sign,
     ml_fusion,
     motor_rates,
     sensor_delagged,
-    torque_balance_current,
     torque_balance_force,
 )
 
@@ -81,10 +82,10 @@ class ClampForceModels:
     sigma_tb : float — training RMSE of eq. 7, N (√R).
     ts : float — sample time the models were fitted at, s.
     window : int — derivative window of the motor rates in eq. 7 (1 = the paper's
-        backward differences), chosen by the training RMSE.
+        backward differences), cross-validated (:func:`eq7_choice`).
     sensor_lag_s : float — s, time constant of the training session's clamp-force sensor
-        (:func:`sensor_lag`); both models are fitted to the sensor with that lag taken
-        out (F + τ dF/dt).
+        taken out (F + τ dF/dt) before both models were fitted (0: the paper's ideal
+        sensor; :func:`lag_scores`).
     """
 
     stiffness: DynamicStiffness
@@ -105,40 +106,58 @@ MIN_HALF_S = 5.0  # s, shortest half of a training session the fusion is checked
 # Candidate time constants of the clamp-force sensor, s: a load cell behind an amplifier
 # filter reads the force late (0 = the paper's ideal sensor, the first candidate).
 SENSOR_LAGS_S = (0.0, 0.5e-3, 1e-3, 2e-3, 3e-3, 5e-3, 8e-3, 12e-3, 20e-3)
-LAG_MARGIN = 0.05  # a lag replaces the ideal sensor only when 5 % better held out
-
-
 def _blocks(K: int, ts: float) -> NDArray[np.int_]:
     """Fold (0 or 1) of each sample: alternate blocks of :data:`CV_BLOCK_S` seconds."""
     return (np.arange(K) * ts // CV_BLOCK_S).astype(int) % 2
 
 
-def sensor_lag(theta: Array, current: Array, F: Array, ts: float, window: int,
-               band: float) -> tuple[float, dict[float, float]]:
-    """The clamp-force sensor's lag, s, and the held-out current RMSE (A) per candidate.
+def lag_scores(theta: Array, current: Array, F: Array, ts: float, window: int,
+               band: float) -> dict[float, Array]:
+    """Held-out squared error of the motor current per block (A²) for each candidate lag
+    of the clamp-force sensor (:data:`SENSOR_LAGS_S`, s).
 
     The motor current answers the load at once (eq. 7); a sensor that lags reads the
     force late, and every model fitted to it learns the lag (on a 5 ms sensor the filter's
-    95 % band covered the true force 69 % of the time). Of :data:`SENSOR_LAGS_S`, the lag
-    whose de-lagged sensor lets eq. 7 (``window``, ``band``) predict the current best on
-    held-out blocks — the target, the current, is the same for every candidate, so their
-    errors compare — when it is :data:`LAG_MARGIN` better than the ideal sensor's (the
-    paper's sensor stays unless the data clearly say otherwise: the de-lagged sensor
-    carries the derivative's noise).
+    95 % band covered the true force 69 % of the time). Each candidate τ de-lags the
+    sensor (:func:`~brakethermo.rigs.emb.sensor_delagged`); eq. 7 plus a viscous term
+    (B ω: de-lagging adds γ τ dF/dt = γ τ (dF/dθ) ω, which would otherwise stand in for an
+    unmodelled speed-proportional friction) is fitted on alternate blocks of
+    :data:`CV_BLOCK_S` and scored on the others, both ways. The target, the current, is
+    the same for every candidate, so their errors compare (the choice and its test:
+    :func:`brakethermo.pipelines.clamp_force.choose_sensor_lag`).
+
+    Parameters
+    ----------
+    theta : ndarray (K,) — motor angle, rad.
+    current : ndarray (K,) — motor current, A.
+    F : ndarray (K,) — clamp-force sensor, N.
+    ts : float — sample time, s.
+    window : int — derivative window of the motor rates (:func:`motor_rates`).
+    band : float — rad/s, friction sign band (:func:`friction_sign`).
+
+    Returns
+    -------
+    dict — candidate lag (s) -> ndarray (blocks,) of held-out squared current errors, A².
     """
     fold = _blocks(theta.size, ts)
-    rates = motor_rates(theta, ts, window)
-    scores: dict[float, float] = {}
+    block = (np.arange(theta.size) * ts // CV_BLOCK_S).astype(int)
+    omega, acc = motor_rates(theta, ts, window)
+    sgn = friction_sign(omega, band)
+    out: dict[float, Array] = {}
     for lag in SENSOR_LAGS_S:
-        F_a = sensor_delagged(F, lag, ts)
-        err = []
+        F_d = sensor_delagged(F, lag, ts)
+        X = np.stack([F_d, acc, F_d * sgn, sgn, np.ones_like(F_d), omega], axis=1)
+        ok = np.isfinite(X).all(axis=1) & np.isfinite(current)
+        err = np.zeros(theta.size)
         for j in (0, 1):
-            tb = fit_torque_balance(current, theta, ts, F_a, window, band, rows=fold == j,
-                                    rates=rates)
-            err.append((torque_balance_current(F_a, tb, rates) - current)[fold != j])
-        scores[lag] = float(np.sqrt(np.nanmean(np.concatenate(err) ** 2)))
-    best = min(SENSOR_LAGS_S, key=scores.__getitem__)
-    return (best if scores[best] < (1.0 - LAG_MARGIN) * scores[0.0] else 0.0), scores
+            fit, test = ok & (fold == j), ok & (fold != j)
+            if not fit.any() or not test.any():
+                continue
+            scale = np.maximum(np.abs(X[fit]).max(axis=0), 1e-300)
+            coef = np.linalg.lstsq(X[fit] / scale, current[fit], rcond=None)[0] / scale
+            err[test] = X[test] @ coef - current[test]
+        out[lag] = np.bincount(block, weights=err**2)
+    return out
 
 
 def train(
@@ -149,6 +168,7 @@ def train(
     *,
     structure: ClampForceModels | None = None,
     sensor_lag_s: float | None = None,
+    eq7: tuple[int, float] | None = None,
 ) -> ClampForceModels:
     """Fit eq. 6 and eq. 7 by least squares on a session with the clamp-force sensor.
 
@@ -162,39 +182,38 @@ def train(
         window, friction sign band and sensor lag, which belong to the drive, the log and
         the rig rather than to the pads, and refit the parameters only. A short
         re-training session chooses them less reliably than the full training one.
-    sensor_lag_s : float, optional — s, the sensor's lag when already known (the
-        held-out check's halves take the whole session's); default chosen here.
+    sensor_lag_s : float, optional — s, the sensor's lag, taken out (F + τ dF/dt) before
+        both models are fitted (the pipeline chooses it: :func:`lag_scores`); default the
+        structure's, else 0 (the paper's ideal sensor).
+    eq7 : (int, float), optional — the derivative window and friction sign band when
+        :func:`eq7_choice` already chose them on this (de-lagged) sensor.
 
-    The derivative window and the friction sign band of eq. 7 are the pair of
-    :data:`WINDOWS` x :data:`SIGN_BANDS` with the smallest cross-validated error: fitted
-    on alternate blocks of :data:`CV_BLOCK_S` seconds and scored on the others, both
-    ways (the in-sample RMSE of a 20 s re-training session picks noise). The paper's
-    differences and sgn are the first candidates. Then the sensor's lag
-    (:func:`sensor_lag`); where it is not zero, the pair is chosen again on the sensor
-    with that lag taken out, and both models are fitted to that.
+    The derivative window and the friction sign band of eq. 7 are those of
+    :func:`eq7_choice` on the de-lagged sensor (or the structure's).
     """
+    if sensor_lag_s is None:
+        sensor_lag_s = 0.0 if structure is None else structure.sensor_lag_s
+    F = sensor_delagged(F, sensor_lag_s, ts)
     if structure is not None:
         window, band = structure.window, structure.torque.omega_s
-        lag = structure.sensor_lag_s if sensor_lag_s is None else sensor_lag_s
     else:
-        window, band = _eq7_choice(theta, current, F, ts)
-        lag = sensor_lag_s
-        if lag is None:
-            lag = sensor_lag(theta, current, F, ts, window, band)[0]
-        if lag > 0.0:
-            window, band = _eq7_choice(theta, current, sensor_delagged(F, lag, ts), ts)
-    F = sensor_delagged(F, lag, ts)
+        window, band = eq7 or eq7_choice(theta, current, F, ts)
     ds = fit_dynamic_stiffness(theta, F, ts)
     sigma_ds = rmse(ds.simulate(theta), F)
     rates = motor_rates(theta, ts, window)
     tb = fit_torque_balance(current, theta, ts, F, window, band, rates=rates)
     sigma_tb = rmse(torque_balance_force(current, theta, ts, tb, window, rates=rates), F)
-    return ClampForceModels(ds, tb, sigma_ds, sigma_tb, ts, window, lag)
+    return ClampForceModels(ds, tb, sigma_ds, sigma_tb, ts, window, sensor_lag_s)
 
 
-def _eq7_choice(theta: Array, current: Array, F: Array, ts: float) -> tuple[int, float]:
-    """Derivative window and friction sign band of eq. 7 with the smallest two-fold
-    cross-validated force error (:func:`train`); the first such pair, the paper's first."""
+def eq7_choice(theta: Array, current: Array, F: Array, ts: float) -> tuple[int, float]:
+    """Derivative window and friction sign band of eq. 7 (samples, rad/s).
+
+    The pair of :data:`WINDOWS` x :data:`SIGN_BANDS` with the smallest cross-validated
+    force error: fitted on alternate blocks of :data:`CV_BLOCK_S` seconds and scored on
+    the others, both ways (the in-sample RMSE of a 20 s re-training session picks noise);
+    the first such pair, the paper's differences and sgn first.
+    """
     fold = _blocks(theta.size, ts)
     omega_acc = {w: motor_rates(theta, ts, w) for w in WINDOWS}
 
@@ -249,24 +268,21 @@ class FusionCheck:
 
 
 def fusion_check(theta: Array, current: Array, F: Array, ts: float, *,
-                 factor_walk: float = 0.02, sensor_lag_s: float | None = None
+                 factor_walk: float = 0.02, sensor_lag_s: float = 0.0
                  ) -> FusionCheck | None:
     """Choose the filter's Q and check it against its inputs on held-out halves.
 
     The paper sets Q and R to the two models' training RMSEs squared; on a rig whose
     errors are not white (a lagging, drifting stiffness model) that gain can make the
     fusion worse than what it fuses. Here each factor of :data:`Q_SCALES` is scored by
-    the held-out RMSE against the sensor with its lag ``sensor_lag_s`` taken out (the
-    trained models' lag; default chosen on the whole session, :func:`sensor_lag`), which
-    both halves' models take. ``None`` when a half is shorter than :data:`MIN_HALF_S`
-    (nothing to judge on).
+    the held-out RMSE against the sensor with its lag ``sensor_lag_s`` (s, the trained
+    models') taken out, which both halves' models take. ``None`` when a half is shorter
+    than :data:`MIN_HALF_S` (nothing to judge on).
     """
     K = theta.size
     half = K // 2
     if half * ts < MIN_HALF_S:
         return None
-    if sensor_lag_s is None:
-        sensor_lag_s = sensor_lag(theta, current, F, ts, *_eq7_choice(theta, current, F, ts))[0]
     F_a = sensor_delagged(F, sensor_lag_s, ts)
     sq: dict[str | float, list[Array]] = {}
     z2: dict[float, list[Array]] = {}

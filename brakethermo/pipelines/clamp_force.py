@@ -22,18 +22,21 @@ import numpy as np
 import pandas as pd
 from scipy.ndimage import median_filter
 
+from brakethermo.diagnosis.verdict import VerdictRule, shrink_interval
 from brakethermo.errors import DataError
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.clamp_force import (
     CV_BLOCK_S,
-    LAG_MARGIN,
     Q_MARGIN,
+    SENSOR_LAGS_S,
     ClampForceEstimates,
     ClampForceModels,
     FusionCheck,
+    eq7_choice,
     estimate,
     fusion_check,
+    lag_scores,
     train,
 )
 from brakethermo.numeric import rmse
@@ -122,6 +125,79 @@ def load_emb(
     return EmbData(session, theta, session.values("motor_current"), force, session.dt)
 
 
+LAG_MIN_SHRINK_PCT = 1.0  # % — lower bootstrap bound of the current RMSE shrink
+
+
+@dataclass(frozen=True)
+class SensorLag:
+    """The clamp-force sensor's lag as one session shows it (:func:`choose_sensor_lag`).
+
+    Attributes
+    ----------
+    lag_s : float — s, the lag taken out (0: the paper's ideal sensor kept).
+    best_s : float — s, the candidate with the smallest held-out current error.
+    current_rmse_a : dict — held-out motor-current RMSE (A) per candidate lag (s).
+    shrink_pct : tuple of float — the best candidate's current RMSE shrink against no
+        lag, %, and its 95 % bootstrap interval over the blocks.
+    eq7 : (int, float) — eq. 7's derivative window and friction sign band chosen on the
+        sensor with ``lag_s`` taken out.
+    """
+
+    lag_s: float
+    best_s: float
+    current_rmse_a: dict[float, float]
+    shrink_pct: tuple[float, float, float]
+    eq7: tuple[int, float]
+
+    @property
+    def at_edge(self) -> bool:
+        """The largest candidate won: the sensor may lag more than it says."""
+        return self.best_s == SENSOR_LAGS_S[-1]
+
+    def as_dict(self) -> dict[str, Any]:
+        shrink, lo, hi = self.shrink_pct
+        return {
+            "lag_s": self.lag_s, "best_candidate_s": self.best_s,
+            "heldout_current_rmse_a_by_lag_ms": {f"{k * 1e3:g}": v
+                                                 for k, v in self.current_rmse_a.items()},
+            "shrink_pct": shrink, "shrink_ci95_pct": [lo, hi], "at_grid_edge": self.at_edge,
+            "what": "the clamp-force sensor's first-order lag: of the candidates"
+                    f" {SENSOR_LAGS_S[0] * 1e3:g}–{SENSOR_LAGS_S[-1] * 1e3:g} ms, the one"
+                    " whose de-lagged sensor (F + τ dF/dt) lets the torque balance (eq. 7,"
+                    " plus a viscous term so that no speed-proportional friction passes"
+                    " for a lag) predict the motor current best on held-out 2 s blocks,"
+                    " taken out when that shrinks the current RMSE by more than"
+                    f" {LAG_MIN_SHRINK_PCT:g} % at the lower end of a 95 % bootstrap"
+                    " interval (else 0)",
+        }
+
+
+def choose_sensor_lag(theta: np.ndarray, current: np.ndarray, F: np.ndarray | None,
+                      ts: float) -> SensorLag | None:
+    """The lag of a session's clamp-force sensor (:func:`lag_scores`), None without one.
+
+    Parameters
+    ----------
+    theta : ndarray (K,) — motor angle, rad.
+    current : ndarray (K,) — motor current, A.
+    F : ndarray (K,) or None — clamp-force sensor, N.
+    ts : float — sample time, s.
+    """
+    if F is None:
+        return None
+    window, band = eq7_choice(theta, current, F, ts)
+    sse = lag_scores(theta, current, F, ts, window, band)
+    n = max(int(np.isfinite(current).sum()), 1)
+    rms = {lag: float(np.sqrt(v.sum() / n)) for lag, v in sse.items()}
+    best = min(SENSOR_LAGS_S, key=rms.__getitem__)
+    shrink = shrink_interval(sse[0.0], sse[best], VerdictRule())
+    lag = best if best > 0.0 and np.isfinite(shrink[1]) and shrink[1] > LAG_MIN_SHRINK_PCT \
+        else 0.0
+    if lag > 0.0:
+        window, band = eq7_choice(theta, current, sensor_delagged(F, lag, ts), ts)
+    return SensorLag(lag, best, rms, shrink, (window, band))
+
+
 @dataclass(frozen=True)
 class ClampForceResult:
     """Everything ``clamp-force`` computed."""
@@ -135,6 +211,8 @@ class ClampForceResult:
     est_retrained: ClampForceEstimates | None
     check: FusionCheck | None = None  # the fusion against its inputs, held out in training
     check_retrained: FusionCheck | None = None
+    train_lag: SensorLag | None = None  # the training sensor's lag
+    scored_lag: SensorLag | None = None  # this session's sensor's own, when it has one
 
     @property
     def reported(self) -> ClampForceEstimates:
@@ -159,9 +237,11 @@ def clamp_force(
     tr = load_emb(train_path, need_sensor=True, role="training", aliases=aliases)
     data = load_emb(path, need_sensor=False, role="estimation", aliases=aliases)
     _check_like(tr, data, "estimation")
-    models = train(tr.theta, tr.current, tr.force, tr.ts)
+    lag = choose_sensor_lag(tr.theta, tr.current, tr.force, tr.ts)
+    assert lag is not None  # load_emb(need_sensor=True) refused a session without it
+    models = train(tr.theta, tr.current, tr.force, tr.ts, sensor_lag_s=lag.lag_s, eq7=lag.eq7)
     check = fusion_check(tr.theta, tr.current, tr.force, tr.ts, factor_walk=factor_walk,
-                         sensor_lag_s=models.sensor_lag_s)
+                         sensor_lag_s=lag.lag_s)
     est = estimate(models, data.theta, data.current, data.ts, factor_walk=factor_walk,
                    check=check)
     _check_sources(est, data)
@@ -174,7 +254,8 @@ def clamp_force(
                           sensor_lag_s=mr.sensor_lag_s) or check
         er = estimate(mr, data.theta, data.current, data.ts, factor_walk=factor_walk, check=cr)
         _check_sources(er, data)
-    return ClampForceResult(data, tr, models, est, rt, mr, er, check, cr)
+    return ClampForceResult(data, tr, models, est, rt, mr, er, check, cr, lag,
+                            choose_sensor_lag(data.theta, data.current, data.force, data.ts))
 
 
 def _check_like(train: EmbData, data: EmbData, role: str) -> None:
@@ -253,6 +334,8 @@ def result_frame(res: ClampForceResult) -> pd.DataFrame:
         cols |= {f"{k}_not_retrained": v / 1e3 for k, v in estimator_series(res.est).items()}
     if res.data.force is not None:
         cols["sensor"] = res.data.force / 1e3
+        if res.scored_lag is not None and res.scored_lag.lag_s > 0.0:
+            cols["sensor_delagged"] = scored_force(res) / 1e3  # what rmse_kn scores against
     order = ["time", "kf", "kf_std", "ml_fusion", "stiffness", "torque_balance"]
     return pd.DataFrame(cols)[order + [c for c in cols if c not in order]]
 
@@ -269,9 +352,11 @@ UNITS = {
         "kf_adaptive",
         "kf_adaptive_std",
         "sensor",
+        "sensor_delagged",
     )
 } | {"time": "s"}
-UNITS |= {f"{c}_not_retrained": u for c, u in UNITS.items() if c not in ("time", "sensor")}
+UNITS |= {f"{c}_not_retrained": u for c, u in UNITS.items()
+          if c not in ("time", "sensor", "sensor_delagged")}
 
 
 def held_peak(v: np.ndarray, dt: float) -> float:
@@ -318,13 +403,7 @@ def _model_dict(m: ClampForceModels, path: Path) -> dict[str, Any]:
             "friction_sign_band_rad_s": m.torque.omega_s,
         },
         "derivative_window": m.window,
-        "sensor_lag_s": m.sensor_lag_s,
-        "sensor_lag_what": "time constant of the training session's clamp-force sensor,"
-                           " chosen by how well the motor current is predicted on held-out"
-                           " blocks with the lag taken out of the sensor, F + τ dF/dt (0: no"
-                           f" lag worth {100 * LAG_MARGIN:g} % of that error); the models are"
-                           " fitted, and a session with the sensor is scored, against the"
-                           " sensor with that lag taken out",
+        "sensor_lag_s": m.sensor_lag_s,  # taken out before fitting (summary "sensor_lag")
         "training_rmse_kn": {"stiffness": m.sigma_ds / 1e3, "torque_balance": m.sigma_tb / 1e3},
     }
 
@@ -358,11 +437,33 @@ def _kf_text(res: ClampForceResult) -> str:
 
 
 def scored_force(res: ClampForceResult) -> np.ndarray | None:
-    """The estimated session's sensor (N) with the lag training found in the rig's
-    sensor taken out, what ``rmse_kn`` scores against (None without the sensor)."""
-    force = res.data.force
-    return None if force is None else sensor_delagged(force, res.models.sensor_lag_s,
-                                                      res.data.ts)
+    """The estimated session's sensor (N) with its own lag taken out
+    (:func:`choose_sensor_lag` on this session), what ``rmse_kn`` scores against (None
+    without the sensor)."""
+    force, lag = res.data.force, res.scored_lag
+    return None if force is None or lag is None else sensor_delagged(force, lag.lag_s,
+                                                                     res.data.ts)
+
+
+def lag_text(res: ClampForceResult) -> str | None:
+    """What the sensors' lags did to this run, in words (console, page); None: nothing."""
+    tr, sc = res.train_lag, res.scored_lag
+    parts = []
+    if tr is not None and tr.lag_s > 0.0:
+        parts.append(f"the training session's force sensor lags about {tr.lag_s * 1e3:g} ms"
+                     " (the motor current, which answers the load at once, is predicted best"
+                     " with the sensor de-lagged so): the models were fitted to it de-lagged")
+    if tr is not None and tr.at_edge:
+        parts.append(f"the training sensor may lag more than the largest candidate"
+                     f" ({SENSOR_LAGS_S[-1] * 1e3:g} ms) tried")
+    if sc is not None and (sc.lag_s > 0.0 or (tr is not None and tr.lag_s > 0.0)):
+        parts.append("this session's RMSE is against its own sensor"
+                     + (f" de-lagged by about {sc.lag_s * 1e3:g} ms" if sc.lag_s > 0.0 else
+                        ", which shows no lag worth taking out"))
+    if not parts:
+        return None
+    text = "; ".join(parts)
+    return text[0].upper() + text[1:] + "."
 
 
 def summary(res: ClampForceResult) -> dict[str, Any]:
@@ -400,6 +501,11 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         "kf_vs_stiffness_pct": None if force is None else 100.0 * (1 - r["kf"] / r["stiffness"]),
         "stiffness_factor_final": float(res.reported.stiffness_factor[-1]),
         "fitted": _model_dict(res.models, res.train.session.path),
+        "sensor_lag": {
+            "training": None if res.train_lag is None else res.train_lag.as_dict(),
+            "this_session": None if res.scored_lag is None else res.scored_lag.as_dict(),
+            "text": lag_text(res),
+        },
         "training_session": str(res.train.session.path),
         "warnings": [*res.data.session.warnings, *res.train.session.warnings],
     }
@@ -442,7 +548,7 @@ def _cards(res: ClampForceResult, summ: dict[str, Any]) -> list[Card]:
 def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     """The report page: RMSE table, traces, stiffness factor, wear."""
     t = res.data.session.time
-    force = res.data.force
+    force = scored_force(res)
     r = summ["rmse_kn"]
     e = summ["estimate_kn"]
     names = ("kf", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
@@ -462,20 +568,15 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
             + ("" if force is not None else " The session has no clamp-force sensor: each"
                " estimator's peak and mean applied force, no RMSE."),
             f"Reported estimate (kf): {summ['kf_noise']}.",
-            *([] if not res.models.sensor_lag_s else [
-                f"The training session's force sensor lags {res.models.sensor_lag_s * 1e3:g} ms"
-                " (the motor current, which answers the load at once, is predicted best with"
-                " the sensor read that much later): both models are fitted to the sensor"
-                " with that lag taken out (F + τ dF/dt)"
-                + ("" if force is None else ", and the RMSE here is against this session's"
-                   " sensor, de-lagged likewise") + "."]),
+            *([summ["sensor_lag"]["text"]] if summ["sensor_lag"]["text"] else []),
         ],
         tables=[
             TableBlock(
                 ["estimator", "RMSE here (kN)", "paper RMSE (kN)", "peak (kN)",
                  "mean applied (kN)"],
                 rows,
-                caption="RMSE against the clamp-force sensor (where the session has it),"
+                caption="RMSE against the clamp-force sensor (where the session has it; its"
+                        " lag taken out where it shows one),"
                         " and what each estimator says (peak: the largest force held"
                         f" {PEAK_HOLD_S * 1e3:.0f} ms, a current step's spike dropped)",
             )
@@ -486,7 +587,9 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     t0 = t[0] + 1.0 if t[-1] - t[0] > 3.0 else t[0]
     win = (t >= t0) & (t <= t0 + 2.0)
     if force is not None:
-        ax.plot(t[win], force[win] / 1e3, "k", lw=1.6, label="sensor")
+        lag = res.scored_lag.lag_s if res.scored_lag is not None else 0.0
+        ax.plot(t[win], force[win] / 1e3, "k", lw=1.6,
+                label=f"sensor, {lag * 1e3:g} ms lag out" if lag > 0.0 else "sensor")
     for name, v in estimator_series(res.reported).items():
         ax.plot(t[win], v[win] / 1e3, lw=0.8, label=name)
     ax.set_xlabel("time (s)")

@@ -138,32 +138,37 @@ def torque_balance_force(
     )
 
 
-def torque_balance_current(F: Array, p: TorqueBalance, rates: tuple[Array, Array]) -> Array:
-    """Motor current of eq. 7 for a clamp force F (N) and the motor ``rates`` of
-    :func:`motor_rates`, A: I = (γ + μ sgn ω) F + J θ̈ + A sgn ω + T0."""
-    omega, acc = rates
-    sgn = friction_sign(omega, p.omega_s)
-    return (p.gamma + p.mu * sgn) * np.asarray(F, float) + p.inertia * acc + p.offset * sgn + p.bias
-
-
 def sensor_delagged(F: Array, lag_s: float, ts: float) -> Array:
-    """The force behind a first-order sensor of time constant τ, N: F + τ dF/dt, the
-    exact inverse of its lag (τ dy/dt + y = F), the derivative a Savitzky-Golay cubic
-    over :data:`DECONVOLVE_WINDOW_S` (its noise, white and independent of any estimate,
-    adds alike to every estimate's error against it). A gap stays a gap."""
+    """The force behind a first-order sensor of time constant τ: F + τ dF/dt, N.
+
+    The inverse of the sensor's lag (τ dy/dt + y = F), with the derivative a
+    Savitzky-Golay cubic over about :data:`DECONVOLVE_WINDOW_S` (at least 5 samples);
+    the derivative's noise, independent of any estimate, adds alike to every estimate's
+    error against the result. Each stretch between gaps is differentiated on its own,
+    and a stretch shorter than the window keeps ``np.gradient``'s differences.
+
+    Parameters
+    ----------
+    F : ndarray (K,) — sensor force, N (NaN in gaps).
+    lag_s : float — s, the sensor's time constant τ (0: ``F`` returned as it is).
+    ts : float — s, sample time.
+    """
     F = np.asarray(F, dtype=float)
     if lag_s <= 0.0:
         return F
-    ok = np.isfinite(F)
-    if not ok.any():
-        return F
     n = max(5, round(DECONVOLVE_WINDOW_S / ts) | 1)
-    t = np.arange(F.size) * ts
-    filled = np.interp(t, t[ok], F[ok])
-    if filled.size < n:
-        return F
-    out = filled + lag_s * savgol_filter(filled, n, 3, deriv=1, delta=ts, mode="interp")
-    out[~ok] = np.nan
+    out = np.full_like(F, np.nan)
+    ok = np.isfinite(F)
+    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        seg = F[a:b]
+        if seg.size >= n:
+            d = savgol_filter(seg, n, 3, deriv=1, delta=ts, mode="interp")
+        elif seg.size >= 2:
+            d = np.gradient(seg, ts)
+        else:
+            continue
+        out[a:b] = seg + lag_s * d
     return out
 
 
@@ -252,7 +257,16 @@ def fit_dynamic_stiffness(
         return dynamic_stiffness(theta, alpha0, (1.0 - alpha0) * p[1:]) - F
 
     p0 = np.concatenate([[np.log(ts / (1.0 - a0))], static])
-    sol = least_squares(residual, p0, x_scale=np.concatenate([[1.0], 1.0 / col]), method="lm")
+    x_scale = np.concatenate([[1.0], 1.0 / col])
+    sol = least_squares(residual, p0, x_scale=x_scale, method="lm")
+    if sol.x[0] < np.log(ts):
+        # alpha0 < 0: a mode that flips sign every sample, which a force that follows the
+        # angle without a lag of its own (a de-lagged sensor) leaves unidentified; the
+        # physical range is a relaxation, 0 <= alpha0 < 1
+        lo = np.r_[np.log(ts), np.full(static.size, -np.inf)]
+        start = np.r_[np.log(ts) + 1e-6, static]
+        sol = least_squares(residual, start, x_scale=x_scale, method="trf",
+                            bounds=(lo, np.full(lo.size, np.inf)))
     alpha0 = float(1.0 - ts * np.exp(-sol.x[0]))
     beta = tuple(float(b) for b in (1.0 - alpha0) * sol.x[1:])
     return DynamicStiffness(alpha0, beta)  # type: ignore[arg-type]

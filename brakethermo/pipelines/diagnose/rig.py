@@ -163,7 +163,7 @@ def diagnose_emb(
 ) -> RigDiagnosis:
     """Diagnose an EMB caliper session with the clamp-force sensor (module docstring)."""
     from brakethermo.models.clamp_force import train as train_emb
-    from brakethermo.pipelines.clamp_force import load_emb
+    from brakethermo.pipelines.clamp_force import choose_sensor_lag, load_emb
     from brakethermo.rigs.emb import sensor_delagged
 
     t_start = time.perf_counter()
@@ -176,10 +176,15 @@ def diagnose_emb(
             " this session's clamp force, so it needs a session that logs it (one without"
             " can only be estimated: brakethermo clamp-force)",
             path=data.session.path, channel="clamp_force")
-    models = train_emb(tr.theta, tr.current, tr.force, tr.ts)
+    lag = choose_sensor_lag(tr.theta, tr.current, tr.force, tr.ts)
+    own = choose_sensor_lag(data.theta, data.current, data.force, data.ts)
+    assert lag is not None and own is not None  # both sessions have the sensor (above)
+    models = train_emb(tr.theta, tr.current, tr.force, tr.ts, sensor_lag_s=lag.lag_s,
+                       eq7=lag.eq7)
     ds = models.stiffness
-    # the rig's sensor as training found it: its lag taken out, as the models were fitted
-    force = sensor_delagged(data.force, models.sensor_lag_s, data.ts)
+    # each sensor with its own lag taken out: the models were fitted so, and a leftover
+    # lag would pass for a rate-dependent stiffness
+    force = sensor_delagged(data.force, own.lag_s, data.ts)
     theta = data.theta
     rest = float(np.percentile(theta, 5) + 0.05 * np.ptp(theta))
     case = RigCase(
@@ -192,12 +197,20 @@ def diagnose_emb(
         input_unit="rad",
         reference_text=f"the dynamic stiffness (eq. 6) of the training session"
                        f" {tr.session.path}, as the clamp-force filter uses it (not refitted"
-                       " here)",
+                       " here)" + _lags_said(lag.lag_s, own.lag_s),
         reference_fit={"alpha0": ds.alpha0, "beta": list(ds.beta)},
         next_step=lambda n, _: (f"re-train on a session of these pads: brakethermo clamp-force"
                              f" SESSION --train {train_path} --retrain {path}  (the adaptive"
                              " filter follows a stiffness scale on its own)"))
     return run_case(case, t_start)
+
+
+def _lags_said(train_lag_s: float, own_lag_s: float) -> str:
+    """The force sensors' lags taken out, in words ('' when neither had one)."""
+    if train_lag_s <= 0.0 and own_lag_s <= 0.0:
+        return ""
+    return (f"; force sensors de-lagged (F + τ dF/dt): the training session's by about"
+            f" {train_lag_s * 1e3:g} ms, this session's by {own_lag_s * 1e3:g} ms")
 
 
 def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
