@@ -106,6 +106,8 @@ MIN_HALF_S = 5.0  # s, shortest half of a training session the fusion is checked
 # Candidate time constants of the clamp-force sensor, s: a load cell behind an amplifier
 # filter reads the force late (0 = the paper's ideal sensor, the first candidate).
 SENSOR_LAGS_S = (0.0, 0.5e-3, 1e-3, 2e-3, 3e-3, 5e-3, 8e-3, 12e-3, 20e-3)
+
+
 def _blocks(K: int, ts: float) -> NDArray[np.int_]:
     """Fold (0 or 1) of each sample: alternate blocks of :data:`CV_BLOCK_S` seconds."""
     return (np.arange(K) * ts // CV_BLOCK_S).astype(int) % 2
@@ -283,7 +285,7 @@ def fusion_check(theta: Array, current: Array, F: Array, ts: float, *,
     half = K // 2
     if half * ts < MIN_HALF_S:
         return None
-    F_a = sensor_delagged(F, sensor_lag_s, ts)
+    F_d = sensor_delagged(F, sensor_lag_s, ts)
     sq: dict[str | float, list[Array]] = {}
     z2: dict[float, list[Array]] = {}
     for fit_rows, test_rows in ((slice(0, half), slice(half, K)),
@@ -293,11 +295,11 @@ def fusion_check(theta: Array, current: Array, F: Array, ts: float, *,
         for q in Q_SCALES:
             e = estimate(m, theta[test_rows], current[test_rows], ts, factor_walk=factor_walk,
                          q_scale=q)
-            sq.setdefault(q, []).append((e.kf - F_a[test_rows]) ** 2)
+            sq.setdefault(q, []).append((e.kf - F_d[test_rows]) ** 2)
             z2.setdefault(q, []).append(sq[q][-1] / e.kf_std**2)
         for name, x in (("ml_fusion", e.ml_fusion), ("stiffness", e.stiffness),
                         ("torque_balance", e.torque_balance)):
-            sq.setdefault(name, []).append((x - F_a[test_rows]) ** 2)
+            sq.setdefault(name, []).append((x - F_d[test_rows]) ** 2)
     rms = {k: float(np.sqrt(np.nanmean(np.concatenate(v)))) for k, v in sq.items()}
     by_q = {q: rms.pop(q) for q in Q_SCALES}
     q_best = min(Q_SCALES, key=by_q.__getitem__)

@@ -452,7 +452,9 @@ def lag_text(res: ClampForceResult) -> str | None:
     if tr is not None and tr.lag_s > 0.0:
         parts.append(f"the training session's force sensor lags about {tr.lag_s * 1e3:g} ms"
                      " (the motor current, which answers the load at once, is predicted best"
-                     " with the sensor de-lagged so): the models were fitted to it de-lagged")
+                     " with the sensor de-lagged so): the models were fitted to it de-lagged"
+                     + (" (the re-trained ones to the re-training session's sensor, de-lagged"
+                        " alike)" if res.retrain is not None else ""))
     if tr is not None and tr.at_edge:
         parts.append(f"the training sensor may lag more than the largest candidate"
                      f" ({SENSOR_LAGS_S[-1] * 1e3:g} ms) tried")
