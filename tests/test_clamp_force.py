@@ -395,8 +395,9 @@ def test_advancing_a_first_order_sensor_undoes_its_delay_on_a_slow_force(lag_ms:
     np.testing.assert_array_equal(sensor_delagged(lagged, 0.0, TS), lagged)
 
 
-def _written(tmp_path: Path, name: str, seed: int, cal: EmbCaliper) -> tuple[Path, np.ndarray]:
-    sim = simulate_emb("nominal", seed=seed, duration_s=30.0, caliper=cal)
+def _written(tmp_path: Path, name: str, seed: int, cal: EmbCaliper, duration_s: float = 30.0
+             ) -> tuple[Path, np.ndarray]:
+    sim = simulate_emb("nominal", seed=seed, duration_s=duration_s, caliper=cal)
     path, _ = write_emb_simulation(sim, tmp_path / f"{name}.mcap")
     return path, _truth(sim)
 
@@ -408,7 +409,7 @@ def test_a_lagging_training_sensor_is_found_and_taken_out(tmp_path: Path) -> Non
     that covers it, than when it is trained on the lagging sensor as it reads; the
     session's own sensor, de-lagged by its own lag, is what its RMSE is against."""
     cal = EmbCaliper(force_lag_s=0.005)
-    train_path, _ = _written(tmp_path, "train", 6411, cal)
+    train_path, _ = _written(tmp_path, "train", 6411, cal, 60.0)
     eval_path, truth = _written(tmp_path, "eval", 6412, cal)
     res = cfp.clamp_force(eval_path, train_path)
     assert res.train_lag is not None and res.train_lag.lag_s == pytest.approx(0.005)
@@ -421,7 +422,12 @@ def test_a_lagging_training_sensor_is_found_and_taken_out(tmp_path: Path) -> Non
     found = res.reported
     assert rmse(found.kf, truth) < 0.7 * rmse(old.kf, truth)
     assert np.mean(np.abs(found.kf - truth) <= 1.96 * found.kf_std) > 0.85
+    # on the de-lagged sensor the stiffness is static (eq. 6's α0 at 0), the fixed filter
+    # the ML fusion; the held-out halves chose the adaptive filter, below both
+    assert res.check is not None and res.check.adaptive and found.kf_switched
+    assert rmse(found.kf, truth) < 0.95 * rmse(found.ml_fusion, truth)
     summ = cfp.summary(res)
+    assert summ["kf_noise"].startswith("the adaptive-stiffness filter: on held-out halves")
     assert "about 5 ms" in summ["sensor_lag"]["text"]
     frame = cfp.result_frame(res)
     np.testing.assert_allclose(frame["sensor_delagged"] * 1e3, cfp.scored_force(res))

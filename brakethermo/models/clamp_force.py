@@ -259,6 +259,9 @@ class FusionCheck:
     band_scale : float — factor on the filter's variance that maximises the held-out
         Gaussian likelihood of the sensor's force, mean((kf − F)² / var), at least 1 (the
         sensor's own noise and lag count as error: conservative).
+    adaptive : bool — the adaptive-stiffness filter (at ``q_scale``) did :data:`Q_MARGIN`
+        better held out than the fixed one: it is reported whatever the session's NIS.
+    adaptive_rmse_by_q : dict — held-out RMSE (N) of the adaptive filter per factor.
     """
 
     rmse_n: dict[str, float]
@@ -267,6 +270,8 @@ class FusionCheck:
     q_scale: float = 1.0
     rmse_by_q: dict[float, float] | None = None
     band_scale: float = 1.0
+    adaptive: bool = False
+    adaptive_rmse_by_q: dict[float, float] | None = None
 
 
 def fusion_check(theta: Array, current: Array, F: Array, ts: float, *,
@@ -286,8 +291,8 @@ def fusion_check(theta: Array, current: Array, F: Array, ts: float, *,
     if half * ts < MIN_HALF_S:
         return None
     F_d = sensor_delagged(F, sensor_lag_s, ts)
-    sq: dict[str | float, list[Array]] = {}
-    z2: dict[float, list[Array]] = {}
+    sq: dict[str | float | tuple[str, float], list[Array]] = {}
+    z2: dict[float | tuple[str, float], list[Array]] = {}
     for fit_rows, test_rows in ((slice(0, half), slice(half, K)),
                                 (slice(half, K), slice(0, half))):
         m = train(theta[fit_rows], current[fit_rows], F[fit_rows], ts,
@@ -295,19 +300,26 @@ def fusion_check(theta: Array, current: Array, F: Array, ts: float, *,
         for q in Q_SCALES:
             e = estimate(m, theta[test_rows], current[test_rows], ts, factor_walk=factor_walk,
                          q_scale=q)
-            sq.setdefault(q, []).append((e.kf - F_d[test_rows]) ** 2)
-            z2.setdefault(q, []).append(sq[q][-1] / e.kf_std**2)
+            for key, x, std in ((q, e.kf, e.kf_std), (("adaptive", q), e.adaptive,
+                                                       e.adaptive_std)):
+                sq.setdefault(key, []).append((x - F_d[test_rows]) ** 2)
+                z2.setdefault(key, []).append(sq[key][-1] / std**2)
         for name, x in (("ml_fusion", e.ml_fusion), ("stiffness", e.stiffness),
                         ("torque_balance", e.torque_balance)):
             sq.setdefault(name, []).append((x - F_d[test_rows]) ** 2)
     rms = {k: float(np.sqrt(np.nanmean(np.concatenate(v)))) for k, v in sq.items()}
     by_q = {q: rms.pop(q) for q in Q_SCALES}
+    adaptive_by_q = {q: rms.pop(("adaptive", q)) for q in Q_SCALES}
     q_best = min(Q_SCALES, key=by_q.__getitem__)
     q_best = q_best if by_q[q_best] < (1.0 - Q_MARGIN) * by_q[1.0] else 1.0
-    rms = {"kf": by_q[q_best], **{k: v for k, v in rms.items() if isinstance(k, str)}}
+    adaptive = adaptive_by_q[q_best] < (1.0 - Q_MARGIN) * by_q[q_best]
+    chosen: float | tuple[str, float] = ("adaptive", q_best) if adaptive else q_best
+    rms = {"kf": adaptive_by_q[q_best] if adaptive else by_q[q_best],
+           **{k: v for k, v in rms.items() if isinstance(k, str)}}
     best = min(SINGLES, key=rms.__getitem__)
-    band = max(1.0, float(np.nanmean(np.concatenate(z2[q_best]))))
-    return FusionCheck(rms, best, rms["kf"] <= rms[best], q_best, by_q, band)
+    band = max(1.0, float(np.nanmean(np.concatenate(z2[chosen]))))
+    return FusionCheck(rms, best, rms["kf"] <= rms[best], q_best, by_q, band, adaptive,
+                       adaptive_by_q)
 
 
 @dataclass(frozen=True)
@@ -411,7 +423,7 @@ def estimate(
     # fixed one is over-confident, its innovations larger than its noise settings admit
     nu = F_tb - res.x_pred[:, 0]
     nis = float(np.nanmean(nu**2 / (res.P_pred[:, 0, 0] + R)))
-    switched = nis > NIS_LIMIT
+    switched = nis > NIS_LIMIT or (check is not None and check.adaptive)
 
     # adaptive: state [F, s], transition [[α0, u(k+1)], [0, 1]]
     A = np.zeros((K, 2, 2))

@@ -28,6 +28,7 @@ from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.clamp_force import (
     CV_BLOCK_S,
+    NIS_LIMIT,
     Q_MARGIN,
     SENSOR_LAGS_S,
     ClampForceEstimates,
@@ -422,9 +423,14 @@ def _kf_text(res: ClampForceResult) -> str:
                 f" ({check.rmse_n['kf'] / 1e3:.3f} against"
                 f" {check.rmse_n[est.kf_source] / 1e3:.3f} kN), so the band is that"
                 " held-out RMSE")
-    if est.kf_switched:
+    if est.kf_switched and est.kf_paper_nis > NIS_LIMIT:
         text = (f"the adaptive-stiffness filter: the fixed filter's mean NIS is"
                 f" {est.kf_paper_nis:.2f}, its stiffness model no longer holds for these pads")
+    elif est.kf_switched and check is not None:
+        text = ("the adaptive-stiffness filter: on held-out halves of the training session"
+                f" it did {Q_MARGIN * 100:g} % better than the fixed one"
+                f" ({check.rmse_n['kf'] / 1e3:.3f} against"
+                f" {check.rmse_by_q[check.q_scale] / 1e3:.3f} kN)")
     else:
         q = ("the paper's fixed Q" if check is None or check.q_scale == 1.0 else
              f"the fixed filter, Q the paper's x {check.q_scale:g} (chosen on held-out halves"
@@ -493,6 +499,9 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
             "q_scale": check.q_scale,
             "heldout_rmse_kn_by_q_scale": {f"{q:g}": v / 1e3
                                            for q, v in (check.rmse_by_q or {}).items()},
+            "adaptive": check.adaptive,
+            "heldout_rmse_kn_adaptive_by_q_scale": {
+                f"{q:g}": v / 1e3 for q, v in (check.adaptive_rmse_by_q or {}).items()},
             "what": "trained on one half of the training session, estimated on the other,"
                     " both ways, scored against the sensor with its lag taken out; the filter's"
                     " Q is the paper's times the factor with the smallest held-out RMSE (the"
