@@ -457,3 +457,22 @@ def test_stiffness_autoregression_stays_a_relaxation_on_a_static_force() -> None
     assert rmse(ds.simulate(th), F) < 1.2 * rmse(np.stack(
         [th**3, th**2, th, np.ones_like(th)], axis=1) @ np.linalg.lstsq(np.stack(
             [th**3, th**2, th, np.ones_like(th)], axis=1), F, rcond=None)[0], F)
+
+
+def test_delagging_keeps_gaps_and_does_not_reach_across_them() -> None:
+    """Each stretch between gaps is differentiated on its own: a gap stays a gap, the
+    samples beside it are the stretch's own F + τ dF/dt (no interpolated fill leaks in),
+    and a stretch shorter than the derivative window still gets a derivative."""
+    t = np.arange(3000) * TS
+    F = 1000.0 + 500.0 * np.sin(2 * np.pi * 2.0 * t)
+    dF = 500.0 * 2 * np.pi * 2.0 * np.cos(2 * np.pi * 2.0 * t)
+    lag = 0.004
+    holed = F.copy()
+    holed[1000:1200] = np.nan  # a 0.2 s dropout
+    holed[2500] = np.nan  # one missing sample
+    out = sensor_delagged(holed, lag, TS)
+    assert np.isnan(out[1000:1200]).all() and np.isnan(out[2500])
+    ok = np.isfinite(out)
+    np.testing.assert_allclose(out[ok], (F + lag * dF)[ok], atol=0.05)
+    short = sensor_delagged(F[:4], lag, TS)
+    assert np.isfinite(short).all()
