@@ -8,6 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -333,6 +334,26 @@ def test_simulate_rig_emb_writes_a_readable_session(tmp_path: Path) -> None:
     )
     assert bad.exit_code == 1 and "scenario='rusty'" in bad.output
     assert "Traceback" not in bad.output
+    slow = CliRunner().invoke(app, ["simulate", "--rig", "emb", "--set", "force_lag_s=0.5",
+                                    "--out", str(out)])
+    assert slow.exit_code == 1 and "force_lag_s=0.5 out of range" in slow.output
+
+
+@pytest.mark.parametrize("lag_s", [0.0, 0.008])
+def test_simulate_rig_emb_sets_the_force_sensor_lag(tmp_path: Path, lag_s: float) -> None:
+    """``--set force_lag_s=`` gives the logged clamp-force sensor that time constant (0: an
+    ideal sensor): the sensor lags the true force by it (the shift that best aligns them,
+    to a sample)."""
+    out = tmp_path / "e.mcap"
+    res = CliRunner().invoke(app, ["simulate", "--rig", "emb", "--set", "duration_s=6",
+                                   "--set", f"force_lag_s={lag_s}", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    d = cfp.load_emb(out, need_sensor=True, role="training")
+    truth = pd.read_parquet(tmp_path / "e.truth.parquet")["clamp_force"].to_numpy() * 1e3
+    shifts = np.arange(0, 20)
+    err = [rmse(d.force[k:], truth[:truth.size - k]) for k in shifts]
+    a = np.exp(-TS / lag_s) if lag_s else 0.0
+    assert abs(shifts[int(np.argmin(err))] - a / (1.0 - a)) <= 1.0  # the discrete lag's delay
 
 
 @pytest.mark.parametrize("which", ["estimated", "training"])

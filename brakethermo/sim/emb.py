@@ -222,7 +222,7 @@ def simulate_emb(
         Channel("motor_current", "A", t, current, decimals=3),
     ]
     if with_sensor:
-        a = np.exp(-dt / cal.force_lag_s)
+        a = np.exp(-dt / cal.force_lag_s) if cal.force_lag_s > 0.0 else 0.0
         lagged = lfilter([1.0 - a], [1.0, -a], F, zi=[a * F[0]])[0]
         meas = lagged + rng.normal(0.0, cal.force_noise, n)
         meas = np.round(meas / cal.force_lsb) * cal.force_lsb
@@ -249,12 +249,15 @@ class EmbSimConfig:
         ``heating`` (pads heating from 40 to 390 °C).
     duration_s : float — session length, s.
     sensor : bool — log the clamp-force sensor channel (needed for ``--train`` sessions).
+    force_lag_s : float — s, time constant of the clamp-force sensor (a load cell behind
+        an amplifier filter; 0: an ideal sensor).
     seed : int
     """
 
     scenario: str = "nominal"
     duration_s: float = 60.0
     sensor: bool = True
+    force_lag_s: float = EmbCaliper.force_lag_s
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -266,12 +269,17 @@ class EmbSimConfig:
             raise ConfigError(
                 f"emb simulation: duration_s={self.duration_s!r} out of range (0.1 to 3600 s)"
             )
+        if not 0.0 <= self.force_lag_s <= 0.1:
+            raise ConfigError(
+                f"emb simulation: force_lag_s={self.force_lag_s!r} out of range (0 to 0.1 s)"
+            )
 
 
 def simulate_emb_config(cfg: EmbSimConfig) -> EmbSimResult:
     """:func:`simulate_emb` for a :class:`EmbSimConfig`."""
     return simulate_emb(
-        cfg.scenario, duration_s=cfg.duration_s, seed=cfg.seed, with_sensor=cfg.sensor
+        cfg.scenario, duration_s=cfg.duration_s, seed=cfg.seed, with_sensor=cfg.sensor,
+        caliper=EmbCaliper(force_lag_s=cfg.force_lag_s),
     )
 
 
