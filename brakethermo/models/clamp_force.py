@@ -109,8 +109,8 @@ SENSOR_LAGS_S = (0.0, 0.5e-3, 1e-3, 2e-3, 3e-3, 5e-3, 8e-3, 12e-3, 20e-3)
 
 
 def _blocks(K: int, ts: float) -> NDArray[np.int_]:
-    """Fold (0 or 1) of each sample: alternate blocks of :data:`CV_BLOCK_S` seconds."""
-    return (np.arange(K) * ts // CV_BLOCK_S).astype(int) % 2
+    """Block of :data:`CV_BLOCK_S` seconds of each sample (its fold: the parity)."""
+    return (np.arange(K) * ts // CV_BLOCK_S).astype(int)
 
 
 def lag_scores(theta: Array, current: Array, F: Array, ts: float, window: int,
@@ -141,8 +141,8 @@ def lag_scores(theta: Array, current: Array, F: Array, ts: float, window: int,
     -------
     dict — candidate lag (s) -> ndarray (blocks,) of held-out squared current errors, A².
     """
-    fold = _blocks(theta.size, ts)
-    block = (np.arange(theta.size) * ts // CV_BLOCK_S).astype(int)
+    block = _blocks(theta.size, ts)
+    fold = block % 2
     omega, acc = motor_rates(theta, ts, window)
     sgn = friction_sign(omega, band)
     out: dict[float, Array] = {}
@@ -216,7 +216,7 @@ def eq7_choice(theta: Array, current: Array, F: Array, ts: float) -> tuple[int, 
     the others, both ways (the in-sample RMSE of a 20 s re-training session picks noise);
     the first such pair, the paper's differences and sgn first.
     """
-    fold = _blocks(theta.size, ts)
+    fold = _blocks(theta.size, ts) % 2
     omega_acc = {w: motor_rates(theta, ts, w) for w in WINDOWS}
 
     def cv_score(window: int, band: float) -> float:
