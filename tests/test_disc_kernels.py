@@ -83,6 +83,33 @@ def test_compiled_steps_equal_the_python_loop(case: str) -> None:
     assert np.ptp(a.x_filt[:, : ssm.n_temp]) > 50.0  # the disc did heat up and cool
 
 
+@pytest.mark.parametrize("case", list(CASES))
+def test_reduced_compiled_steps_equal_the_python_loop(case: str) -> None:
+    """The reduced-order filter's compiled loop (lift, the full model's step, project
+    back) equals the UKF's Python loop over the reduced ``f`` and ``Q``."""
+    from brakethermo.models.reduced import ReducedStateSpace, pod_modes, with_directions
+
+    params, effects = CASES[case]
+    ssm = _space(params, effects, H_PARAM not in params)
+    x0, P0 = ssm.prior(ssm.model.initial_state(30.0), 5.0)
+    snapshots = ssm.model.initial_state(30.0) + np.random.default_rng(5).normal(
+        0.0, 40.0, (60, ssm.n_temp))
+    Phi, _ = pod_modes(snapshots, 1e-9, 6)
+    red = ReducedStateSpace(ssm, with_directions(Phi, ssm.crown_directions()))
+    R, H = np.array([[4.0]]), red.H_measured(0.15)
+    steps = red.compiled_steps()
+    assert steps is not None and red.n < ssm.n
+    loop = UnscentedKalmanFilter(red.f, red.Q, R, H=H, backend="numba")
+    fused = UnscentedKalmanFilter(red.f, red.Q, R, H=H, backend="numba", steps=steps)
+    z0, Pz0 = red.project(x0), red.L.T @ P0 @ red.L
+    y = _readings(ssm)
+    a, b = loop.run(z0, Pz0, y), fused.run(z0, Pz0, y)
+    # the lift and projection sum in another order than numpy's matrix products
+    np.testing.assert_allclose(b.x_filt, a.x_filt, rtol=1e-8, atol=1e-7)
+    np.testing.assert_allclose(b.var_filt, a.var_filt, rtol=1e-7, atol=1e-10)
+    np.testing.assert_allclose(b.innovation, a.innovation, rtol=1e-8, atol=1e-7)
+
+
 def test_windowed_smoother_counts_the_model_steps_from_each_window() -> None:
     """The bounded-memory smoother re-runs windows from their own first step: the
     compiled loop must step the model from there too (the offset; a window longer than

@@ -125,6 +125,41 @@ if njit is not None:
             ukf_step(k, Xf, work, W, par, thr, Q, H, R, y, M, st, cov, gs, iv, sc, ic, rej,
                      ro)
 
+    @njit(cache=True, nogil=True)
+    def ukf_reduced_steps(k0, k1, offset, work, W, par, thr, H, R, y, M, st, cov, gs, iv, sc,
+                          ic, rej, ro, L, inputs, cols, lower, floats, contact, loads,
+                          sensor_row, noise, geometry):  # pragma: no cover - compiled
+        """:func:`ukf_disc_steps` on reduced coordinates, ``x_full = L x``
+        (:class:`~brakethermo.models.reduced.ReducedStateSpace`): each sigma point lifted
+        to the full model, stepped, and projected back, ``x' = L' f(L x)``; ``noise`` is
+        the reduced one. ``L`` (n_full, n) has orthonormal columns."""
+        n = work.shape[1]
+        B = 2 * n + 1
+        n_full = L.shape[0]
+        X = work[:B]
+        X_full = np.empty((B, n_full))
+        Xf_full = np.empty((B, n_full))
+        Xf = np.empty((B, n))
+        Q = np.empty((n, n))
+        for k in range(k0, k1):
+            j = k + offset
+            for b in range(B):
+                for i in range(n_full):
+                    acc = 0.0
+                    for r in range(n):
+                        acc += L[i, r] * X[b, r]
+                    X_full[b, i] = acc
+            disc_transition(X_full, j, Xf_full, inputs, cols, lower, floats, contact, loads,
+                            sensor_row, geometry)
+            for b in range(B):
+                for r in range(n):
+                    acc = 0.0
+                    for i in range(n_full):
+                        acc += L[i, r] * Xf_full[b, i]
+                    Xf[b, r] = acc
+            disc_noise(j, Q, noise, inputs[0])
+            ukf_step(k, Xf, work, W, par, thr, Q, H, R, y, M, st, cov, gs, iv, sc, ic, rej,
+                     ro)
 
     @njit(cache=True, nogil=True)
     def disc_replay(Xs, w, k0, inputs, cols, lower, floats, contact, loads, sensor_row,
@@ -147,6 +182,10 @@ def available() -> bool:
 
 
 def run_steps(spec: tuple[Any, ...], k0: int, k1: int, offset: int, work: np.ndarray,
-              *kernel_args: Any) -> None:
-    """:func:`ukf_disc_steps` with the state space's ``spec`` (its arrays, fixed per run)."""
-    ukf_disc_steps(k0, k1, offset, work, *kernel_args, *spec)
+              *kernel_args: Any, lift: np.ndarray | None = None) -> None:
+    """:func:`ukf_disc_steps` with the state space's ``spec`` (its arrays, fixed per run),
+    or :func:`ukf_reduced_steps` on the reduced coordinates of ``lift``."""
+    if lift is None:
+        ukf_disc_steps(k0, k1, offset, work, *kernel_args, *spec)
+    else:
+        ukf_reduced_steps(k0, k1, offset, work, *kernel_args, lift, *spec)

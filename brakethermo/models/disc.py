@@ -300,34 +300,47 @@ class DiscStateSpace:
         given = [a for a in inputs if a.size]
         return min(a.shape[0] for a in given), {a.shape[1] for a in given} - {1}
 
-    def _check_span(self, span: tuple[int, set[int]], k_end: int, B: int, n: int) -> None:
+    def _check_span(self, span: tuple[int, set[int]], k_end: int, B: int, n: int,
+                    n_state: int | None = None) -> None:
         """The compiled loop reads its inputs unchecked: steps up to ``k_end`` must exist
-        and the members be (B, n) with inputs shared or one column per member."""
+        and the members be (B, n) with inputs shared or one column per member; ``n_state``
+        the states of the coordinates run in (default :attr:`n`)."""
         K, widths = span
-        if k_end > K or n != self.n or widths - {B}:
+        n_state = self.n if n_state is None else n_state
+        if k_end > K or n != n_state or widths - {B}:
             raise ValueError(
                 f"compiled steps up to {k_end} of {K} on ({B}, {n}) members: the state space"
-                f" has {self.n} states and inputs of width {sorted(widths) or [1]}")
+                f" has {n_state} states and inputs of width {sorted(widths) or [1]}")
 
-    def compiled_steps(self) -> Callable[..., None] | None:
+    def compiled_steps(self, noise_parts: tuple[np.ndarray, np.ndarray, np.ndarray] | None
+                       = None, lift: np.ndarray | None = None) -> Callable[..., None] | None:
         """:meth:`f` and :meth:`Q` fused into the UKF kernel's step loop
         (:mod:`brakethermo.models._disc_kernels`): ``steps(k0, k1, offset, work, *args)``
         runs filter steps ``k0 .. k1 - 1`` on model steps ``k + offset``. None where the
         model does not compile. The inputs, constants and model are taken now: change
-        none of them after (``f`` and ``Q`` would see the change, these steps not)."""
+        none of them after (``f`` and ``Q`` would see the change, these steps not).
+
+        ``lift`` (n, r) runs the filter on reduced coordinates ``x = lift' x_full``
+        (orthonormal columns; :class:`~brakethermo.models.reduced.ReducedStateSpace`),
+        with the noise of :meth:`noise` from ``noise_parts`` (base, crown, parameter
+        indices) in those coordinates."""
         if not (self.model.use_numba and _disc_kernels.available()):
             return None
         *head, geometry = self._kernel_spec()
-        noise = (self._Q_base, self._S_crown, self._param_idx.astype(np.int64),
+        base, crown, param_idx = noise_parts or (self._Q_base, self._S_crown, self._param_idx)
+        noise = (np.ascontiguousarray(base, dtype=np.float64),
+                 np.ascontiguousarray(crown, dtype=np.float64), param_idx.astype(np.int64),
                  self._step_var.astype(np.float64), self._moving.astype(np.float64))
         spec = (*head, noise, geometry)
         span = self._span(head[0])
+        L = None if lift is None else np.ascontiguousarray(lift, dtype=np.float64)
+        n = self.n if L is None else L.shape[1]
 
         def steps(k0: int, k1: int, offset: int, work: np.ndarray, *args: Any) -> None:
             # the last step reads its inputs at k1 - 1 + offset
-            self._check_span(span, k1 + offset, 2 * work.shape[1] + 1, work.shape[1])
+            self._check_span(span, k1 + offset, 2 * work.shape[1] + 1, work.shape[1], n)
             try:
-                _disc_kernels.run_steps(spec, k0, k1, offset, work, *args)
+                _disc_kernels.run_steps(spec, k0, k1, offset, work, *args, lift=L)
             except ZeroDivisionError:
                 raise self._breakdown(k0 + offset, k1 + offset) from None
 
