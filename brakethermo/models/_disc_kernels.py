@@ -136,27 +136,17 @@ if njit is not None:
         n = work.shape[1]
         B = 2 * n + 1
         n_full = L.shape[0]
-        X = work[:B]
+        LT = np.ascontiguousarray(L.T)
         X_full = np.empty((B, n_full))
         Xf_full = np.empty((B, n_full))
         Xf = np.empty((B, n))
         Q = np.empty((n, n))
         for k in range(k0, k1):
             j = k + offset
-            for b in range(B):
-                for i in range(n_full):
-                    acc = 0.0
-                    for r in range(n):
-                        acc += L[i, r] * X[b, r]
-                    X_full[b, i] = acc
+            np.dot(work[:B], LT, X_full)
             disc_transition(X_full, j, Xf_full, inputs, cols, lower, floats, contact, loads,
                             sensor_row, geometry)
-            for b in range(B):
-                for r in range(n):
-                    acc = 0.0
-                    for i in range(n_full):
-                        acc += L[i, r] * Xf_full[b, i]
-                    Xf[b, r] = acc
+            np.dot(Xf_full, L, Xf)
             disc_noise(j, Q, noise, inputs[0])
             ukf_step(k, Xf, work, W, par, thr, Q, H, R, y, M, st, cov, gs, iv, sc, ic, rej,
                      ro)

@@ -29,8 +29,7 @@ import numpy as np
 
 from brakethermo.models.disc import DiscStateSpace
 
-MODE_TOLERANCE_C = 0.1  # degC, RMS projection error of the open-loop snapshots: a twentieth
-# of the pyrometer noise, and the reduced filter is within half a degree of the full one
+MODE_TOLERANCE_C = 0.003  # degC, RMS projection error of the open-loop snapshots
 MAX_MODES = 40
 MIN_MODES = 4
 
