@@ -144,25 +144,41 @@ def batch(
         print(json.dumps(result.to_json(), indent=2))
     else:
         result = _run_with_progress(folder, options)
-        for note in result.not_read:
-            console.print(f"[yellow]not read:[/] {escape(note)}", highlight=False)
-        console.print(_table(result, out))
-        for o in result.outcomes:
-            if o.kind == "single" and o.h_law_reason:
-                console.print(f"{escape(o.name)}: h law {escape(_law_tag(o.h_law_source))} — "
-                              f"{escape(o.h_law_reason)}")
-        share = ", ".join(
-            f"{k.removesuffix('_s')} {v:.1f} s ({f:.0%})"
-            for k, (v, f) in result.step_shares().items()
-        )
-        console.print(f"wall time {result.wall_s:.1f} s" + (f"  ({share})" if share else ""))
-        if options.reports:
-            console.print(f"open [bold]{escape(str(out / 'index.html'))}[/] for the reports")
-        for o in result.failed:
-            where = "" if str(o.path) in o.reason else f"{o.path}: "
-            console.print(f"[bold red]failed:[/] {escape(where + o.reason)}", soft_wrap=True)
+        _render(result, out, options.reports)
     if result.exit_code:
         raise typer.Exit(result.exit_code)
+
+
+def _render(result: BatchResult, out: Path, reports: bool) -> None:
+    """The console's account of a batch: unread files, the table, law reasons, wall time,
+    where the reports are and why sessions failed.
+
+    Parameters
+    ----------
+    result : BatchResult
+        The finished batch.
+    out : Path
+        The output root the sessions were written under.
+    reports : bool
+        Whether per-lap reports (and so ``OUT/index.html``) were written.
+    """
+    for note in result.not_read:
+        console.print(f"[yellow]not read:[/] {escape(note)}", highlight=False)
+    console.print(_table(result, out))
+    for o in result.outcomes:
+        if o.kind == "single" and o.h_law_reason:
+            console.print(f"{escape(o.name)}: h law {escape(_law_tag(o.h_law_source))} — "
+                          f"{escape(o.h_law_reason)}")
+    share = ", ".join(
+        f"{k.removesuffix('_s')} {v:.1f} s ({f:.0%})"
+        for k, (v, f) in result.step_shares().items()
+    )
+    console.print(f"wall time {result.wall_s:.1f} s" + (f"  ({share})" if share else ""))
+    if reports:
+        console.print(f"open [bold]{escape(str(out / 'index.html'))}[/] for the reports")
+    for o in result.failed:
+        where = "" if str(o.path) in o.reason else f"{o.path}: "
+        console.print(f"[bold red]failed:[/] {escape(where + o.reason)}", soft_wrap=True)
 
 
 def _run_with_progress(folder: Path, options: BatchOptions) -> BatchResult:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.markup import escape
@@ -22,6 +22,9 @@ from brakethermo.cli._options import (
 )
 from brakethermo.errors import ConfigError
 from brakethermo.models.effects import EFFECT_NAMES
+
+if TYPE_CHECKING:
+    from brakethermo.pipelines.diagnose import DiagnoseOptions, DiagnoseResult
 
 
 def _laps(text: str | None) -> tuple[int, ...] | None:
@@ -87,33 +90,32 @@ def diagnose_command(
         _diagnose_rig(RIG_NAMES.get(rig, rig), sessions, out, effects, train, fit, radius,
                       aliases, as_json)
         return
-    from brakethermo.pipelines.diagnose import (
-        DiagnoseOptions,
-        diagnose,
-        diagnose_many,
-        write_diagnosis,
-        write_pooled,
-    )
-    from brakethermo.pipelines.outputs import to_json
+    from brakethermo.pipelines.diagnose import DiagnoseOptions
 
     options = DiagnoseOptions(effects=effects, holdout_laps=_laps(holdout_laps), h_law=h_law,
                               disc=disc, tuning=tuning, aliases=aliases, ambient_c=ambient)
-    name = sessions[0].name if len(sessions) == 1 else f"{len(sessions)} sessions"
-    # A transient bar is erased when done; off a terminal it cannot be drawn, and only
-    # left a blank line before the output (or before an error's one line).
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TimeElapsedColumn(), console=console, transient=True,
-                  disable=as_json or not console.is_terminal) as bar:
-        task = bar.add_task(f"diagnosing {escape(name)}", total=None)
+    _diagnose_discs(sessions, out, options, as_json)
 
-        def progress(label: str, done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total,
-                       description=f"diagnosing {escape(name)}: {escape(label)}")
 
-        if len(sessions) == 1:
-            results, pooled = [diagnose(sessions[0], options, progress)], None
-        else:
-            results, pooled = diagnose_many(sessions, options, progress)
+def _diagnose_discs(sessions: list[Path], out: Path, options: DiagnoseOptions,
+                    as_json: bool) -> None:
+    """Diagnose disc sessions (pooled when several), write each folder and report them.
+
+    Parameters
+    ----------
+    sessions : list of Path
+        The disc sessions; more than one are also pooled.
+    out : Path
+        Output root.
+    options : DiagnoseOptions
+        The diagnosis's options.
+    as_json : bool
+        Print the JSON summary (the pooled one when several) instead of tables.
+    """
+    from brakethermo.pipelines.diagnose import write_diagnosis, write_pooled
+    from brakethermo.pipelines.outputs import to_json
+
+    results, pooled = _run_with_progress(sessions, options, as_json)
     folders = [write_diagnosis(r, out) for r in results]
     pooled_path = write_pooled(pooled, out) if pooled is not None else None
     if as_json:
@@ -132,6 +134,44 @@ def diagnose_command(
             console.print(f"  [yellow]note:[/] {escape(note)}")
         console.print(f"wrote {escape(str(pooled_path))}")
 
+
+def _run_with_progress(sessions: list[Path], options: DiagnoseOptions,
+                       as_json: bool) -> tuple[list[DiagnoseResult], dict | None]:
+    """The diagnoses behind a transient progress bar: per session, and pooled when several.
+
+    Parameters
+    ----------
+    sessions : list of Path
+        The disc sessions.
+    options : DiagnoseOptions
+        The diagnosis's options.
+    as_json : bool
+        No bar: the output must stay JSON.
+
+    Returns
+    -------
+    results : list of DiagnoseResult
+        One per session.
+    pooled : dict or None
+        The pooled summary, None for a single session.
+    """
+    from brakethermo.pipelines.diagnose import diagnose, diagnose_many
+
+    name = sessions[0].name if len(sessions) == 1 else f"{len(sessions)} sessions"
+    # A transient bar is erased when done; off a terminal it cannot be drawn, and only
+    # left a blank line before the output (or before an error's one line).
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=console, transient=True,
+                  disable=as_json or not console.is_terminal) as bar:
+        task = bar.add_task(f"diagnosing {escape(name)}", total=None)
+
+        def progress(label: str, done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total,
+                       description=f"diagnosing {escape(name)}: {escape(label)}")
+
+        if len(sessions) == 1:
+            return [diagnose(sessions[0], options, progress)], None
+        return diagnose_many(sessions, options, progress)
 
 RIGS = ("ebooster", "emb", "roller-rig", "tyre")
 RIG_NAMES = {"mu-slip": "tyre"}  # the tyre rig by its command's name

@@ -5,7 +5,7 @@ Bench sessions come from ``brakethermo simulate --rig ebooster --set scenario=..
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.table import Table
@@ -49,7 +49,7 @@ def ebooster_command(
     """Observe p_m, p_f, p_r and the reaction-disk state with a UKF and an EKF (paper 004)."""
     import pandas as pd
 
-    from brakethermo.pipelines.ebooster import OBSERVERS, PRESSURES, frame_columns, observe
+    from brakethermo.pipelines.ebooster import frame_columns, observe
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.rig_outputs import write_rig_outputs
     from brakethermo.report.ebooster import booster_page
@@ -74,8 +74,29 @@ def ebooster_command(
     if as_json:
         print(to_json({**s, "output": str(folder)}))
         return
-    tab = Table(title=f"{result.session.path.name}: UKF vs EKF (paper 004 Table 1)",
-                title_justify="left")
+    console.print(_observers_table(result.session.path.name, s))
+    console.print(f"UKF improvement over EKF (residual RMSE): {s['improvement_pct']:.1f} %")
+    if s["with_effect"] is not None:
+        from brakethermo.results.rig_diagnosis import carried_text
+
+        console.print(f"p-V carries: {carried_text(s['with_effect'])}", highlight=False)
+    print_warnings(s["warnings"])
+    console.print(f"wrote {folder}")
+
+
+def _observers_table(name: str, s: dict[str, Any]) -> Table:
+    """UKF against EKF: residual and pressure RMSE, 95 % coverage (all and while braking).
+
+    Parameters
+    ----------
+    name : str
+        The session file's name, for the title.
+    s : dict
+        The observation's summary.
+    """
+    from brakethermo.pipelines.ebooster import OBSERVERS, PRESSURES
+
+    tab = Table(title=f"{name}: UKF vs EKF (paper 004 Table 1)", title_justify="left")
     tab.add_column("observer")
     tab.add_column("δ residual RMSE mm", justify="right")
     for state in PRESSURES:
@@ -88,11 +109,4 @@ def ebooster_command(
         tab.add_row(w.upper(), f"{s['residual_rmse_mm'][w]:.4f}",
                     *("–" if pr[k] is None else f"{pr[k]:.3f}" for k in PRESSURES),
                     *("–" if c is None else f"{100 * c:.1f} %" for c in (cov, cov_b)))
-    console.print(tab)
-    console.print(f"UKF improvement over EKF (residual RMSE): {s['improvement_pct']:.1f} %")
-    if s["with_effect"] is not None:
-        from brakethermo.results.rig_diagnosis import carried_text
-
-        console.print(f"p-V carries: {carried_text(s['with_effect'])}", highlight=False)
-    print_warnings(s["warnings"])
-    console.print(f"wrote {folder}")
+    return tab

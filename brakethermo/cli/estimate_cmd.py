@@ -182,6 +182,13 @@ MdfOutOpt = Annotated[bool, typer.Option(
 McapOutOpt = Annotated[bool, typer.Option(
     "--mcap-out", help="Also write OUT/<session>/estimate.mcap (MCAP, for Foxglove beside the"
     " source log; as batch --mcap-out).")]
+EstimateHLawOpt = Annotated[Path | None, typer.Option(
+    "--h-law", help="h_law.toml from identify-h; default: the one identify-h wrote for this "
+    "session in --out, else the law shipped for the disc.")]
+ModesOpt = Annotated[int | None, typer.Option(
+    "--modes", min=0, max=40, help="Reduced-order filter on at most this many thermal modes; "
+    "0 = the full filter. Default: reduced above 64 temperature states (a fine mesh at the "
+    "cost of a coarse one), full below.")]
 
 
 @app.command("estimate")
@@ -189,14 +196,7 @@ def estimate_command(
     session: Annotated[Path, typer.Argument(help=f"Session file ({SESSION_FORMATS}).")],
     out: OutDir = Path("out"),
     spot: Annotated[int, typer.Option(min=1, max=4, help="Spot used as measurement.")] = 3,
-    h_law: Annotated[
-        Path | None,
-        typer.Option(
-            "--h-law",
-            help="h_law.toml from identify-h; default: the one identify-h wrote for this "
-            "session in --out, else the law shipped for the disc.",
-        ),
-    ] = None,
+    h_law: EstimateHLawOpt = None,
     nodes: NodesOpt = None,
     layers: LayersOpt = None,
     smoother: Annotated[
@@ -236,13 +236,7 @@ def estimate_command(
         int,
         typer.Option(min=1, max=64, help="Threads smoothing windows in parallel (fine meshes)."),
     ] = 1,
-    modes: Annotated[
-        int | None,
-        typer.Option("--modes", min=0, max=40,
-                     help="Reduced-order filter on at most this many thermal modes; 0 = the "
-                     "full filter. Default: reduced above 64 temperature states (a fine "
-                     "mesh at the cost of a coarse one), full below."),
-    ] = None,
+    modes: ModesOpt = None,
 ) -> None:
     """Estimate the disc temperature at every radius, per lap, with 1-sigma bands."""
     from brakethermo.pipelines.estimate import (

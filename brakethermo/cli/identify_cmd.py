@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.markup import escape
@@ -23,6 +23,7 @@ from brakethermo.cli._options import (
 
 if TYPE_CHECKING:
     from brakethermo.io.session import Session
+    from brakethermo.pipelines.identify_h import IdentifyResult, StructureFit
 
 
 @app.command("identify-h")
@@ -52,7 +53,6 @@ def identify_command(
     as_json: JsonOpt = False,
 ) -> None:
     """Identify h(V) (joint UKF, h as a random walk) and the disc model's structure."""
-    from brakethermo.models.effects import EFFECTS
     from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.preflight import preflight
@@ -70,6 +70,26 @@ def identify_command(
     if as_json:
         print(to_json({**result.summary, "output": str(folder)}))
         return
+    _print_law(result)
+    if result.structure is not None:
+        _print_structure(result.structure, result.session, disc)
+    _print_evidence(result.summary.get("evidence"))
+    sel = result.summary["effect_selection"]
+    console.print(f"effects carried: {', '.join(sel['selected']) or 'none'} —"
+                  f" {escape(sel['why'])}", highlight=False)
+    print_warnings(result.summary["run"]["warnings"], soft_wrap=True)
+    console.print(f"wrote {escape(str(folder / 'h_law.toml'))}, h_samples.parquet, h_law.png "
+                  f"({result.timings['total_s']:.1f} s)")
+
+
+def _print_law(result: IdentifyResult) -> None:
+    """The h(V) law as a table of speeds, then its parameters and the samples it rests on.
+
+    Parameters
+    ----------
+    result : IdentifyResult
+        The identification.
+    """
     law = result.law
     table = Table(title=f"{escape(result.stem)}: h(V) law", title_justify="left")
     table.add_column("speed km/h", justify="right")
@@ -88,36 +108,53 @@ def identify_command(
         f" {top:.0f} km/h (the paper's fit to the filter's h samples alone, before the"
         " open-loop refit: identify.json law_ukf_only and h_law.png)"
     )
-    s = result.structure
-    if s is not None:
-        console.print(
-            f"crown weights w = [{s.weights[0]:.3f}, {s.weights[1]:.3f}, {s.weights[2]:.3f}], "
-            f"k_z ratio {s.kz_ratio:.3f} ({_kz_text(s.kz_ratio, result.session, disc)}), power"
-            f" scale {s.power_scale:.3f} ({s.nodes} nodes x {s.layers} layers)", highlight=False
-        )
-        for name, values in s.effects.items():
-            units = {p.name: p.unit for p in EFFECTS[name].params} if name in EFFECTS else {}
-            console.print(f"effect {name}: " + ", ".join(
-                f"{k} = {v:.3g}{_unit_text(units.get(k, ''))}" for k, v in values.items()
-                if isinstance(v, float)))
-        console.print(
-            "open-loop RMSE per spot °C: "
-            + ", ".join(f"{k} {v:.1f} (uniform {s.rmse_uniform_c[k]:.1f})"
-                        for k, v in s.rmse_c.items())
-        )
-    ev = result.summary.get("evidence")
+
+
+def _print_structure(s: StructureFit, session: Session, disc: str | None) -> None:
+    """The fitted structure: crown weights, k_z ratio, power scale, effects, open-loop RMSE.
+
+    Parameters
+    ----------
+    s : StructureFit
+        The structure fitted with the law.
+    session : Session
+        The session identified on, whose disc sets the k_z ratio against the datasheet.
+    disc : str or None
+        The ``--disc`` option.
+    """
+    from brakethermo.models.effects import EFFECTS
+
+    console.print(
+        f"crown weights w = [{s.weights[0]:.3f}, {s.weights[1]:.3f}, {s.weights[2]:.3f}], "
+        f"k_z ratio {s.kz_ratio:.3f} ({_kz_text(s.kz_ratio, session, disc)}), power"
+        f" scale {s.power_scale:.3f} ({s.nodes} nodes x {s.layers} layers)", highlight=False
+    )
+    for name, values in s.effects.items():
+        units = {p.name: p.unit for p in EFFECTS[name].params} if name in EFFECTS else {}
+        console.print(f"effect {name}: " + ", ".join(
+            f"{k} = {v:.3g}{_unit_text(units.get(k, ''))}" for k, v in values.items()
+            if isinstance(v, float)))
+    console.print(
+        "open-loop RMSE per spot °C: "
+        + ", ".join(f"{k} {v:.1f} (uniform {s.rmse_uniform_c[k]:.1f})"
+                    for k, v in s.rmse_c.items())
+    )
+
+
+def _print_evidence(ev: dict[str, Any] | None) -> None:
+    """The straights' evidence against the law, printed only when it disagrees with it.
+
+    Parameters
+    ----------
+    ev : dict or None
+        The summary's ``evidence``: straights, factor on h and its 95 % interval.
+    """
     if ev and ev.get("straights", 0) >= 2 and not ev["ci95"][0] <= 1.0 <= ev["ci95"][1]:
         console.print(
             f"evidence: on {ev['straights']} off-brake straights the estimate's layered model"
             f" cools as measured with this law x{ev['factor']:.3f}"
             f" [{ev['ci95'][0]:.3f}, {ev['ci95'][1]:.3f}] (h_law.png; identify.json"
             " evidence); the law is written as fitted", highlight=False)
-    sel = result.summary["effect_selection"]
-    console.print(f"effects carried: {', '.join(sel['selected']) or 'none'} —"
-                  f" {escape(sel['why'])}", highlight=False)
-    print_warnings(result.summary["run"]["warnings"], soft_wrap=True)
-    console.print(f"wrote {escape(str(folder / 'h_law.toml'))}, h_samples.parquet, h_law.png "
-                  f"({result.timings['total_s']:.1f} s)")
 
 
 def _unit_text(unit: str) -> str:

@@ -6,7 +6,7 @@ import dataclasses
 import json
 import time
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.markup import escape
@@ -17,6 +17,9 @@ from brakethermo.cli._options import JsonOpt
 from brakethermo.errors import ConfigError
 from brakethermo.sim.effects import EFFECT_NAMES, STRENGTH_MAX, parse_effects
 from brakethermo.sim.rigs import RIG_SIMULATORS
+
+if TYPE_CHECKING:
+    from brakethermo.sim.session import SimConfig
 
 
 @app.command("simulate")
@@ -74,7 +77,7 @@ def simulate_cmd(
     """Simulate a session with named effects; write it and <stem>.truth.parquet beside it."""
     from brakethermo.io.writers import infer_format
     from brakethermo.pipelines.output_dir import check_output_file
-    from brakethermo.sim.session import SimConfig, simulate, write_simulation
+    from brakethermo.sim.session import SimConfig
 
     check_output_file(out)
     fmt = infer_format(out, fmt)
@@ -95,26 +98,7 @@ def simulate_cmd(
         disc=disc,
         **_disc_settings(rig_set or []),
     )
-    t0 = time.perf_counter()
-    result = simulate(cfg)
-    t1 = time.perf_counter()
-    session_path, truth_path = write_simulation(result, out, fmt, grouped=grouped)
-    t2 = time.perf_counter()
-    truth = result.truth
-    summary = {
-        "session": str(session_path),
-        "truth": str(truth_path),
-        "format": fmt,
-        "track": result.session.facts["track"],
-        "laps": laps,
-        "seed": seed,
-        "effects": {n: v for n, v in cfg.strengths.items() if v > 0},
-        "duration_s": float(truth.column("time")[-1].as_py()),
-        "channels": [c.name for c in result.session.channels],
-        "peak_spot_c": float(max(max(truth.column(f"spot{i}").to_pylist()) for i in range(1, 5))),
-        "simulate_s": round(t1 - t0, 3),
-        "write_s": round(t2 - t1, 3),
-    }
+    summary = _simulate_disc(cfg, out, fmt, grouped)
     if as_json:
         typer.echo(json.dumps(summary))
         return
@@ -145,6 +129,49 @@ def _disc_settings(settings: list[str]) -> dict[str, float]:
         except ValueError:
             raise ConfigError(f"--set {item}: {value!r} is not a number") from None
     return out
+
+
+def _simulate_disc(cfg: SimConfig, out: Path, fmt: str, grouped: bool) -> dict[str, Any]:
+    """Simulate a disc session, write it and its truth file, and summarise both.
+
+    Parameters
+    ----------
+    cfg : SimConfig
+        What to simulate.
+    out : Path
+        Session file to write; the truth file goes beside it.
+    fmt : str
+        The session file's format (mcap, parquet or csv).
+    grouped : bool
+        MCAP: the IR spots as one grouped topic.
+
+    Returns
+    -------
+    dict
+        The summary printed (as JSON or a table): paths, facts, peak spot °C, times in s.
+    """
+    from brakethermo.sim.session import simulate, write_simulation
+
+    t0 = time.perf_counter()
+    result = simulate(cfg)
+    t1 = time.perf_counter()
+    session_path, truth_path = write_simulation(result, out, fmt, grouped=grouped)
+    t2 = time.perf_counter()
+    truth = result.truth
+    return {
+        "session": str(session_path),
+        "truth": str(truth_path),
+        "format": fmt,
+        "track": result.session.facts["track"],
+        "laps": cfg.laps,
+        "seed": cfg.seed,
+        "effects": {n: v for n, v in cfg.strengths.items() if v > 0},
+        "duration_s": float(truth.column("time")[-1].as_py()),
+        "channels": [c.name for c in result.session.channels],
+        "peak_spot_c": float(max(max(truth.column(f"spot{i}").to_pylist()) for i in range(1, 5))),
+        "simulate_s": round(t1 - t0, 3),
+        "write_s": round(t2 - t1, 3),
+    }
 
 
 def _simulate_rig(

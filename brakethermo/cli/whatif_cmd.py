@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.markup import escape
@@ -13,6 +13,9 @@ from rich.table import Table
 from brakethermo.cli._app import app, console, run_with_status
 from brakethermo.cli._options import AliasesOpt, AmbientOpt, JsonOpt, OutDir, TuningOpt
 from brakethermo.errors import ConfigError
+
+if TYPE_CHECKING:
+    from brakethermo.pipelines.whatif import Scenario
 
 SCENARIO_KEYS = ("cooling", "disc", "ambient", "pads")
 FIELD = {"cooling": "cooling", "ambient": "ambient_c", "pads": "heat_share"}
@@ -91,16 +94,12 @@ def whatif_cmd(
 ) -> None:
     """Replay the session's own laps with a change: window, peaks, friction, heat to the tyre."""
     from brakethermo.pipelines.outputs import to_json
-    from brakethermo.pipelines.whatif import Scenario, WhatifOptions, whatif_session, write_whatif
+    from brakethermo.pipelines.whatif import WhatifOptions, whatif_session, write_whatif
     from brakethermo.report.session_links import refresh_page_links
-    from brakethermo.report.whatif_page import shown, write_whatif_page
+    from brakethermo.report.whatif_page import write_whatif_page
     from brakethermo.thermal.tyre_radiation import TyreView
 
-    scenarios = [Scenario(cooling=c) for c in cooling or []]
-    scenarios += [Scenario(disc=d) for d in disc or []]
-    scenarios += [Scenario(ambient_c=a) for a in ambient or []]
-    scenarios += [Scenario(heat_share=p) for p in pads or []]
-    scenarios += [Scenario(**parse_scenario(s)) for s in scenario or []]  # type: ignore[arg-type]
+    scenarios = _scenarios(cooling, disc, ambient, pads, scenario)
     if not math.isfinite(tyre_temp) or not -20.0 <= tyre_temp <= 200.0:
         raise ConfigError(f"--tyre-temp {tyre_temp}: give the sidewall in degC, -20 to 200")
     opts = WhatifOptions(scenarios=tuple(scenarios), h_law=h_law, spot=spot, disc=session_disc,
@@ -114,13 +113,57 @@ def whatif_cmd(
     if as_json:
         typer.echo(to_json(res.summary))
         return
-    labels = [s["label"] for s in res.summary["scenarios"]]
+    console.print(_laps_table(res.summary, session))
+    console.print(f"h law: {escape(str(res.summary['run']['h_law']))}", highlight=False)
+    console.print(f"written: {escape(str(folder / 'whatif.parquet'))}, {escape(str(page))}")
+
+
+def _scenarios(cooling: list[float] | None, disc: list[str] | None, ambient: list[float] | None,
+               pads: list[float] | None, scenario: list[str] | None) -> list[Scenario]:
+    """One scenario per single change given, then one per ``--scenario``, in that order.
+
+    Parameters
+    ----------
+    cooling : list of float or None
+        Factors on the disc's convection (dimensionless).
+    disc : list of str or None
+        Other discs (datasheet ids or TOML files).
+    ambient : list of float or None
+        Air temperatures, degC.
+    pads : list of float or None
+        Shares of the friction heat entering the disc (dimensionless).
+    scenario : list of str or None
+        Combined changes, as :func:`parse_scenario` reads them.
+    """
+    from brakethermo.pipelines.whatif import Scenario
+
+    scenarios = [Scenario(cooling=c) for c in cooling or []]
+    scenarios += [Scenario(disc=d) for d in disc or []]
+    scenarios += [Scenario(ambient_c=a) for a in ambient or []]
+    scenarios += [Scenario(heat_share=p) for p in pads or []]
+    scenarios += [Scenario(**parse_scenario(s)) for s in scenario or []]  # type: ignore[arg-type]
+    return scenarios
+
+
+def _laps_table(summary: dict[str, Any], session: Path) -> Table:
+    """Per lap, the base and each scenario: contact-band peak °C (95 % band) and % in window.
+
+    Parameters
+    ----------
+    summary : dict
+        The what-if's summary (scenarios and laps).
+    session : Path
+        The replayed session, for the title.
+    """
+    from brakethermo.report.whatif_page import shown
+
+    labels = [s["label"] for s in summary["scenarios"]]
     tab = Table(title=f"whatif — {escape(Path(session).name)}: contact band per lap")
     tab.add_column("lap")
     tab.add_column("base peak °C / in window %")
     for lab in labels:
         tab.add_column(escape(f"{shown(lab)}: peak °C (95 %) / in window %"))
-    for row in res.summary["laps"]:
+    for row in summary["laps"]:
         b = row["base"]
         cells = ["out-lap" if row["lap"] == 0 else str(row["lap"]),
                  f"{_fmt(b['peak_contact_c'])} / {_fmt(b['time_in_window_pct'])}"]
@@ -129,6 +172,4 @@ def whatif_cmd(
             cells.append(f"{_fmt(s['peak_contact_c'])} (±{_fmt(s['peak_contact_band95_c'])})"
                          f" / {_fmt(s['time_in_window_pct'])}")
         tab.add_row(*cells)
-    console.print(tab)
-    console.print(f"h law: {escape(str(res.summary['run']['h_law']))}", highlight=False)
-    console.print(f"written: {escape(str(folder / 'whatif.parquet'))}, {escape(str(page))}")
+    return tab

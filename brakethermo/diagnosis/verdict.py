@@ -290,6 +290,36 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
     """
     rule = rule or VerdictRule()
     by_name = {c.name: c for c in candidates}
+    rows = _ranked_rows(sse_before, candidates, rule)
+    significant = [r["name"] for r in rows if r["significant"]]
+    undecided = [r["name"] for r in rows if not r["significant"]
+                 and np.isfinite(r["shrink_ci95_pct"][1])
+                 and r["shrink_ci95_pct"][1] > rule.min_shrink_pct]
+    reasons: list[str] = []
+    verdict_set: list[str] = []
+    if significant:
+        verdict_set, reasons = _verdict_set(sse_before, rows, significant, undecided, by_name,
+                                            rule)
+    next_steps = _next_steps(verdict_set, undecided, rows, by_name, untestable)
+    unseen = {n: why for n, why in (untestable or {}).items()
+              if n in by_name and n not in significant}
+    next_steps += [f"{n} cannot be told on this data: {why}" for n, why in unseen.items()
+                   if n not in undecided]
+    return Decision(verdict_set[0] if verdict_set else "none", verdict_set, rows, undecided,
+                    next_steps, reasons, rule, unseen)
+
+
+def _ranked_rows(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
+                 rule: VerdictRule) -> list[dict[str, Any]]:
+    """Each candidate's shrink, interval and significance (its signature's too), ranked
+    by shrink, largest first.
+
+    Parameters
+    ----------
+    sse_before : numpy.ndarray — (U,) or (U, m) held-out SSE per unit of the reference.
+    candidates : sequence of CandidateEvidence — each with the same units.
+    rule : VerdictRule
+    """
     rows = []
     for c in candidates:
         point, lo, hi = shrink_interval(_total(sse_before, c.outputs), c.total(), rule)
@@ -301,51 +331,65 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
     rows.sort(key=lambda r: -np.nan_to_num(r["shrink_pct"], nan=-1e9))
     for rank, row in enumerate(rows, start=1):
         row["rank"] = rank
-    significant = [r["name"] for r in rows if r["significant"]]
-    undecided = [r["name"] for r in rows if not r["significant"]
-                 and np.isfinite(r["shrink_ci95_pct"][1])
-                 and r["shrink_ci95_pct"][1] > rule.min_shrink_pct]
+    return rows
+
+
+def _verdict_set(sse_before: np.ndarray, rows: list[dict[str, Any]], significant: list[str],
+                 undecided: list[str], by_name: Mapping[str, CandidateEvidence],
+                 rule: VerdictRule) -> tuple[list[str], list[str]]:
+    """The best significant candidate and those it does not beat clearly (module
+    docstring), the simplest of them first, at most ``rule.max_set``; and the reasons.
+
+    Records each comparison with the first in its row (``vs_first_pp``); ``significant``
+    is not empty.
+    """
     reasons: list[str] = []
-    verdict_set: list[str] = []
-    if significant:
-        top = significant[0]
-        verdict_set = [top]
-        # An undecided candidate may be the cause as well: the first stands alone only
-        # when it beats those clearly too.
-        for name in significant[1:] + undecided:
-            cols = _common(by_name[top].outputs, by_name[name].outputs)
-            d, lo, hi = difference_interval(_total(sse_before, cols), by_name[top].total(cols),
-                                            by_name[name].total(cols), rule)
-            r = correlation(by_name[top].correction, by_name[name].correction)
-            alike = f", corrections correlated {r:.2f}" if np.isfinite(r) else ""
-            row = next(x for x in rows if x["name"] == name)
-            row["vs_first_pp"] = {"point": d, "ci95": [lo, hi], "correlation": r}
-            top_ci = next(x for x in rows if x["name"] == top)["shrink_ci95_pct"]
-            look_alike = (np.isfinite(r) and r > rule.correlated
-                          and row["shrink_ci95_pct"][1] >= top_ci[0])
-            if lo > rule.clear_margin_pct and not look_alike:
-                reasons.append(f"{top} beats {name} by {d:.1f} points (95 % interval"
-                               f" {lo:.1f} to {hi:.1f}{alike})")
-            else:
-                verdict_set.append(name)
-                why = (f"their corrections are alike ({r:.2f} > {rule.correlated:g}) and"
-                       " their shrink intervals overlap" if look_alike and
-                       lo > rule.clear_margin_pct else "")
-                reasons.append(f"{top} does not beat {name} clearly: {d:.1f} points (95 %"
-                               f" interval {lo:.1f} to {hi:.1f}{alike})"
-                               + (f"; {why}" if why else ""))
-        named = [n for n in verdict_set if n in significant]
-        if len(named) > 1 and all(by_name[n].n_params for n in named):
-            simplest = min(named, key=lambda n: by_name[n].n_params)
-            if by_name[simplest].n_params < by_name[verdict_set[0]].n_params:
-                reasons.append(f"{simplest} first: of those the data cannot tell apart, it"
-                               f" adds the fewest parameters ({by_name[simplest].n_params})")
-                verdict_set.remove(simplest)
-                verdict_set.insert(0, simplest)
-        if len(verdict_set) > rule.max_set:
-            reasons.append("also significant, not separated: "
-                           + ", ".join(verdict_set[rule.max_set:]))
-            verdict_set = verdict_set[: rule.max_set]
+    top = significant[0]
+    verdict_set = [top]
+    # An undecided candidate may be the cause as well: the first stands alone only
+    # when it beats those clearly too.
+    for name in significant[1:] + undecided:
+        cols = _common(by_name[top].outputs, by_name[name].outputs)
+        d, lo, hi = difference_interval(_total(sse_before, cols), by_name[top].total(cols),
+                                        by_name[name].total(cols), rule)
+        r = correlation(by_name[top].correction, by_name[name].correction)
+        alike = f", corrections correlated {r:.2f}" if np.isfinite(r) else ""
+        row = next(x for x in rows if x["name"] == name)
+        row["vs_first_pp"] = {"point": d, "ci95": [lo, hi], "correlation": r}
+        top_ci = next(x for x in rows if x["name"] == top)["shrink_ci95_pct"]
+        look_alike = (np.isfinite(r) and r > rule.correlated
+                      and row["shrink_ci95_pct"][1] >= top_ci[0])
+        if lo > rule.clear_margin_pct and not look_alike:
+            reasons.append(f"{top} beats {name} by {d:.1f} points (95 % interval"
+                           f" {lo:.1f} to {hi:.1f}{alike})")
+        else:
+            verdict_set.append(name)
+            why = (f"their corrections are alike ({r:.2f} > {rule.correlated:g}) and"
+                   " their shrink intervals overlap" if look_alike and
+                   lo > rule.clear_margin_pct else "")
+            reasons.append(f"{top} does not beat {name} clearly: {d:.1f} points (95 %"
+                           f" interval {lo:.1f} to {hi:.1f}{alike})"
+                           + (f"; {why}" if why else ""))
+    named = [n for n in verdict_set if n in significant]
+    if len(named) > 1 and all(by_name[n].n_params for n in named):
+        simplest = min(named, key=lambda n: by_name[n].n_params)
+        if by_name[simplest].n_params < by_name[verdict_set[0]].n_params:
+            reasons.append(f"{simplest} first: of those the data cannot tell apart, it"
+                           f" adds the fewest parameters ({by_name[simplest].n_params})")
+            verdict_set.remove(simplest)
+            verdict_set.insert(0, simplest)
+    if len(verdict_set) > rule.max_set:
+        reasons.append("also significant, not separated: "
+                       + ", ".join(verdict_set[rule.max_set:]))
+        verdict_set = verdict_set[: rule.max_set]
+    return verdict_set, reasons
+
+
+def _next_steps(verdict_set: list[str], undecided: list[str], rows: list[dict[str, Any]],
+                by_name: Mapping[str, CandidateEvidence],
+                untestable: Mapping[str, str] | None) -> list[str]:
+    """How to carry the verdict forward, or what would separate its set, then what would
+    decide each undecided candidate."""
     next_steps: list[str] = []
     if len(verdict_set) == 1:
         if by_name[verdict_set[0]].next_step:
@@ -364,9 +408,4 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
         hint = (untestable or {}).get(name) or by_name[name].separate_by or "more held-out laps"
         next_steps.append(f"{name} undecided (held-out shrink {lo:.0f} to {hi:.0f} %): "
                           f"{hint}")
-    unseen = {n: why for n, why in (untestable or {}).items()
-              if n in by_name and n not in significant}
-    next_steps += [f"{n} cannot be told on this data: {why}" for n, why in unseen.items()
-                   if n not in undecided]
-    return Decision(verdict_set[0] if verdict_set else "none", verdict_set, rows, undecided,
-                    next_steps, reasons, rule, unseen)
+    return next_steps

@@ -12,6 +12,8 @@ from scipy.linalg.blas import dtrmm
 from brakethermo.errors import ConfigError
 from brakethermo.estimation._forward import (
     MatrixOrCallable,
+    Moments,
+    Predictor,
     Store,
     as_provider,
     check_prior,
@@ -161,47 +163,13 @@ class UnscentedKalmanFilter:
         if self._use_numba(n):
             return self._run_numba(x0, P0, y, store, store_dtype, readout)
         w = self.weights(n)
-        B = 2 * n + 1
-        Wm, Wc, c = w.Wm, w.Wc, w.c
         Q_of = as_provider(self.Q, (n, n), "Q")
         R_of = as_provider(self.R, (m, m), "R")
         H_of = None if self.H is None else as_provider(self.H, (m, n), "H")
-        f, h = self.f, self.h
-        X = np.empty((B, n))
-        half_over_c = 0.5 / c
-
-        def predict(x: Array, P: Array, L: Array, k: int) -> tuple[Array, Array, Array]:
-            sigma_points(x, L, c, out=X)
-            Xf = f(X, k)  # eq. 35, all sigma points in one call
-            if Xf.shape != X.shape:
-                raise ConfigError(f"model f returned shape {Xf.shape}, expected {X.shape}")
-            x_p = Wm @ Xf  # eq. 36
-            D = Xf - x_p
-            D1 = D[1:]
-            # eq. 37; the 2n outer sigma points share one weight: one GEMM, then scale
-            P_p = D1.T @ D1
-            P_p *= Wc[1]
-            P_p += Wc[0] * np.outer(D[0], D[0])
-            P_p += Q_of(k)
-            # C_k = sum_i Wc_i (X_i - x)(Xf_i - x_p)'; X_i - x = +-c L_j and Wc_i = 1/(2c^2);
-            # L is triangular: TRMM, half the flops of a general product
-            C = dtrmm(half_over_c, L, D[1 : n + 1] - D[n + 1 :], lower=1)
-            return x_p, P_p, C
-
-        Xm = np.empty((B, n))
-
-        def moments(x: Array, P: Array, L: Array, k: int) -> tuple[Array, Array, Array]:
-            sigma_points(x, L, c, out=Xm)  # eq. 38-40
-            Y = np.asarray(h(Xm, k), dtype=np.float64)  # eq. 41
-            mu = Wm @ Y  # eq. 42
-            DY = Y - mu
-            S0 = (DY.T * Wc) @ DY  # eq. 43 without R
-            Cxy = L @ (DY[1 : n + 1] - DY[n + 1 :]) * half_over_c  # eq. 44
-            return mu, S0, Cxy
-
+        h = self.h
         return run_forward(
-            predict,
-            None if h is None else moments,
+            _sigma_predictor(self.f, Q_of, w),
+            None if h is None else _sigma_moments(h, w),
             H_of,
             R_of,
             x0,
@@ -262,3 +230,64 @@ class UnscentedKalmanFilter:
                 y, M, *tail,
             )  # fmt: skip
         return ks.result(P)
+
+
+def _sigma_predictor(f: BatchedTransition, Q_of: Callable[[int], Array], w: MerweWeights
+                     ) -> Predictor:
+    """The unscented prediction (eq. 35-37) and its cross-covariance, over one sigma buffer.
+
+    Parameters
+    ----------
+    f : callable — the batched process model ``f(X (B, n), k) -> (B, n)``.
+    Q_of : callable — process-noise covariance of the step k -> k+1, squared state units.
+    w : MerweWeights — sigma-point weights of the state's dimension.
+    """
+    n = w.n
+    Wm, Wc, c = w.Wm, w.Wc, w.c
+    X = np.empty((2 * n + 1, n))
+    half_over_c = 0.5 / c
+
+    def predict(x: Array, P: Array, L: Array, k: int) -> tuple[Array, Array, Array]:
+        sigma_points(x, L, c, out=X)
+        Xf = f(X, k)  # eq. 35, all sigma points in one call
+        if Xf.shape != X.shape:
+            raise ConfigError(f"model f returned shape {Xf.shape}, expected {X.shape}")
+        x_p = Wm @ Xf  # eq. 36
+        D = Xf - x_p
+        D1 = D[1:]
+        # eq. 37; the 2n outer sigma points share one weight: one GEMM, then scale
+        P_p = D1.T @ D1
+        P_p *= Wc[1]
+        P_p += Wc[0] * np.outer(D[0], D[0])
+        P_p += Q_of(k)
+        # C_k = sum_i Wc_i (X_i - x)(Xf_i - x_p)'; X_i - x = +-c L_j and Wc_i = 1/(2c^2);
+        # L is triangular: TRMM, half the flops of a general product
+        C = dtrmm(half_over_c, L, D[1 : n + 1] - D[n + 1 :], lower=1)
+        return x_p, P_p, C
+
+    return predict
+
+
+def _sigma_moments(h: BatchedTransition, w: MerweWeights) -> Moments:
+    """The measurement's unscented moments (eq. 38-44) from the prior, over one buffer.
+
+    Parameters
+    ----------
+    h : callable — the batched measurement ``h(X (B, n), k) -> (B, m)``.
+    w : MerweWeights — sigma-point weights of the state's dimension.
+    """
+    n = w.n
+    Wm, Wc, c = w.Wm, w.Wc, w.c
+    Xm = np.empty((2 * n + 1, n))
+    half_over_c = 0.5 / c
+
+    def moments(x: Array, P: Array, L: Array, k: int) -> tuple[Array, Array, Array]:
+        sigma_points(x, L, c, out=Xm)  # eq. 38-40
+        Y = np.asarray(h(Xm, k), dtype=np.float64)  # eq. 41
+        mu = Wm @ Y  # eq. 42
+        DY = Y - mu
+        S0 = (DY.T * Wc) @ DY  # eq. 43 without R
+        Cxy = L @ (DY[1 : n + 1] - DY[n + 1 :]) * half_over_c  # eq. 44
+        return mu, S0, Cxy
+
+    return moments

@@ -265,6 +265,63 @@ def _backward_pass(
     return smoothed, peak
 
 
+def _window_runner(ukf: UnscentedKalmanFilter, y: Array, spans: tuple[tuple[int, int], ...],
+                   dtype: np.dtype, readout: Array | None
+                   ) -> Callable[[int, Array, Array], FilterResult]:
+    """The forward run of window ``j`` from its prior ``(x, P)``, with the gains stored.
+
+    Parameters
+    ----------
+    ukf : UnscentedKalmanFilter — the filter, its steps the session's.
+    y : ndarray (K, m) — the session's measurements.
+    spans : tuple of (int, int) — each window's steps ``[a, b)``.
+    dtype : numpy dtype — of the stored gains and Sigma.
+    readout : ndarray (p, n), optional — the readout matrix recorded each step.
+    """
+    K = y.shape[0]
+
+    def run_window(j: int, x: Array, P: Array) -> FilterResult:
+        a, b = spans[j]
+        if b == K:
+            seg = y[a:]
+        else:
+            # one step more, measurement-free: its posterior is the prior of step b,
+            # the next window's start
+            seg = y[a : b + 1].copy()
+            seg[-1] = np.nan
+        return _window_filter(ukf, a).run(x, P, seg, store="smoother", store_dtype=dtype,
+                                          readout=readout)
+
+    return run_window
+
+
+def _forward_pass(
+    spans: tuple[tuple[int, int], ...], run_window: Callable[[int, Array, Array], FilterResult],
+    x0: Array, P0: Array, ckpt: Path, trace: _Trace,
+) -> tuple[FilterResult | None, int]:
+    """The first forward pass, window by window: each window's prior checkpointed in
+    ``ckpt`` (when there are several), its per-step facts into ``trace``; the last
+    window's run (whose gains the backward pass starts from) and the most bytes of gains
+    held at once. Earlier windows' gains are dropped as soon as their facts are taken."""
+    K = spans[-1][1]
+    peak = 0
+    x, P = x0, P0
+    last: FilterResult | None = None
+    for j, (a, b) in enumerate(spans):
+        if len(spans) > 1 and b < K:
+            np.save(ckpt / f"x{j}.npy", x)
+            np.save(ckpt / f"P{j}.npy", P)
+        res = run_window(j, x, P)
+        peak = max(peak, _gain_bytes(res))
+        trace.take(res, a, b)
+        if b == K:
+            last = res
+        else:
+            x, P = res.x_filt[-1].copy(), res.P_last.copy()
+        del res
+    return last, peak
+
+
 def urts_smooth_windowed(
     ukf: UnscentedKalmanFilter,
     x0: Array,
@@ -315,40 +372,14 @@ def urts_smooth_windowed(
     M = readout_matrix(readout, n)
     p = M.shape[0]
     ro_arg = None if readout is None else M
-
-    def run_window(j: int, x: Array, P: Array) -> FilterResult:
-        a, b = spans[j]
-        if b == K:
-            seg = y[a:]
-        else:
-            # one step more, measurement-free: its posterior is the prior of step b,
-            # the next window's start
-            seg = y[a : b + 1].copy()
-            seg[-1] = np.nan
-        return _window_filter(ukf, a).run(x, P, seg, store="smoother", store_dtype=dtype,
-                                          readout=ro_arg)
-
+    run_window = _window_runner(ukf, y, spans, dtype, ro_arg)
     trace = _Trace(K, m, p)
-    peak = 0
 
     t0 = time.perf_counter()
     _remove_stale_checkpoints()
     with tempfile.TemporaryDirectory(prefix=f"{CHECKPOINT_PREFIX}{os.getpid()}-") as tmp:
         ckpt = Path(tmp)
-        x, P = x0, P0
-        last: FilterResult | None = None
-        for j, (a, b) in enumerate(spans):
-            if len(spans) > 1 and b < K:
-                np.save(ckpt / f"x{j}.npy", x)
-                np.save(ckpt / f"P{j}.npy", P)
-            res = run_window(j, x, P)
-            peak = max(peak, _gain_bytes(res))
-            trace.take(res, a, b)
-            if b == K:
-                last = res
-            else:
-                x, P = res.x_filt[-1].copy(), res.P_last.copy()
-            del res
+        last, peak = _forward_pass(spans, run_window, x0, P0, ckpt, trace)
         t1 = time.perf_counter()
 
         def rerun(j: int) -> FilterResult:

@@ -28,7 +28,7 @@ from brakethermo.io.formats import BY_SUFFIX, FORMATS
 from brakethermo.io.laps import lap_length_warnings, laps_from_beacons, validate_beacons
 from brakethermo.io.raw import RawChannel, RawSession
 from brakethermo.io.resample import grid, hampel, resample, sort_checked
-from brakethermo.io.session import GRID_DT, ChannelInfo, Session
+from brakethermo.io.session import GRID_DT, ChannelInfo, Lap, Session
 from brakethermo.io.timebase import settle
 from brakethermo.io.units import CANONICAL_CHANNELS, si_unit, to_si
 
@@ -193,6 +193,34 @@ def _on_grid(series: _Series, t_grid: np.ndarray, gap_limit_s: float, warnings: 
     return columns, infos
 
 
+def _alias_table(aliases: str | Path | Mapping[str, tuple[str, ...]] | None) -> AliasTable:
+    """The alias table: a ready mapping as given, else the shipped table merged with the
+    user's alias file, if any (:func:`load_aliases`)."""
+    return (
+        {k: tuple(v) for k, v in aliases.items()}
+        if isinstance(aliases, Mapping)
+        else load_aliases(aliases)
+    )
+
+
+def _laps(raw: RawSession, found: dict[str, str], t_grid: np.ndarray, warnings: list[str]
+          ) -> tuple[tuple[Lap, ...], np.ndarray]:
+    """The laps and the lap of every grid time, from the beacon channel if the file
+    maps one (its notes appended to ``warnings``), else the whole session as lap 0."""
+    path = raw.path
+    if "lap_beacon" not in found:
+        return laps_from_beacons(np.empty(0), np.empty(0), t_grid, raw.end_s, path=path)
+    src = {c.name: c for c in raw.channels}[found["lap_beacon"]]
+    tb, vb, _ = _finite(src)
+    tb, vb = sort_checked(tb, vb, path=path, channel=src.name,
+                          time_ordered=time_ordered(raw))
+    tb, vb, notes = validate_beacons(tb, vb, path=path, channel=src.name)
+    warnings.extend(notes)
+    laps, lap = laps_from_beacons(tb, vb, t_grid, raw.end_s, path=path, channel=src.name)
+    warnings.extend(lap_length_warnings(laps, src.name))
+    return laps, lap
+
+
 def load_session(
     path: str | Path,
     *,
@@ -240,14 +268,9 @@ def load_session(
     """
     if not (math.isfinite(gap_limit_s) and gap_limit_s > 0):
         raise DataError(f"gap limit must be a finite number of seconds > 0, got {gap_limit_s}")
-    table: AliasTable = (
-        {k: tuple(v) for k, v in aliases.items()}
-        if isinstance(aliases, Mapping)
-        else load_aliases(aliases)
-    )
+    table = _alias_table(aliases)
     raw = read_raw(path, indexed)
     path = raw.path
-    by_name = {c.name: c for c in raw.channels}
     found = resolve(table, raw.names)
     if not any(c.t.size for c in raw.channels):
         raise DataError("the file holds no samples", path=path)
@@ -259,17 +282,7 @@ def load_session(
     t_grid = grid(raw.end_s, dt)
 
     columns, infos = _on_grid(series, t_grid, gap_limit_s, warnings)
-    if "lap_beacon" in found:
-        src = by_name[found["lap_beacon"]]
-        tb, vb, _ = _finite(src)
-        tb, vb = sort_checked(tb, vb, path=path, channel=src.name,
-                              time_ordered=time_ordered(raw))
-        tb, vb, notes = validate_beacons(tb, vb, path=path, channel=src.name)
-        warnings.extend(notes)
-        laps, lap = laps_from_beacons(tb, vb, t_grid, raw.end_s, path=path, channel=src.name)
-        warnings.extend(lap_length_warnings(laps, src.name))
-    else:
-        laps, lap = laps_from_beacons(np.empty(0), np.empty(0), t_grid, raw.end_s, path=path)
+    laps, lap = _laps(raw, found, t_grid, warnings)
     frame = pd.DataFrame({"time": t_grid, "lap": lap, **columns})
     return Session(
         path=path,

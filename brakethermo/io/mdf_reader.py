@@ -139,6 +139,48 @@ def _label_copies(names: list[str], groups: list[int], values: list[np.ndarray],
     return labels
 
 
+def _wanted(mdf: Any) -> tuple[list[tuple[str, int, int]], int]:
+    """The channels to read, as (name, group index, channel index), and how many bus
+    frame channels (and their components) were left out."""
+    wanted: list[tuple[str, int, int]] = []
+    skipped_bus = 0
+    for gi, group in enumerate(mdf.groups):
+        skip = _skip_names(group)
+        skipped_bus += len(skip)
+        master = mdf.masters_db.get(gi)
+        for ci, ch in enumerate(group.channels):
+            if ci == master or ch.channel_type in (2, 3) or ch.name in skip:
+                continue  # master (time) and virtual master channels
+            wanted.append((ch.name, gi, ci))
+    return wanted, skipped_bus
+
+
+def _numeric(
+    wanted: list[tuple[str, int, int]], signals: list[Any], warnings: list[str]
+) -> tuple[list[str], list[int], list[np.ndarray], list[np.ndarray], list[str | None]]:
+    """Names, groups, times (s), values and units of the numeric 1-D signals; a text
+    channel is left out with a warning, other non-numeric records silently."""
+    names: list[str] = []
+    times: list[np.ndarray] = []
+    values: list[np.ndarray] = []
+    units: list[str | None] = []
+    groups: list[int] = []
+    for (name, gi, _), sig in zip(wanted, signals, strict=True):
+        samples = np.asarray(sig.samples)
+        if samples.ndim != 1 or samples.dtype.kind not in "biuf":
+            if samples.dtype.kind in "SUO":
+                warnings.append(
+                    f"channel '{name}' holds text (a value-to-text conversion); ignored"
+                )
+            continue
+        names.append(name)
+        groups.append(gi)
+        times.append(np.asarray(sig.timestamps, dtype=np.float64))
+        values.append(samples.astype(np.float64))
+        units.append(_unit(sig))
+    return names, groups, times, values, units
+
+
 def read_mdf(path: Path) -> RawSession:
     """Read an MDF 3/4 file into native-rate channels.
 
@@ -163,16 +205,7 @@ def read_mdf(path: Path) -> RawSession:
     version = str(mdf.version)
     try:
         facts, start_epoch = _facts(mdf)
-        wanted: list[tuple[str, int, int]] = []
-        skipped_bus = 0
-        for gi, group in enumerate(mdf.groups):
-            skip = _skip_names(group)
-            skipped_bus += len(skip)
-            master = mdf.masters_db.get(gi)
-            for ci, ch in enumerate(group.channels):
-                if ci == master or ch.channel_type in (2, 3) or ch.name in skip:
-                    continue  # master (time) and virtual master channels
-                wanted.append((ch.name, gi, ci))
+        wanted, skipped_bus = _wanted(mdf)
         signals = []
         if wanted:
             try:
@@ -188,25 +221,8 @@ def read_mdf(path: Path) -> RawSession:
     finally:
         mdf.close()
 
-    names: list[str] = []
-    times: list[np.ndarray] = []
-    values: list[np.ndarray] = []
-    units: list[str | None] = []
     warnings: list[str] = []
-    groups: list[int] = []
-    for (name, gi, _), sig in zip(wanted, signals, strict=True):
-        samples = np.asarray(sig.samples)
-        if samples.ndim != 1 or samples.dtype.kind not in "biuf":
-            if samples.dtype.kind in "SUO":
-                warnings.append(
-                    f"channel '{name}' holds text (a value-to-text conversion); ignored"
-                )
-            continue
-        names.append(name)
-        groups.append(gi)
-        times.append(np.asarray(sig.timestamps, dtype=np.float64))
-        values.append(samples.astype(np.float64))
-        units.append(_unit(sig))
+    names, groups, times, values, units = _numeric(wanted, signals, warnings)
     names = _label_copies(names, groups, values, units, warnings)
     if not names:
         why = (" It looks like a raw bus log (CAN/LIN frames): decode it with the DBC first"

@@ -12,6 +12,7 @@ import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyarrow as pa
@@ -19,6 +20,9 @@ import pyarrow.parquet as pq
 
 from brakethermo.errors import ConfigError
 from brakethermo.io.atomic import atomic_path, write_bytes_atomic
+
+if TYPE_CHECKING:  # imported where used: mcap is not loaded by commands that write no MCAP
+    from mcap.writer import Writer
 
 FORMATS = ("mcap", "parquet", "csv")
 _SCHEMA_VALUE = {"type": "object", "properties": {"value": {"type": "number"}}}
@@ -144,9 +148,27 @@ def mcap_bytes(
     writer.start(profile="", library="brakethermo")
     writer.add_metadata("session", {str(k): str(v) for k, v in data.facts.items()})
     events: list[tuple[int, int, int, bytes]] = []  # (log_time, channel order, seq, payload)
+    order = _channel_events(writer, data.channels, grouped, events)
+    _group_events(writer, groups or {}, by_name, order, events)
 
+    events.sort(key=lambda e: (e[0], e[1]))
+    seq: dict[int, int] = {}
+    for t, _, cid, payload in events:
+        seq[cid] = seq.get(cid, 0) + 1
+        writer.add_message(cid, log_time=t, data=payload, publish_time=t, sequence=seq[cid])
+    writer.finish()
+    return buf.getvalue()
+
+
+def _channel_events(
+    writer: Writer, channels: Sequence[Channel], grouped: set[str],
+    events: list[tuple[int, int, int, bytes]],
+) -> int:
+    """Register one topic per channel not in a group and append its messages to
+    ``events`` as (log time ns, topic order, channel id, JSON payload); returns the order
+    of the next topic."""
     order = 0
-    for ch in data.channels:
+    for ch in channels:
         if ch.name in grouped:
             continue
         schema = writer.register_schema(
@@ -163,8 +185,16 @@ def mcap_bytes(
             if v == v:  # NaN samples are missing samples
                 events.append((t, order, cid, f'{{"value":{_fmt(v, ch.decimals)}}}'.encode()))
         order += 1
+    return order
 
-    for topic, fields in (groups or {}).items():
+
+def _group_events(
+    writer: Writer, groups: Mapping[str, Mapping[str, str]], by_name: Mapping[str, Channel],
+    order: int, events: list[tuple[int, int, int, bytes]],
+) -> None:
+    """Register one topic per group, its fields the member channels' samples, and append
+    its messages to ``events`` as :func:`_channel_events` does, topic order from ``order``."""
+    for topic, fields in groups.items():
         members = [by_name[c] for c in fields.values()]
         t0 = np.asarray(members[0].time)
         if any(not np.array_equal(np.asarray(m.time), t0) for m in members):
@@ -191,14 +221,6 @@ def mcap_bytes(
             if parts:
                 events.append((t, order, cid, ("{" + ",".join(parts) + "}").encode()))
         order += 1
-
-    events.sort(key=lambda e: (e[0], e[1]))
-    seq: dict[int, int] = {}
-    for t, _, cid, payload in events:
-        seq[cid] = seq.get(cid, 0) + 1
-        writer.add_message(cid, log_time=t, data=payload, publish_time=t, sequence=seq[cid])
-    writer.finish()
-    return buf.getvalue()
 
 
 def _union_time(channels: Sequence[Channel]) -> tuple[np.ndarray, list[np.ndarray]]:

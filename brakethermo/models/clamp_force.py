@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 
 from brakethermo.errors import ConfigError
 from brakethermo.estimation.consistency import nis_consistency, variance_scale
-from brakethermo.estimation.kf import kalman_filter_tv
+from brakethermo.estimation.kf import LinearFilterResult, kalman_filter_tv
 from brakethermo.numeric import rmse
 from brakethermo.rigs.emb import (
     DynamicStiffness,
@@ -405,19 +405,7 @@ def estimate(
     Q, R = q_scale * models.sigma_ds**2, models.sigma_tb**2
     y = F_tb[:, None]
 
-    # paper's scalar filter: x(k+1) = α0 x(k) + u(k+1)  (eq. 6, 12), z = x + v (eq. 13)
-    b = np.zeros((K, 1))
-    b[:-1, 0] = u[1:]
-    res = kalman_filter_tv(
-        np.array([[ds.alpha0]]),
-        np.array([[Q]]),
-        np.eye(1),
-        np.array([[R]]),
-        np.array([F_ds[0]]),
-        np.array([[Q]]),
-        y,
-        b,
-    )
+    res = _paper_filter(ds.alpha0, u, F_ds[0], y, Q, R)
     kf_paper = res.x_filt[:, 0]
     # the session decides (no force sensor needed): the adaptive filter only where the
     # fixed one is over-confident, its innovations larger than its noise settings admit
@@ -425,21 +413,7 @@ def estimate(
     nis = float(np.nanmean(nu**2 / (res.P_pred[:, 0, 0] + R)))
     switched = nis > NIS_LIMIT or (check is not None and check.adaptive)
 
-    # adaptive: state [F, s], transition [[α0, u(k+1)], [0, 1]]
-    A = np.zeros((K, 2, 2))
-    A[:, 0, 0] = ds.alpha0
-    A[:-1, 0, 1] = u[1:]
-    A[:, 1, 1] = 1.0
-    Qa = np.diag([Q, factor_walk**2 * ts])
-    ra = kalman_filter_tv(
-        A,
-        Qa,
-        np.array([[1.0, 0.0]]),
-        np.array([[R]]),
-        np.array([F_ds[0], 1.0]),
-        np.diag([Q, 0.1**2]),
-        y,
-    )
+    ra = _adaptive_filter(ds.alpha0, u, F_ds[0], y, Q, R, factor_walk**2 * ts)
     kf, kf_std, scale, consistency = _band(ra if switched else res, F_tb, R, check)
     source = "kf"
     if check is not None and not check.fusion_holds:
@@ -462,6 +436,58 @@ def estimate(
         kf_source=source,
         kf_noise_scale=float(scale) if source == "kf" else 1.0,
         kf_consistency=consistency,
+    )
+
+
+def _paper_filter(alpha0: float, u: Array, F0: float, y: Array, Q: float, R: float
+                  ) -> LinearFilterResult:
+    """The paper's scalar filter: x(k+1) = α0 x(k) + u(k+1) (eq. 6, 12), z = x + v (eq. 13).
+
+    Parameters
+    ----------
+    alpha0 : float — the stiffness model's force memory (eq. 6).
+    u : ndarray (K,) — the stiffness model's input B u(k) (eq. 12), N.
+    F0 : float — N, the initial force (the stiffness model's first value).
+    y : ndarray (K, 1) — the torque balance's force (eq. 7), N.
+    Q, R : float — N², process and measurement noise variances; P(0) = Q.
+    """
+    b = np.zeros((u.size, 1))
+    b[:-1, 0] = u[1:]
+    return kalman_filter_tv(
+        np.array([[alpha0]]),
+        np.array([[Q]]),
+        np.eye(1),
+        np.array([[R]]),
+        np.array([F0]),
+        np.array([[Q]]),
+        y,
+        b,
+    )
+
+
+def _adaptive_filter(alpha0: float, u: Array, F0: float, y: Array, Q: float, R: float,
+                     q_factor: float) -> LinearFilterResult:
+    """The adaptive filter: state [F, s], transition [[α0, u(k+1)], [0, 1]].
+
+    Parameters
+    ----------
+    alpha0, u, F0, y, Q, R : as :func:`_paper_filter`.
+    q_factor : float — variance of the stiffness factor's random walk per step (factor²).
+    """
+    K = u.size
+    A = np.zeros((K, 2, 2))
+    A[:, 0, 0] = alpha0
+    A[:-1, 0, 1] = u[1:]
+    A[:, 1, 1] = 1.0
+    Qa = np.diag([Q, q_factor])
+    return kalman_filter_tv(
+        A,
+        Qa,
+        np.array([[1.0, 0.0]]),
+        np.array([[R]]),
+        np.array([F0, 1.0]),
+        np.diag([Q, 0.1**2]),
+        y,
     )
 
 

@@ -20,6 +20,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
 from scipy.ndimage import median_filter
 
 from brakethermo.diagnosis.verdict import VerdictRule, shrink_interval
@@ -558,8 +559,24 @@ def _cards(res: ClampForceResult, summ: dict[str, Any]) -> list[Card]:
 
 def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     """The report page: RMSE table, traces, stiffness factor, wear."""
-    t = res.data.session.time
     force = scored_force(res)
+    main = _estimators_section(res, summ, force)
+    main.figures["traces"] = _traces_figure(res, force)
+    sections = [main, _adaptive_section(res)]
+    if "wear" in summ:
+        sections.append(_wear_section(summ, force is not None))
+    return Page(
+        title=f"clamp-force — {res.data.session.path.name}",
+        subtitle="EMB clamp force from resolver and motor current",
+        cards=_cards(res, summ),
+        sections=sections,
+    )
+
+
+def _estimators_section(res: ClampForceResult, summ: dict[str, Any],
+                        force: np.ndarray | None) -> Section:
+    """Each estimator's RMSE (where the session has the sensor, ``force`` N), the paper's,
+    and what it says, with the sessions and the reported estimate in words."""
     r = summ["rmse_kn"]
     e = summ["estimate_kn"]
     names = ("kf", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
@@ -571,7 +588,7 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     rmse_of = {**r, "kf_adaptive": summ["rmse_kn_adaptive"]}
     rows = [[lab, _fmt(rmse_of[n]), p, f"{e[n]['peak']:.2f}", _fmt(e[n]["mean_applied"])]
             for n, lab, p in zip(names, labels, paper, strict=True)]
-    main = Section(
+    return Section(
         "Clamp-force estimators",
         paragraphs=[
             f"Trained on {res.train.session.path.name} ({res.train.session.time[-1]:.0f} s at"
@@ -593,6 +610,12 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
             )
         ],
     )
+
+
+def _traces_figure(res: ClampForceResult, force: np.ndarray | None) -> Figure:
+    """Two seconds of every estimator's force against the sensor (``force`` N, de-lagged),
+    kN."""
+    t = res.data.session.time
     fig, ax = plt.subplots(figsize=(10, 3.6))
     # 2 s after the filters settled (or the whole of a short session)
     t0 = t[0] + 1.0 if t[-1] - t[0] > 3.0 else t[0]
@@ -607,7 +630,12 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     ax.set_ylabel("clamp force (kN)")
     ax.legend(ncol=6, fontsize=8)
     fig.tight_layout()
-    main.figures["traces"] = fig
+    return fig
+
+
+def _adaptive_section(res: ClampForceResult) -> Section:
+    """The adaptive filter's stiffness factor with its 1σ band, and why it is there."""
+    t = res.data.session.time
     fig2, ax2 = plt.subplots(figsize=(10, 2.8))
     sf, sd = res.reported.stiffness_factor, res.reported.stiffness_factor_std
     ax2.fill_between(t, sf - sd, sf + sd, alpha=0.3)
@@ -615,7 +643,7 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
     ax2.set_xlabel("time (s)")
     ax2.set_ylabel("stiffness factor (–)")
     fig2.tight_layout()
-    adapt = Section(
+    return Section(
         "Pad heating: adaptive filter",
         paragraphs=[
             "The paper held the pad temperature constant. Pads soften as they heat; the adaptive"
@@ -625,32 +653,28 @@ def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
         ],
         figures={"stiffness_factor": fig2},
     )
-    sections = [main, adapt]
-    if "wear" in summ:
-        w = summ["wear"]
-        if force is not None:
-            head = ["estimator", "RMSE not re-trained (kN)", "RMSE re-trained (kN)"]
-            rows = [[k, _fmt(w["rmse_kn_not_retrained"][k]), _fmt(w["rmse_kn_retrained"][k])]
-                    for k in ESTIMATORS]
-        else:
-            before = w["estimate_kn_not_retrained"]
-            head = ["estimator", "peak not re-trained (kN)", "peak re-trained (kN)"]
-            rows = [[k, f"{before[k]['peak']:.2f}", f"{e[k]['peak']:.2f}"] for k in ESTIMATORS]
-        sections.append(
-            Section(
-                "Wear: re-training",
-                paragraphs=[
-                    f"Re-trained on {Path(w['retraining_session']).name}"
-                    f" ({w['retraining_duration_s']:.0f} s with the sensor): every figure above"
-                    " is the re-trained models' estimate; here beside the training session's"
-                    " models' (`<column>_not_retrained` in the table)."
-                ],
-                tables=[TableBlock(head, rows)],
-            )
-        )
-    return Page(
-        title=f"clamp-force — {res.data.session.path.name}",
-        subtitle="EMB clamp force from resolver and motor current",
-        cards=_cards(res, summ),
-        sections=sections,
+
+
+def _wear_section(summ: dict[str, Any], has_sensor: bool) -> Section:
+    """The re-trained models beside the training session's: RMSE with the sensor, else
+    peak force."""
+    w = summ["wear"]
+    if has_sensor:
+        head = ["estimator", "RMSE not re-trained (kN)", "RMSE re-trained (kN)"]
+        rows = [[k, _fmt(w["rmse_kn_not_retrained"][k]), _fmt(w["rmse_kn_retrained"][k])]
+                for k in ESTIMATORS]
+    else:
+        e = summ["estimate_kn"]
+        before = w["estimate_kn_not_retrained"]
+        head = ["estimator", "peak not re-trained (kN)", "peak re-trained (kN)"]
+        rows = [[k, f"{before[k]['peak']:.2f}", f"{e[k]['peak']:.2f}"] for k in ESTIMATORS]
+    return Section(
+        "Wear: re-training",
+        paragraphs=[
+            f"Re-trained on {Path(w['retraining_session']).name}"
+            f" ({w['retraining_duration_s']:.0f} s with the sensor): every figure above"
+            " is the re-trained models' estimate; here beside the training session's"
+            " models' (`<column>_not_retrained` in the table)."
+        ],
+        tables=[TableBlock(head, rows)],
     )

@@ -11,7 +11,7 @@ followed by the RTS smoother (offline). Pressure channels, when present, only sc
 from __future__ import annotations
 
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -424,44 +424,12 @@ def _summary(
     improvement = None
     if res["ekf"] and res["ukf"] is not None:
         improvement = 100.0 * (res["ekf"] - res["ukf"]) / res["ekf"]
-    p_rmse: dict[str, dict[str, float | None]] = {}
-    cov95: dict[str, float | None] = {}
-    cov95_braking: dict[str, float | None] = {}
-    out1: dict[str, dict[str, float | None]] = {}
-    for w in OBSERVERS:
-        tr = tracks[w]
-        p_rmse[w], out1[w] = {}, {}
-        inside, total, inside_b, total_b = 0, 0, 0, 0
-        for i, state in enumerate(("p_m", "p_f", "p_r")):
-            if state not in validation:
-                p_rmse[w][state] = None
-                out1[w][state] = None
-                continue
-            err = tr.x[:, i] - validation[state]
-            ok = np.isfinite(err)
-            p_rmse[w][state] = _rmse(err)
-            z = np.abs(err[ok]) / np.maximum(tr.std[ok, i], 1e-12)
-            out1[w][state] = float(np.mean(z > 1.0))
-            inside += int(np.sum(z <= Z95))
-            total += int(ok.sum())
-            # while the brake is applied by either side's account: idle samples, both near
-            # 0, flatter the pool, and the observer's onsets and releases belong in it
-            applied = np.maximum(validation[state][ok], tr.x[ok, i]) > APPLIED_MPA
-            inside_b += int(np.sum(z[applied] <= Z95))
-            total_b += int(applied.sum())
-        cov95[w] = inside / total if total else None
-        cov95_braking[w] = inside_b / total_b if total_b >= MIN_APPLIED else None
-    warnings = list(session.warnings)
-    low = {w: c for w, c in cov95_braking.items() if c is not None and c < LOW_COVERAGE}
-    if low:
-        warnings.append(
-            "scored against this session's own pressure sensor, the 95 % band covers "
-            + ", ".join(f"{100 * c:.0f} % ({w.upper()})" for w, c in low.items())
-            + f" while the brake is applied (above {APPLIED_MPA:g} MPa): the booster does"
-            " not follow the training session's relation here beyond what the band admits —"
-            " its p–V curve shifted or scaled since (seals, fluid), or the pressure sensor or"
-            " its unit is off; `diagnose --rig ebooster` on this session names and sizes a"
-            " shift, `--with-effect auto` carries it, or retrain on a session of the day")
+    scores = {w: _pressure_scores(tracks[w], validation) for w in OBSERVERS}
+    p_rmse = {w: sc.rmse_mpa for w, sc in scores.items()}
+    cov95 = {w: sc.coverage_95 for w, sc in scores.items()}
+    cov95_braking = {w: sc.coverage_95_braking for w, sc in scores.items()}
+    out1 = {w: sc.outside_1sigma for w, sc in scores.items()}
+    warnings = [*session.warnings, *_coverage_warnings(cov95_braking)]
     return {
         "session": str(session.path),
         "samples": len(session.frame),
@@ -506,6 +474,73 @@ def _summary(
         "seconds": {"train": t_train, **{w: tracks[w].seconds for w in OBSERVERS}},
         "n_repairs": {w: tracks[w].filt.n_repairs for w in OBSERVERS},
     }
+
+
+@dataclass(frozen=True)
+class _PressureScores:
+    """One observer's pressures against the session's sensors.
+
+    Attributes
+    ----------
+    rmse_mpa : dict of str to float or None — MPa
+        RMSE of each pressure state (None: no sensor, or no finite sample).
+    outside_1sigma : dict of str to float or None
+        Share of the samples more than 1σ off the sensor.
+    coverage_95 : float or None
+        Share of all scored samples inside the 95 % band.
+    coverage_95_braking : float or None
+        The same while the brake is applied; None below :data:`MIN_APPLIED` samples.
+    """
+
+    rmse_mpa: dict[str, float | None]
+    outside_1sigma: dict[str, float | None]
+    coverage_95: float | None
+    coverage_95_braking: float | None
+
+
+def _pressure_scores(tr: ObserverTrack, validation: dict[str, Array]) -> _PressureScores:
+    """Score an observer's track ``tr`` on the pressure sensors of ``validation`` (MPa)."""
+    p_rmse: dict[str, float | None] = {}
+    out1: dict[str, float | None] = {}
+    inside, total, inside_b, total_b = 0, 0, 0, 0
+    for i, state in enumerate(("p_m", "p_f", "p_r")):
+        if state not in validation:
+            p_rmse[state] = None
+            out1[state] = None
+            continue
+        err = tr.x[:, i] - validation[state]
+        ok = np.isfinite(err)
+        p_rmse[state] = _rmse(err)
+        z = np.abs(err[ok]) / np.maximum(tr.std[ok, i], 1e-12)
+        out1[state] = float(np.mean(z > 1.0))
+        inside += int(np.sum(z <= Z95))
+        total += int(ok.sum())
+        # while the brake is applied by either side's account: idle samples, both near
+        # 0, flatter the pool, and the observer's onsets and releases belong in it
+        applied = np.maximum(validation[state][ok], tr.x[ok, i]) > APPLIED_MPA
+        inside_b += int(np.sum(z[applied] <= Z95))
+        total_b += int(applied.sum())
+    return _PressureScores(
+        rmse_mpa=p_rmse,
+        outside_1sigma=out1,
+        coverage_95=inside / total if total else None,
+        coverage_95_braking=inside_b / total_b if total_b >= MIN_APPLIED else None,
+    )
+
+
+def _coverage_warnings(cov95_braking: dict[str, float | None]) -> list[str]:
+    """The warning when an observer's 95 % band covers too little of the applied samples."""
+    low = {w: c for w, c in cov95_braking.items() if c is not None and c < LOW_COVERAGE}
+    if not low:
+        return []
+    return [
+        "scored against this session's own pressure sensor, the 95 % band covers "
+        + ", ".join(f"{100 * c:.0f} % ({w.upper()})" for w, c in low.items())
+        + f" while the brake is applied (above {APPLIED_MPA:g} MPa): the booster does"
+        " not follow the training session's relation here beyond what the band admits —"
+        " its p–V curve shifted or scaled since (seals, fluid), or the pressure sensor or"
+        " its unit is off; `diagnose --rig ebooster` on this session names and sizes a"
+        " shift, `--with-effect auto` carries it, or retrain on a session of the day"]
 
 
 def _noise_choice(fit: BoosterFit) -> dict[str, Any]:

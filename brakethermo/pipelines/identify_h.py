@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -184,6 +185,44 @@ def _spot_rmse(pred: np.ndarray, y: np.ndarray) -> dict[str, float]:
     return {f"spot{i + 1}": float(np.sqrt(np.nanmean(err[:, i] ** 2))) for i in range(4)}
 
 
+def _structure_start(law0: HLaw) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Start and bounds of :func:`fit_structure`'s parameters (its docstring), the start
+    from the UKF law ``law0`` and the neutral structure, inside the bounds."""
+    slope = law0.a * law0.b * law0.knee ** (law0.b - 1.0)  # power-law slope at the knee
+    p0 = np.array([np.log(max(law0.a, 1.0)), law0.b, max(slope, 0.0), 0.0, 0.0, 0.0, 0.0, 0.0])
+    # c_1, c_2 >= 0: h does not fall with speed above the knee (the tyre exposes more disc)
+    lo = np.array([np.log(1.0), 0.0, 0.0, 0.0, *np.log([0.05, 0.05, 0.02, 0.5])])
+    hi = np.array([np.log(2000.0), 3.0, np.inf, np.inf, *np.log([20.0, 20.0, 5.0, 2.0])])
+    p0 = np.clip(p0, lo + 1e-6, hi - 1e-6)
+    return p0, lo, hi
+
+
+def _batched_residual(run_many: Callable[[np.ndarray], np.ndarray], y: np.ndarray,
+                      ok: np.ndarray, hi: np.ndarray
+                      ) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """The residual (degC, finite readings ``ok`` of ``y``) at a parameter vector and its
+    forward-difference Jacobian, from ``run_many``'s spot temperatures; ``hi``: the upper
+    bounds the differences stay under.
+
+    The residual and its Jacobian come from ONE batched model pass (the point and its
+    perturbation in each parameter as batch members), cached for the pair of calls
+    least_squares makes at each accepted point.
+    """
+    cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def evaluate(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        key = p.tobytes()
+        if key not in cache:
+            step = 1e-3 * np.maximum(1.0, np.abs(p))
+            step = np.where(p + step > hi, -step, step)  # stay inside the bounds
+            res = (run_many(np.vstack([p, p + np.diag(step)])) - y[None])[:, ok]
+            cache.clear()
+            cache[key] = (res[0], ((res[1:] - res[0]) / step[:, None]).T)
+        return cache[key]
+
+    return evaluate
+
+
 def fit_structure(
     inputs: DiscInputs, y: np.ndarray, disc: DiscSpec, law0: HLaw, est: EstimateTuning
 ) -> tuple[HLaw, StructureFit]:
@@ -232,28 +271,8 @@ def fit_structure(
     def run(p: np.ndarray) -> np.ndarray:
         return run_many(p[None, :])[0]
 
-    slope = law0.a * law0.b * law0.knee ** (law0.b - 1.0)  # power-law slope at the knee
-    p0 = np.array([np.log(max(law0.a, 1.0)), law0.b, max(slope, 0.0), 0.0, 0.0, 0.0, 0.0, 0.0])
-    # c_1, c_2 >= 0: h does not fall with speed above the knee (the tyre exposes more disc)
-    lo = np.array([np.log(1.0), 0.0, 0.0, 0.0, *np.log([0.05, 0.05, 0.02, 0.5])])
-    hi = np.array([np.log(2000.0), 3.0, np.inf, np.inf, *np.log([20.0, 20.0, 5.0, 2.0])])
-    p0 = np.clip(p0, lo + 1e-6, hi - 1e-6)
-
-    # The residual and its forward-difference Jacobian come from ONE batched model pass
-    # (the point and its eight perturbations as batch members), cached for the pair of
-    # calls least_squares makes at each accepted point.
-    cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-
-    def evaluate(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        key = p.tobytes()
-        if key not in cache:
-            step = 1e-3 * np.maximum(1.0, np.abs(p))
-            step = np.where(p + step > hi, -step, step)  # stay inside the bounds
-            res = (run_many(np.vstack([p, p + np.diag(step)])) - y[None])[:, ok]
-            cache.clear()
-            cache[key] = (res[0], ((res[1:] - res[0]) / step[:, None]).T)
-        return cache[key]
-
+    p0, lo, hi = _structure_start(law0)
+    evaluate = _batched_residual(run_many, y, ok, hi)
     sol = least_squares(lambda p: evaluate(p)[0], p0, jac=lambda p: evaluate(p)[1],
                         bounds=(lo, hi), x_scale="jac", loss="soft_l1", f_scale=20.0,
                         ftol=1e-4, xtol=1e-4, max_nfev=30)
@@ -521,6 +540,58 @@ def _refit(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec, 
     return law, structure, est_tuning
 
 
+def _calibration(session: Session, law: HLaw, structure: StructureFit | None,
+                 est_tuning: EstimateTuning) -> DiscCalibration:
+    """The estimate's calibration from the law and the fitted structure (neutral without
+    one), before the filter's validation."""
+    return DiscCalibration(
+        law=law,
+        weights=structure.weights if structure else (1.0, 1.0, 1.0),
+        kz_ratio=structure.kz_ratio if structure else 1.0,
+        power_scale=structure.power_scale if structure else 1.0,
+        layers=est_tuning.layers,
+        layer_growth=est_tuning.layer_growth,
+        effects=structure.effects if structure else {},
+        source=str(session.path),
+    )
+
+
+def _samples(inputs: DiscInputs, h_mean: np.ndarray, h_std: np.ndarray, braking: np.ndarray
+             ) -> pd.DataFrame:
+    """The ``h_samples.parquet`` table: the UKF's h (W/(m² K)), its std and the brake's
+    state on the grid."""
+    return pd.DataFrame({
+        "time": inputs.time,
+        "lap": inputs.lap.astype(np.int64),
+        "speed": inputs.speed,
+        "h": h_mean,
+        "h_std": h_std,
+        "braking": braking,
+    })
+
+
+def _fit_facts(fit_mask: np.ndarray, h_std: np.ndarray, residual: np.ndarray
+               ) -> dict[str, Any]:
+    """``fit`` of identify.json: the off-brake samples and the UKF law's residual there
+    (W/(m² K))."""
+    return {
+        "samples_off_brake": int(fit_mask.sum()),
+        "samples_total": int(fit_mask.size),
+        "ukf_law_residual_rms": float(np.sqrt(np.mean(residual**2))),
+        "h_std_median": float(np.median(h_std[fit_mask])),
+    }
+
+
+def _evidence_facts(level: dict[str, Any]) -> dict[str, Any]:
+    """``evidence`` of identify.json: the law's level per straight, and what it is."""
+    return {
+        **level,
+        "what": "per off-brake straight, the factor on the written law that makes the"
+                " layered model's cooling match the measured one (h_law.png); 1 = the"
+                " law holds; the interval from the straight-to-straight scatter",
+    }
+
+
 def identify_from_session(session: Session, options: IdentifyOptions) -> IdentifyResult:
     """Run identify-h on a loaded session (see :func:`identify_h`)."""
     t0 = time.perf_counter()
@@ -545,16 +616,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         law, structure, est_tuning = _refit(session, inputs, y, disc, start, est_tuning,
                                             effects)
     t_struct = time.perf_counter()
-    calibration = DiscCalibration(
-        law=law,
-        weights=structure.weights if structure else (1.0, 1.0, 1.0),
-        kz_ratio=structure.kz_ratio if structure else 1.0,
-        power_scale=structure.power_scale if structure else 1.0,
-        layers=est_tuning.layers,
-        layer_growth=est_tuning.layer_growth,
-        effects=structure.effects if structure else {},
-        source=str(session.path),
-    )
+    calibration = _calibration(session, law, structure, est_tuning)
     sigma_crown, sigma_temp, adapt_power, band_scale, validation = validate_filter(
         session, calibration, options
     )
@@ -562,14 +624,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
                           sigma_temp=sigma_temp, adapt_power=adapt_power)
     t_end = time.perf_counter()
 
-    samples = pd.DataFrame({
-        "time": inputs.time,
-        "lap": inputs.lap.astype(np.int64),
-        "speed": inputs.speed,
-        "h": h_mean,
-        "h_std": h_std,
-        "braking": braking,
-    })
+    samples = _samples(inputs, h_mean, h_std, braking)
     residual = h_mean[fit_mask] - (law_ukf or law)(inputs.speed[fit_mask])
     straights = level = None
     if structure is not None:
@@ -583,19 +638,9 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         "metadata": session.metadata,
         "law": _law_dict(law),
         "law_ukf_only": None if law_ukf is None else _law_dict(law_ukf),
-        "fit": {
-            "samples_off_brake": int(fit_mask.sum()),
-            "samples_total": int(fit_mask.size),
-            "ukf_law_residual_rms": float(np.sqrt(np.mean(residual**2))),
-            "h_std_median": float(np.median(h_std[fit_mask])),
-        },
+        "fit": _fit_facts(fit_mask, h_std, residual),
         "structure": None if structure is None else structure.facts(),
-        "evidence": None if level is None else {
-            **level,
-            "what": "per off-brake straight, the factor on the written law that makes the"
-                    " layered model's cooling match the measured one (h_law.png); 1 = the"
-                    " law holds; the interval from the straight-to-straight scatter",
-        },
+        "evidence": None if level is None else _evidence_facts(level),
         "with_effects": list(effects),
         "effect_selection": selection,
         "band_scale": band_scale,

@@ -20,6 +20,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
 from scipy.ndimage import median_filter
 
 from brakethermo.errors import ConfigError, DataError
@@ -595,50 +596,9 @@ def animation_gif(res: MuSlipResult, frames: int = 30, max_points: int = 300) ->
 
 def page(res: MuSlipResult, summ: dict[str, Any]) -> Page:
     """The report page: convergence, curve fits, the families and the shape mismatch."""
-    x, P = res.ekf.x_filt, res.ekf.P_filt
-    k = np.arange(1, res.slip.size + 1)
-    fig, axs = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
-    for j, (name, ax) in enumerate(zip(("μ peak", "slip peak"), axs[:2], strict=True)):
-        sd = np.sqrt(P[:, j, j])
-        ax.fill_between(k, x[:, j] - sd, x[:, j] + sd, alpha=0.3)
-        ax.plot(k, x[:, j])
-        ax.set_ylabel(f"{name} (–)")
-    axs[2].plot(k, P[:, 0, 0] / P[0, 0, 0], label="var μp / initial")
-    axs[2].plot(k, P[:, 1, 1] / P[0, 1, 1], label="var sp / initial")
-    axs[2].plot(k, P[:, 0, 1] / np.sqrt(P[:, 0, 0] * P[:, 1, 1]), label="correlation")
-    axs[2].set_xlabel("point")
-    axs[2].legend(fontsize=8)
-    fig.tight_layout()
-    fig2, ax2 = plt.subplots(figsize=(9, 4))
-    ax2.plot(res.slip, res.mu, ".", color="0.7", ms=2, label="points")
-    sg = np.linspace(1e-4, float(res.slip.max()), 400)
-    fams = {f.name: f for f in FAMILIES}
-    for f in res.families:
-        ax2.plot(
-            sg,
-            fams[f.name].curve(sg, *f.params.values()),
-            label=f"{f.name} (held-out {f.heldout_rmse:.4f})",
-        )
-    ax2.plot(sg, rudd_mu(sg, *x[-1]), "--", label="EKF (one pass)")
-    ax2.set_xlabel("slip (–)")
-    ax2.set_ylabel("μ (–)")
-    ax2.legend(fontsize=8)
-    fig2.tight_layout()
-    rows = [
-        [
-            "EKF (one pass)",
-            f"{summ['ekf']['mu_peak']:.3f} ± {summ['ekf']['mu_peak_std']:.3f}",
-            f"{summ['ekf']['slip_peak']:.3f} ± {summ['ekf']['slip_peak_std']:.3f}",
-        ]
-    ]
-    for key, lab in (("lm_one_pass", "LM, one pass"), ("lm_converged", "LM, converged")):
-        rows.append(
-            [
-                lab,
-                f"{summ[key]['mu_peak']:.3f} ± {summ[key]['mu_peak_std']:.3f}",
-                f"{summ[key]['slip_peak']:.3f} ± {summ[key]['slip_peak_std']:.3f}",
-            ]
-        )
+    fig = _convergence_figure(res)
+    fig2 = _fits_figure(res)
+    rows = _estimator_rows(summ)
     fam_rows = [
         [f.name, f"{f.rmse:.4f}", f"{f.heldout_rmse:.4f}", f"{f.mu_peak:.3f}", f"{f.slip_peak:.3f}"]
         for f in res.families
@@ -657,18 +617,7 @@ def page(res: MuSlipResult, summ: dict[str, Any]) -> Page:
         sections=[
             Section(
                 "Two-parameter curve (Rudd)",
-                paragraphs=[
-                    (f"A set of {res.slip.size} (slip, μ) points, no time ramp;" if res.points
-                     else f"Ramp {res.ramp_s[0]:.2f}–{res.ramp_s[1]:.2f} s of the first"
-                          " braking;")
-                    +
-                    f" noise std of μ {res.sigma:.4f} (from point-to-point differences), inflated"
-                    f" ×{res.inflation:g} plus second-order pseudo-noise in the EKF; its"
-                    f" innovations: {consistency_text(summ['ekf_consistency'])}"
-                    + ("." if res.ekf_noise_scale == 1.0 else
-                       f"; its band widened {np.sqrt(res.ekf_noise_scale):.2f}x to their"
-                       " size (its peak is the same).")
-                ],
+                paragraphs=[_rudd_text(res, summ)],
                 tables=[TableBlock(["estimator", "μ peak", "slip peak"], rows)],
                 figures={"ekf_convergence": fig},
                 notes=[
@@ -689,4 +638,79 @@ def page(res: MuSlipResult, summ: dict[str, Any]) -> Page:
                 figures={"curve_fits": fig2},
             ),
         ],
+    )
+
+
+def _convergence_figure(res: MuSlipResult) -> Figure:
+    """The EKF's peak μ and slip with their 1σ bands, and its covariance, point by point."""
+    x, P = res.ekf.x_filt, res.ekf.P_filt
+    k = np.arange(1, res.slip.size + 1)
+    fig, axs = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    for j, (name, ax) in enumerate(zip(("μ peak", "slip peak"), axs[:2], strict=True)):
+        sd = np.sqrt(P[:, j, j])
+        ax.fill_between(k, x[:, j] - sd, x[:, j] + sd, alpha=0.3)
+        ax.plot(k, x[:, j])
+        ax.set_ylabel(f"{name} (–)")
+    axs[2].plot(k, P[:, 0, 0] / P[0, 0, 0], label="var μp / initial")
+    axs[2].plot(k, P[:, 1, 1] / P[0, 1, 1], label="var sp / initial")
+    axs[2].plot(k, P[:, 0, 1] / np.sqrt(P[:, 0, 0] * P[:, 1, 1]), label="correlation")
+    axs[2].set_xlabel("point")
+    axs[2].legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def _fits_figure(res: MuSlipResult) -> Figure:
+    """The points with every family's curve and the EKF's two-parameter curve."""
+    fig2, ax2 = plt.subplots(figsize=(9, 4))
+    ax2.plot(res.slip, res.mu, ".", color="0.7", ms=2, label="points")
+    sg = np.linspace(1e-4, float(res.slip.max()), 400)
+    fams = {f.name: f for f in FAMILIES}
+    for f in res.families:
+        ax2.plot(
+            sg,
+            fams[f.name].curve(sg, *f.params.values()),
+            label=f"{f.name} (held-out {f.heldout_rmse:.4f})",
+        )
+    ax2.plot(sg, rudd_mu(sg, *res.ekf.x_filt[-1]), "--", label="EKF (one pass)")
+    ax2.set_xlabel("slip (–)")
+    ax2.set_ylabel("μ (–)")
+    ax2.legend(fontsize=8)
+    fig2.tight_layout()
+    return fig2
+
+
+def _estimator_rows(summ: dict[str, Any]) -> list[list[str]]:
+    """The peak μ and slip ± 1σ of the EKF and the two Levenberg–Marquardt fits."""
+    rows = [
+        [
+            "EKF (one pass)",
+            f"{summ['ekf']['mu_peak']:.3f} ± {summ['ekf']['mu_peak_std']:.3f}",
+            f"{summ['ekf']['slip_peak']:.3f} ± {summ['ekf']['slip_peak_std']:.3f}",
+        ]
+    ]
+    for key, lab in (("lm_one_pass", "LM, one pass"), ("lm_converged", "LM, converged")):
+        rows.append(
+            [
+                lab,
+                f"{summ[key]['mu_peak']:.3f} ± {summ[key]['mu_peak_std']:.3f}",
+                f"{summ[key]['slip_peak']:.3f} ± {summ[key]['slip_peak_std']:.3f}",
+            ]
+        )
+    return rows
+
+
+def _rudd_text(res: MuSlipResult, summ: dict[str, Any]) -> str:
+    """Where the points came from, their noise, and what the EKF's innovations say."""
+    return (
+        (f"A set of {res.slip.size} (slip, μ) points, no time ramp;" if res.points
+         else f"Ramp {res.ramp_s[0]:.2f}–{res.ramp_s[1]:.2f} s of the first"
+              " braking;")
+        +
+        f" noise std of μ {res.sigma:.4f} (from point-to-point differences), inflated"
+        f" ×{res.inflation:g} plus second-order pseudo-noise in the EKF; its"
+        f" innovations: {consistency_text(summ['ekf_consistency'])}"
+        + ("." if res.ekf_noise_scale == 1.0 else
+           f"; its band widened {np.sqrt(res.ekf_noise_scale):.2f}x to their"
+           " size (its peak is the same).")
     )

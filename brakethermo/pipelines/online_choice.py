@@ -151,6 +151,60 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
             "rule": "not decided: fewer than two flying laps; online effects left off, the"
                     " h law's effects kept",
             "candidates": list(candidates)})
+    t = _trial(session, base, candidates, parts, flying)
+    runs = _one_pass(t, cal, True)
+    tested = _first_tests(t, runs, cal)
+    dropped_first = tuple(r["name"].removeprefix("without ") for r in tested
+                          if r["significant"])
+    for name in dropped_first:
+        cal = law_without(cal, name)
+    if dropped_first:
+        runs = _one_pass(t, cal, False)
+    rows = _online_rows(runs, candidates, t.lap, t.cycles, t.rule)
+    if t.joint is not None:
+        _judge_jointly(t, t.joint, runs, rows, tested)
+    chosen = [r["name"] for r in rows if r["significant"]]
+    alike = [c for c in chosen if c in CONFOUNDED]
+    chosen = [c for c in chosen if c not in alike[1:]]
+    flags = {ONLINE_FLAGS[c]: c in chosen for c in candidates}
+    tested.extend(_later_tests(t, runs, cal, chosen))
+    dropped = tuple(r["name"].removeprefix("without ") for r in tested if r["significant"])
+    return OnlineChoice(flags, {
+        "rule": (f"switched on when the measured spot's one-step-ahead innovation RMSE"
+                 f" shrinks by more than {MIN_SHRINK_PCT:g} % (lower end of a 95 % bootstrap"
+                 " interval over braking cycles) and the predictive log-likelihood improves,"
+                 f" on flying laps 1-{min(DECISION_LAPS, flying[-1])}; of k_z and the crown"
+                 " balance (one spot cannot tell them apart) only the better; the law's"
+                 " pyrometer lag and uneven pad crown are judged first, its μ(T) together"
+                 " with k_z"),
+        "laps": [int(v) for v in np.unique(t.lap[t.lap >= 1])],
+        "chosen": chosen,
+        "scores": rows,
+        "law_effects_tested": tested,
+        "law_effects_dropped": list(dropped),
+    }, dropped)
+
+
+@dataclass(frozen=True)
+class _Trial:
+    """What every pass of the decision shares: the decision laps, the options and flags
+    the variants start from, the law's parts under test and the tests' units."""
+
+    part: Session  # the session up to the last decision lap
+    quick: EstimateOptions  # filter-only options, every candidate's flag unset
+    off: dict[str, bool]  # every candidate's flag, off
+    candidates: tuple[str, ...]
+    first: tuple[str, ...]  # the law's parts judged before the online states
+    later: tuple[str, ...]  # the others
+    joint: str | None  # the candidate judged together with ``later`` (:func:`_joint_test`)
+    lap: np.ndarray  # (K,) lap number per step of ``part``
+    cycles: np.ndarray  # (K,) braking cycle per step, -1 before the first
+    rule: VerdictRule
+
+
+def _trial(session: Session, base: EstimateOptions, candidates: tuple[str, ...],
+           parts: tuple[str, ...], flying: list[int]) -> _Trial:
+    """The decision's shared setup on the first :data:`DECISION_LAPS` flying laps."""
     part = head(session, min(DECISION_LAPS, flying[-1]))
     off = {ONLINE_FLAGS[c]: False for c in candidates}
     quick = replace(base, smoother=False, score=False, online_auto=False)
@@ -162,81 +216,81 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     rule = VerdictRule(min_shrink_pct=MIN_SHRINK_PCT)
     first = tuple(p for p in parts if p in FIRST)
     later = tuple(p for p in parts if p not in FIRST)
-
     joint = JOINT if JOINT in candidates and later else None
+    return _Trial(part, quick, off, candidates, first, later, joint, lap, cycles, rule)
 
-    def one_pass(law: DiscCalibration, with_first: bool) -> dict[str, Any]:
-        variants = {"reference": (replace(quick, **off), law)}
-        variants.update({c: (replace(quick, **{**off, ONLINE_FLAGS[c]: True}), law)
-                         for c in candidates})
-        variants.update({f"without {p}": (replace(quick, **off), law_without(law, p))
-                         for p in (*first, *later) if with_first or p in later})
-        if joint is not None:
-            variants.update({f"without {p} + {joint}": (
-                replace(quick, **{**off, ONLINE_FLAGS[joint]: True}), law_without(law, p))
-                for p in later})
-        return _run_variants(part, variants)
 
-    runs = one_pass(cal, True)
+def _one_pass(t: _Trial, law: DiscCalibration, with_first: bool) -> dict[str, Any]:
+    """The reference, each candidate alone, the law without each of its parts under test
+    (``with_first``: the first ones too) and, with a joint candidate, without each later
+    part plus it; all filter-only runs on the calibration ``law``."""
+    variants = {"reference": (replace(t.quick, **t.off), law)}
+    variants.update({c: (replace(t.quick, **{**t.off, ONLINE_FLAGS[c]: True}), law)
+                     for c in t.candidates})
+    variants.update({f"without {p}": (replace(t.quick, **t.off), law_without(law, p))
+                     for p in (*t.first, *t.later) if with_first or p in t.later})
+    if t.joint is not None:
+        variants.update({f"without {p} + {t.joint}": (
+            replace(t.quick, **{**t.off, ONLINE_FLAGS[t.joint]: True}), law_without(law, p))
+            for p in t.later})
+    return _run_variants(t.part, variants)
+
+
+def _first_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration
+                 ) -> list[dict[str, Any]]:
+    """The law's parts that shape the measured spot itself (its crown, its lag), each
+    dropped against the law as written (``cal``) before the online states are judged."""
     tested = []
-    for name in first:
+    for name in t.first:
         if name in BY_LIKELIHOOD:
-            row = _likelihood_test(runs["reference"], runs[f"without {name}"], lap, cycles,
-                                   rule)
+            row = _likelihood_test(runs["reference"], runs[f"without {name}"], t.lap, t.cycles,
+                                   t.rule)
         else:
-            row = _lap_ahead_test(runs["reference"], runs[f"without {name}"], lap, cycles, rule)
+            row = _lap_ahead_test(runs["reference"], runs[f"without {name}"], t.lap, t.cycles,
+                                  t.rule)
         if name == CROWN:
             row = {**row, "law": list(cal.weights),
                    "test": f"uniform weights against the law's, {row['test']}"}
         tested.append({**row, "name": f"without {name}"})
-    dropped_first = tuple(r["name"].removeprefix("without ") for r in tested
-                          if r["significant"])
-    for name in dropped_first:
-        cal = law_without(cal, name)
-    if dropped_first:
-        runs = one_pass(cal, False)
-    rows = _online_rows(runs, candidates, lap, cycles, rule)
-    if joint is not None:
-        combos, best = _joint_test(runs, joint, later, lap, cycles, rule)
-        alone = next(r for r in combos if r["name"] == joint)
-        for r in rows:
-            if r["name"] == joint:  # the joint verdict replaces the structural test's
-                r.update({k: alone[k] for k in ("shrink_pct", "shrink_ci95_pct", "test")},
-                         significant=joint in best, joint_test=combos)
-        tested.extend({**row, "name": f"without {p}",
-                       "significant": p in best} for p in later
-                      for row in combos if row["name"] == f"without {p}")
-    chosen = [r["name"] for r in rows if r["significant"]]
-    alike = [c for c in chosen if c in CONFOUNDED]
-    chosen = [c for c in chosen if c not in alike[1:]]
-    flags = {ONLINE_FLAGS[c]: c in chosen for c in candidates}
+    return tested
+
+
+def _judge_jointly(t: _Trial, joint: str, runs: dict[str, Any], rows: list[dict[str, Any]],
+                   tested: list[dict[str, Any]]) -> None:
+    """``joint`` and the law's later parts judged together (:func:`_joint_test`): the
+    joint verdict replaces ``joint``'s own test in ``rows``, the later parts' rows join
+    ``tested``."""
+    combos, best = _joint_test(runs, joint, t.later, t.lap, t.cycles, t.rule)
+    alone = next(r for r in combos if r["name"] == joint)
+    for r in rows:
+        if r["name"] == joint:  # the joint verdict replaces the structural test's
+            r.update({k: alone[k] for k in ("shrink_pct", "shrink_ci95_pct", "test")},
+                     significant=joint in best, joint_test=combos)
+    tested.extend({**row, "name": f"without {p}",
+                   "significant": p in best} for p in t.later
+                  for row in combos if row["name"] == f"without {p}")
+
+
+def _later_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration, chosen: list[str]
+                 ) -> list[dict[str, Any]]:
+    """The law's later parts each dropped a lap ahead, under the online states the race
+    chose (re-run into ``runs`` when it chose any); none when they were judged jointly."""
+    if t.joint is not None:
+        return []
     ref = runs["reference"]
-    if later and chosen and joint is None:
+    if t.later and chosen:
         # the law's effects are judged under the online states the race chose
-        on = {**off, **{ONLINE_FLAGS[c]: True for c in chosen}}
-        again = {"reference": (replace(quick, **on), cal)}
-        again.update({f"without {p}": (replace(quick, **on), law_without(cal, p))
-                      for p in later})
-        runs.update(_run_variants(part, again))
+        on = {**t.off, **{ONLINE_FLAGS[c]: True for c in chosen}}
+        again = {"reference": (replace(t.quick, **on), cal)}
+        again.update({f"without {p}": (replace(t.quick, **on), law_without(cal, p))
+                      for p in t.later})
+        runs.update(_run_variants(t.part, again))
         ref = runs["reference"]
-    for name in later if joint is None else ():
-        row = _lap_ahead_test(ref, runs[f"without {name}"], lap, cycles, rule)
+    tested = []
+    for name in t.later:
+        row = _lap_ahead_test(ref, runs[f"without {name}"], t.lap, t.cycles, t.rule)
         tested.append({**row, "name": f"without {name}"})
-    dropped = tuple(r["name"].removeprefix("without ") for r in tested if r["significant"])
-    return OnlineChoice(flags, {
-        "rule": (f"switched on when the measured spot's one-step-ahead innovation RMSE"
-                 f" shrinks by more than {MIN_SHRINK_PCT:g} % (lower end of a 95 % bootstrap"
-                 " interval over braking cycles) and the predictive log-likelihood improves,"
-                 f" on flying laps 1-{min(DECISION_LAPS, flying[-1])}; of k_z and the crown"
-                 " balance (one spot cannot tell them apart) only the better; the law's"
-                 " pyrometer lag and uneven pad crown are judged first, its μ(T) together"
-                 " with k_z"),
-        "laps": [int(v) for v in np.unique(lap[lap >= 1])],
-        "chosen": chosen,
-        "scores": rows,
-        "law_effects_tested": tested,
-        "law_effects_dropped": list(dropped),
-    }, dropped)
+    return tested
 
 
 def _online_rows(runs: dict[str, Any], candidates: tuple[str, ...], lap: np.ndarray,

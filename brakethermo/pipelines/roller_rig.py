@@ -34,7 +34,7 @@ from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
 from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS as TUNINGS
 from brakethermo.results.roller_rig import GuessRun, RollerRigResult
 from brakethermo.rigs.motor import motor_torque
-from brakethermo.rigs.roller_rig import RollerRigSpec, load_roller_rig
+from brakethermo.rigs.roller_rig import FilterDefaults, RollerRigSpec, load_roller_rig
 
 PIPELINE = "roller_rig"
 CHANNELS = (
@@ -268,6 +268,63 @@ def rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
     return w_w, w_r, torque, normal, warnings, free, traction, both
 
 
+def _noise(opts: RollerRigOptions, fd: FilterDefaults, w_w: np.ndarray, w_r: np.ndarray,
+           free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The filter's process and measurement noise variances (diagonals): the paper's, or
+    the datasheet's measured Q and R from the speeds' noise in free rolling, (rad/s)²."""
+    if opts.tuning == "paper":
+        return np.array(fd.q), np.array(fd.r)
+    Q = np.array(fd.q_measured)
+    R = np.array([speed_noise_var(w_w, free), speed_noise_var(w_r, free)])
+    return Q, R
+
+
+@dataclass(frozen=True)
+class _Guesses:
+    """The joint UKF run from every starting guess under a given creep model, with the
+    session's inputs it needs; called with the model, it gives the guesses' runs checked
+    against free rolling and their bands widened (:func:`creep_model_band`,
+    :func:`ratio_band`)."""
+
+    opts: RollerRigOptions
+    fd: FilterDefaults
+    t: np.ndarray  # s, session time
+    dt: float  # s
+    y: np.ndarray  # (K, 2) wheel and roller speeds, rad/s, rolling forward
+    start: tuple[float, float]  # rad/s, both speeds at the first step that has both
+    torque: np.ndarray  # N m, wheel torque
+    normal: np.ndarray  # N, normal force
+    supply: float  # Hz, roller-motor supply frequency
+    Q: np.ndarray  # process-noise variances (diagonal)
+    R: np.ndarray  # (rad/s)², speed noise variances (diagonal)
+    ratio_mm: float  # mm, the free-rolling speed-ratio radius
+    free: np.ndarray  # (K,) bool, free rolling with both speeds
+
+    def __call__(self, model: RollerRigModel) -> list[GuessRun]:
+        opts, fd, t, dt = self.opts, self.fd, self.t, self.dt
+        H = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        f = model.transition(dt, self.torque, self.normal, np.full(t.size, self.supply))
+        ukf = UnscentedKalmanFilter(
+            f, np.diag(self.Q), np.diag(self.R), H=H, alpha=fd.alpha, beta=fd.beta,
+            kappa=fd.kappa,
+        )  # fmt: skip
+
+        def one_guess(r0: float) -> GuessRun:
+            x0 = np.array([self.start[0], self.start[1], r0 * 1e-3])
+            res = ukf.run(x0, np.diag(fd.p0), self.y,
+                          store="smoother" if opts.smoother else "diag")
+            return _guess_run(r0, res, opts.smoother, t, dt)
+
+        # The guesses are independent and the compiled model and filter steps release the
+        # GIL: one thread per guess, at most one per core.
+        workers = max(1, min(len(opts.r0_mm), os.cpu_count() or 1))
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            runs = list(pool.map(one_guess, opts.r0_mm))
+        checked = [creep_model_band(_checked_guess(run, self.ratio_mm, one_guess), self.torque,
+                                    self.free) for run in runs]
+        return [ratio_band(run, self.ratio_mm, _settled(run, self.free, t)) for run in checked]
+
+
 def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) -> RollerRigResult:
     """Estimate the rolling radius of the session's wheel from every starting guess.
 
@@ -299,37 +356,12 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     t = session.time
     effects, carried = creep_effects(opts.with_effect, session, rig=opts.rig,
                                      creep_law=opts.creep_law, aliases=opts.aliases)
-    y = np.column_stack([w_w, w_r])
-    fd = spec.filter
-    if opts.tuning == "paper":
-        Q, R = np.array(fd.q), np.array(fd.r)
-    else:
-        Q = np.array(fd.q_measured)
-        R = np.array([speed_noise_var(w_w, free & both), speed_noise_var(w_r, free & both)])
-    H = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    Q, R = _noise(opts, spec.filter, w_w, w_r, free & both)
     first = int(np.flatnonzero(both)[0])
     ratio_mm = free_rolling_radius_mm(session, spec, w_w, w_r, free & both)
-
-    def guesses(model: RollerRigModel) -> list[GuessRun]:
-        f = model.transition(dt, torque, normal, np.full(t.size, supply))
-        ukf = UnscentedKalmanFilter(
-            f, np.diag(Q), np.diag(R), H=H, alpha=fd.alpha, beta=fd.beta, kappa=fd.kappa
-        )
-
-        def one_guess(r0: float) -> GuessRun:
-            x0 = np.array([w_w[first], w_r[first], r0 * 1e-3])
-            res = ukf.run(x0, np.diag(fd.p0), y, store="smoother" if opts.smoother else "diag")
-            return _guess_run(r0, res, opts.smoother, t, dt)
-
-        # The guesses are independent and the compiled model and filter steps release the
-        # GIL: one thread per guess, at most one per core.
-        workers = max(1, min(len(opts.r0_mm), os.cpu_count() or 1))
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            runs = list(pool.map(one_guess, opts.r0_mm))
-        checked = [creep_model_band(_checked_guess(run, ratio_mm, one_guess), torque,
-                                    free & both) for run in runs]
-        return [ratio_band(run, ratio_mm, _settled(run, free & both, t)) for run in checked]
-
+    guesses = _Guesses(opts, spec.filter, t, dt, np.column_stack([w_w, w_r]),
+                       (w_w[first], w_r[first]), torque, normal, supply, Q, R, ratio_mm,
+                       free & both)
     model = RollerRigModel.from_spec(spec, creep_law=opts.creep_law)
     runs = guesses(model)
     if effects != CreepEffects():

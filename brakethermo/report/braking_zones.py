@@ -118,7 +118,50 @@ def zone_table(
         the peak to the next brake application, K), ``below_s``, ``inside_s``,
         ``above_s`` (contact band vs the window over the cycle, s).
     """
-    columns = [
+    columns = _zone_columns()
+    n = len(estimate)
+    if len(zones) == 0 or n == 0:
+        return pd.DataFrame({c: pd.Series(dtype=float) for c in columns})
+    time = estimate["time"].to_numpy(dtype=float)
+    lap = estimate["lap"].to_numpy()
+    dt = float(np.median(np.diff(time))) if n > 1 else 0.1
+    starts, stops = zones[:, 0], zones[:, 1]
+    # A zone's cycle ends where the next zone starts (or where the data ends).
+    cycle_end = np.append(starts[1:], n)
+    contact = estimate["contact_avg"].to_numpy(dtype=float)
+    peak_contact = _cycle_max(contact, starts)
+    lap_start_time = pd.Series(time).groupby(lap).transform("min").to_numpy()
+    below, inside, above = _window_seconds(contact, starts, dt, window_c)
+    p_peak = _cycle_max(np.nan_to_num(np.asarray(pressure_pa, dtype=float), nan=0.0), starts)
+    v_min = _braking_min(np.asarray(speed_ms, dtype=float), starts, stops, n)
+    zone_lap = lap[starts]
+    table = pd.DataFrame(
+        {
+            "lap": zone_lap,
+            "start_s": time[starts] - lap_start_time[starts],
+            "duration_s": (stops - starts) * dt,
+            "entry_speed_kmh": np.asarray(speed_ms, dtype=float)[starts] * KMH,
+            "min_speed_kmh": v_min * KMH,
+            "peak_pressure_bar": p_peak / BAR,
+            **{f"peak_{s}": _cycle_max(estimate[s].to_numpy(dtype=float), starts)
+               for s in SPOTS},
+            "peak_contact": peak_contact,
+            "rise_k": peak_contact - contact[starts],
+            "cooling_k": peak_contact - contact[np.minimum(cycle_end, n - 1)],
+            "below_s": below,
+            "inside_s": inside,
+            "above_s": above,
+        }
+    )
+    names = (zone_names(zones, lap, dist) if dist is not None else
+             [f"B{k}" for k in table.groupby("lap").cumcount() + 1])
+    table.insert(0, "zone", names)
+    return table[columns]
+
+
+def _zone_columns() -> list[str]:
+    """The columns of :func:`zone_table`, in order."""
+    return [
         "zone",
         "lap",
         "start_s",
@@ -134,54 +177,66 @@ def zone_table(
         "inside_s",
         "above_s",
     ]
-    n = len(estimate)
-    if len(zones) == 0 or n == 0:
-        return pd.DataFrame({c: pd.Series(dtype=float) for c in columns})
-    time = estimate["time"].to_numpy(dtype=float)
-    lap = estimate["lap"].to_numpy()
-    dt = float(np.median(np.diff(time))) if n > 1 else 0.1
-    starts, stops = zones[:, 0], zones[:, 1]
-    # A zone's cycle ends where the next zone starts (or where the data ends).
-    cycle_end = np.append(starts[1:], n)
-    contact = estimate["contact_avg"].to_numpy(dtype=float)
 
-    def cycle_max(values: np.ndarray) -> np.ndarray:
-        # reduceat over the zone starts spans exactly [start_i, start_{i+1}).
-        return np.fmax.reduceat(values, starts)
 
-    peak_contact = cycle_max(contact)
-    lap_start_time = pd.Series(time).groupby(lap).transform("min").to_numpy()
+def _cycle_max(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Largest value of each zone's cycle, NaN skipped.
+
+    Parameters
+    ----------
+    values : ndarray (K,)
+        A series on the grid.
+    starts : ndarray of int
+        First grid index of each zone, increasing.
+    """
+    # reduceat over the zone starts spans exactly [start_i, start_{i+1}).
+    return np.fmax.reduceat(values, starts)
+
+
+def _window_seconds(contact: np.ndarray, starts: np.ndarray, dt: float,
+                    window_c: tuple[float, float]
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Time of each zone's cycle the contact band spends below, inside and above the window.
+
+    Parameters
+    ----------
+    contact : ndarray (K,) — degC
+        Contact-band average on the grid.
+    starts : ndarray of int
+        First grid index of each zone, increasing.
+    dt : float — s
+        Grid step.
+    window_c : (float, float) — degC
+        Operating window.
+
+    Returns
+    -------
+    below, inside, above : ndarray — s
+    """
     lo, hi = window_c
     below = np.add.reduceat((contact < lo).astype(float), starts) * dt
     above = np.add.reduceat((contact > hi).astype(float), starts) * dt
     valid = np.add.reduceat(np.isfinite(contact).astype(float), starts) * dt
-    p_peak = cycle_max(np.nan_to_num(np.asarray(pressure_pa, dtype=float), nan=0.0))
+    return below, valid - below - above, above
+
+
+def _braking_min(speed_ms: np.ndarray, starts: np.ndarray, stops: np.ndarray,
+                 n: int) -> np.ndarray:
+    """Least speed of each zone while braking (``[start, stop)``), m/s.
+
+    Parameters
+    ----------
+    speed_ms : ndarray (n,) — m/s
+        Vehicle speed on the grid.
+    starts, stops : ndarray of int
+        ``[start, stop)`` grid indices of each zone.
+    n : int
+        Grid length.
+    """
     # Stops bound the braking part; reduceat over [start, stop) needs interleaved indices.
     brake_idx = np.column_stack((starts, stops)).ravel()
     brake_idx = brake_idx[brake_idx < n]
-    v_min = np.fmin.reduceat(np.asarray(speed_ms, dtype=float), brake_idx)[::2][: len(starts)]
-    zone_lap = lap[starts]
-    table = pd.DataFrame(
-        {
-            "lap": zone_lap,
-            "start_s": time[starts] - lap_start_time[starts],
-            "duration_s": (stops - starts) * dt,
-            "entry_speed_kmh": np.asarray(speed_ms, dtype=float)[starts] * KMH,
-            "min_speed_kmh": v_min * KMH,
-            "peak_pressure_bar": p_peak / BAR,
-            **{f"peak_{s}": cycle_max(estimate[s].to_numpy(dtype=float)) for s in SPOTS},
-            "peak_contact": peak_contact,
-            "rise_k": peak_contact - contact[starts],
-            "cooling_k": peak_contact - contact[np.minimum(cycle_end, n - 1)],
-            "below_s": below,
-            "inside_s": valid - below - above,
-            "above_s": above,
-        }
-    )
-    names = (zone_names(zones, lap, dist) if dist is not None else
-             [f"B{k}" for k in table.groupby("lap").cumcount() + 1])
-    table.insert(0, "zone", names)
-    return table[columns]
+    return np.fmin.reduceat(speed_ms, brake_idx)[::2][: len(starts)]
 
 
 def lap_distance(lap: np.ndarray, speed_ms: np.ndarray, dt: float,

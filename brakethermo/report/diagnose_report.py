@@ -164,73 +164,14 @@ def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
         Card("Shrink", _f(top["shrink_pct"], "{:.0f}") if top else "–", "%" if top else ""),
         Card("Held-out laps", ", ".join(map(str, summary["heldout_laps"]))),
     ]
-    ref_section = Section(
-        "The reference model",
-        [f"Fitted on laps {', '.join(map(str, summary['train_laps']))}; every 'after' figure"
-         f" below is measured on laps {', '.join(map(str, summary['heldout_laps']))}, which"
-         " no fit saw (the out-lap is used by neither)."],
-        [TableBlock(["contains"], [[c] for c in summary["reference"]["contains"]])],
-        notes=["Fitted: " + ", ".join(
-            f"{k} = {_f(v, '{:.3g}') if not isinstance(v, list) else [round(x, 3) for x in v]}"
-            for k, v in summary["reference"]["fitted"].items())],
-    )
-    cons_section = Section(
-        "Consistency first",
-        [cons["summary"]],
-        [TableBlock(["spot", "mean NIS", "χ² band", "lag-1 autocorrelation", "state"],
-                    [[k, _f(v["mean_nis"], "{:.2f}"),
-                      f"{_f(v['chi2_band'][0], '{:.2f}')}–{_f(v['chi2_band'][1], '{:.2f}')}",
-                      _f(v["lag1_autocorrelation"], "{:.2f}"), v["state"]]
-                     for k, v in cons["per_spot"].items()])],
-        {"nis": nis_figure(time, nis)},
-    )
-    gap = summary["gap"]["per_spot_phase"]
-    where_rows = [[c["spot"], c["phase"], c["zone"] or "–",
-                   c["speed_band_kmh"], c["temp_band_c"], _f(c["rmse_c"]), _f(c["bias_c"]),
-                   _f(c["share_pct"])] for c in summary["where"]["ranked_cells"]]
-    where_section = Section(
-        "Where the model parts from the disc",
-        ["Held-out RMSE of the reference model per spot and phase (°C):"],
-        [TableBlock(["spot", "braking", "cooling"],
-                    [[k, _f(v["braking"]), _f(v["cooling"])] for k, v in gap.items()]),
-         TableBlock(["spot", "phase", "zone", "speed km/h", "temperature °C", "RMSE °C",
-                     "bias °C", "share of squared error %"], where_rows,
-                    caption="Cells ranked by their share of the squared error (all flying"
-                            " laps; bias = measured − model)")],
-        {"residual_map": residual_map(dist, lap, y - ref)},
-    )
-    which_rows = [[e["rank"], e["name"], _f(e["rmse_before"]), _f(e["rmse_after"]),
-                   _f(e["shrink_pct"], "{:+.1f}"),
-                   f"{_f(e['shrink_ci95_pct'][0])} … {_f(e['shrink_ci95_pct'][1])}",
-                   _f(e["heldout_loglik_gain"], "{:+.3f}"), _significant_text(e),
-                   e["evidence"]] for e in effects]
-    combined = summary["combined"]
-    sizes = [[e["name"], e.get("size_text", "")] for e in effects if e["name"] in vset]
-    which_section = Section(
-        "Which effect, and how far the gap shrinks",
-        [f"Verdict: {shown}. Rule: {summary['verdict_rule']}.",
-         *summary.get("verdict_reasons", []),
-         "Combined model by forward selection: "
-         + (" + ".join(combined["effects"]) if combined["effects"] else "none") + "."],
-        [TableBlock(["rank", "effect", "before °C", "after °C", "shrink %", "95 % interval %",
-                     "Δ log-lik", "significant", "evidence (reference residuals)"],
-                    which_rows)],
-        {"effects": effects_figure(effects, verdict)} if effects else {},
-        [*_scored_on_fewer(effects), *summary.get("warnings", [])],
-    )
-    if sizes and any(text for _, text in sizes):
-        which_section.tables.insert(0, TableBlock(["effect", "size (fitted on training laps)"],
-                                                  sizes, caption="How big it is"))
+    ref_section = _reference_section(summary)
+    cons_section = _consistency_section(cons, time, nis)
+    where_section = _where_section(summary, dist, lap, y - ref)
+    which_section = _which_section(summary, vset, shown)
     next_section = Section("What to run or measure next",
                            list(summary.get("next_steps", [])) or
                            ["Nothing to carry: the reference model explains the held-out laps"
                             " within the rule."])
-    blind = summary.get("not_identifiable_from_one_spot")
-    if blind:
-        which_section.tables.append(TableBlock(
-            ["effect", "why it is not diagnosed here"], [[e["name"], e["reason"]] for e in blind],
-            caption="A single race pyrometer cannot tell these apart"))
-        which_section.paragraphs.insert(0, summary["mode"] + ".")
     held = summary["heldout_laps"][0]
     trace_section = Section(
         "A held-out lap",
@@ -247,3 +188,117 @@ def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
         footer="Effects are fitted on the training laps only; 'after' figures are held-out.",
         back_href="../index.html",
     )
+
+
+def _reference_section(summary: dict[str, Any]) -> Section:
+    """What the reference model contains, what it was fitted on, and its fitted values."""
+    return Section(
+        "The reference model",
+        [f"Fitted on laps {', '.join(map(str, summary['train_laps']))}; every 'after' figure"
+         f" below is measured on laps {', '.join(map(str, summary['heldout_laps']))}, which"
+         " no fit saw (the out-lap is used by neither)."],
+        [TableBlock(["contains"], [[c] for c in summary["reference"]["contains"]])],
+        notes=["Fitted: " + ", ".join(
+            f"{k} = {_f(v, '{:.3g}') if not isinstance(v, list) else [round(x, 3) for x in v]}"
+            for k, v in summary["reference"]["fitted"].items())],
+    )
+
+
+def _consistency_section(cons: dict[str, Any], time: np.ndarray, nis: np.ndarray) -> Section:
+    """The reference filter's consistency per spot, with the NIS trace.
+
+    Parameters
+    ----------
+    cons : dict
+        The summary's ``consistency``.
+    time : ndarray — s
+    nis : ndarray
+        Per-step NIS of the reference filter.
+    """
+    return Section(
+        "Consistency first",
+        [cons["summary"]],
+        [TableBlock(["spot", "mean NIS", "χ² band", "lag-1 autocorrelation", "state"],
+                    [[k, _f(v["mean_nis"], "{:.2f}"),
+                      f"{_f(v['chi2_band'][0], '{:.2f}')}–{_f(v['chi2_band'][1], '{:.2f}')}",
+                      _f(v["lag1_autocorrelation"], "{:.2f}"), v["state"]]
+                     for k, v in cons["per_spot"].items()])],
+        {"nis": nis_figure(time, nis)},
+    )
+
+
+def _where_section(summary: dict[str, Any], dist: np.ndarray, lap: np.ndarray,
+                   res: np.ndarray) -> Section:
+    """Where the reference model parts from the disc: per spot and phase, ranked cells, and
+    the residual map.
+
+    Parameters
+    ----------
+    summary : dict
+        The diagnosis summary.
+    dist : ndarray — m
+        Lap distance.
+    lap : ndarray of int
+    res : ndarray (n, 4) — degC
+        Reference residual, measured − model.
+    """
+    gap = summary["gap"]["per_spot_phase"]
+    where_rows = [[c["spot"], c["phase"], c["zone"] or "–",
+                   c["speed_band_kmh"], c["temp_band_c"], _f(c["rmse_c"]), _f(c["bias_c"]),
+                   _f(c["share_pct"])] for c in summary["where"]["ranked_cells"]]
+    return Section(
+        "Where the model parts from the disc",
+        ["Held-out RMSE of the reference model per spot and phase (°C):"],
+        [TableBlock(["spot", "braking", "cooling"],
+                    [[k, _f(v["braking"]), _f(v["cooling"])] for k, v in gap.items()]),
+         TableBlock(["spot", "phase", "zone", "speed km/h", "temperature °C", "RMSE °C",
+                     "bias °C", "share of squared error %"], where_rows,
+                    caption="Cells ranked by their share of the squared error (all flying"
+                            " laps; bias = measured − model)")],
+        {"residual_map": residual_map(dist, lap, res)},
+    )
+
+
+def _which_section(summary: dict[str, Any], vset: list[str], shown: str) -> Section:
+    """Which effect, how far each shrinks the gap, their sizes, and what one spot cannot
+    tell apart.
+
+    Parameters
+    ----------
+    summary : dict
+        The diagnosis summary.
+    vset : list of str
+        The effects of the verdict.
+    shown : str
+        The verdict in words.
+    """
+    effects = summary["effects"]
+    which_rows = [[e["rank"], e["name"], _f(e["rmse_before"]), _f(e["rmse_after"]),
+                   _f(e["shrink_pct"], "{:+.1f}"),
+                   f"{_f(e['shrink_ci95_pct'][0])} … {_f(e['shrink_ci95_pct'][1])}",
+                   _f(e["heldout_loglik_gain"], "{:+.3f}"), _significant_text(e),
+                   e["evidence"]] for e in effects]
+    combined = summary["combined"]
+    sizes = [[e["name"], e.get("size_text", "")] for e in effects if e["name"] in vset]
+    which_section = Section(
+        "Which effect, and how far the gap shrinks",
+        [f"Verdict: {shown}. Rule: {summary['verdict_rule']}.",
+         *summary.get("verdict_reasons", []),
+         "Combined model by forward selection: "
+         + (" + ".join(combined["effects"]) if combined["effects"] else "none") + "."],
+        [TableBlock(["rank", "effect", "before °C", "after °C", "shrink %", "95 % interval %",
+                     "Δ log-lik", "significant", "evidence (reference residuals)"],
+                    which_rows)],
+        {"effects": effects_figure(effects, summary["verdict"])} if effects else {},
+        [*_scored_on_fewer(effects), *summary.get("warnings", [])],
+    )
+    if sizes and any(text for _, text in sizes):
+        which_section.tables.insert(0, TableBlock(["effect", "size (fitted on training laps)"],
+                                                  sizes, caption="How big it is"))
+    blind = summary.get("not_identifiable_from_one_spot")
+    if blind:
+        which_section.tables.append(TableBlock(
+            ["effect", "why it is not diagnosed here"], [[e["name"], e["reason"]] for e in blind],
+            caption="A single race pyrometer cannot tell these apart"))
+        which_section.paragraphs.insert(0, summary["mode"] + ".")
+    return which_section

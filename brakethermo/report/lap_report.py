@@ -443,50 +443,31 @@ def write_session_report(
     """
     t_start = _time.perf_counter()
     out_dir = Path(out_dir)
-    if disc is None:
-        disc_id = session.metadata.get("disc") if session is not None else None
-        disc = load_disc(disc_id or "cc-340-8")
+    disc = disc if disc is not None else _session_disc(session)
     detection = detection or ZoneDetection()
     name = name or (session.path.stem if session is not None else out_dir.name)
     nodes_cols = node_columns(estimate)
     if node_radii is None:
         node_radii = np.linspace(disc.r_int, disc.r_est, len(nodes_cols))
 
-    time = estimate["time"].to_numpy(dtype=float)
-    laps_col = estimate["lap"].to_numpy()
-    speed = _aligned(session, time, "speed")
-    pressure = _aligned(session, time, "brake_pressure_front")
-    measured = _measured(session, time)
-
-    zones = detect_zones(time, pressure, detection)
-    zones_df = _zones_named(estimate, session, speed, pressure, zones, disc)
-    stats = _stats_with_readings(estimate, session, disc, node_radii, measured, zones_df)
+    grid = _grid_channels(estimate, session)
+    zones = detect_zones(grid["time"], grid["pressure"], detection)
+    zones_df = _zones_named(estimate, session, grid["speed"], grid["pressure"], zones, disc)
+    stats = _stats_with_readings(estimate, session, disc, node_radii, grid["measured"], zones_df)
 
     env = _environment()
-    window = f"{disc.window_c[0]:.0f}–{disc.window_c[1]:.0f} °C"
-    facts = _facts(session)
-    measured_spots = tuple(int(i) + 1 for i in np.flatnonzero(np.isfinite(measured).any(axis=1)))
-    spot_roles = _spot_roles(summary, measured_spots)
-    footer = f"brakethermo {__version__} · disc {disc.id} · {len(nodes_cols)} nodes"
-    arrays = {"time": time, "lap": laps_col, "measured": measured, "speed": speed,
-              "pressure": pressure,
-              "spot": estimate[list(SPOTS)].to_numpy(dtype=float).T,
-              "spot_std": estimate[[f"{s}_std" for s in SPOTS]].to_numpy(dtype=float).T,
-              "contact": estimate["contact_avg"].to_numpy(dtype=float),
-              "contact_std": estimate["contact_avg_std"].to_numpy(dtype=float),
-              "nodes": estimate[nodes_cols].to_numpy(dtype=float).T}
+    measured_spots = _measured_spots(grid["measured"])
+    texts = _session_texts(name, session, disc, len(nodes_cols), summary, measured_spots)
+    arrays = _session_arrays(estimate, nodes_cols, grid)
 
-    figs = _lap_figures(arrays, laps_col, disc, node_radii, measured_spots)
+    figs = _lap_figures(arrays, grid["lap"], disc, node_radii, measured_spots)
     pages, render_s = _write_lap_pages(
         figs, arrays, zones, stats, zones_df, out_dir, env.get_template("lap.html.j2"),
-        {"session_name": name, "facts": facts, "spot_roles": spot_roles, "window": window,
-         "zone_threshold_bar": detection.on_pa / BAR, "footer": footer,
-         "measured_keys": [s for s in SPOTS if f"meas_above_{s}_s" in stats]},
-        progress)
+        _lap_common(texts, detection, stats), progress)
 
     index = _write_index(
-        env, out_dir, name, facts, window, footer, stats, disc,
-        extras={"spot_roles": spot_roles, "scores": _scores_view(summary),
+        env, out_dir, texts.name, texts.facts, texts.window, texts.footer, stats, disc,
+        extras={"spot_roles": texts.spot_roles, "scores": _scores_view(summary),
                 "law": _law_view(summary, out_dir), "back_href": back_href,
                 "decisions": _decisions(summary)},
     )  # fmt: skip
@@ -498,6 +479,89 @@ def write_session_report(
         zones=zones_df,
         timings={"render_s": render_s, "write_s": total - render_s, "total_s": total},
     )
+
+
+def _session_disc(session: Session | None) -> DiscSpec:
+    """The disc of the session's ``disc`` fact, else the default disc."""
+    disc_id = session.metadata.get("disc") if session is not None else None
+    return load_disc(disc_id or "cc-340-8")
+
+
+def _grid_channels(estimate: pd.DataFrame, session: Session | None) -> dict[str, np.ndarray]:
+    """The estimate's ``time`` (s) and ``lap``, and the session's ``speed`` (m/s), front
+    brake ``pressure`` (Pa) and ``measured`` spots (degC, (4, n)) on that grid."""
+    time = estimate["time"].to_numpy(dtype=float)
+    laps_col = estimate["lap"].to_numpy()
+    speed = _aligned(session, time, "speed")
+    pressure = _aligned(session, time, "brake_pressure_front")
+    measured = _measured(session, time)
+    return {"time": time, "lap": laps_col, "measured": measured, "speed": speed,
+            "pressure": pressure}
+
+
+def _measured_spots(measured: np.ndarray) -> tuple[int, ...]:
+    """The spots (1..4) the session measured anywhere, from the (4, n) readings."""
+    return tuple(int(i) + 1 for i in np.flatnonzero(np.isfinite(measured).any(axis=1)))
+
+
+@dataclass(frozen=True)
+class _SessionTexts:
+    """What every page of a session says of it.
+
+    Attributes
+    ----------
+    name : str
+        Title of the pages.
+    facts : str
+        Vehicle, track, date and disc (:func:`_facts`).
+    window : str
+        The disc's operating window, degC.
+    spot_roles : str
+        Which spot fed the filter, which check it (:func:`_spot_roles`).
+    footer : str
+        Version, disc and node count.
+    """
+
+    name: str
+    facts: str
+    window: str
+    spot_roles: str
+    footer: str
+
+
+def _session_texts(name: str, session: Session | None, disc: DiscSpec, n_nodes: int,
+                   summary: dict[str, Any] | None, measured_spots: tuple[int, ...]
+                   ) -> _SessionTexts:
+    """The texts of :class:`_SessionTexts` for this session and disc."""
+    return _SessionTexts(
+        name=name,
+        window=f"{disc.window_c[0]:.0f}–{disc.window_c[1]:.0f} °C",
+        facts=_facts(session),
+        spot_roles=_spot_roles(summary, measured_spots),
+        footer=f"brakethermo {__version__} · disc {disc.id} · {n_nodes} nodes",
+    )
+
+
+def _lap_common(texts: _SessionTexts, detection: ZoneDetection,
+                stats: pd.DataFrame) -> dict[str, Any]:
+    """What every lap page shows besides its lap: the session's texts, the zone threshold
+    (bar) and the spots whose readings the stats carry."""
+    return {"session_name": texts.name, "facts": texts.facts, "spot_roles": texts.spot_roles,
+            "window": texts.window, "zone_threshold_bar": detection.on_pa / BAR,
+            "footer": texts.footer,
+            "measured_keys": [s for s in SPOTS if f"meas_above_{s}_s" in stats]}
+
+
+def _session_arrays(estimate: pd.DataFrame, nodes_cols: list[str],
+                    grid: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The arrays the lap pages slice: the grid channels (:func:`_grid_channels`) and the
+    estimate's spots, contact band and nodes (degC), spot-major."""
+    return {**grid,
+            "spot": estimate[list(SPOTS)].to_numpy(dtype=float).T,
+            "spot_std": estimate[[f"{s}_std" for s in SPOTS]].to_numpy(dtype=float).T,
+            "contact": estimate["contact_avg"].to_numpy(dtype=float),
+            "contact_std": estimate["contact_avg_std"].to_numpy(dtype=float),
+            "nodes": estimate[nodes_cols].to_numpy(dtype=float).T}
 
 
 def _write_index(

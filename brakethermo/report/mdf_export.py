@@ -23,6 +23,7 @@ import datetime as dt
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 from xml.sax.saxutils import escape as xml_escape
 
 import numpy as np
@@ -38,6 +39,9 @@ from brakethermo.report.mcap_export import (
     array_families,
     scalar_columns,
 )
+
+if TYPE_CHECKING:
+    from asammdf import Signal
 
 PREFIX = "BT_"
 
@@ -92,9 +96,38 @@ def write_estimate_mdf(
         The session's date (ISO ``YYYY-MM-DD``, from its metadata) when the log carries
         relative time only: the header starts at 00:00 UTC of that day, and says so.
     """
-    from asammdf import MDF, Signal
+    from asammdf import MDF
 
     path = Path(path)
+    signals = _estimate_signals(frame, node_radii, spot_radii)
+    mdf = MDF(version="4.10")
+    day = _iso_date(date) if start_epoch_s is None else None
+    mdf.header.start_time = _start_time(start_epoch_s, day)
+    mdf.header.comment = _header_comment(source, start_epoch_s,
+                                         day.isoformat() if day else None)
+    mdf.append(signals, comment="brakethermo estimate, 10 Hz")
+    with atomic_path(path) as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mdf.save(tmp, overwrite=True, compression=2)
+        mdf.close()
+    return path
+
+
+def _estimate_signals(frame: pd.DataFrame, node_radii: Sequence[float] | np.ndarray | None,
+                      spot_radii: Sequence[float]) -> list[Signal]:
+    """One signal per exported column on the frame's time base (module docstring).
+
+    Parameters
+    ----------
+    frame : DataFrame
+        Estimate frame of OUTPUTS.md (``time`` s).
+    node_radii : array — m, optional
+        Radius of each ``node_<k>``, for the channel comments.
+    spot_radii : sequence of float — m
+        Radii of spot 1..4, for the spot channels' comments.
+    """
+    from asammdf import Signal
+
     t = frame["time"].to_numpy(dtype=np.float64)
     signals: list[Signal] = []
 
@@ -128,20 +161,14 @@ def write_estimate_mdf(
         if f"{col}_std" in frame:
             add(f"{col}_std", frame[f"{col}_std"].to_numpy(dtype=np.float64), unit,
                 f"1-sigma of {PREFIX}{col}")
+    return signals
 
-    mdf = MDF(version="4.10")
-    day = _iso_date(date) if start_epoch_s is None else None
+
+def _start_time(start_epoch_s: float | None, day: dt.date | None) -> dt.datetime:
+    """The header's start time: the source log's epoch start, else 00:00 UTC of the
+    session's ``day``, else the Unix epoch (``start_epoch_s`` s)."""
     if start_epoch_s is not None:
-        mdf.header.start_time = dt.datetime.fromtimestamp(float(start_epoch_s), tz=dt.UTC)
-    elif day is not None:
-        mdf.header.start_time = dt.datetime.combine(day, dt.time(), tzinfo=dt.UTC)
-    else:
-        mdf.header.start_time = dt.datetime.fromtimestamp(0.0, tz=dt.UTC)
-    mdf.header.comment = _header_comment(source, start_epoch_s,
-                                         day.isoformat() if day else None)
-    mdf.append(signals, comment="brakethermo estimate, 10 Hz")
-    with atomic_path(path) as tmp, warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        mdf.save(tmp, overwrite=True, compression=2)
-        mdf.close()
-    return path
+        return dt.datetime.fromtimestamp(float(start_epoch_s), tz=dt.UTC)
+    if day is not None:
+        return dt.datetime.combine(day, dt.time(), tzinfo=dt.UTC)
+    return dt.datetime.fromtimestamp(0.0, tz=dt.UTC)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
@@ -149,6 +151,42 @@ def roller_rig_page(result: RollerRigResult) -> Page:
         Card("reference", _fmt(ref), "mm" if ref is not None else ""),
         Card("converged within 1 mm", _fmt(max(conv_ok) if conv_ok else None), "s"),
     ]
+    table1 = _table1(result)
+    cmp_table = _naive_table(s["naive_vs_ukf"])
+    text = _method_text(result)
+    naive_text = _naive_text(s["naive_vs_ukf"], ref)
+    t_end = min(float(result.time[-1]), 0.3)
+    sections = [
+        Section("Rolling radius", text, [table1],
+                {"radius": radius_figure(result),
+                 "radius_start": radius_figure(result, (float(result.time[0]), t_end))},
+                ["Bands: ±2σ of each run's posterior, widened by the creep law's error "
+                 f"the session shows ({result.runs[0].model_error_mm_per_knm:.3f} mm per kN m"
+                 " of traction torque: how far the estimate leaves its free-rolling value "
+                 "under load, which a constant radius cannot do), and by its departure from"
+                 " the free-rolling speed ratio "
+                 f"(±{result.runs[0].ratio_error_mm:.3f} mm, 1σ). Dashed: the forward filter"
+                 " (the paper's estimate); solid: the output track."]),
+        Section("Naive speed-ratio radius vs the UKF", [naive_text], [cmp_table]),
+        Section("Speeds and torque", [], [], {"speeds": speeds_figure(result)}),
+        Section("Creep", [], [], {"creep": creep_figure(result)},
+                [f"Creep force from the estimator's {CREEP_NAMES[s['filter']['creep_law']]} at"
+                 " the estimated states; the "
+                 "roller transducer is shown for validation only (the filter never reads it)."]),
+    ]  # fmt: skip
+    return Page(
+        title=f"Roller rig — {result.stem}",
+        subtitle=f"{s['duration_s']:.0f} s at {s['rate_hz']:.0f} Hz, rig '{s['rig']}'",
+        cards=cards,
+        sections=sections,
+        footer="brakethermo roller-rig (Onat, Voltr, Lata: UKF rolling-radius estimation)",
+    )
+
+
+def _table1(result: RollerRigResult) -> TableBlock:
+    """Each guess's whole-run RMSE and convergence beside the paper's Table 1."""
+    s = result.summary
+    ref = result.reference_mm
     speed = paper_speed_kmh(result.supply_hz)
     paper = PAPER_TABLE1[speed]
     rows = []
@@ -167,7 +205,7 @@ def roller_rig_page(result: RollerRigResult) -> Page:
             _fmt(r["max_error_after_convergence_mm"], ".3f"),
         ])  # fmt: skip
     out_name = "smoothed" if result.options.smoother else "filter"
-    table1 = TableBlock(
+    return TableBlock(
         ["r0, mm", "case", "filter RMSE, mm", f"{out_name} RMSE, mm",
          f"paper Table 1, {speed} km/h", "convergence, s", "max |error| after, mm"],
         rows,
@@ -175,7 +213,11 @@ def roller_rig_page(result: RollerRigResult) -> Page:
         "convergence from the guess included (paper eq. 16); the paper's figure is for "
         f"its {speed} km/h scenario on the real rig.",
     )  # fmt: skip
-    cmp = s["naive_vs_ukf"]
+
+
+def _naive_table(cmp: dict[str, Any]) -> TableBlock:
+    """The naive speed-ratio radius and the UKF's by phase, mm (``cmp``: the summary's
+    ``naive_vs_ukf``)."""
     cmp_rows = [
         ["free rolling", _fmt(cmp["naive_free_mm"], ".3f"),
          _fmt(cmp.get("naive_free_error_mm"), "+.3f"), "", ""],
@@ -183,8 +225,23 @@ def roller_rig_page(result: RollerRigResult) -> Page:
          _fmt(cmp.get("naive_traction_error_mm"), "+.3f"), _fmt(cmp["ukf_traction_mm"], ".3f"),
          _fmt(cmp.get("ukf_traction_error_mm"), "+.3f")],
     ]  # fmt: skip
+    return TableBlock(
+        ["phase", "naive, mm", "naive − ref, mm", "UKF, mm", "UKF − ref, mm"], cmp_rows,
+        caption="Phase means; free rolling: torque request below 2 % of its peak, "
+        "traction: above 50 %.")
+
+
+def _naive_text(cmp: dict[str, Any], ref: float | None) -> str:
+    """Why the naive radius reads low under traction, and by how much here.
+
+    Parameters
+    ----------
+    cmp : dict
+        The summary's ``naive_vs_ukf``, mm.
+    ref : float or None — mm
+        The session's reference radius.
+    """
     drop = cmp["naive_traction_drop_mm"]
-    text = _method_text(result)
     naive_text = (
         "The naive radius ω_r·R_r/ω_w ignores creep: right in free rolling, it reads low "
         "under traction because the wheel surface runs faster than the roller's."
@@ -198,32 +255,4 @@ def roller_rig_page(result: RollerRigResult) -> Page:
             f" Under traction the naive ratio is {n_err:.3f} mm off the reference, the UKF "
             f"{u_err:.3f} mm ({better:.1f}x smaller error)."
         )
-    t_end = min(float(result.time[-1]), 0.3)
-    sections = [
-        Section("Rolling radius", text, [table1],
-                {"radius": radius_figure(result),
-                 "radius_start": radius_figure(result, (float(result.time[0]), t_end))},
-                ["Bands: ±2σ of each run's posterior, widened by the creep law's error "
-                 f"the session shows ({result.runs[0].model_error_mm_per_knm:.3f} mm per kN m"
-                 " of traction torque: how far the estimate leaves its free-rolling value "
-                 "under load, which a constant radius cannot do), and by its departure from"
-                 " the free-rolling speed ratio "
-                 f"(±{result.runs[0].ratio_error_mm:.3f} mm, 1σ). Dashed: the forward filter"
-                 " (the paper's estimate); solid: the output track."]),
-        Section("Naive speed-ratio radius vs the UKF", [naive_text], [TableBlock(
-            ["phase", "naive, mm", "naive − ref, mm", "UKF, mm", "UKF − ref, mm"], cmp_rows,
-            caption="Phase means; free rolling: torque request below 2 % of its peak, "
-            "traction: above 50 %.")]),
-        Section("Speeds and torque", [], [], {"speeds": speeds_figure(result)}),
-        Section("Creep", [], [], {"creep": creep_figure(result)},
-                [f"Creep force from the estimator's {CREEP_NAMES[s['filter']['creep_law']]} at"
-                 " the estimated states; the "
-                 "roller transducer is shown for validation only (the filter never reads it)."]),
-    ]  # fmt: skip
-    return Page(
-        title=f"Roller rig — {result.stem}",
-        subtitle=f"{s['duration_s']:.0f} s at {s['rate_hz']:.0f} Hz, rig '{s['rig']}'",
-        cards=cards,
-        sections=sections,
-        footer="brakethermo roller-rig (Onat, Voltr, Lata: UKF rolling-radius estimation)",
-    )
+    return naive_text

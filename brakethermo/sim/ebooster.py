@@ -189,6 +189,145 @@ def _hydraulics(  # pragma: no cover - compiled; checked through its outputs
 
 
 @numba.njit(cache=True)
+def _pi_control(  # pragma: no cover - compiled; checked through its outputs
+    e: float, integ: float, kp: float, ki: float, h_out: float, smax: float
+) -> tuple[float, float]:
+    """Screw command of the PI on the delta error, and the integrator after the step.
+
+    Parameters
+    ----------
+    e : float — mm, measured minus reference delta.
+    integ : float — mm, integrator state.
+    kp, ki : float — mm/mm and mm/(mm s), gains.
+    h_out : float — s, controller step.
+    smax : float — mm, stroke limit.
+    """
+    trial = integ + ki * e * h_out
+    u = kp * e + trial
+    # anti-windup: the integrator only moves while the command is inside the stroke
+    if 0.0 < u < smax:
+        integ = trial
+    return min(max(kp * e + integ, 0.0), smax), integ
+
+
+@numba.njit(cache=True)
+def _displaced_volume(  # pragma: no cover - compiled; checked through its outputs
+    s2: float, s2_new: float, s_dead: float, w_dead: float, area: float
+) -> tuple[float, float]:
+    """Volume displaced over a substep past the dead stroke (softplus), mm^3, and the
+    central valve's port opening at its end (1 open, 0 closed).
+
+    Parameters
+    ----------
+    s2, s2_new : float — mm, stroke at the start and end of the substep.
+    s_dead, w_dead : float — mm, dead stroke and the width of its smoothing.
+    area : float — mm^2, master-cylinder piston area.
+    """
+    z0 = (s2 - s_dead) / w_dead
+    z1 = (s2_new - s_dead) / w_dead
+    x0 = w_dead * (np.log1p(np.exp(-abs(z0))) + max(z0, 0.0))
+    x1 = w_dead * (np.log1p(np.exp(-abs(z1))) + max(z1, 0.0))
+    return area * (x1 - x0), 1.0 / (1.0 + np.exp(z1 * 4.0))
+
+
+@numba.njit(cache=True)
+def _output_force(  # pragma: no cover - compiled; checked through its outputs
+    pm: float, s2: float, v: float, area: float, k_ret: float, f0: float, mu_s: float,
+    v_s: float,
+) -> float:
+    """Force on the master-cylinder piston, N: pressure, return spring and seal friction.
+
+    Parameters
+    ----------
+    pm : float — MPa, master-cylinder pressure.
+    s2, v : float — mm and mm/s, stroke and its speed.
+    area : float — mm^2.
+    k_ret : float — N/mm, return spring.
+    f0, mu_s : float — N and N/MPa, seal friction and its pressure dependence.
+    v_s : float — mm/s, speed over which the seal friction reverses.
+    """
+    seal = (f0 + mu_s * pm) * np.tanh(v / v_s)
+    return pm * area + k_ret * s2 + seal
+
+
+@numba.njit(cache=True)
+def _mullins(  # pragma: no cover - compiled; checked through its outputs
+    delta: float, t_since: float, h: float, d_mull: float, d10i: float, d10d: float,
+    k_rec: float,
+) -> tuple[float, float]:
+    """Rubber stiffness D10 (N/mm) under Mullins damage (eq. 8) and the time since the
+    last damaging compression (s), after a substep ``h`` (s) at compression ``delta`` (mm).
+
+    The stiffness is damaged while compressed beyond ``d_mull`` (mm) and recovers
+    exponentially at ``k_rec`` (1/s) from ``d10d`` towards ``d10i`` (N/mm).
+    """
+    if delta > d_mull:
+        t_since = 0.0
+    else:
+        t_since += h
+    return t_since, d10i + (d10d - d10i) * np.exp(-k_rec * t_since)
+
+
+@numba.njit(cache=True)
+def _disk_newton(  # pragma: no cover - compiled; checked through its outputs
+    delta: float, f_net: float, d10: float, sig1: float, sig2: float, xs: float, ffs: float,
+    rubber: tuple[float, float, float, float, float, float],
+    maxwell: tuple[float, float, float, float],
+) -> float:
+    """Compression (mm) at which the rubber, its Maxwell branches and Berg friction
+    carry the net force ``f_net`` (N), by Newton from the substep's start ``delta``.
+
+    Parameters
+    ----------
+    d10 : float — N/mm, current linear stiffness coefficient.
+    sig1, sig2 : float — N, Maxwell branch forces at the start of the substep.
+    xs, ffs : float — mm and N, Berg friction's reference point.
+    rubber : (d20, d30, k1, k2, fmax, x2) — N/mm^3, N/mm^5, N/mm, N/mm, N, mm.
+    maxwell : (a1, b1, a2, b2) — exact-integration factors of the Maxwell branches.
+    """
+    d20, d30, k1, k2, fmax, x2 = rubber
+    a1, b1, a2, b2 = maxwell
+    x = delta
+    for _ in range(40):
+        fe = 6.0 * d30 * x**5 + 4.0 * d20 * x**3 + 2.0 * d10 * x  # eq. 7
+        dfe = 30.0 * d30 * x**4 + 12.0 * d20 * x**2 + 2.0 * d10
+        fb, dfb = _berg(x, xs, ffs, fmax, x2)
+        g = fe + a1 * sig1 + k1 * b1 * (x - delta) + a2 * sig2 \
+            + k2 * b2 * (x - delta) + fb - f_net
+        dg = dfe + k1 * b1 + k2 * b2 + dfb
+        step = g / dg
+        step = min(max(step, -0.2), 0.2)
+        x -= step
+        if abs(step) < 1e-12:
+            break
+    return x
+
+
+@numba.njit(cache=True)
+def _reaction_disk(  # pragma: no cover - compiled; checked through its outputs
+    delta: float, f_net: float, d10: float, sig1: float, sig2: float, xs: float, ffs: float,
+    direction: float, rubber: tuple[float, float, float, float, float, float],
+    maxwell: tuple[float, float, float, float],
+) -> tuple[float, float, float, float]:
+    """Reaction-disk compression after a substep (mm), with Berg's reference point (mm, N)
+    and the motion's direction (+1 or -1) after it; arguments as :func:`_disk_newton`."""
+    fmax, x2 = rubber[4], rubber[5]
+    xs_try, ffs_try = xs, ffs
+    x = delta
+    for attempt in range(2):
+        x = _disk_newton(delta, f_net, d10, sig1, sig2, xs_try, ffs_try, rubber, maxwell)
+        moved = x - delta
+        if attempt == 0 and moved * direction < -1e-12:
+            # reversal: Berg's reference point moves to the turning point
+            ffs_new, _ = _berg(delta, xs, ffs, fmax, x2)
+            xs_try, ffs_try = delta, ffs_new
+            direction = -direction
+            continue
+        break
+    return x, xs_try, ffs_try, direction
+
+
+@numba.njit(cache=True)
 def _integrate(
     par: Array, f_in: Array, s2_prof: Array, dref: Array, noise_d: Array, closed: bool,
     h_out: float, nsub: int,
@@ -210,17 +349,14 @@ def _integrate(
     integ = 0.0
     a1, a2 = np.exp(-h / t1), np.exp(-h / t2)
     b1, b2 = t1 * (1.0 - a1) / h, t2 * (1.0 - a2) / h
+    rubber = (d20, d30, k1, k2, fmax, x2)
+    maxwell = (a1, b1, a2, b2)
     lag = np.exp(-h_out / tau_d)
     d_meas = 0.0
     for k in range(K):
         # controller at the output rate, on the sensor signal
         if closed:
-            e = d_meas - dref[k]
-            trial = integ + ki * e * h_out
-            u = kp * e + trial
-            if 0.0 < u < smax:
-                integ = trial
-            s2_cmd = min(max(kp * e + integ, 0.0), smax)
+            s2_cmd, integ = _pi_control(d_meas - dref[k], integ, kp, ki, h_out, smax)
         else:
             s2_cmd = s2_prof[k]
         fk0 = f_in[k - 1] if k > 0 else f_in[0]
@@ -229,52 +365,15 @@ def _integrate(
             v = (s2_cmd - s2) / tau_m
             v = min(max(v, -vmax), vmax)
             s2_new = s2 + v * h
-            # displaced volume with the dead stroke (softplus), mm^3
-            z0 = (s2 - s_dead) / w_dead
-            z1 = (s2_new - s_dead) / w_dead
-            x0 = w_dead * (np.log1p(np.exp(-abs(z0))) + max(z0, 0.0))
-            x1 = w_dead * (np.log1p(np.exp(-abs(z1))) + max(z1, 0.0))
-            dvol = area * (x1 - x0)
-            open_port = 1.0 / (1.0 + np.exp(z1 * 4.0))
+            dvol, open_port = _displaced_volume(s2, s2_new, s_dead, w_dead, area)
             p1, p2, p3 = _hydraulics(pm, pf, pr, dvol, g_port * open_port, h, cm, kf, kr_o, pt,
                                      c0f, pcf, cif, c0r, pcr, cir)
             pm, pf, pr = max(p1, 0.0), p2, p3
             s2 = s2_new
-            # output force on the piston, N
-            seal = (f0 + mu_s * pm) * np.tanh(v / v_s)
-            f_out = pm * area + k_ret * s2 + seal
-            f_net = fin - ra * f_out
-            # Mullins: damaged stiffness while compressed, exponential recovery (eq. 8)
-            if delta > d_mull:
-                t_since = 0.0
-            else:
-                t_since += h
-            d10 = d10i + (d10d - d10i) * np.exp(-k_rec * t_since)
-            xs_try, ffs_try = xs, ffs
-            x = delta
-            for attempt in range(2):
-                x = delta
-                for _ in range(40):
-                    fe = 6.0 * d30 * x**5 + 4.0 * d20 * x**3 + 2.0 * d10 * x  # eq. 7
-                    dfe = 30.0 * d30 * x**4 + 12.0 * d20 * x**2 + 2.0 * d10
-                    fb, dfb = _berg(x, xs_try, ffs_try, fmax, x2)
-                    g = fe + a1 * sig1 + k1 * b1 * (x - delta) + a2 * sig2 \
-                        + k2 * b2 * (x - delta) + fb - f_net
-                    dg = dfe + k1 * b1 + k2 * b2 + dfb
-                    step = g / dg
-                    step = min(max(step, -0.2), 0.2)
-                    x -= step
-                    if abs(step) < 1e-12:
-                        break
-                moved = x - delta
-                if attempt == 0 and moved * direction < -1e-12:
-                    # reversal: Berg's reference point moves to the turning point
-                    ffs_new, _ = _berg(delta, xs, ffs, fmax, x2)
-                    xs_try, ffs_try = delta, ffs_new
-                    direction = -direction
-                    continue
-                break
-            xs, ffs = xs_try, ffs_try
+            f_net = fin - ra * _output_force(pm, s2, v, area, k_ret, f0, mu_s, v_s)
+            t_since, d10 = _mullins(delta, t_since, h, d_mull, d10i, d10d, k_rec)
+            x, xs, ffs, direction = _reaction_disk(delta, f_net, d10, sig1, sig2, xs, ffs,
+                                                   direction, rubber, maxwell)
             sig1 = a1 * sig1 + k1 * b1 * (x - delta)  # eq. 5a over the substep
             sig2 = a2 * sig2 + k2 * b2 * (x - delta)
             delta = x

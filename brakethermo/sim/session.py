@@ -493,38 +493,18 @@ def _session_facts(cfg: SimConfig, veh: VehicleSpec, track: TrackSpec, disc: Dis
     }
 
 
-def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResult:
-    """Simulate one session; see :class:`SimConfig`. Deterministic for a given config.
+def _bike_rng(cfg: SimConfig) -> np.random.Generator | None:
+    """The generator of the bike's hardware draws when ``cfg.bike_seed`` is set, else None
+    (the hardware is then drawn from the session's own stream)."""
+    if cfg.bike_seed is None:
+        return None
+    return np.random.default_rng(np.random.SeedSequence(cfg.bike_seed).spawn(7)[6])
 
-    ``timings``, when given, receives the wall time of each stage in seconds
-    (``rider``, ``thermal``, ``sensors``, ``truth``); ``thermal`` includes the rider's
-    braking, which is coupled to the disc through mu(T).
-    """
-    clock = _StageClock(timings)
-    _validate(cfg)
-    disc = load_disc(cfg.disc)
-    track = load_track(cfg.track)
-    rng_rider, rng_heat, rng_sens, rng_env, rng_eff, rng_chain = (
-        np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(6)
-    )
-    eff = make_effects(cfg.strengths, rng_eff)
-    bike_rng = (
-        None
-        if cfg.bike_seed is None
-        else np.random.default_rng(np.random.SeedSequence(cfg.bike_seed).spawn(7)[6])
-    )
-    chain = draw_brake_chain(disc, rng_chain, cfg.model_errors, bike_rng)
-    veh = VehicleSpec()
-    h_law = HLaw()
 
-    plan = drive_session(track, cfg.laps, rng_rider, veh, slip_fraction_laps=eff.slip_fraction_laps)
-    clock.lap("rider")
-    rate = plan.rate
-    per = round(cfg.dt * rate)  # rider samples per thermal step
-    n_max = int(1.25 * plan.v.size / per) + 10  # steps; the realised run is a little longer
-    n500 = n_max * per + 1
-    t500 = np.arange(n500) / rate
-
+def _air(cfg: SimConfig, track: TrackSpec, h_law: HLaw, rng_env: np.random.Generator,
+         t500: np.ndarray) -> tuple[float, float, np.ndarray]:
+    """The day's air: mean ambient temperature (degC), the factor on the face h and the
+    ambient temperature at every rider sample ``t500`` (s), degC."""
     amb0 = track.ambient_c + float(rng_env.normal(0.0, 2.0))
     h_scale = cfg.cooling
     if cfg.ambient_c is not None:  # the same draws, another day's air
@@ -532,9 +512,17 @@ def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResu
         amb0 = cfg.ambient_c
     phase = float(rng_env.uniform(0, 2 * np.pi))
     t_amb500 = amb0 + 0.4 * np.sin(2 * np.pi * t500 / 1800.0 + phase)
+    return amb0, h_scale, t_amb500
+
+
+def _context(cfg: SimConfig, track: TrackSpec, disc: DiscSpec, veh: VehicleSpec,
+             chain: BrakeChain, eff: Effects, h_law: HLaw, plan: RiderRun,
+             rng_env: np.random.Generator, rng_heat: np.random.Generator) -> _Context:
+    """The run's context: slipstream reductions per lap and segment and crown weights per
+    braking drawn, the track's segments and corners laid out."""
     segs = track.segments
     slip_red = eff.slip_reduction * rng_env.uniform(0.8, 1.2, size=(cfg.laps + 1, len(segs)))
-    ctx = _Context(
+    return _Context(
         track=track,
         laps=cfg.laps,
         disc=disc,
@@ -553,6 +541,49 @@ def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResu
         corner_ends=track.corner_spans()[:, 1],
     )
 
+
+def _mu_per_sample(run: _Coupled, per: int) -> np.ndarray:
+    """mu(T)/mu_nom at every rider sample of the realised run (``per`` samples a step)."""
+    mu500 = np.repeat(run.mu_step[:run.n_steps], per)
+    return np.append(mu500, mu500[-1])
+
+
+def _truth_table(truth: pd.DataFrame, params: dict[str, object]) -> pa.Table:
+    """The truth frame as an Arrow table with the run's parameters in its metadata."""
+    table = pa.Table.from_pandas(truth, preserve_index=False)
+    return table.replace_schema_metadata({"brakethermo_truth": json.dumps(params, sort_keys=True)})
+
+
+def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResult:
+    """Simulate one session; see :class:`SimConfig`. Deterministic for a given config.
+
+    ``timings``, when given, receives the wall time of each stage in seconds
+    (``rider``, ``thermal``, ``sensors``, ``truth``); ``thermal`` includes the rider's
+    braking, which is coupled to the disc through mu(T).
+    """
+    clock = _StageClock(timings)
+    _validate(cfg)
+    disc = load_disc(cfg.disc)
+    track = load_track(cfg.track)
+    rng_rider, rng_heat, rng_sens, rng_env, rng_eff, rng_chain = (
+        np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(6)
+    )
+    eff = make_effects(cfg.strengths, rng_eff)
+    chain = draw_brake_chain(disc, rng_chain, cfg.model_errors, _bike_rng(cfg))
+    veh = VehicleSpec()
+    h_law = HLaw()
+
+    plan = drive_session(track, cfg.laps, rng_rider, veh, slip_fraction_laps=eff.slip_fraction_laps)
+    clock.lap("rider")
+    rate = plan.rate
+    per = round(cfg.dt * rate)  # rider samples per thermal step
+    n_max = int(1.25 * plan.v.size / per) + 10  # steps; the realised run is a little longer
+    n500 = n_max * per + 1
+    t500 = np.arange(n500) / rate
+
+    amb0, h_scale, t_amb500 = _air(cfg, track, h_law, rng_env, t500)
+    ctx = _context(cfg, track, disc, veh, chain, eff, h_law, plan, rng_env, rng_heat)
+
     run = _ride_and_heat(cfg, ctx, plan, t_amb500, h_scale, n_max, rng_chain)
     thermal = run.thermal
     clock.lap("thermal")
@@ -563,8 +594,7 @@ def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResu
     d = _derive(ctx, v, s_real, torque)
     d["h"] = d["h"] * h_scale
     ride = _realised_run(plan, track, cfg.laps, rate, v, s_real, run.out[OUT_FORCE, :n], d)
-    mu500 = np.repeat(run.mu_step[:run.n_steps], per)
-    mu500 = np.append(mu500, mu500[-1])
+    mu500 = _mu_per_sample(run, per)
 
     ir = IRSensor()
     W = patch_matrix(run.grid.r_centres, np.asarray(disc.spot_radii), ir.patch_radius)
@@ -582,8 +612,7 @@ def simulate(cfg: SimConfig, timings: dict[str, float] | None = None) -> SimResu
                          torque, mu500, t_amb500, rate)
     params = _run_params(cfg, track, disc, eff, chain, h_law, run.kz_ratio, run.mu_law, veh,
                          amb0, ir, thermal, ride)
-    table = pa.Table.from_pandas(truth, preserve_index=False)
-    table = table.replace_schema_metadata({"brakethermo_truth": json.dumps(params, sort_keys=True)})
+    table = _truth_table(truth, params)
     clock.lap("truth")
     return SimResult(
         session=SessionData(channels=channels, facts=facts), truth=table, groups=groups

@@ -113,6 +113,32 @@ class Boundary:
     t_amb: float
 
 
+@dataclass(frozen=True)
+class _Surfaces:
+    """Exchange of the face (per radial column) and of the inner and outer rims (per
+    layer) over one step: the surface node is eliminated exactly, a conductance ``g1``
+    from the outermost cell centre to the surface in series with ``g2`` to the air.
+
+    Attributes
+    ----------
+    g1f, g2f : ndarray, shape (nr,) — W/(m^2 K), face: cell to surface, and surface to air
+        (convection plus radiation).
+    hr_f : ndarray, shape (nr,) — W/(m^2 K), face radiation coefficient.
+    g1i, g2i, g1o, g2o : ndarray, shape (nz,) — W/K, inner and outer rim, as for the face.
+    hr_i, hr_o : ndarray, shape (nz,) — W/(m^2 K), rim radiation coefficients.
+    """
+
+    g1f: np.ndarray
+    hr_f: np.ndarray
+    g2f: np.ndarray
+    g1i: np.ndarray
+    hr_i: np.ndarray
+    g2i: np.ndarray
+    g1o: np.ndarray
+    hr_o: np.ndarray
+    g2o: np.ndarray
+
+
 class TruthDisc:
     """Implicit 2D conduction in the half disc with face and rim exchange.
 
@@ -201,27 +227,79 @@ class TruthDisc:
             friction in, face convection out, face radiation out, rim convection out,
             rim radiation out.
         """
-        nr, nz = T.shape
         k = self.conductivity(T)
         kz = self.kz_ratio * k
         cap = self.density * self.specific_heat(T) * self.volume / dt  # W/K
         g_rad = 1.0 / (self._rad_left / k[:-1] + self._rad_right / k[1:])  # (nr-1, nz)
         g_ax = 1.0 / (self._ax_low / kz[:, :-1] + self._ax_high / kz[:, 1:])  # (nr, nz-1)
+        sx = self._surfaces(k, kz, bc, t_face_prev, t_rims_prev)
+        T_new = self._solve(T, cap, g_rad, g_ax, sx, bc)
+        t_face, t_rims, flows = self._surface_flows(T_new, dt, sx, bc)
+        return T_new, t_face, t_rims, flows
 
+    def _surfaces(
+        self,
+        k: np.ndarray,
+        kz: np.ndarray,
+        bc: Boundary,
+        t_face_prev: np.ndarray,
+        t_rims_prev: tuple[np.ndarray, np.ndarray],
+    ) -> _Surfaces:
+        """Conductances of the face and the rims over one step.
+
+        Parameters
+        ----------
+        k, kz : ndarray, shape (nr, nz) — W/(m K), in-plane and through-thickness
+            conductivity of the cells.
+        bc : Boundary
+        t_face_prev, t_rims_prev : as in :meth:`step` — degC, surface temperatures at the
+            start of the step (the radiation coefficients are taken there).
+        """
         ta = bc.t_amb
         g1f = kz[:, -1] / self._face_dist
         hr_f = self._h_rad(t_face_prev, ta)
-        g2f = bc.h_face + hr_f
-        gf = self.area * self._series(g1f, g2f)
-        sf = self.area * g1f / (g1f + g2f) * (bc.q_face + g2f * ta)
-
         g1i = 1.0 / (self._rim_in / k[0])
         hr_i = self._h_rad(t_rims_prev[0], ta)
-        g2i = (bc.h_inner + hr_i) * self.rim_area_in
         g1o = 1.0 / (self._rim_out / k[-1])
         hr_o = self._h_rad(t_rims_prev[1], ta)
-        g2o = (bc.h_outer + hr_o) * self.rim_area_out
-        gi, go = self._series(g1i, g2i), self._series(g1o, g2o)
+        return _Surfaces(
+            g1f=g1f,
+            hr_f=hr_f,
+            g2f=bc.h_face + hr_f,
+            g1i=g1i,
+            hr_i=hr_i,
+            g2i=(bc.h_inner + hr_i) * self.rim_area_in,
+            g1o=g1o,
+            hr_o=hr_o,
+            g2o=(bc.h_outer + hr_o) * self.rim_area_out,
+        )
+
+    def _solve(
+        self,
+        T: np.ndarray,
+        cap: np.ndarray,
+        g_rad: np.ndarray,
+        g_ax: np.ndarray,
+        sx: _Surfaces,
+        bc: Boundary,
+    ) -> np.ndarray:
+        """Cell temperatures at the end of the step, degC: the implicit balance assembled
+        and solved as one symmetric banded system.
+
+        Parameters
+        ----------
+        T : ndarray, shape (nr, nz) — degC, at the start of the step.
+        cap : ndarray, shape (nr, nz) — W/K, heat capacity over the step.
+        g_rad : ndarray, shape (nr - 1, nz) — W/K, between radial neighbours.
+        g_ax : ndarray, shape (nr, nz - 1) — W/K, between axial neighbours.
+        sx : _Surfaces
+        bc : Boundary
+        """
+        nr, nz = T.shape
+        ta = bc.t_amb
+        gf = self.area * self._series(sx.g1f, sx.g2f)
+        sf = self.area * sx.g1f / (sx.g1f + sx.g2f) * (bc.q_face + sx.g2f * ta)
+        gi, go = self._series(sx.g1i, sx.g2i), self._series(sx.g1o, sx.g2o)
 
         diag = cap.copy()
         diag[:-1] += g_rad
@@ -247,23 +325,37 @@ class TruthDisc:
         _, x, info = lapack.dpbsv(ab, rhs.ravel(), lower=0, overwrite_ab=1, overwrite_b=1)
         if info != 0:
             raise FloatingPointError(f"banded solve failed (info={info})")
-        T_new = x.reshape(nr, nz)
+        return x.reshape(nr, nz)
 
-        t_face = (bc.q_face + g2f * ta + g1f * T_new[:, -1]) / (g1f + g2f)
-        t_in = (g2i * ta + g1i * T_new[0]) / (g1i + g2i)
-        t_out = (g2o * ta + g1o * T_new[-1]) / (g1o + g2o)
+    def _surface_flows(
+        self, T_new: np.ndarray, dt: float, sx: _Surfaces, bc: Boundary
+    ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray], np.ndarray]:
+        """Face and rim temperatures at the end of the step (degC) and the step's energy
+        flows (J, half disc), as returned by :meth:`step`.
+
+        Parameters
+        ----------
+        T_new : ndarray, shape (nr, nz) — degC, cells at the end of the step.
+        dt : float — s
+        sx : _Surfaces
+        bc : Boundary
+        """
+        ta = bc.t_amb
+        t_face = (bc.q_face + sx.g2f * ta + sx.g1f * T_new[:, -1]) / (sx.g1f + sx.g2f)
+        t_in = (sx.g2i * ta + sx.g1i * T_new[0]) / (sx.g1i + sx.g2i)
+        t_out = (sx.g2o * ta + sx.g1o * T_new[-1]) / (sx.g1o + sx.g2o)
         conv_face = np.sum(bc.h_face * (t_face - ta) * self.area)
-        rad_face = np.sum(hr_f * (t_face - ta) * self.area)
+        rad_face = np.sum(sx.hr_f * (t_face - ta) * self.area)
         conv_rim = np.sum(bc.h_inner * self.rim_area_in * (t_in - ta)) + np.sum(
             bc.h_outer * self.rim_area_out * (t_out - ta)
         )
-        rad_rim = np.sum(hr_i * self.rim_area_in * (t_in - ta)) + np.sum(
-            hr_o * self.rim_area_out * (t_out - ta)
+        rad_rim = np.sum(sx.hr_i * self.rim_area_in * (t_in - ta)) + np.sum(
+            sx.hr_o * self.rim_area_out * (t_out - ta)
         )
         flows = dt * np.array(
             [np.sum(bc.q_face * self.area), conv_face, rad_face, conv_rim, rad_rim]
         )
-        return T_new, t_face, (t_in, t_out), flows
+        return t_face, (t_in, t_out), flows
 
     def initial_surfaces(self, T: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
         """Surface temperatures of a field at rest (no flux): the outermost cells."""

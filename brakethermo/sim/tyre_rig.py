@@ -140,36 +140,26 @@ class TyreSimResult:
     peak: tuple[float, float]
 
 
-def simulate_tyre_rig(
-    tyre: str = "dry",
-    *,
-    seed: int = 0,
-    rig: TyreRig | None = None,
-    duration_s: float | None = None,
-    log_slip: bool = False,
-) -> TyreSimResult:
-    """Simulate a braking ramp to wheel lock on a μ–slip rig.
+def _ramp_to_lock(
+    rig: TyreRig, mu_of: Callable[[float, float], float], omega0: float, phase: float
+) -> np.ndarray:
+    """The braking ramp, the locked slide and the spin-up back to free rolling, integrated.
 
     Parameters
     ----------
-    tyre : str — a truth tyre: ``dry``, ``wet`` or ``low-mu`` (brush models).
-    seed : int — random seed.
-    rig : TyreRig, optional
-    duration_s : float, optional — pad the session with free rolling to this length, s.
-    log_slip : bool — also log the rig's own ``slip_ratio`` channel.
+    rig : TyreRig
+    mu_of : callable — μ(s, F_z) of the truth tyre at the carriage speed (F_z in N).
+    omega0 : float — free-rolling wheel speed, rad/s.
+    phase : float — phase of the normal-load oscillation, rad.
+
+    Returns
+    -------
+    ndarray, shape (n, 4) — per logged sample from ``rig.free_s``: time (s), wheel speed
+        (rad/s), drag force and normal force (N).
     """
-    rig = rig or TyreRig()
-    mu_of, peak = tyre_curve(tyre, rig.speed, rig.load)
-    rng = np.random.default_rng(seed)
     dt = 1.0 / rig.rate_hz
     h = dt / rig.substeps
     V, R, J = rig.speed, rig.radius, rig.inertia
-    # free rolling: the slip at which the tyre force balances the rolling resistance
-    s_free = brentq(lambda x: mu_of(x, rig.load) - rig.rolling_resistance, 0.0,
-                    peak[1])
-    omega0 = V * (1.0 - s_free) / R
-    phase = rng.uniform(0.0, 2.0 * math.pi)
-    # ramp, slide and spin-up integrated; free rolling before and after is steady
     w, Fx, Tb = omega0, rig.rolling_resistance * rig.load, 0.0
     t_lock: float | None = None
     rows: list[tuple[float, float, float, float]] = []
@@ -201,28 +191,91 @@ def simulate_tyre_rig(
             break
         if k > 60 * rig.rate_hz:
             raise ConfigError("the brake ramp never locked the wheel; raise torque_rate")
-    core = np.array(rows)
+    return np.array(rows)
+
+
+def _whole_session(
+    rig: TyreRig, core: np.ndarray, omega0: float, phase: float, duration_s: float | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The integrated ``core`` (:func:`_ramp_to_lock`) framed by steady free rolling.
+
+    Parameters
+    ----------
+    rig : TyreRig
+    core : ndarray, shape (n, 4) — from :func:`_ramp_to_lock`.
+    omega0 : float — free-rolling wheel speed, rad/s.
+    phase : float — phase of the normal-load oscillation, rad.
+    duration_s : float, optional — pad the tail with free rolling to this length, s.
+
+    Returns
+    -------
+    time (s), wheel speed (rad/s), drag force and normal force (N), per logged sample.
+    """
     n_free = round(rig.free_s * rig.rate_hz)
     n_tail = round(rig.tail_s * rig.rate_hz)
     if duration_s is not None:
         n_tail = max(n_tail, round(duration_s * rig.rate_hz) - n_free - core.shape[0])
     n = n_free + core.shape[0] + n_tail
+    dt = 1.0 / rig.rate_hz
     time = np.arange(n) * dt
     omega = np.full(n, omega0)
     Fz_t = rig.load * (1.0 + rig.load_ripple * np.sin(2 * np.pi * rig.load_freq_hz * time + phase))
     Fx_t = rig.rolling_resistance * Fz_t
     sl = slice(n_free, n_free + core.shape[0])
     omega[sl], Fx_t[sl], Fz_t[sl] = core[:, 1], core[:, 2], core[:, 3]
-    slip = np.clip((V - omega * R) / V, 0.0, 1.0)
+    return time, omega, Fx_t, Fz_t
 
-    v_meas = V + rng.normal(0.0, rig.speed_noise, n)
+
+def _rig_channels(
+    rig: TyreRig, time: np.ndarray, omega: np.ndarray, Fx_t: np.ndarray, Fz_t: np.ndarray,
+    rng: np.random.Generator,
+) -> list[Channel]:
+    """What the rig's sensors log: carriage and wheel speed (m/s, rad/s), drag and normal
+    force (N), each with its noise (drawn in this order)."""
+    n = time.size
+    v_meas = rig.speed + rng.normal(0.0, rig.speed_noise, n)
     w_meas = omega + rng.normal(0.0, rig.wheel_noise, n)
-    channels = [
+    return [
         Channel("vehicle_speed", "m/s", time, v_meas, decimals=4),
         Channel("wheel_speed", "rad/s", time, w_meas, decimals=4),
         Channel("drag_force", "N", time, Fx_t + rng.normal(0.0, rig.drag_noise, n), decimals=2),
         Channel("normal_force", "N", time, Fz_t + rng.normal(0.0, rig.load_noise, n), decimals=2),
     ]
+
+
+def simulate_tyre_rig(
+    tyre: str = "dry",
+    *,
+    seed: int = 0,
+    rig: TyreRig | None = None,
+    duration_s: float | None = None,
+    log_slip: bool = False,
+) -> TyreSimResult:
+    """Simulate a braking ramp to wheel lock on a μ–slip rig.
+
+    Parameters
+    ----------
+    tyre : str — a truth tyre: ``dry``, ``wet`` or ``low-mu`` (brush models).
+    seed : int — random seed.
+    rig : TyreRig, optional
+    duration_s : float, optional — pad the session with free rolling to this length, s.
+    log_slip : bool — also log the rig's own ``slip_ratio`` channel.
+    """
+    rig = rig or TyreRig()
+    mu_of, peak = tyre_curve(tyre, rig.speed, rig.load)
+    rng = np.random.default_rng(seed)
+    V, R = rig.speed, rig.radius
+    # free rolling: the slip at which the tyre force balances the rolling resistance
+    s_free = brentq(lambda x: mu_of(x, rig.load) - rig.rolling_resistance, 0.0,
+                    peak[1])
+    omega0 = V * (1.0 - s_free) / R
+    phase = rng.uniform(0.0, 2.0 * math.pi)
+    # ramp, slide and spin-up integrated; free rolling before and after is steady
+    core = _ramp_to_lock(rig, mu_of, omega0, phase)
+    time, omega, Fx_t, Fz_t = _whole_session(rig, core, omega0, phase, duration_s)
+    slip = np.clip((V - omega * R) / V, 0.0, 1.0)
+
+    channels = _rig_channels(rig, time, omega, Fx_t, Fz_t, rng)
     if log_slip:
         channels.append(Channel("slip_ratio", "-", time, slip, decimals=6))
     facts = {

@@ -142,6 +142,68 @@ def _brake_envelope(
     return np.asarray(env)
 
 
+def _integrate_speed(
+    track: TrackSpec, laps: int, veh: VehicleSpec, env: list[float], power_f: list[float],
+    ds: float, dt: float,
+) -> list[float]:
+    """Speed (m/s) at every time step ``dt`` (s) from the pit lane to the end of the last
+    lap: power-limited acceleration capped by the braking envelope ``env``
+    (m/s on the distance grid of step ``ds``, m); ``power_f`` is the per-lap power factor."""
+    L = track.length
+    n_grid = len(env)
+    total = (laps + 1) * L
+    m, P = veh.mass, veh.power
+    cd = 0.5 * veh.rho_air * veh.cda
+    rr = veh.crr * veh.mass * G
+    a_max = veh.wheelie_g * G
+    v, s = track.pit_speed, 0.0
+    vs = [v]
+    while s < total:
+        k = min(int(s // L), laps)
+        a = min(a_max, (P * power_f[k] / max(v, 5.0) - cd * v * v - rr) / m)
+        v_new = v + a * dt
+        s_new = s + 0.5 * (v + v_new) * dt
+        j = s_new / ds
+        i0 = min(int(j), n_grid - 2)
+        f = j - i0
+        cap = env[i0] * (1.0 - f) + env[i0 + 1] * f
+        if v_new > cap:
+            v_new = cap
+            s_new = s + 0.5 * (v + v_new) * dt
+        v, s = v_new, s_new
+        vs.append(v)
+    return vs
+
+
+def _brake_onset(
+    vs: list[float], veh: VehicleSpec, rate: float, total: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Speed (m/s) with the brake onset rounded, and the distance (m) it covers, up to
+    the first sample at or past ``total`` (m); ``rate`` in Hz."""
+    dt = 1.0 / rate
+    # Pressure build-up: a centred moving average over the onset time.
+    w = max(1, round(veh.onset_s * rate))
+    vraw = np.asarray(vs)
+    padded = np.concatenate([np.full(w, vraw[0]), vraw, np.full(w, vraw[-1])])
+    kernel = np.ones(w) / w
+    v_s = np.convolve(padded, kernel, mode="same")[w:-w]
+    s_s = np.concatenate([[0.0], np.cumsum(0.5 * (v_s[1:] + v_s[:-1]) * dt)])
+    end = int(np.searchsorted(s_s, total))
+    return v_s[: end + 1], s_s[: end + 1]
+
+
+def _following_laps(
+    laps: int, slip_fraction_laps: float, rng: np.random.Generator
+) -> np.ndarray:
+    """Per lap (the out-lap never), whether the rider follows another bike."""
+    following = np.zeros(laps + 1, dtype=bool)
+    # The order is drawn whatever the share, so a larger share adds following laps to
+    # those of a smaller one.
+    order = rng.permutation(laps)
+    following[1 + order[: round(slip_fraction_laps * laps)]] = True
+    return following
+
+
 def drive_session(
     track: TrackSpec,
     laps: int,
@@ -173,38 +235,8 @@ def drive_session(
 
     dt = 1.0 / rate
     total = (laps + 1) * L
-    m, P = veh.mass, veh.power
-    cd = 0.5 * veh.rho_air * veh.cda
-    rr = veh.crr * veh.mass * G
-    a_max = veh.wheelie_g * G
-    pf = power_f.tolist()
-    v, s = track.pit_speed, 0.0
-    vs, ss = [v], [s]
-    while s < total:
-        k = min(int(s // L), laps)
-        a = min(a_max, (P * pf[k] / max(v, 5.0) - cd * v * v - rr) / m)
-        v_new = v + a * dt
-        s_new = s + 0.5 * (v + v_new) * dt
-        j = s_new / ds
-        i0 = min(int(j), n_grid - 2)
-        f = j - i0
-        cap = env[i0] * (1.0 - f) + env[i0 + 1] * f
-        if v_new > cap:
-            v_new = cap
-            s_new = s + 0.5 * (v + v_new) * dt
-        v, s = v_new, s_new
-        vs.append(v)
-        ss.append(s)
-
-    # Pressure build-up: a centred moving average over the onset time.
-    w = max(1, round(veh.onset_s * rate))
-    vraw = np.asarray(vs)
-    padded = np.concatenate([np.full(w, vraw[0]), vraw, np.full(w, vraw[-1])])
-    kernel = np.ones(w) / w
-    v_s = np.convolve(padded, kernel, mode="same")[w:-w]
-    s_s = np.concatenate([[0.0], np.cumsum(0.5 * (v_s[1:] + v_s[:-1]) * dt)])
-    end = int(np.searchsorted(s_s, total))
-    v_s, s_s = v_s[: end + 1], s_s[: end + 1]
+    vs = _integrate_speed(track, laps, veh, env, power_f.tolist(), ds, dt)
+    v_s, s_s = _brake_onset(vs, veh, rate, total)
     acc = np.gradient(v_s, dt)
     brake_force = np.maximum(0.0, -veh.mass * acc - veh.resistance(v_s))
     slip = veh.slip_per_g * brake_force / (veh.mass * G)
@@ -215,11 +247,6 @@ def drive_session(
     beacon_times = np.concatenate([[0.0], np.asarray(crossings, dtype=float) / rate])
     ends = track.corner_spans()[:, 1]
     next_corner = np.searchsorted(ends, lap_distance, side="right") % ends.size
-    following = np.zeros(laps + 1, dtype=bool)
-    # The order is drawn whatever the share, so a larger share adds following laps to
-    # those of a smaller one.
-    order = rng.permutation(laps)
-    following[1 + order[: round(slip_fraction_laps * laps)]] = True
     return RiderRun(
         rate=rate,
         v=v_s,
@@ -231,5 +258,5 @@ def drive_session(
         lap_distance=lap_distance,
         next_corner=next_corner,
         beacon_times=beacon_times,
-        following=following,
+        following=_following_laps(laps, slip_fraction_laps, rng),
     )

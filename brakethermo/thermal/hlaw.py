@@ -16,7 +16,7 @@ cooling air.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -130,23 +130,8 @@ class HLaw:
         DataError
             Too few usable samples below the knee.
         """
-        v = np.abs(np.asarray(v_mps, dtype=float)).ravel()
-        y = np.asarray(h, dtype=float).ravel()
-        w = np.ones_like(y) if weights is None else np.asarray(weights, dtype=float).ravel()
-        if not v.shape == y.shape == w.shape:
-            raise ValueError("v_mps, h and weights must have the same length")
-        keep = np.isfinite(v) & np.isfinite(y) & np.isfinite(w) & (w > 0)
-        x, y, sw = v[keep] / v_ref, y[keep], np.sqrt(w[keep] / np.mean(w[keep]))
-        low = (x < knee) & (x > 0.05 * knee) & (y > 0)
-        if np.count_nonzero(low) < MIN_SAMPLES_POWER:
-            raise DataError(
-                f"only {np.count_nonzero(low)} usable h samples below {knee:.2f} V_ref; the law"
-                f" needs at least {MIN_SAMPLES_POWER} — use a session with more off-brake running"
-            )
-        # start: weighted log-log line through the power branch
-        A = np.stack([np.ones(np.count_nonzero(low)), np.log(x[low])], axis=1)
-        coef = np.linalg.lstsq(A * sw[low, None], np.log(y[low]) * sw[low], rcond=None)[0]
-        a0, b0 = math.exp(coef[0]), float(np.clip(coef[1], 0.0, 5.0))
+        x, y, sw, low = _fit_samples(v_mps, h, weights, v_ref, knee)
+        a0, b0 = _power_start(x, y, sw, low)
         with_cubic = np.count_nonzero(x >= knee) >= MIN_SAMPLES_CUBIC
 
         def unpack(p: np.ndarray) -> HLaw:
@@ -160,23 +145,7 @@ class HLaw:
             return sw * (unpack(p)(x * v_ref) - y)
 
         p0 = np.array([a0, b0, a0 * b0 * knee ** (b0 - 1.0), 0.0, 0.0][: 5 if with_cubic else 2])
-        lo = [0.0, 0.0] + [-np.inf] * (len(p0) - 2)
-        hi = [np.inf, 5.0] + [np.inf] * (len(p0) - 2)
-        p0 = np.clip(p0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-        # here, not at the top: every command reads a law, only identify-h fits one
-        # (scipy.optimize is 0.25 s of import)
-        from scipy.optimize import least_squares
-
-        sol = least_squares(residual, p0, bounds=(lo, hi), x_scale="jac")
-        if robust:
-            r = residual(sol.x)
-            scale = 1.4826 * float(np.median(np.abs(r - np.median(r))))
-            if scale > 0:
-                sol = least_squares(
-                    residual, sol.x, bounds=(lo, hi), loss="huber", f_scale=1.345 * scale,
-                    x_scale="jac",
-                )  # fmt: skip
-        return unpack(sol.x)
+        return unpack(_least_squares(residual, p0, robust))
 
     # -------------------------------------------------------------------- TOML
     def tabulate(self) -> tuple[np.ndarray, np.ndarray]:
@@ -296,6 +265,81 @@ def read_h_law(path: str | Path) -> HLawRecord:
         if not isinstance(table, dict):
             raise raw.error(f"effects.{name}", "a table [effects.<name>] of parameters", table)
     return HLawRecord(law=law, weights=(w[0], w[1], w[2]), extra=extra, effects=effects)
+
+
+def _fit_samples(
+    v_mps: np.ndarray, h: np.ndarray, weights: np.ndarray | None, v_ref: float, knee: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The usable samples of :meth:`HLaw.fit`, checked.
+
+    Parameters
+    ----------
+    v_mps : ndarray — m/s, forward speed.
+    h : ndarray — W/(m^2 K), identified convection coefficient.
+    weights : ndarray, optional — 1/(W/(m^2 K))^2, NaN or non-positive drops the sample.
+    v_ref : float — m/s, reference speed.
+    knee : float — knee as a fraction of ``v_ref``.
+
+    Returns
+    -------
+    x : ndarray — V / V_ref of the kept samples.
+    y : ndarray — W/(m^2 K), their h.
+    sw : ndarray — square roots of the weights normalised to mean 1.
+    low : ndarray of bool — the samples that start the power branch.
+
+    Raises
+    ------
+    DataError
+        Too few usable samples below the knee.
+    """
+    v = np.abs(np.asarray(v_mps, dtype=float)).ravel()
+    y = np.asarray(h, dtype=float).ravel()
+    w = np.ones_like(y) if weights is None else np.asarray(weights, dtype=float).ravel()
+    if not v.shape == y.shape == w.shape:
+        raise ValueError("v_mps, h and weights must have the same length")
+    keep = np.isfinite(v) & np.isfinite(y) & np.isfinite(w) & (w > 0)
+    x, y, sw = v[keep] / v_ref, y[keep], np.sqrt(w[keep] / np.mean(w[keep]))
+    low = (x < knee) & (x > 0.05 * knee) & (y > 0)
+    if np.count_nonzero(low) < MIN_SAMPLES_POWER:
+        raise DataError(
+            f"only {np.count_nonzero(low)} usable h samples below {knee:.2f} V_ref; the law"
+            f" needs at least {MIN_SAMPLES_POWER} — use a session with more off-brake running"
+        )
+    return x, y, sw, low
+
+
+def _power_start(
+    x: np.ndarray, y: np.ndarray, sw: np.ndarray, low: np.ndarray
+) -> tuple[float, float]:
+    """Start of the power branch, a (W/(m^2 K)) and b: a weighted log-log line through the
+    ``low`` samples of :func:`_fit_samples`."""
+    A = np.stack([np.ones(np.count_nonzero(low)), np.log(x[low])], axis=1)
+    coef = np.linalg.lstsq(A * sw[low, None], np.log(y[low]) * sw[low], rcond=None)[0]
+    return math.exp(coef[0]), float(np.clip(coef[1], 0.0, 5.0))
+
+
+def _least_squares(
+    residual: Callable[[np.ndarray], np.ndarray], p0: np.ndarray, robust: bool
+) -> np.ndarray:
+    """Coefficients (a, b[, c1..c3]) minimising ``residual`` from ``p0``, a >= 0 and
+    0 <= b <= 5; ``robust`` refits with a Huber loss scaled by the first fit's residuals."""
+    lo = [0.0, 0.0] + [-np.inf] * (len(p0) - 2)
+    hi = [np.inf, 5.0] + [np.inf] * (len(p0) - 2)
+    p0 = np.clip(p0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+    # here, not at the top: every command reads a law, only identify-h fits one
+    # (scipy.optimize is 0.25 s of import)
+    from scipy.optimize import least_squares
+
+    sol = least_squares(residual, p0, bounds=(lo, hi), x_scale="jac")
+    if robust:
+        r = residual(sol.x)
+        scale = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+        if scale > 0:
+            sol = least_squares(
+                residual, sol.x, bounds=(lo, hi), loss="huber", f_scale=1.345 * scale,
+                x_scale="jac",
+            )  # fmt: skip
+    return sol.x
 
 
 def _fmt(value: Any) -> str:

@@ -37,6 +37,9 @@ from brakethermo.pipelines.batch.tasks import (
 )
 from brakethermo.pipelines.preflight import preflight
 
+# an up-to-date single-spot session whose law the second pass chooses again
+KnownSingle = tuple[Path, str, str, dict[str, Any]]  # path, name, sha256, manifest
+
 
 def _interrupted(files: list[Path], names: list[str], done: dict[Path, SessionOutcome],
                  force: bool = False) -> Interrupted:
@@ -94,6 +97,72 @@ def _sessions_under(folder: Path, out: Path) -> tuple[list[Path], list[str]]:
     return files, not_read
 
 
+def _plan(files: list[Path], names: list[str], options: BatchOptions, out: Path
+          ) -> tuple[dict[Path, SessionOutcome], list[KnownSingle], list[SessionTask],
+                     dict[Path, int]]:
+    """What each session needs: done already (unreadable, or up to date), up to date but
+    its law to be chosen again (a single-spot session, on the second pass), or a
+    first-pass task; and each readable file's size, bytes."""
+    key = options.output_key()
+    given_sha = file_sha256(options.h_law) if options.h_law is not None else None
+    done: dict[Path, SessionOutcome] = {}
+    known_single: list[KnownSingle] = []
+    first: list[SessionTask] = []
+    sizes: dict[Path, int] = {}
+    for path, name in zip(files, names, strict=True):
+        try:
+            sha = file_sha256(path)
+            sizes[path] = path.stat().st_size
+        except OSError as exc:
+            done[path] = SessionOutcome(path, name, "failed", reason=f"{path}: cannot read ({exc})")
+            continue
+        manifest = None if options.force else read_manifest(out / name)
+        if up_to_date(manifest, sha, key, out / name, options.reports):
+            assert manifest is not None
+            if manifest.get("kind") == "multi" or (
+                given_sha is not None and manifest.get("h_law_sha256") == given_sha
+            ):
+                done[path] = skipped_outcome(path, name, manifest, out)
+                continue
+            if given_sha is None and manifest.get("kind") == "single":
+                known_single.append((path, name, sha, manifest))
+                continue
+        first.append(
+            SessionTask(
+                path=path,
+                name=name,
+                options=options,
+                input_sha256=sha,
+                h_law=options.h_law,
+                h_law_source="given" if options.h_law is not None else DEFAULT_LAW,
+                h_law_reason="given with --h-law" if options.h_law is not None else "",
+                defer_single=options.h_law is None,
+            )
+        )
+    return done, known_single, first, sizes
+
+
+def _run_passes(first: list[SessionTask], known_single: list[KnownSingle],
+                sizes: dict[Path, int], done: dict[Path, SessionOutcome],
+                options: BatchOptions, out: Path, job: Job, on_event: Event | None) -> None:
+    """Both passes, each outcome into ``done`` as it comes (an interrupt leaves there what
+    finished); a session deferred by the first pass has its read counted in the second."""
+    # Longest first keeps a pool busy to the end; file size stands in for session length.
+    first.sort(key=lambda task: -sizes[task.path])
+    with executor_for(options) as executor:
+        for o in run_tasks(first, executor, job, on_event):
+            done[o.path] = o
+        second = second_pass(known_single, first, done, options, out, on_event)
+        for o in run_tasks(second, executor, job, on_event):
+            first_pass = done.get(o.path)
+            if first_pass is not None and first_pass.status == "deferred":
+                # The file was read in the first pass; count that read in this session.
+                o.wall_s += first_pass.wall_s
+                o.timings["read_s"] = (o.timings.get("read_s", 0.0)
+                                       + first_pass.timings["read_s"])
+            done[o.path] = o
+
+
 def run_batch(
     folder: str | Path,
     options: BatchOptions,
@@ -129,62 +198,13 @@ def run_batch(
     names = output_names(files, folder)
     if on_event is not None:
         on_event("start", len(files))
-    key = options.output_key()
-    given_sha = file_sha256(options.h_law) if options.h_law is not None else None
-
-    done: dict[Path, SessionOutcome] = {}
-    known_single: list[tuple[Path, str, str, dict[str, Any]]] = []
-    first: list[SessionTask] = []
-    sizes: dict[Path, int] = {}
-    for path, name in zip(files, names, strict=True):
-        try:
-            sha = file_sha256(path)
-            sizes[path] = path.stat().st_size
-        except OSError as exc:
-            done[path] = SessionOutcome(path, name, "failed", reason=f"{path}: cannot read ({exc})")
-            continue
-        manifest = None if options.force else read_manifest(out / name)
-        if up_to_date(manifest, sha, key, out / name, options.reports):
-            assert manifest is not None
-            if manifest.get("kind") == "multi" or (
-                given_sha is not None and manifest.get("h_law_sha256") == given_sha
-            ):
-                done[path] = skipped_outcome(path, name, manifest, out)
-                continue
-            if given_sha is None and manifest.get("kind") == "single":
-                known_single.append((path, name, sha, manifest))
-                continue
-        first.append(
-            SessionTask(
-                path=path,
-                name=name,
-                options=options,
-                input_sha256=sha,
-                h_law=options.h_law,
-                h_law_source="given" if options.h_law is not None else DEFAULT_LAW,
-                h_law_reason="given with --h-law" if options.h_law is not None else "",
-                defer_single=options.h_law is None,
-            )
-        )
+    done, known_single, first, sizes = _plan(files, names, options, out)
     if on_event is not None:
         for o in done.values():
             on_event("done", o)
 
     try:
-        # Longest first keeps a pool busy to the end; file size stands in for session length.
-        first.sort(key=lambda task: -sizes[task.path])
-        with executor_for(options) as executor:
-            for o in run_tasks(first, executor, job, on_event):
-                done[o.path] = o
-            second = second_pass(known_single, first, done, options, out, on_event)
-            for o in run_tasks(second, executor, job, on_event):
-                first_pass = done.get(o.path)
-                if first_pass is not None and first_pass.status == "deferred":
-                    # The file was read in the first pass; count that read in this session.
-                    o.wall_s += first_pass.wall_s
-                    o.timings["read_s"] = (o.timings.get("read_s", 0.0)
-                                           + first_pass.timings["read_s"])
-                done[o.path] = o
+        _run_passes(first, known_single, sizes, done, options, out, job, on_event)
     except KeyboardInterrupt:
         if options.reports:  # the finished sessions' pages link back to it
             _write_index(out, folder, [o for o in done.values()

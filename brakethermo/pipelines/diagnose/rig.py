@@ -213,9 +213,22 @@ def _lags_said(train_lag_s: float, own_lag_s: float) -> str:
             f" {train_lag_s * 1e3:g} ms, this session's by {own_lag_s * 1e3:g} ms")
 
 
-def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
-    """The diagnosis proper, whatever the rig (module docstring, steps 2-4)."""
-    ctx, y, session = case.ctx, case.measured, case.session
+@dataclass(frozen=True)
+class _Split:
+    """The session's units off rest, alternately fitting and held out."""
+
+    kind: str  # what a unit is ("apply cycle", "1 s block")
+    ids: np.ndarray  # every unit with a sensor reading, in increasing order
+    held_ids: np.ndarray  # the held-out ones (every second)
+    held: np.ndarray  # (K,) bool, samples of the held-out units
+    fitting: np.ndarray  # (K,) bool, samples of the fitting units
+    scored: np.ndarray  # (K,) held-out unit id per sample, -1 elsewhere
+
+
+def _split(case: RigCase) -> _Split:
+    """The session's apply cycles (or blocks) with a sensor reading, alternately fitting
+    and held out (module docstring, step 2); DataError when fewer than 4."""
+    ctx, y = case.ctx, case.measured
     units, unit_kind = apply_units(ctx.x, ctx.t, case.rest, case.block_s)
     units = np.where(np.isfinite(y), units, -1)
     ids = np.unique(units[units >= 0])
@@ -223,19 +236,45 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
         raise DataError(
             f"holds {ids.size} {unit_kind}(s) off rest with a sensor reading; the diagnosis"
             " fits on half of them and scores on the other half: record a session with at"
-            " least 4", path=session.path)
+            " least 4", path=case.session.path)
     held_ids = ids[1::2]
     held = np.isin(units, held_ids)
     fitting = (units >= 0) & ~held
-    ref = ctx.curve(ctx.x)
-    scored = np.where(held, units, -1)
-    ref_sse = unit_sse(ref - y, scored)[0]
+    return _Split(unit_kind, ids, held_ids, held, fitting, np.where(held, units, -1))
+
+
+def _fit_effects(case: RigCase, fitting: np.ndarray
+                 ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, float]]]:
+    """Each candidate fitted on the ``fitting`` samples: its prediction over the whole
+    session (the output's unit) and its parameters by name."""
     preds: dict[str, np.ndarray] = {}
     params: dict[str, dict[str, float]] = {}
     for name, e in case.effects.items():
-        theta = _fit_effect(e, ctx, y, fitting, case.floor)
-        preds[name] = e.predict(theta, ctx)
+        theta = _fit_effect(e, case.ctx, case.measured, fitting, case.floor)
+        preds[name] = e.predict(theta, case.ctx)
         params[name] = {k: float(v) for k, v in zip(e.params, theta, strict=True)}
+    return preds, params
+
+
+def _negligible_reasons(case: RigCase, rows: dict[str, dict[str, Any]], size: dict[str, float],
+                        negligible: set[str]) -> list[str]:
+    """Why each negligible candidate that would have been significant is not named."""
+    return [
+        f"{n} shrinks the gap by {rows[n]['shrink_pct']:.0f} %"
+        f" [{rows[n]['shrink_ci95_pct'][0]:.0f}, {rows[n]['shrink_ci95_pct'][1]:.0f}] but"
+        f" corrects it by {size[n]:.3g} {case.unit} RMS, below the sensor floor"
+        f" {case.floor:g} {case.unit}: set aside as negligible"
+        for n in sorted(negligible) if rows[n]["shrink_ci95_pct"][0] > RULE.min_shrink_pct]
+
+
+def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
+    """The diagnosis proper, whatever the rig (module docstring, steps 2-4)."""
+    ctx, y, session = case.ctx, case.measured, case.session
+    split = _split(case)
+    held, scored = split.held, split.scored
+    ref = ctx.curve(ctx.x)
+    ref_sse = unit_sse(ref - y, scored)[0]
+    preds, params = _fit_effects(case, split.fitting)
     names = tuple(case.effects)
     evidence = [CandidateEvidence(
         name, unit_sse(preds[name] - y, scored)[0], correction=(preds[name] - ref)[held],
@@ -274,9 +313,9 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
         "unit": case.unit,
         "input": {"name": case.input_name, "unit": case.input_unit},
         "reference": {"contains": [case.reference_text], "fitted": case.reference_fit},
-        "units": unit_kind,
-        "train_units": [int(v) for v in ids[0::2]],
-        "heldout_units": [int(v) for v in held_ids],
+        "units": split.kind,
+        "train_units": [int(v) for v in split.ids[0::2]],
+        "heldout_units": [int(v) for v in split.held_ids],
         "gap": {"rmse": rmse((ref - y)[held], 0.0), **_phases(ref - y, held, ctx)},
         "where": _where(ref - y, held, ctx, case.rest),
         "consistency": {"summary": "no filter runs here: the trained relation is compared"
@@ -284,12 +323,8 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
         "effects": effects_out,
         **decision.summary(),
         "negligible_below": case.floor,
-        "verdict_reasons": [*decision.summary()["verdict_reasons"], *(
-            f"{n} shrinks the gap by {rows[n]['shrink_pct']:.0f} %"
-            f" [{rows[n]['shrink_ci95_pct'][0]:.0f}, {rows[n]['shrink_ci95_pct'][1]:.0f}] but"
-            f" corrects it by {size[n]:.3g} {case.unit} RMS, below the sensor floor"
-            f" {case.floor:g} {case.unit}: set aside as negligible"
-            for n in sorted(negligible) if rows[n]["shrink_ci95_pct"][0] > RULE.min_shrink_pct)],
+        "verdict_reasons": [*decision.summary()["verdict_reasons"],
+                            *_negligible_reasons(case, rows, size, negligible)],
         "negligible": sorted(negligible),
         "combined": {"effects": [best] if best else []},
         "warnings": list(session.warnings),

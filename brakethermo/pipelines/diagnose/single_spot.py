@@ -19,6 +19,7 @@ from brakethermo.diagnosis.verdict import (
 from brakethermo.errors import DataError
 from brakethermo.estimation.consistency import nis_consistency
 from brakethermo.io.session import Session
+from brakethermo.models.disc_effects import Segments
 from brakethermo.models.effects import EFFECTS, parse_effects
 from brakethermo.pipelines.diagnose._common import (
     RACE_SPOT,
@@ -68,42 +69,25 @@ def diagnose_single_spot(
                         path=session.path, channel="lap_beacon")
     online = [n for n in names if n in SINGLE_SPOT_ONLINE]
     runs = _race_runs(session, options, online, progress)
-    y = np.full((inputs.time.size, 4), np.nan)
-    y[:, RACE_SPOT - 1] = inputs.spots[:, RACE_SPOT - 1]
-    y[y <= SENSOR_FLOOR_C] = np.nan
-
-    def prediction(label: str) -> np.ndarray:
-        pred = np.full_like(y, np.nan)
-        pred[:, RACE_SPOT - 1] = y[:, RACE_SPOT - 1] - runs[label].innovation
-        return pred
-
-    zones, dist, segments = session_segments(session, inputs)
-    braking, release, cycles = zone_masks(zones, inputs.time.size, round(SETTLE_S / session.dt))
-    scored = np.isin(inputs.lap, flying)
-    layout = Layout(train=np.zeros_like(scored), held=scored, braking=braking,
-                    release=release, cycles=cycles)
-    ref_pred = prediction("reference")
+    y = _race_readings(inputs)
+    layout, dist, segments = _flying_layout(session, inputs, flying)
+    scored = layout.held
+    ref_pred = _prediction(y, runs, "reference")
     spots = (RACE_SPOT,)
     units = np.where(layout.held, layout.cycles, -1)
     ref_sse = unit_sse(ref_pred - y, units, per_output=True)[0]
-    evidence = [
-        CandidateEvidence(label, unit_sse(prediction(label) - y, units, per_output=True)[0],
-                          correction=(prediction(label) - ref_pred)[layout.held],
-                          separate_by=EFFECTS[label].separate_by,
-                          next_step=(f"brakethermo estimate {session.path} --"
-                                     f"{SINGLE_SPOT_ONLINE[label][0].replace('_', '-')}"),
-                          outputs=(RACE_SPOT - 1,))
-        for label in online]
+    evidence = [_online_evidence(label, session, y, runs, ref_pred, units, layout.held)
+                for label in online]
     decision = decide(ref_sse, evidence, RULE)
     rows = {r["name"]: r for r in decision.rows}
     best_pred = None
     effects_out = sorted(
         (_online_record(label, rows[label], runs, score(ref_pred, y, layout, spots),
-                        score(prediction(label), y, layout, spots), scored)
+                        score(_prediction(y, runs, label), y, layout, spots), scored)
          for label in online), key=lambda e: e["rank"])
     verdict = decision.verdict
     if verdict != "none":
-        best_pred = prediction(verdict)
+        best_pred = _prediction(y, runs, verdict)
     ref_scores = score(ref_pred, y, layout, spots)
     nis = runs["reference"].innovation**2 / runs["reference"].innovation_var
     res = y - ref_pred
@@ -111,16 +95,7 @@ def diagnose_single_spot(
         "session": str(session.path),
         "metadata": session.metadata,
         "mode": "single-spot race session: innovation-based, spot 3 only",
-        "reference": {
-            "contains": [
-                f"the race estimator of disc {disc.id} with the h law "
-                f"{runs['reference'].summary['run']['h_law'] or 'shipped for the disc'}",
-                "no online effects (k_z and slipstream factors fixed at 1)",
-                "scored by its one-step-ahead innovations at spot 3: predictions from past"
-                " readings only, so no lap needs to be held out",
-            ],
-            "fitted": {},
-        },
+        "reference": _reference_facts(disc, runs["reference"]),
         "train_laps": [],
         "heldout_laps": list(flying),
         "gap": {"rmse_c": ref_scores["overall"], "per_spot": ref_scores["per_spot"],
@@ -143,6 +118,61 @@ def diagnose_single_spot(
     }
     return DiagnoseResult(session, summary, inputs.time, inputs.lap, y, ref_pred, best_pred,
                           dist, nis, {}, ref_sse, evidence)
+
+
+def _race_readings(inputs: DiscInputs) -> np.ndarray:
+    """(K, 4) readings, degC: the race spot's, NaN below the sensor's floor and elsewhere."""
+    y = np.full((inputs.time.size, 4), np.nan)
+    y[:, RACE_SPOT - 1] = inputs.spots[:, RACE_SPOT - 1]
+    y[y <= SENSOR_FLOOR_C] = np.nan
+    return y
+
+
+def _prediction(y: np.ndarray, runs: dict[str, Any], label: str) -> np.ndarray:
+    """(K, 4) one-step-ahead prediction of run ``label`` at the race spot, degC: the
+    reading ``y`` minus the innovation (NaN elsewhere)."""
+    pred = np.full_like(y, np.nan)
+    pred[:, RACE_SPOT - 1] = y[:, RACE_SPOT - 1] - runs[label].innovation
+    return pred
+
+
+def _flying_layout(session: Session, inputs: DiscInputs, flying: tuple[int, ...]
+                   ) -> tuple[Layout, np.ndarray, Segments]:
+    """Every flying lap scored (none trained: the innovations need no held-out lap), with
+    the braking cycles; the lap distance (m) and the segments."""
+    zones, dist, segments = session_segments(session, inputs)
+    braking, release, cycles = zone_masks(zones, inputs.time.size, round(SETTLE_S / session.dt))
+    scored = np.isin(inputs.lap, flying)
+    layout = Layout(train=np.zeros_like(scored), held=scored, braking=braking,
+                    release=release, cycles=cycles)
+    return layout, dist, segments
+
+
+def _online_evidence(label: str, session: Session, y: np.ndarray, runs: dict[str, Any],
+                     ref_pred: np.ndarray, units: np.ndarray, held: np.ndarray
+                     ) -> CandidateEvidence:
+    """One online effect's held-out errors per braking cycle at the race spot."""
+    pred = _prediction(y, runs, label)
+    return CandidateEvidence(label, unit_sse(pred - y, units, per_output=True)[0],
+                             correction=(pred - ref_pred)[held],
+                             separate_by=EFFECTS[label].separate_by,
+                             next_step=(f"brakethermo estimate {session.path} --"
+                                        f"{SINGLE_SPOT_ONLINE[label][0].replace('_', '-')}"),
+                             outputs=(RACE_SPOT - 1,))
+
+
+def _reference_facts(disc: DiscSpec, reference: Any) -> dict[str, Any]:
+    """The summary's ``reference``: what the reference run contains."""
+    return {
+        "contains": [
+            f"the race estimator of disc {disc.id} with the h law "
+            f"{reference.summary['run']['h_law'] or 'shipped for the disc'}",
+            "no online effects (k_z and slipstream factors fixed at 1)",
+            "scored by its one-step-ahead innovations at spot 3: predictions from past"
+            " readings only, so no lap needs to be held out",
+        ],
+        "fitted": {},
+    }
 
 
 def _online_record(label: str, row: dict[str, Any], runs: dict[str, Any],
