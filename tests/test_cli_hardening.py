@@ -177,6 +177,21 @@ def test_stale_stages_of_killed_runs_are_cleaned(tmp_path):
     assert clean_stale_stages(target) == []
 
 
+def test_an_interrupted_run_removes_its_own_stages_only(tmp_path):
+    """What an interrupt left mid-removal goes; another live run's stage stays."""
+    from brakethermo.io.atomic import remove_own_stages
+
+    host = __import__("socket").gethostname().replace(".", "-")
+    own = tmp_path / f".a_race.stage.{host}.{os.getpid()}.abc"
+    aside = tmp_path / f".a_race.old.{host}.{os.getpid()}.def"
+    other = tmp_path / f".b_race.stage.{host}.{os.getppid()}.ghi"
+    for d in (own, aside, other):
+        d.mkdir()
+    (own / "estimate.parquet").write_text("half")
+    assert sorted(remove_own_stages(tmp_path)) == sorted([own, aside])
+    assert not own.exists() and not aside.exists() and other.exists()
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)

@@ -104,6 +104,10 @@ def test_reduced_compiled_steps_equal_the_python_loop(case: str) -> None:
     z0, Pz0 = red.project(x0), red.L.T @ P0 @ red.L
     y = _readings(ssm)
     a, b = loop.run(z0, Pz0, y), fused.run(z0, Pz0, y)
+    with pytest.raises(ValueError, match="both the lift and the noise"):
+        ssm.compiled_steps(lift=red.L)  # full-size noise indexed in reduced coordinates
+    with pytest.raises(ValueError, match="reduced coordinates"):
+        ssm.compiled_steps((red._Q_base, red._S_crown, red._param_idx), lift=red.L[:-1])
     # the lift and projection sum in another order than numpy's matrix products
     np.testing.assert_allclose(b.x_filt, a.x_filt, rtol=1e-8, atol=1e-7)
     np.testing.assert_allclose(b.var_filt, a.var_filt, rtol=1e-7, atol=1e-10)

@@ -173,6 +173,7 @@ def _run_with_progress(sessions: list[Path], options: DiagnoseOptions,
             return [diagnose(sessions[0], options, progress)], None
         return diagnose_many(sessions, options, progress)
 
+
 RIGS = ("ebooster", "emb", "roller-rig", "tyre")
 RIG_NAMES = {"mu-slip": "tyre"}  # the tyre rig by its command's name
 

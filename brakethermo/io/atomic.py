@@ -137,6 +137,27 @@ def clean_stale_stages(target: str | Path) -> list[Path]:
     return removed
 
 
+def remove_own_stages(folder: str | Path) -> list[Path]:
+    """Remove the staging and set-aside folders this process left in ``folder``.
+
+    An interrupt that lands while a stage is being removed (or while a thread still
+    writes into it) can leave one behind; nothing in it is a result. Called once the
+    interrupted work has stopped.
+
+    Returns
+    -------
+    list of Path
+        The folders removed.
+    """
+    tag = glob.escape(f"{_host()}.{os.getpid()}.")
+    removed = []
+    for prefix in (_STAGE, _ASIDE):
+        for path in Path(folder).glob(f".*{prefix}{tag}*"):
+            shutil.rmtree(path, ignore_errors=True)
+            removed.append(path)
+    return removed
+
+
 def _new_stage(target: Path) -> tuple[Path, str]:
     """A staging folder beside ``target`` (stale ones of killed runs removed first) and the
     run's tag; the usual permissions (``mkdtemp`` alone would make it private)."""

@@ -323,22 +323,32 @@ class DiscStateSpace:
         ``lift`` (n, r) runs the filter on reduced coordinates ``x = lift' x_full``
         (orthonormal columns; :class:`~brakethermo.models.reduced.ReducedStateSpace`),
         with the noise of :meth:`noise` from ``noise_parts`` (base, crown, parameter
-        indices) in those coordinates."""
+        indices) in those coordinates: both or neither (the compiled loop indexes them
+        unchecked)."""
+        if (lift is None) != (noise_parts is None):
+            raise ValueError("compiled steps on reduced coordinates need both the lift and"
+                             " the noise in those coordinates")
         if not (self.model.use_numba and _disc_kernels.available()):
             return None
         *head, geometry = self._kernel_spec()
         base, crown, param_idx = noise_parts or (self._Q_base, self._S_crown, self._param_idx)
+        r = self.n if lift is None else lift.shape[1]
+        if ((lift is not None and lift.shape[0] != self.n) or base.shape != (r, r)
+                or crown.shape != (r, r) or np.any((param_idx < 0) | (param_idx >= r))):
+            shape = None if lift is None else lift.shape
+            raise ValueError(f"reduced coordinates of {r} states: lift {shape} for {self.n}"
+                             f" full states, noise {base.shape} / {crown.shape},"
+                             f" parameter indices {param_idx.tolist()}")
         noise = (np.ascontiguousarray(base, dtype=np.float64),
                  np.ascontiguousarray(crown, dtype=np.float64), param_idx.astype(np.int64),
                  self._step_var.astype(np.float64), self._moving.astype(np.float64))
         spec = (*head, noise, geometry)
         span = self._span(head[0])
         L = None if lift is None else np.ascontiguousarray(lift, dtype=np.float64)
-        n = self.n if L is None else L.shape[1]
 
         def steps(k0: int, k1: int, offset: int, work: np.ndarray, *args: Any) -> None:
             # the last step reads its inputs at k1 - 1 + offset
-            self._check_span(span, k1 + offset, 2 * work.shape[1] + 1, work.shape[1], n)
+            self._check_span(span, k1 + offset, 2 * work.shape[1] + 1, work.shape[1], r)
             try:
                 _disc_kernels.run_steps(spec, k0, k1, offset, work, *args, lift=L)
             except ZeroDivisionError:

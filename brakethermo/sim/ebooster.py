@@ -255,8 +255,9 @@ def _mullins(  # pragma: no cover - compiled; checked through its outputs
     delta: float, t_since: float, h: float, d_mull: float, d10i: float, d10d: float,
     k_rec: float,
 ) -> tuple[float, float]:
-    """Rubber stiffness D10 (N/mm) under Mullins damage (eq. 8) and the time since the
-    last damaging compression (s), after a substep ``h`` (s) at compression ``delta`` (mm).
+    """The time since the last damaging compression (s) and the rubber stiffness D10
+    (N/mm) under Mullins damage (eq. 8), after a substep ``h`` (s) at compression
+    ``delta`` (mm).
 
     The stiffness is damaged while compressed beyond ``d_mull`` (mm) and recovers
     exponentially at ``k_rec`` (1/s) from ``d10d`` towards ``d10i`` (N/mm).

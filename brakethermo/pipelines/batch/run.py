@@ -13,6 +13,7 @@ from brakethermo.errors import (
     Interrupted,
     record_output,
 )
+from brakethermo.io.atomic import remove_own_stages
 from brakethermo.pipelines.batch.discovery import (
     SESSION_SUFFIXES,
     discover_sessions,
@@ -206,6 +207,7 @@ def run_batch(
     try:
         _run_passes(first, known_single, sizes, done, options, out, job, on_event)
     except KeyboardInterrupt:
+        remove_own_stages(out)  # the interrupted session as before: no stage left beside it
         if options.reports:  # the finished sessions' pages link back to it
             _write_index(out, folder, [o for o in done.values()
                                        if o.status in ("ok", "skipped")])
