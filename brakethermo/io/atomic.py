@@ -104,6 +104,27 @@ def _alive(pid: int) -> bool:
     return True
 
 
+def _stages(folder: Path, name_glob: str) -> Iterator[tuple[Path, str, str]]:
+    """Staging and set-aside folders in ``folder`` whose names match ``.<name_glob>``
+    followed by the stage or aside marker: each with the host and pid its name carries."""
+    for prefix in (_STAGE, _ASIDE):
+        for path in folder.glob(f".{name_glob}{prefix}*"):
+            # the marker's last occurrence: a session name may hold ".old." itself
+            parts = path.name[path.name.rindex(prefix) + len(prefix):].split(".")
+            if len(parts) >= 2 and parts[1].isdigit():
+                yield path, parts[0], parts[1]
+
+
+def _remove(path: Path) -> None:
+    """Remove a stage whole, even when an interrupt lands while it is being removed (the
+    removal is finished, then the interrupt goes on)."""
+    try:
+        shutil.rmtree(path, ignore_errors=True)
+    except KeyboardInterrupt:
+        shutil.rmtree(path, ignore_errors=True)
+        raise
+
+
 def clean_stale_stages(target: str | Path) -> list[Path]:
     """Remove what killed runs left beside ``target`` (staging and set-aside folders).
 
@@ -119,21 +140,15 @@ def clean_stale_stages(target: str | Path) -> list[Path]:
     target = Path(target)
     host = _host()
     removed = []
-    for prefix in (_STAGE, _ASIDE):
-        short = _short(target.name)
-        for path in target.parent.glob(f".{glob.escape(short)}{prefix}*"):
-            parts = path.name[len(short) + 1 + len(prefix):].split(".")
-            stage_host, pid = (parts[0], parts[1]) if len(parts) >= 2 else ("", "")
-            if not pid.isdigit():
-                continue
-            try:
-                age = time.time() - path.stat().st_mtime
-            except OSError:
-                continue
-            mine = stage_host == host
-            if (mine and not _alive(int(pid))) or (not mine and age > STALE_FOREIGN_S):
-                shutil.rmtree(path, ignore_errors=True)
-                removed.append(path)
+    for path, stage_host, pid in _stages(target.parent, glob.escape(_short(target.name))):
+        try:
+            age = time.time() - path.stat().st_mtime
+        except OSError:
+            continue
+        mine = stage_host == host
+        if (mine and not _alive(int(pid))) or (not mine and age > STALE_FOREIGN_S):
+            shutil.rmtree(path, ignore_errors=True)
+            removed.append(path)
     return removed
 
 
@@ -149,11 +164,11 @@ def remove_own_stages(folder: str | Path) -> list[Path]:
     list of Path
         The folders removed.
     """
-    tag = glob.escape(f"{_host()}.{os.getpid()}.")
+    host, pid = _host(), str(os.getpid())
     removed = []
-    for prefix in (_STAGE, _ASIDE):
-        for path in Path(folder).glob(f".*{prefix}{tag}*"):
-            shutil.rmtree(path, ignore_errors=True)
+    for path, stage_host, stage_pid in _stages(Path(folder), "*"):
+        if (stage_host, stage_pid) == (host, pid):
+            _remove(path)
             removed.append(path)
     return removed
 
@@ -184,7 +199,7 @@ def atomic_dir(target: str | Path) -> Iterator[Path]:
     try:
         yield tmp
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        _remove(tmp)
         raise
     old = None
     if target.exists():
@@ -243,7 +258,7 @@ def atomic_entries(target: str | Path, owned: tuple[str, ...]) -> Iterator[Path]
         except BaseException:
             # a folder made for this write and never filled is not left behind (an
             # interrupted batch left one per session it had not finished)
-            shutil.rmtree(stage, ignore_errors=True)
+            _remove(stage)
             if created and not any(target.iterdir()):
                 target.rmdir()
             raise
@@ -262,4 +277,4 @@ def atomic_entries(target: str | Path, owned: tuple[str, ...]) -> Iterator[Path]
             _swap_in(entry, target / entry.name, tag)
         _record(target)
     finally:
-        shutil.rmtree(stage, ignore_errors=True)
+        _remove(stage)
