@@ -89,6 +89,33 @@ def test_physics_and_models_write_no_files() -> None:
             assert "io" not in _imports(path), f"{rel} imports io (the models return data)"
 
 
+# Of io and thermal, the simulator may use exactly these modules: the session writer and
+# the disc datasheet (geometry and its loader). The FE model, the readers and everything
+# else the estimator is made of stay out of the truth.
+SIM_MODULES = {"brakethermo.io.writers", "brakethermo.thermal.disc"}
+
+
+def _module_imports(path: Path) -> set[str]:
+    """The full names of the brakethermo modules ``path`` imports from."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out.add(node.module)
+        elif isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+    return {m for m in out if m.startswith("brakethermo.")}
+
+
+def test_the_simulator_uses_only_the_writer_and_the_datasheet() -> None:
+    for path in (PACKAGE / "sim").rglob("*.py"):
+        for module in _module_imports(path):
+            pkg = module.split(".")[1]
+            if pkg in {"io", "thermal"}:
+                assert module in SIM_MODULES, (
+                    f"sim/{path.name} imports {module}: the truth uses only the session"
+                    " writer and the datasheet")
+
+
 def test_the_checker_sees_imports_inside_functions(tmp_path: Path) -> None:
     probe = tmp_path / "probe.py"
     probe.write_text("def f():\n    from brakethermo.pipelines.estimate import x\n")
