@@ -130,10 +130,7 @@ def lag_scores(theta: Array, current: Array, F: Array, ts: float, window: int,
 
     Parameters
     ----------
-    theta : ndarray (K,) — motor angle, rad.
-    current : ndarray (K,) — motor current, A.
-    F : ndarray (K,) — clamp-force sensor, N.
-    ts : float — sample time, s.
+    theta, current, F, ts : as :func:`train`.
     window : int — derivative window of the motor rates (:func:`motor_rates`).
     band : float — rad/s, friction sign band (:func:`friction_sign`).
 

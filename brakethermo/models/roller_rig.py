@@ -255,7 +255,8 @@ class RollerRigTransition:
 
 
 @njit(cache=True, nogil=True)
-def _rhs(w_w, w_r, r_w, tq, N, a, b, fsyn, p, tab):  # pragma: no cover - compiled
+def _rhs(w_w, w_r, r_w, u, q, fsyn, p, tab):  # pragma: no cover - compiled
+    tq, N, a, b = u[q, 0], u[q, 1], u[q, 2], u[q, 3]
     v_w = w_w * r_w
     v_r = w_r * p[R_R]
     V = max(0.5 * (abs(v_w) + abs(v_r)), V_MIN)
@@ -288,53 +289,26 @@ def _smooth_sign(w):  # pragma: no cover - compiled
 @njit(cache=True, nogil=True)
 def propagate(X, out, tq0, tq1, n0, n1, fsyn, p, tab, n_sub, h):  # pragma: no cover - compiled
     """RK4 of every row of X over n_sub substeps h, inputs linear in time, into out."""
-    # inputs and contact size at the substep start, middle and end: the same for all rows
-    m = 2 * n_sub + 1
-    tq = np.empty(m)
-    nf = np.empty(m)
-    ca = np.empty(m)
-    cb = np.empty(m)
-    for q in range(m):
+    # inputs and contact size at the substep start, middle and end, the same for all rows:
+    # torque, normal force and the contact's semi-axes a, b
+    u = np.empty((2 * n_sub + 1, 4))
+    for q in range(u.shape[0]):
         c = q / (2.0 * n_sub)
-        tq[q] = tq0 + (tq1 - tq0) * c
-        nf[q] = n0 + (n1 - n0) * c
-        scale = (nf[q] / p[N_REF]) ** (1.0 / 3.0)  # Hertz: size ~ N^(1/3), shape fixed
-        ca[q] = p[A_REF] * scale
-        cb[q] = p[B_REF] * scale
+        u[q, 0] = tq0 + (tq1 - tq0) * c
+        u[q, 1] = n0 + (n1 - n0) * c
+        scale = (u[q, 1] / p[N_REF]) ** (1.0 / 3.0)  # Hertz: size ~ N^(1/3), shape fixed
+        u[q, 2] = p[A_REF] * scale
+        u[q, 3] = p[B_REF] * scale
     for i in range(X.shape[0]):
         w_w = X[i, 0]
         w_r = X[i, 1]
         r_w = X[i, 2]
         for j in range(n_sub):
             q0, q1, q2 = 2 * j, 2 * j + 1, 2 * j + 2
-            a1, b1 = _rhs(w_w, w_r, r_w, tq[q0], nf[q0], ca[q0], cb[q0], fsyn, p, tab)
-            a2, b2 = _rhs(
-                w_w + 0.5 * h * a1,
-                w_r + 0.5 * h * b1,
-                r_w,
-                tq[q1],
-                nf[q1],
-                ca[q1],
-                cb[q1],
-                fsyn,
-                p,
-                tab,
-            )
-            a3, b3 = _rhs(
-                w_w + 0.5 * h * a2,
-                w_r + 0.5 * h * b2,
-                r_w,
-                tq[q1],
-                nf[q1],
-                ca[q1],
-                cb[q1],
-                fsyn,
-                p,
-                tab,
-            )
-            a4, b4 = _rhs(
-                w_w + h * a3, w_r + h * b3, r_w, tq[q2], nf[q2], ca[q2], cb[q2], fsyn, p, tab
-            )
+            a1, b1 = _rhs(w_w, w_r, r_w, u, q0, fsyn, p, tab)
+            a2, b2 = _rhs(w_w + 0.5 * h * a1, w_r + 0.5 * h * b1, r_w, u, q1, fsyn, p, tab)
+            a3, b3 = _rhs(w_w + 0.5 * h * a2, w_r + 0.5 * h * b2, r_w, u, q1, fsyn, p, tab)
+            a4, b4 = _rhs(w_w + h * a3, w_r + h * b3, r_w, u, q2, fsyn, p, tab)
             w_w += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
             w_r += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
         out[i, 0] = w_w

@@ -287,6 +287,27 @@ class DiscFEModel:
             a = a.copy()
         return a
 
+    def _member_inputs(
+        self,
+        B: int,
+        q: float | np.ndarray,
+        h: float | np.ndarray,
+        scale: float | np.ndarray,
+        kz_ratio: float | np.ndarray | None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The step's ``h``, ``kz_ratio`` and braking power per member (arguments as
+        :meth:`step`; ``kz_ratio=None`` takes the model's).
+
+        Returns
+        -------
+        h_b : ndarray, shape (B,) — W/(m^2 K)
+        kz : ndarray, shape (B,) — dimensionless
+        Qs : ndarray, shape (B,) — W, ``q * scale``
+        """
+        h_b = self._per_member(h, B)
+        kz = self._per_member(self.kz_ratio if kz_ratio is None else kz_ratio, B)
+        return h_b, kz, self._per_member(q, B) * self._per_member(scale, B)
+
     def initial_state(self, t_c: float) -> np.ndarray:
         """Uniform temperature ``t_c`` (degC) at every node, shape (n_state,)."""
         return np.full(self.n_state, float(t_c))
@@ -329,11 +350,9 @@ class DiscFEModel:
         T_face = T2.reshape(B, N, L)[:, :, 0]
         half_depth = 0.25 * self.layer_thickness[0]  # d_0 / 2: both slices are 2 d_0
         ta = self._per_member(t_amb, B)[:, None]
-        h_b = self._per_member(h, B)[:, None]
-        kz = self._per_member(self.kz_ratio if kz_ratio is None else kz_ratio, B)[:, None]
+        h_b, kz, Qs = (x[:, None] for x in self._member_inputs(B, q, h, scale, kz_ratio))
         a_face = self._face_area
-        Qs = self._per_member(q, B) * self._per_member(scale, B)
-        phi_fric = Qs[:, None] * self._load_rows(load, B) / (2.0 * a_face)
+        phi_fric = Qs * self._load_rows(load, B) / (2.0 * a_face)
         phi_rad = self._radiation(T_face, ta[:, 0]) / (2.0 * a_face)
         R = half_depth / (kz * np.interp(T_face, *self._z_tab))
         T_s = T_face + R * (phi_fric - h_b * (T_face - ta) - phi_rad) / (1.0 + h_b * R)
@@ -422,11 +441,9 @@ class DiscFEModel:
         """
         T2, _ = self._batch(T)
         B = T2.shape[0]
-        h_b = self._per_member(h, B)
+        h_b, kz, Qs = self._member_inputs(B, q, h, scale, kz_ratio)
         T3 = T2.reshape(B, self.n_nodes, self.layers)
-        kz = self._per_member(self.kz_ratio if kz_ratio is None else kz_ratio, B)
         ab, Mdt = self._matrix(T3, h_b, kz)
-        Qs = self._per_member(q, B) * self._per_member(scale, B)
         rhs = self._rhs(T3, Mdt, h_b, self._per_member(t_amb, B), Qs, self._load_rows(load, B))
         return ab, rhs
 
@@ -499,9 +516,7 @@ class DiscFEModel:
         """
         T2, single = self._batch(T)
         B = T2.shape[0]
-        h_b = self._per_member(h, B)
-        kz = self._per_member(self.kz_ratio if kz_ratio is None else kz_ratio, B)
-        Qs = self._per_member(q, B) * self._per_member(scale, B)
+        h_b, kz, Qs = self._member_inputs(B, q, h, scale, kz_ratio)
         ta = self._per_member(t_amb, B)
         rows = self._load_rows(load, B)
         if shared_matrix_from is not None:
