@@ -9,6 +9,7 @@ a real estimate: peaks a second after release, cooling on straights, outer spots
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from scipy.signal import lfilter
 
+from brakethermo.io.atomic import write_text_atomic
+from brakethermo.io.load import load_session
 from brakethermo.io.session import ChannelInfo, Lap, Session
+from brakethermo.pipelines.batch import BatchOptions, RunOutput, is_multi_spot
 
 DT = 0.1
 SPOT_RADII = (0.111, 0.130, 0.146, 0.162)
@@ -208,3 +212,29 @@ def write_session_csv(path: Path, n_laps: int = 2, seed: int = 0) -> Path:
     out.columns = ["time", *(f"{c} [{units[c]}]" if units[c] else c for c in out.columns[1:])]
     out.to_csv(path, index=False)
     return path
+
+
+class SynthBatchRunner:
+    """A batch runner: the real reader, a synthetic heat-balance estimate; a multi-spot
+    session writes an h law. Subclasses say how a session records the law it ran with."""
+
+    def load(self, path: Path, options: BatchOptions) -> Session:
+        return load_session(path, aliases=options.aliases)
+
+    def run(
+        self, session: Session, stage: Path, options: BatchOptions, h_law: Path | None
+    ) -> RunOutput:
+        t = time.perf_counter()
+        est, radii = estimate_frame(session.frame, n_nodes=options.nodes or 11)
+        write_estimate_parquet(est, radii, stage / "estimate.parquet")
+        law = None
+        if is_multi_spot(session):
+            law = stage / "h_law.toml"
+            write_text_atomic(law, f'source = "{session.path.name}"\n')
+        self.record(stage, law, h_law)
+        return RunOutput(est, radii, law, {"estimate_s": time.perf_counter() - t})
+
+    def record(self, stage: Path, written: Path | None, given: Path | None) -> None:
+        """Note in ``stage`` the h law the session ran with: the one it wrote (``written``),
+        else the ``given`` one (None: the shipped law)."""
+        raise NotImplementedError

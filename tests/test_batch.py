@@ -9,14 +9,12 @@ from __future__ import annotations
 
 import functools
 import json
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 from _synth_race import (
-    estimate_frame,
-    write_estimate_parquet,
+    SynthBatchRunner,
     write_session_csv,
     write_session_parquet,
 )
@@ -25,13 +23,10 @@ from typer.testing import CliRunner
 from brakethermo.config import config_dir
 from brakethermo.errors import EXIT_BATCH_PARTIAL
 from brakethermo.io.atomic import write_text_atomic
-from brakethermo.io.load import load_session
-from brakethermo.io.session import Session
 from brakethermo.pipelines import batch as batch_mod
 from brakethermo.pipelines.batch import (
     MANIFEST,
     BatchOptions,
-    RunOutput,
     discover_sessions,
     output_names,
     process_session,
@@ -42,25 +37,12 @@ from brakethermo.pipelines.batch import session as batch_session
 from brakethermo.pipelines.batch import tasks as batch_tasks
 
 
-class SynthRunner:
-    """Real reader; estimate = synthetic heat balance; multi-spot writes an h law."""
+class SynthRunner(SynthBatchRunner):
+    """A session without spots of its own notes the law it was given in law_used.txt."""
 
-    def load(self, path: Path, options: BatchOptions) -> Session:
-        return load_session(path, aliases=options.aliases)
-
-    def run(
-        self, session: Session, stage: Path, options: BatchOptions, h_law: Path | None
-    ) -> RunOutput:
-        t = time.perf_counter()
-        est, radii = estimate_frame(session.frame, n_nodes=options.nodes or 11)
-        write_estimate_parquet(est, radii, stage / "estimate.parquet")
-        law = None
-        if batch_mod.is_multi_spot(session):
-            law = stage / "h_law.toml"
-            write_text_atomic(law, f'source = "{session.path.name}"\n')
-        else:
-            write_text_atomic(stage / "law_used.txt", str(h_law))
-        return RunOutput(est, radii, law, {"estimate_s": time.perf_counter() - t})
+    def record(self, stage: Path, written: Path | None, given: Path | None) -> None:
+        if written is None:
+            write_text_atomic(stage / "law_used.txt", str(given))
 
 
 JOB = functools.partial(process_session, runner=SynthRunner())

@@ -4,21 +4,17 @@ from __future__ import annotations
 
 import functools
 import json
-import time
 from pathlib import Path
 
 import pytest
-from _synth_race import estimate_frame, write_estimate_parquet, write_session_parquet
+from _synth_race import SynthBatchRunner, write_session_parquet
 
 from brakethermo.io.atomic import write_text_atomic
-from brakethermo.io.load import load_session
-from brakethermo.io.session import Session
 from brakethermo.pipelines import batch as batch_mod
 from brakethermo.pipelines.batch import (
     DEFAULT_LAW,
     BatchOptions,
     Phase,
-    RunOutput,
     SessionOutcome,
     choose_law,
     process_session,
@@ -27,25 +23,13 @@ from brakethermo.pipelines.batch import (
 from brakethermo.pipelines.batch import session as batch_session
 
 
-class LawRunner:
-    """Real reader; synthetic estimate; multi-spot sessions write a law and a summary."""
+class LawRunner(SynthBatchRunner):
+    """Every session notes the law it ran with in its summary, as the pipelines do."""
 
-    def load(self, path: Path, options: BatchOptions) -> Session:
-        return load_session(path, aliases=options.aliases)
-
-    def run(self, session: Session, stage: Path, options: BatchOptions,
-            h_law: Path | None) -> RunOutput:
-        t = time.perf_counter()
-        est, radii = estimate_frame(session.frame, n_nodes=11)
-        write_estimate_parquet(est, radii, stage / "estimate.parquet")
-        law = None
-        if batch_mod.is_multi_spot(session):
-            law = stage / "h_law.toml"
-            write_text_atomic(law, f'source = "{session.path.name}"\n')
-            h_law = law
+    def record(self, stage: Path, written: Path | None, given: Path | None) -> None:
+        law = written or given
         write_text_atomic(stage / "summary.json",
-                          json.dumps({"run": {"h_law": str(h_law) if h_law else "shipped"}}))
-        return RunOutput(est, radii, law, {"estimate_s": time.perf_counter() - t})
+                          json.dumps({"run": {"h_law": str(law) if law else "shipped"}}))
 
 
 JOB = functools.partial(process_session, runner=LawRunner())

@@ -110,16 +110,21 @@ def assert_close(a, b, tol=1e-8):
     np.testing.assert_allclose(a, b, rtol=0, atol=tol * scale)
 
 
+def assert_same_track(res, reference):
+    """Our predicted and filtered means and covariances are filterpy's (``run_filterpy``)."""
+    xp, Pp, xf, Pf = reference
+    assert_close(res.x_pred, xp)
+    assert_close(res.P_pred, Pp)
+    assert_close(res.x_filt, xf)
+    assert_close(res.P_filt, Pf)
+
+
 @pytest.mark.parametrize("backend", ["numpy", "numba"])
 def test_heat_model_with_random_walk_h_matches_filterpy(backend):
     f, Q, H, R, y, x0, P0 = heat_problem()
     ours = UnscentedKalmanFilter(f, Q, R, H=H, alpha=0.3, beta=2.0, kappa=0.0, backend=backend)
     res = ours.run(x0, P0, y, store="full")
-    xp, Pp, xf, Pf = run_filterpy(f, Q, R, y, x0, P0, 0.3, 2.0, 0.0, H=H)
-    assert_close(res.x_pred, xp)
-    assert_close(res.P_pred, Pp)
-    assert_close(res.x_filt, xf)
-    assert_close(res.P_filt, Pf)
+    assert_same_track(res, run_filterpy(f, Q, R, y, x0, P0, 0.3, 2.0, 0.0, H=H))
     assert res.n_repairs == 0
     # h is tracked: the posterior sd of h shrinks from the prior's
     assert res.var_filt[-1, -1] < P0[-1, -1]
@@ -138,11 +143,7 @@ def test_nonlinear_measurement_matches_filterpy():
     res = UnscentedKalmanFilter(f, Q, R, h=h, alpha=0.5, beta=2.0, kappa=1.0).run(
         x0, P0, yy, store="full"
     )
-    xp, Pp, xf, Pf = run_filterpy(f, Q, R, yy, x0, P0, 0.5, 2.0, 1.0, h=h)
-    assert_close(res.x_pred, xp)
-    assert_close(res.x_filt, xf)
-    assert_close(res.P_filt, Pf)
-    assert_close(res.P_pred, Pp)
+    assert_same_track(res, run_filterpy(f, Q, R, yy, x0, P0, 0.5, 2.0, 1.0, h=h))
 
 
 def test_backends_agree_on_every_output():
@@ -272,11 +273,7 @@ def test_one_spot_update_by_rank1_downdate_matches_filterpy(n):
     res = UnscentedKalmanFilter(f, Q, R, H=H, alpha=0.5, backend="numpy").run(
         x0, P0, y, store="full", store_dtype=np.float64
     )
-    xp, Pp, xf, Pf = run_filterpy(f, Q, R, y, x0, P0, 0.5, 2.0, 0.0, H=H)
-    assert_close(res.x_pred, xp)
-    assert_close(res.x_filt, xf)
-    assert_close(res.P_filt, Pf)
-    assert_close(res.P_pred, Pp)
+    assert_same_track(res, run_filterpy(f, Q, R, y, x0, P0, 0.5, 2.0, 0.0, H=H))
     assert res.n_repairs == 0
     G = np.einsum("kij,kjl->kil", res.cross, np.linalg.inv(res.P_pred[1:]))
     assert_close(res.G, G)

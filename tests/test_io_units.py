@@ -41,8 +41,35 @@ CASES = [
     ("motor_current", "A", 3.0, 3.0),
 ]
 
+# Logger and export spellings (the registry in front of pint), with their SI values.
+SPELLINGS = [
+    ("disc_temp_spot3", "°C", 500.0, 500.0),
+    ("disc_temp_spot3", "C", 500.0, 500.0),  # coulomb to pint; degC in every logger
+    ("disc_temp_spot3", "°F", 932.0, 500.0),
+    ("disc_temp_spot3", "F", -40.0, -40.0),
+    ("disc_temp_spot3", "K", 0.0, -273.15),
+    ("ambient_temp", "degF", 32.0, 0.0),
+    ("wheel_speed_front", "1/min", 60.0, 2.0 * np.pi),  # pint alone: 1/60 Hz, not 2π/60
+    ("wheel_speed_front", "U/min", 60.0, 2.0 * np.pi),
+    ("wheel_speed_front", "deg/s", 180.0, np.pi),
+    ("speed", "km/hr", 36.0, 10.0),
+    ("speed", "kph", 36.0, 10.0),
+    ("speed", "KPH", 36.0, 10.0),
+    ("speed", "kmh", 36.0, 10.0),
+    ("speed", "knot", 1.0, 1852.0 / 3600.0),  # anything pint knows
+    ("brake_pressure_front", "mbar", 1000.0, 1.0e5),
+    ("brake_pressure_front", "psi", 14.5038, 14.5038 * 6894.757293168),
+    ("wheel_torque", "Nm", 7.0, 7.0),
+    ("wheel_torque", "N·m", 7.0, 7.0),
+    ("rolling_radius_ref", "cm", 30.0, 0.3),
+    ("rolling_radius_ref", "in", 10.0, 0.254),
+    ("motor_angle", "°", 90.0, np.pi / 2),
+    ("slip_ratio", "%", 12.0, 0.12),
+    ("clamp_force", "lbf", 1.0, 4.4482216152605),
+]
 
-@pytest.mark.parametrize(("canonical", "unit", "value", "si"), CASES)
+
+@pytest.mark.parametrize(("canonical", "unit", "value", "si"), CASES + SPELLINGS)
 def test_every_unit_converts_to_si(canonical: str, unit: str, value: float, si: float) -> None:
     out, applied = to_si(np.array([value]), unit, canonical)
     assert applied == unit
@@ -117,41 +144,6 @@ def test_bad_alias_files(tmp_path: Path, text: str) -> None:
 def test_missing_alias_file(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="not found"):
         load_aliases(tmp_path / "none.toml")
-
-
-# Logger and export spellings (the registry in front of pint), with their SI values.
-SPELLINGS = [
-    ("disc_temp_spot3", "°C", 500.0, 500.0),
-    ("disc_temp_spot3", "C", 500.0, 500.0),  # coulomb to pint; degC in every logger
-    ("disc_temp_spot3", "°F", 932.0, 500.0),
-    ("disc_temp_spot3", "F", -40.0, -40.0),
-    ("disc_temp_spot3", "K", 0.0, -273.15),
-    ("ambient_temp", "degF", 32.0, 0.0),
-    ("wheel_speed_front", "1/min", 60.0, 2.0 * np.pi),  # pint alone: 1/60 Hz, not 2π/60
-    ("wheel_speed_front", "U/min", 60.0, 2.0 * np.pi),
-    ("wheel_speed_front", "deg/s", 180.0, np.pi),
-    ("speed", "km/hr", 36.0, 10.0),
-    ("speed", "kph", 36.0, 10.0),
-    ("speed", "KPH", 36.0, 10.0),
-    ("speed", "kmh", 36.0, 10.0),
-    ("speed", "knot", 1.0, 1852.0 / 3600.0),  # anything pint knows
-    ("brake_pressure_front", "mbar", 1000.0, 1.0e5),
-    ("brake_pressure_front", "psi", 14.5038, 14.5038 * 6894.757293168),
-    ("wheel_torque", "Nm", 7.0, 7.0),
-    ("wheel_torque", "N·m", 7.0, 7.0),
-    ("rolling_radius_ref", "cm", 30.0, 0.3),
-    ("rolling_radius_ref", "in", 10.0, 0.254),
-    ("motor_angle", "°", 90.0, np.pi / 2),
-    ("slip_ratio", "%", 12.0, 0.12),
-    ("clamp_force", "lbf", 1.0, 4.4482216152605),
-]
-
-
-@pytest.mark.parametrize(("canonical", "unit", "value", "si"), SPELLINGS)
-def test_logger_spellings(canonical: str, unit: str, value: float, si: float) -> None:
-    out, applied = to_si(np.array([value]), unit, canonical)
-    assert applied == unit
-    np.testing.assert_allclose(out, [si], rtol=1e-12, atol=1e-9)
 
 
 @pytest.mark.parametrize("unit", ["Hz", "10 m", "2", "[km/h]", "V", "", "km/h/h/h"])

@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from brakethermo.report.page import Card, Page, Section, TableBlock
+from brakethermo.report.page import Card, Page, Section, TableBlock, finish_figure
 from brakethermo.results.ebooster import (
     OBSERVERS,
     PRESSURES,
@@ -66,13 +66,8 @@ def _residual_figure(r: EboosterResult) -> Figure:
         ax.plot(r.time[sl], res[sl], color=COLOURS[w], lw=0.6, alpha=0.8, label=w.upper())
         finite = res[np.isfinite(res)]
         hx.hist(finite, bins=60, color=COLOURS[w], alpha=0.5, label=w.upper(), density=True)
-    ax.set_xlabel("time s")
-    ax.set_ylabel("δ residual mm")
     hx.set_xlabel("δ residual mm")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    return fig
+    return finish_figure(fig, ax, "time s", "δ residual mm")
 
 
 def _pv_figure(r: EboosterResult) -> Figure:
@@ -84,12 +79,8 @@ def _pv_figure(r: EboosterResult) -> Figure:
         sl = _every(r.time.size)
         ax.plot(r.s2[sl], r.validation["p_m"][sl], ".", ms=1.5, alpha=0.4,
                 label="this session (sensor)")
-    ax.set_xlabel("screw displacement s2, mm")
-    ax.set_ylabel("master-cylinder pressure p_m, MPa")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    return fig
+    return finish_figure(fig, ax, "screw displacement s2, mm",
+                         "master-cylinder pressure p_m, MPa")
 
 
 def booster_page(r: EboosterResult) -> Page:

@@ -17,6 +17,7 @@ from typing import Any
 
 import matplotlib.pyplot as plt
 from jinja2 import Environment, PackageLoader, select_autoescape
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from brakethermo.io.atomic import write_bytes_atomic, write_text_atomic
@@ -130,6 +131,17 @@ def write_page(page: Page, folder: Path, name: str = "index.html") -> Path:
     target = folder / name
     write_text_atomic(target, html)
     return target
+
+
+def finish_figure(fig: Figure, ax: Axes, xlabel: str, ylabel: str, **legend: Any) -> Figure:
+    """Label ``ax``, give it the pages' light grid and small legend (``legend`` adds to or
+    overrides ``fontsize=8``), tighten ``fig``'s layout; return ``fig``."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
+    ax.legend(**{"fontsize": 8, **legend})
+    fig.tight_layout()
+    return fig
 
 
 def consistency_text(c: dict[str, Any]) -> str:

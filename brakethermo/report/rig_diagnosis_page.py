@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 
-from brakethermo.report.page import Card, Page, Section, TableBlock
+from brakethermo.report.page import Card, Page, Section, TableBlock, finish_figure
 
 RIG_NAMES = {"ebooster": "E-Booster", "emb": "EMB caliper", "roller-rig": "Roller rig",
              "tyre": "Tyre rig"}
@@ -28,12 +28,8 @@ def _pv_figure(r: RigDiagnosis) -> Figure:
     if r.best is not None:
         ax.plot(r.x[::step], r.best[::step], ".", ms=1.2, color="#d62728", alpha=0.5,
                 label=f"with {r.summary['verdict']} (fitted on other cycles)")
-    ax.set_xlabel(f"{s['input']['name']} [{s['input']['unit']}]")
-    ax.set_ylabel(f"output [{s['unit']}]")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, markerscale=5)
-    fig.tight_layout()
-    return fig
+    return finish_figure(fig, ax, f"{s['input']['name']} [{s['input']['unit']}]",
+                         f"output [{s['unit']}]", markerscale=5)
 
 
 def _residual_figure(r: RigDiagnosis) -> Figure:
@@ -44,12 +40,7 @@ def _residual_figure(r: RigDiagnosis) -> Figure:
         ax.plot(t, r.best - r.measured, lw=0.8, color="#d62728",
                 label=f"with {r.summary['verdict']}")
     ax.axhline(0.0, color="0.5", lw=0.6)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel(f"model − sensor [{r.summary['unit']}]")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    return fig
+    return finish_figure(fig, ax, "time [s]", f"model − sensor [{r.summary['unit']}]")
 
 
 def rig_diagnosis_page(r: RigDiagnosis) -> Page:

@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from brakethermo.report.page import Card, Page, Section, TableBlock, consistency_text
@@ -65,12 +66,17 @@ def radius_figure(result: RollerRigResult, window: tuple[float, float] | None = 
     return fig
 
 
-def speeds_figure(result: RollerRigResult) -> Figure:
-    """Measured and estimated wheel and roller speeds, torque request."""
+def _time_panels(result: RollerRigResult) -> tuple[Figure, tuple[Axes, Axes], np.ndarray]:
+    """Two panels over the run's time (shared axis), and the samples they plot (thinned)."""
     fig = Figure(figsize=(9.0, 5.0), dpi=110)
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    return fig, (ax1, ax2), np.arange(result.time.size)[_thin(result.time.size)]
+
+
+def speeds_figure(result: RollerRigResult) -> Figure:
+    """Measured and estimated wheel and roller speeds, torque request."""
+    fig, (ax1, ax2), idx = _time_panels(result)
     t = result.time
-    idx = np.arange(t.size)[_thin(t.size)]
     st = result.runs[0].states
     ax1.plot(t[idx], result.omega_w[idx], color="0.7", lw=0.5, label="ω_w measured")
     ax1.plot(t[idx], st[idx, 0], color="tab:blue", lw=1.0, label="ω_w estimated")
@@ -88,10 +94,8 @@ def speeds_figure(result: RollerRigResult) -> Figure:
 
 def creep_figure(result: RollerRigResult) -> Figure:
     """Creep force (estimated states) and the roller transducer, creepage."""
-    fig = Figure(figsize=(9.0, 5.0), dpi=110)
-    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    fig, (ax1, ax2), idx = _time_panels(result)
     t = result.time
-    idx = np.arange(t.size)[_thin(t.size)]
     w = max(1, round(0.5 / result.session.dt))
 
     def mean(x: np.ndarray) -> np.ndarray:

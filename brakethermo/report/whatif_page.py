@@ -13,7 +13,14 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from brakethermo.report.page import Card, Page, Section, TableBlock, write_page
+from brakethermo.report.page import (
+    Card,
+    Page,
+    Section,
+    TableBlock,
+    finish_figure,
+    write_page,
+)
 from brakethermo.results.laps import lap_label
 
 COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
@@ -52,13 +59,8 @@ def contact_figure(frame: pd.DataFrame, labels: Sequence[str], window: Sequence[
         col = COLORS[j % len(COLORS)]
         ax.fill_between(t, c - 1.96 * s, c + 1.96 * s, color=col, alpha=0.15, lw=0)
         ax.plot(t, c, color=col, lw=1.0, label=f"{shown(lab)} (95 % band)")
-    ax.set_xlabel("time, min")
-    ax.set_ylabel("contact band, °C")
     ax.set_title("Contact-band temperature: as run and replayed with each change")
-    ax.legend(loc="upper left", fontsize=8, ncols=2)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    return fig
+    return finish_figure(fig, ax, "time, min", "contact band, °C", loc="upper left", ncols=2)
 
 
 def lap_figure(laps: Sequence[Mapping[str, Any]], labels: Sequence[str],
