@@ -224,7 +224,7 @@ def eq7_choice(theta: Array, current: Array, F: Array, ts: float) -> tuple[int, 
             )
             F_tb = torque_balance_force(current, theta, ts, tb, window, rates=omega_acc[window])
             err.append((F_tb - F)[fold != j])
-        return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+        return rmse(np.concatenate(err))
 
     return min(((w, b) for w in WINDOWS for b in SIGN_BANDS), key=lambda wb: cv_score(*wb))
 

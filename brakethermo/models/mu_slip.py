@@ -24,6 +24,7 @@ from scipy.optimize import least_squares
 
 from brakethermo.estimation.ekf import ExtendedKalmanFilter
 from brakethermo.estimation.results import FilterResult
+from brakethermo.numeric import rmse
 from brakethermo.rigs.tyre import (
     burckhardt_mu,
     burckhardt_peak,
@@ -212,13 +213,13 @@ def fit_families(s: Array, mu: Array, *, folds: int = 5, seed: int = 0) -> list[
             tr, te = fold != j, fold == j
             pj = _fit(fam, s[tr], mu[tr], p)
             err.append(fam.curve(s[te], *pj) - mu[te])
-        held = float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+        held = rmse(np.concatenate(err))
         mu_pk, s_pk = fam.peak(*(float(v) for v in p))
         out.append(
             FamilyFit(
                 fam.name,
                 dict(zip(fam.params, (float(v) for v in p), strict=True)),
-                float(np.sqrt(np.mean((fam.curve(s, *p) - mu) ** 2))),
+                rmse(fam.curve(s, *p), mu),
                 held,
                 mu_pk,
                 s_pk,

@@ -212,7 +212,7 @@ def fit_training(session: Session, spec: BoosterSpec) -> BoosterFit:
         tau_z=tau_z,
         pedal_scale_n=float(np.mean(np.clip(f_in[ok], 0.0, None)) / dof),
         train_session=str(session.path),
-        pv_rmse_mpa=float(np.sqrt(np.mean(pv_res**2))),
+        pv_rmse_mpa=rmse(pv_res),
         disk_rmse_mm=disk_rmse,
     )
 
@@ -262,8 +262,7 @@ def _fit_disk(
 
     dyn = least_squares(resid, np.array([60.0, 0.8, 0.01]), method="trf",
                         bounds=([1.0, 0.05, 0.0], [2000.0, 5.0, 1.0]), x_scale=[60, 1, 0.01])
-    rmse = float(np.sqrt(np.mean(dyn.fun**2)))
-    return disk, float(dyn.x[0]), float(dyn.x[1]), float(dyn.x[2]), rmse
+    return disk, float(dyn.x[0]), float(dyn.x[1]), float(dyn.x[2]), rmse(dyn.fun)
 
 
 def booster_context(session: Session, s2: Array, fit: BoosterFit) -> RigContext:

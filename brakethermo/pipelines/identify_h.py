@@ -32,6 +32,7 @@ from brakethermo.io.atomic import write_text_atomic
 from brakethermo.io.session import GRID_DT, Session
 from brakethermo.models.disc import H_PARAM, DiscStateSpace, RandomWalkParam
 from brakethermo.models.effects import parse_effects
+from brakethermo.numeric import rmse
 from brakethermo.pipelines import scoring
 from brakethermo.pipelines.estimate import (
     SENSOR_FLOOR_C,
@@ -182,7 +183,7 @@ def identify_h_samples(
 
 def _spot_rmse(pred: np.ndarray, y: np.ndarray) -> dict[str, float]:
     err = pred - y
-    return {f"spot{i + 1}": float(np.sqrt(np.nanmean(err[:, i] ** 2))) for i in range(4)}
+    return {f"spot{i + 1}": rmse(err[:, i]) for i in range(4)}
 
 
 def _structure_start(law0: HLaw) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -577,7 +578,7 @@ def _fit_facts(fit_mask: np.ndarray, h_std: np.ndarray, residual: np.ndarray
     return {
         "samples_off_brake": int(fit_mask.sum()),
         "samples_total": int(fit_mask.size),
-        "ukf_law_residual_rms": float(np.sqrt(np.mean(residual**2))),
+        "ukf_law_residual_rms": rmse(residual),
         "h_std_median": float(np.median(h_std[fit_mask])),
     }
 

@@ -35,7 +35,7 @@ from brakethermo.models.mu_slip import (
     rudd_ekf,
     rudd_lm,
 )
-from brakethermo.numeric import noise_std
+from brakethermo.numeric import noise_std, rmse
 from brakethermo.report.page import Card, Page, Section, TableBlock, consistency_text
 from brakethermo.rigs.tyre import rudd_mu
 
@@ -458,8 +458,8 @@ def peak_band(result: MuSlipResult) -> dict[str, float]:
                if f.heldout_rmse <= PLAUSIBLE_SHAPE * best.heldout_rmse
                and 0.0 < f.slip_peak <= 1.0 and 0.0 < f.mu_peak <= MU_PLAUSIBLE[1]] or [best]
     sd_fit = np.sqrt(np.maximum(result.ekf.var_filt[-1], 0.0))
-    mu_sd = float(np.sqrt(np.mean([(f.mu_peak - best.mu_peak) ** 2 for f in allowed])))
-    slip_sd = float(np.sqrt(np.mean([(f.slip_peak - best.slip_peak) ** 2 for f in allowed])))
+    mu_sd = rmse([f.mu_peak for f in allowed], best.mu_peak)
+    slip_sd = rmse([f.slip_peak for f in allowed], best.slip_peak)
     return {"mu_std": max(mu_sd, float(sd_fit[0])), "slip_std": max(slip_sd, float(sd_fit[1])),
             "families": [f.name for f in allowed]}
 

@@ -10,6 +10,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
+from brakethermo.numeric import rmse
 from brakethermo.report.page import Card, Page, Section, TableBlock, finish_figure
 from brakethermo.results.ebooster import (
     OBSERVERS,
@@ -125,7 +126,7 @@ def booster_page(r: EboosterResult) -> Page:
     pv_only = None
     if "p_m" in r.validation:
         err = static_pressure(r) - r.validation["p_m"]
-        pv_only = float(np.sqrt(np.nanmean(err**2)))
+        pv_only = rmse(err)
     notes = [
         f"p–V fit from {s['pv_fit']['training_session']} (RLS, λ = {r.spec.forgetting:g}); "
         f"training RMSE {s['pv_fit']['rmse_mpa']:.4f} MPa"
