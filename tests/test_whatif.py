@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 
 from brakethermo.cli import app
 from brakethermo.errors import ConfigError
+from brakethermo.pipelines.models import read_calibration
 from brakethermo.pipelines.whatif import Scenario, WhatifOptions, whatif_session
 from brakethermo.thermal.tyre_radiation import (
     TyreView,
@@ -155,6 +156,19 @@ def test_law_of_another_disc_is_refused(sim_race_session, tmp_path: Path) -> Non
     r = runner.invoke(app, ["whatif", str(sim_race_session[0]), "--h-law", str(law),
                             "--cooling", "1.2", "--draws", "0", "--out", str(tmp_path)])
     assert r.exit_code == 1 and "cc-355-9" in r.output and "Traceback" not in r.output
+
+
+def test_law_h_rel_sigma_is_read_once_and_checked(tmp_path: Path) -> None:
+    shipped = Path(__file__).resolve().parents[1] / "configs" / "hlaw" / "cc-340-8.toml"
+    text = shipped.read_text()
+    assert "[extra]" in text and "h_rel_sigma" not in text
+    good, bad = tmp_path / "good.toml", tmp_path / "bad.toml"
+    good.write_text(text.replace("[extra]", "[extra]\nh_rel_sigma = 0.12", 1))
+    bad.write_text(text.replace("[extra]", "[extra]\nh_rel_sigma = 3.0", 1))
+    assert read_calibration(good).h_rel_sigma == 0.12
+    assert read_calibration(shipped).h_rel_sigma is None
+    with pytest.raises(ConfigError, match="h_rel_sigma"):
+        read_calibration(bad)
 
 
 def test_session_without_the_estimate_channels(tmp_path: Path) -> None:

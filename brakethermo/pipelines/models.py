@@ -62,6 +62,9 @@ class DiscCalibration:
         The datasheet the law was identified with (``[extra] disc``; older files: None).
     identified_on : str or None
         The session file it was identified on (``[extra] session``).
+    h_rel_sigma : float or None
+        Relative 1-sigma of the law's level (``[extra] h_rel_sigma``, set by hand; whatif
+        replays over it), ``None`` when the file gives none.
     """
 
     law: HLaw
@@ -78,6 +81,7 @@ class DiscCalibration:
     source: str = ""
     disc_id: str | None = None
     identified_on: str | None = None
+    h_rel_sigma: float | None = None
 
 
 # Ranges of the identified values an h_law.toml may carry (those identify-h can produce).
@@ -89,6 +93,7 @@ CALIBRATION_BOUNDS: dict[str, tuple[float, float]] = {
     "sigma_temp": (0.0, 50.0),
     "layers": (1, 8),
     "layer_growth": (0.2, 10.0),
+    "h_rel_sigma": (0.0, 1.0),
 }
 
 

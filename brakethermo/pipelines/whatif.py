@@ -50,11 +50,10 @@ from brakethermo.pipelines.estimate import (
     estimate_from_session,
 )
 from brakethermo.pipelines.inputs import load_timed
-from brakethermo.pipelines.models import calibration_for, disc_for, other_disc
+from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for, other_disc
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.report.braking_zones import detect_zones, lap_distance, zone_names
 from brakethermo.thermal.disc import DiscSpec, load_disc
-from brakethermo.thermal.hlaw import read_h_law
 from brakethermo.thermal.model import DiscFEModel
 from brakethermo.thermal.tyre_radiation import TyreView, tyre_heat
 
@@ -207,13 +206,13 @@ def _mu_assumption(est: EstimateResult) -> str:
     return "μ/μ_nom constant: the law carries no identified μ(T)"
 
 
-def _law_extra(h_law: str | Path | None, disc: DiscSpec) -> dict[str, Any]:
-    """The ``[extra]`` table of the law; a law of another disc cannot predict this one."""
+def _checked_law(h_law: str | Path | None, disc: DiscSpec) -> DiscCalibration:
+    """The law, read and checked; a law of another disc cannot predict this one."""
     cal = calibration_for(disc, h_law)
     mismatch = other_disc(cal, disc, "--disc-of-session")
     if mismatch:
         raise ConfigError(mismatch)
-    return read_h_law(cal.source).extra
+    return cal
 
 
 def _scenario_disc(scenario: Scenario, disc: DiscSpec) -> DiscSpec:
@@ -386,7 +385,7 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
     """Estimate the session, then replay its laps under each scenario."""
     t0 = time.perf_counter()
     session, read_s = load_timed(path, options.aliases)
-    extra = _law_extra(options.h_law, disc_for(session, options.disc))
+    cal = _checked_law(options.h_law, disc_for(session, options.disc))
     for s in options.scenarios:  # an unknown disc before any work
         if s.disc:
             _scenario_disc(s, disc_for(session, options.disc))
@@ -395,7 +394,7 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
         aliases=options.aliases, ambient_c=options.ambient_c, score=False))
     h_sig = options.h_rel_sigma
     if h_sig is None:
-        h_sig = float(extra.get("h_rel_sigma", H_REL_SIGMA))
+        h_sig = H_REL_SIGMA if cal.h_rel_sigma is None else cal.h_rel_sigma
     base = _base_replay(est, options)
     replays = [replay(est, s, options, h_sig) for s in options.scenarios]
     lap = est.frame["lap"].to_numpy()
