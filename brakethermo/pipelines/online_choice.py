@@ -209,7 +209,7 @@ def _trial(session: Session, base: EstimateOptions, candidates: tuple[str, ...],
     off = {ONLINE_FLAGS[c]: False for c in candidates}
     quick = replace(base, smoother=False, score=False, online_auto=False)
     lap = part.frame["lap"].to_numpy()
-    zones = detect_zones(part.time, np.nan_to_num(part.values("brake_pressure_front")))
+    zones = detect_zones(part.time, part.values("brake_pressure_front"))
     cycles = np.full(lap.size, -1)
     for j, (a, _) in enumerate(zones):
         cycles[a:] = j

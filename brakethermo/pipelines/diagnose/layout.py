@@ -57,8 +57,7 @@ def build_segments(inputs: DiscInputs, zones: np.ndarray, dist: np.ndarray) -> S
 def session_segments(session: Session, inputs: DiscInputs
                      ) -> tuple[np.ndarray, np.ndarray, Segments]:
     """The session's braking zones (``[start, stop)`` rows), lap distance (m) and segments."""
-    pressure = np.nan_to_num(session.values("brake_pressure_front"), nan=0.0)
-    zones = detect_zones(inputs.time, pressure)
+    zones = detect_zones(inputs.time, session.values("brake_pressure_front"))
     dist = lap_distance(inputs, session)
     return zones, dist, build_segments(inputs, zones, dist)
 
