@@ -109,6 +109,7 @@ class AxisScales:
 
 
 BAND_ROOM_C = 25.0  # degC: most of a ±1σ band the spot plot's range makes room for
+SIGMA_STEP_C = 5.0  # degC: the contact band's 1σ panel tops out at a multiple of this
 
 
 def time_axis_end(t_max: float) -> float:
@@ -374,8 +375,10 @@ class LapFigures:
         )
 
     def _build_contact(self) -> None:
-        fig = self.fig_contact = _figure(3.2)
-        ax = self.ax_contact = fig.add_subplot()
+        fig = self.fig_contact = _figure(4.2)
+        fig.subplots_adjust(bottom=0.13, hspace=0.12)
+        ax, sig = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (3.0, 1.0)})
+        self.ax_contact, self.ax_sigma = ax, sig
         lo, hi = self.window_c
         ax.axhspan(
             lo, hi, color=WINDOW_COLOUR, alpha=0.12, zorder=0, label=f"window {lo:.0f}–{hi:.0f} °C"
@@ -387,9 +390,14 @@ class LapFigures:
         (self.contact_line,) = ax.plot(
             [], [], color=CONTACT_COLOUR, linewidth=1.8, label="contact avg"
         )
-        ax.set_xlabel("lap time [s]")
         ax.set_ylabel("temperature [°C]")
+        ax.tick_params(labelbottom=False)
         ax.set_title("Contact-band average (spots 2–4) against the operating window", loc="left")
+        # On a 600 °C axis a band of a few degrees is a hairline: its 1σ on its own scale
+        # below, so where the estimate is sure and where it is not can be seen.
+        (self.sigma_line,) = sig.plot([], [], color=CONTACT_COLOUR, linewidth=1.2)
+        sig.set_xlabel("lap time [s]")
+        sig.set_ylabel("1σ [°C]")
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
         # The band's size under the legend, drawn per lap (a legend entry would be part of
         # the cached background and keep the first lap's value).
@@ -451,10 +459,13 @@ class LapFigures:
 
         self.contact_band.set_data(t, lap.contact - lap.contact_std, lap.contact + lap.contact_std)
         # On a 600 °C axis a band of a few degrees is a hairline: the legend gives its size
-        # (the lap's median σ).
+        # (the lap's median σ), the panel below its course through the lap.
         std = lap.contact_std[np.isfinite(lap.contact_std)]
         self._band_label.set_text(f"σ ≈ {np.median(std):.1f} °C (median)" if std.size else "")
         self.contact_line.set_data(t, lap.contact)
+        self.sigma_line.set_data(t, lap.contact_std)
+        sigma_top = SIGMA_STEP_C * max(1.0, np.ceil(np.max(std, initial=0.0) / SIGMA_STEP_C))
+        self.ax_sigma.set_ylim(0.0, sigma_top)
         self.zone_contact.update(lap.zones_t, lap.zone_names)
 
         self.speed_line.set_data(t, lap.speed_kmh)
@@ -479,8 +490,8 @@ class LapFigures:
                 (x_end,), [self.image, *contours, *self.spot_marks]
             ),
             "contact": self._blit["contact"].png(
-                (x_end,), [self.zone_contact.spans, self.contact_band, self.contact_line,
-                           self._band_label]
+                (x_end, sigma_top), [self.zone_contact.spans, self.contact_band,
+                                     self.contact_line, self._band_label, self.sigma_line]
             ),
             "context": self._blit["context"].png(
                 (x_end,),
