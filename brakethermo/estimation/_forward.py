@@ -5,15 +5,17 @@ the EKF) returning the prior and the cross-covariance C_k = cov(x_k, x_{k+1}), a
 for a nonlinear measurement, ``moments`` returning the predicted measurement, its
 covariance without R and the state-measurement cross-covariance (eq. 41-44). The
 update (eq. 45-47, or 28-31 for a linear H), NaN handling, gating, covariance repair,
-storage and the smoother's gains are common and live here.
+storage and the smoother's gains are common and live here, with the choice of backend
+(:func:`use_numba`) and :class:`BatchedFilter`, the interface both filters share.
 """
 
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import ClassVar, Generic, Literal, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,6 +42,39 @@ try:
 except ImportError:  # numba missing: always factor afresh
     chol_downdate = None
 MAX_STORE_BYTES = 4 * 2**30
+try:
+    import numba  # noqa: F401
+
+    HAVE_NUMBA = True
+except ImportError:  # numba may be missing on exotic platforms: numpy fallback
+    HAVE_NUMBA = False
+Backend = Literal["auto", "numba", "numpy"]
+BACKENDS = ("auto", "numba", "numpy")
+NUMBA_MAX_N = 64
+BatchedFunction = Callable[[Array, int], Array]
+
+
+def use_numba(backend: Backend, h: object | None, n: int) -> bool:
+    """Whether a filter with this backend, measurement function and state size compiles."""
+    if h is not None or backend == "numpy":
+        return False
+    return backend == "numba" or (HAVE_NUMBA and n <= NUMBA_MAX_N)
+
+
+def check_backend(backend: Backend, h: object | None = None) -> None:
+    """Raise ConfigError unless ``backend`` is known and can run with measurement ``h``.
+
+    Parameters
+    ----------
+    backend : {"auto", "numba", "numpy"} — the backend asked for.
+    h : callable, optional — a nonlinear measurement function, which "numba" cannot run.
+    """
+    if backend not in BACKENDS:
+        raise ConfigError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if backend == "numba" and h is not None:
+        raise ConfigError("the numba backend needs a linear measurement matrix H")
+    if backend == "numba" and not HAVE_NUMBA:
+        raise ConfigError("backend='numba' asked for but numba is not installed")
 
 
 class Predictor(Protocol):
@@ -67,6 +102,28 @@ def as_provider(M: MatrixOrCallable, shape: tuple[int, ...], name: str) -> Calla
         raise ConfigError(f"{name} holds non-finite values")
     A.setflags(write=False)
     return lambda k: A
+
+
+def model_matrices(
+    Q: MatrixOrCallable, R: MatrixOrCallable, H: MatrixOrCallable | None, n: int, m: int
+) -> tuple[Callable[[int], Array], Callable[[int], Array], Callable[[int], Array] | None]:
+    """Q, R and H as callables of the step, shapes and values checked in that order.
+
+    Parameters
+    ----------
+    Q : ndarray (n, n) or callable — process-noise covariance, squared state units.
+    R : ndarray (m, m) or callable — measurement-noise covariance, squared measurement units.
+    H : ndarray (m, n) or callable, optional — linear measurement matrix.
+    n, m : int — state and measurement sizes.
+
+    Returns
+    -------
+    Q_of, R_of : callable ``(k) -> ndarray``.
+    H_of : callable ``(k) -> ndarray``, or None without ``H``.
+    """
+    Q_of = as_provider(Q, (n, n), "Q")
+    R_of = as_provider(R, (m, m), "R")
+    return Q_of, R_of, None if H is None else as_provider(H, (m, n), "H")
 
 
 def check_prior(x0: Array, P0: Array, y: Array) -> tuple[Array, Array, Array]:
@@ -305,9 +362,8 @@ def kernel_setup(
     """Buffers, gate thresholds and Q, H, R for a compiled forward pass over ``y`` (K, m)."""
     K, m = y.shape
     out = allocate(K, n, m, readout, store, store_dtype)
-    Q_of = as_provider(Q, (n, n), "Q")
-    R_of = as_provider(R, (m, m), "R")
-    H_of = as_provider(H, (m, n), "H")
+    Q_of, R_of, H_of = model_matrices(Q, R, H, n, m)
+    assert H_of is not None  # a compiled pass has a linear H (use_numba)
     # constant matrices are converted once; callables are asked every step
     return KernelSetup(
         out,
@@ -468,3 +524,101 @@ def run_forward(
         x, P = x_next, P_next
 
     return out.result(P, guard.repair_steps)
+
+
+Setup = TypeVar("Setup")
+
+
+class BatchedFilter(ABC, Generic[Setup]):
+    """A Kalman filter over a batched process model: the interface the UKF and the EKF share.
+
+    The attributes are the constructor arguments of :class:`UnscentedKalmanFilter` and
+    :class:`ExtendedKalmanFilter` of the same names. A subclass supplies what differs:
+    what it derives from the state size before anything else (:meth:`_setup`, ``Setup``:
+    the UKF's sigma-point weights), the prediction and measurement moments of the numpy
+    pass (:meth:`_steps`) and the compiled pass (:meth:`_run_compiled`).
+    """
+
+    # whether the measurement moments need the prior's Cholesky factor (sigma points)
+    _moments_need_factor: ClassVar[bool]
+    f: BatchedFunction
+    Q: MatrixOrCallable
+    R: MatrixOrCallable
+    H: MatrixOrCallable | None
+    h: BatchedFunction | None
+    gate: float | None
+    eig_floor: float
+    backend: Backend
+
+    def run(
+        self,
+        x0: Array,
+        P0: Array,
+        y: Array,
+        *,
+        store: Store = "smoother",
+        store_dtype: type[np.floating] | None = None,
+        readout: Array | None = None,
+    ) -> FilterResult:
+        """Filter the measurements ``y``.
+
+        Parameters
+        ----------
+        x0 : ndarray (n,) — prior mean of the state at step 0 (before y[0]).
+        P0 : ndarray (n, n) — prior covariance at step 0.
+        y : ndarray (K, m) — measurements; NaN marks a missing component, an all-NaN
+            row is a predict-only step.
+        store : {"full", "smoother", "diag"} — "full" keeps P_pred, P_filt, cross and
+            the gains (K n^2 x 5 floats); "smoother" keeps only the gains and Sigma the
+            RTS smoother needs (K n^2 x 2); "diag" keeps variances only (no smoother).
+        store_dtype : numpy float type, optional — dtype of the stored gains and Sigma;
+            default float64 below n = 24 and float32 from there (halves the smoother's
+            memory at ~1e-7 relative precision).
+        readout : ndarray (p, n), optional — matrix M whose M x and diag(M P M') are
+            recorded each step (e.g. interpolation to sensor radii).
+
+        Returns
+        -------
+        FilterResult
+        """
+        x0, P0, y = check_prior(x0, P0, y)
+        n, m = x0.shape[0], y.shape[1]
+        setup = self._setup(n)
+        if use_numba(self.backend, self.h, n):
+            ks = kernel_setup(
+                self.Q, self.H, self.R, self.gate, y, n, readout, store, store_dtype  # type: ignore[arg-type]
+            )
+            return self._run_compiled(setup, x0, P0, y, ks)
+        Q_of, R_of, H_of = model_matrices(self.Q, self.R, self.H, n, m)
+        predict, moments = self._steps(setup, Q_of)
+        return run_forward(
+            predict,
+            moments,
+            H_of,
+            R_of,
+            x0,
+            P0,
+            y,
+            store=store,
+            store_dtype=store_dtype,
+            readout=readout,
+            gate=self.gate,
+            guard=CovarianceGuard(abs_floor=self.eig_floor),
+            needs_prior_factor=moments is not None and self._moments_need_factor,
+        )
+
+    @abstractmethod
+    def _setup(self, n: int) -> Setup:
+        """What both passes derive from the state size ``n``, checked before the matrices."""
+
+    @abstractmethod
+    def _steps(
+        self, setup: Setup, Q_of: Callable[[int], Array]
+    ) -> tuple[Predictor, Moments | None]:
+        """The prediction and, with ``h``, the measurement moments of the numpy pass."""
+
+    @abstractmethod
+    def _run_compiled(
+        self, setup: Setup, x0: Array, P0: Array, y: Array, ks: KernelSetup
+    ) -> FilterResult:
+        """The forward pass with the compiled per-step kernels (same results as numpy)."""

@@ -9,22 +9,21 @@ from numpy.typing import NDArray
 
 from brakethermo.errors import ConfigError
 from brakethermo.estimation._forward import (
+    Backend,
+    BatchedFilter,
+    BatchedFunction,
+    KernelSetup,
     MatrixOrCallable,
-    Store,
-    as_provider,
-    check_prior,
-    kernel_setup,
-    run_forward,
+    Moments,
+    Predictor,
+    check_backend,
 )
 from brakethermo.estimation._forward import (
     as_kernel_array as _c,
 )
-from brakethermo.estimation.covariance import CovarianceGuard
 from brakethermo.estimation.results import FilterResult
-from brakethermo.estimation.ukf import BACKENDS, HAVE_NUMBA, Backend, use_numba
 
 Array = NDArray[np.float64]
-BatchedFunction = Callable[[Array, int], Array]
 Jacobian = Callable[[Array, int], Array]
 
 _FD_REL_STEP = 1.5e-8  # ~sqrt(machine epsilon): forward-difference optimum
@@ -53,7 +52,7 @@ def batched_jacobian(g: BatchedFunction, x: Array, k: int) -> tuple[Array, Array
     return GX[0], ((GX[1:] - GX[0]) / eps[:, None]).T
 
 
-class ExtendedKalmanFilter:
+class ExtendedKalmanFilter(BatchedFilter[None]):
     """EKF with the UKF's interface: batched ``f``, linear ``H`` or batched ``h``.
 
     Parameters
@@ -77,6 +76,8 @@ class ExtendedKalmanFilter:
         takes it for a linear H and n <= 64.
     """
 
+    _moments_need_factor = False
+
     def __init__(
         self,
         f: BatchedFunction,
@@ -95,12 +96,7 @@ class ExtendedKalmanFilter:
             raise ConfigError("give exactly one measurement model: a matrix H or a function h")
         if pseudo_noise is not None and h is None:
             raise ConfigError("pseudo_noise needs a nonlinear measurement function h")
-        if backend not in BACKENDS:
-            raise ConfigError(f"backend must be one of {BACKENDS}, got {backend!r}")
-        if backend == "numba" and h is not None:
-            raise ConfigError("the numba backend needs a linear measurement matrix H")
-        if backend == "numba" and not HAVE_NUMBA:
-            raise ConfigError("backend='numba' asked for but numba is not installed")
+        check_backend(backend, h)
         self.backend = backend
         if gate is not None and not 0.0 < gate < 1.0:
             raise ConfigError(f"gate is a probability in (0, 1), got {gate}")
@@ -109,24 +105,11 @@ class ExtendedKalmanFilter:
         self.eig_floor = eig_floor
         self.pseudo_noise = pseudo_noise
 
-    def run(
-        self,
-        x0: Array,
-        P0: Array,
-        y: Array,
-        *,
-        store: Store = "smoother",
-        store_dtype: type[np.floating] | None = None,
-        readout: Array | None = None,
-    ) -> FilterResult:
-        """Filter ``y``; arguments and result as :meth:`UnscentedKalmanFilter.run`."""
-        x0, P0, y = check_prior(x0, P0, y)
-        n, m = x0.shape[0], y.shape[1]
-        if use_numba(self.backend, self.h, n):
-            return self._run_numba(x0, P0, y, store, store_dtype, readout)
-        Q_of = as_provider(self.Q, (n, n), "Q")
-        R_of = as_provider(self.R, (m, m), "R")
-        H_of = None if self.H is None else as_provider(self.H, (m, n), "H")
+    def _setup(self, n: int) -> None:
+        """Nothing: the EKF has no constants of the state size."""
+
+    def _steps(self, setup: None, Q_of: Callable[[int], Array]) -> tuple[Predictor, Moments | None]:
+        """The linearised prediction and, with ``h``, the linearised measurement moments."""
         f, h, F_jac, pseudo = self.f, self.h, self.F_jac, self.pseudo_noise
 
         def predict(x: Array, P: Array, L: Array, k: int) -> tuple[Array, Array, Array]:
@@ -145,39 +128,16 @@ class ExtendedKalmanFilter:
                 S0 = S0 + pseudo(x, P, k)
             return mu, S0, Cxy
 
-        return run_forward(
-            predict,
-            None if h is None else moments,
-            H_of,
-            R_of,
-            x0,
-            P0,
-            y,
-            store=store,
-            store_dtype=store_dtype,
-            readout=readout,
-            gate=self.gate,
-            guard=CovarianceGuard(abs_floor=self.eig_floor),
-            needs_prior_factor=False,
-        )
+        return predict, None if h is None else moments
 
-    def _run_numba(
-        self,
-        x0: Array,
-        P0: Array,
-        y: Array,
-        store: Store,
-        store_dtype: type[np.floating] | None,
-        readout: Array | None,
+    def _run_compiled(
+        self, setup: None, x0: Array, P0: Array, y: Array, ks: KernelSetup
     ) -> FilterResult:
-        """The forward pass with the compiled per-step kernels (same results as numpy)."""
+        """The forward pass with :func:`_kernels.ekf_step` (same results as numpy)."""
         from brakethermo.estimation import _kernels
 
         K = y.shape[0]
         n = x0.shape[0]
-        ks = kernel_setup(
-            self.Q, self.H, self.R, self.gate, y, n, readout, store, store_dtype  # type: ignore[arg-type]
-        )
         work = np.zeros((3 * n + 3, n))  # [X (n + 1); P; L; x; eps], see _kernels._ekf_views
         X, P, x = work[: n + 1], work[n + 1 : 2 * n + 1], work[3 * n + 1]
         P[:] = P0

@@ -11,8 +11,46 @@ Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class FilterResult:
-    """Output of a forward filter pass over K steps (state dimension n, m measured).
+class ForwardTrace:
+    """The per-step record of a forward pass over K steps (m measured), small whatever
+    the state size: a windowed run keeps it without the (K, n) state stacks.
+
+    Attributes
+    ----------
+    innovation : ndarray (K, m) — y - predicted measurement, NaN where not used.
+    innovation_var : ndarray (K, m) — diagonal of S, NaN where not used.
+    nis : ndarray (K,) — normalised innovation squared nu' S^-1 nu, NaN on
+        predict-only steps.
+    loglik : ndarray (K,) — log N(y_k; mu_k, S_k), 0 on predict-only steps.
+    n_obs : ndarray (K,) int — measurement components used at each step.
+    rejected : ndarray (K,) bool — steps whose measurement failed the innovation gate.
+    readout, readout_var : ndarray (K, p) or None — M x_filt and diag(M P_filt M') for
+        the caller's readout matrix M.
+    n_repairs : int — covariance repairs (non-SPD matrices clipped).
+    repair_steps : tuple[int, ...] — steps at which repairs happened.
+    """
+
+    innovation: Array
+    innovation_var: Array
+    nis: Array
+    loglik: Array
+    n_obs: NDArray[np.int64]
+    rejected: NDArray[np.bool_]
+    readout: Array | None
+    readout_var: Array | None
+    n_repairs: int
+    repair_steps: tuple[int, ...]
+
+    @property
+    def log_likelihood(self) -> float:
+        """Total log-likelihood of the used measurements."""
+        return float(np.sum(self.loglik))
+
+
+@dataclass(frozen=True)
+class FilterResult(ForwardTrace):
+    """Output of a forward filter pass over K steps (state dimension n): the per-step
+    record of :class:`ForwardTrace` and the state and covariance stacks.
 
     Step k's prior (x_pred, P_pred) is the prediction before y[k]; step 0's prior is
     (x0, P0). The posterior (x_filt, P_filt) includes y[k].
@@ -29,17 +67,6 @@ class FilterResult:
     Sigma : ndarray (K-1, n, n) or None — P_filt[k] - G_k P_pred[k+1] G_k'
         (``store`` "full" or "smoother"); with ``G`` it is all the smoother needs.
     P_last : ndarray (n, n) — posterior covariance of the last step (the smoother's start).
-    innovation : ndarray (K, m) — y - predicted measurement, NaN where not used.
-    innovation_var : ndarray (K, m) — diagonal of S, NaN where not used.
-    nis : ndarray (K,) — normalised innovation squared nu' S^-1 nu, NaN on
-        predict-only steps.
-    loglik : ndarray (K,) — log N(y_k; mu_k, S_k), 0 on predict-only steps.
-    n_obs : ndarray (K,) int — measurement components used at each step.
-    rejected : ndarray (K,) bool — steps whose measurement failed the innovation gate.
-    readout, readout_var : ndarray (K, p) or None — M x_filt and diag(M P_filt M') for
-        the caller's readout matrix M.
-    n_repairs : int — covariance repairs (non-SPD matrices clipped).
-    repair_steps : tuple[int, ...] — steps at which repairs happened.
     store : str — what was stored: "full", "smoother" or "diag".
     """
 
@@ -53,22 +80,7 @@ class FilterResult:
     G: Array | None
     Sigma: Array | None
     P_last: Array
-    innovation: Array
-    innovation_var: Array
-    nis: Array
-    loglik: Array
-    n_obs: NDArray[np.int64]
-    rejected: NDArray[np.bool_]
-    readout: Array | None
-    readout_var: Array | None
-    n_repairs: int
-    repair_steps: tuple[int, ...]
     store: str
-
-    @property
-    def log_likelihood(self) -> float:
-        """Total log-likelihood of the used measurements."""
-        return float(np.sum(self.loglik))
 
     @property
     def nbytes(self) -> int:
@@ -96,31 +108,6 @@ class SmootherResult:
     readout: Array | None
     readout_var: Array | None
     P_first: Array | None = None
-
-
-@dataclass(frozen=True)
-class ForwardTrace:
-    """The per-step record of a forward pass that stays small whatever the state size.
-
-    Attributes are those of :class:`FilterResult` with the same names; the (K, n)
-    state stacks are left out so a windowed run holds no more than its output.
-    """
-
-    innovation: Array
-    innovation_var: Array
-    nis: Array
-    loglik: Array
-    n_obs: NDArray[np.int64]
-    rejected: NDArray[np.bool_]
-    readout: Array | None
-    readout_var: Array | None
-    n_repairs: int
-    repair_steps: tuple[int, ...]
-
-    @property
-    def log_likelihood(self) -> float:
-        """Total log-likelihood of the used measurements."""
-        return float(np.sum(self.loglik))
 
 
 @dataclass(frozen=True)

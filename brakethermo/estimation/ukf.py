@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -11,46 +10,27 @@ from scipy.linalg.blas import dtrmm
 
 from brakethermo.errors import ConfigError
 from brakethermo.estimation._forward import (
+    Backend,
+    BatchedFilter,
+    BatchedFunction,
+    KernelSetup,
     MatrixOrCallable,
     Moments,
     Predictor,
-    Store,
-    as_provider,
-    check_prior,
-    kernel_setup,
-    run_forward,
+    check_backend,
 )
 from brakethermo.estimation._forward import (
     as_kernel_array as _c,
 )
-from brakethermo.estimation.covariance import CovarianceGuard
 from brakethermo.estimation.results import FilterResult
 from brakethermo.estimation.sigma_points import MerweWeights, merwe_weights, sigma_points
 
-try:
-    import numba  # noqa: F401
-
-    HAVE_NUMBA = True
-except ImportError:  # numba may be missing on exotic platforms: numpy fallback
-    HAVE_NUMBA = False
-
 Array = NDArray[np.float64]
-Backend = Literal["auto", "numba", "numpy"]
-BACKENDS = ("auto", "numba", "numpy")
-NUMBA_MAX_N = 64
-BatchedTransition = Callable[[Array, int], Array]
 CompiledSteps = Callable[..., None]  # the model fused into the step loop: UKF ``steps``
 STEPS_PER_CALL = 256  # steps of one compiled call: a stop request waits at most this long
 
 
-def use_numba(backend: Backend, h: object | None, n: int) -> bool:
-    """Whether a filter with this backend, measurement function and state size compiles."""
-    if h is not None or backend == "numpy":
-        return False
-    return backend == "numba" or (HAVE_NUMBA and n <= NUMBA_MAX_N)
-
-
-class UnscentedKalmanFilter:
+class UnscentedKalmanFilter(BatchedFilter[MerweWeights]):
     """UKF over a batched process model; every sigma set goes through ONE model call.
 
     Parameters
@@ -85,14 +65,16 @@ class UnscentedKalmanFilter:
     random-walk parameters through unchanged (see :func:`augment_random_walk`).
     """
 
+    _moments_need_factor = True
+
     def __init__(
         self,
-        f: BatchedTransition,
+        f: BatchedFunction,
         Q: MatrixOrCallable,
         R: MatrixOrCallable,
         *,
         H: MatrixOrCallable | None = None,
-        h: BatchedTransition | None = None,
+        h: BatchedFunction | None = None,
         alpha: float = 0.1,
         beta: float = 2.0,
         kappa: float = 0.0,
@@ -101,12 +83,7 @@ class UnscentedKalmanFilter:
         backend: Backend = "auto",
         steps: CompiledSteps | None = None,
     ) -> None:
-        if backend not in BACKENDS:
-            raise ConfigError(f"backend must be one of {BACKENDS}, got {backend!r}")
-        if backend == "numba" and h is not None:
-            raise ConfigError("the numba backend needs a linear measurement matrix H")
-        if backend == "numba" and not HAVE_NUMBA:
-            raise ConfigError("backend='numba' asked for but numba is not installed")
+        check_backend(backend, h)
         if (H is None) == (h is None):
             raise ConfigError("give exactly one measurement model: a matrix H or a function h")
         if gate is not None and not 0.0 < gate < 1.0:
@@ -126,82 +103,25 @@ class UnscentedKalmanFilter:
         """Sigma-point weights for an ``n``-dimensional state."""
         return merwe_weights(n, self.alpha, self.beta, self.kappa)
 
-    def run(
-        self,
-        x0: Array,
-        P0: Array,
-        y: Array,
-        *,
-        store: Store = "smoother",
-        store_dtype: type[np.floating] | None = None,
-        readout: Array | None = None,
+    def _setup(self, n: int) -> MerweWeights:
+        """The sigma-point weights, the first thing a run checks."""
+        return self.weights(n)
+
+    def _steps(
+        self, w: MerweWeights, Q_of: Callable[[int], Array]
+    ) -> tuple[Predictor, Moments | None]:
+        """The unscented prediction and, with ``h``, the unscented measurement moments."""
+        predict = _sigma_predictor(self.f, Q_of, w)
+        return predict, None if self.h is None else _sigma_moments(self.h, w)
+
+    def _run_compiled(
+        self, w: MerweWeights, x0: Array, P0: Array, y: Array, ks: KernelSetup
     ) -> FilterResult:
-        """Filter the measurements ``y``.
-
-        Parameters
-        ----------
-        x0 : ndarray (n,) — prior mean of the state at step 0 (before y[0]).
-        P0 : ndarray (n, n) — prior covariance at step 0.
-        y : ndarray (K, m) — measurements; NaN marks a missing component, an all-NaN
-            row is a predict-only step.
-        store : {"full", "smoother", "diag"} — "full" keeps P_pred, P_filt, cross and
-            the gains (K n^2 x 5 floats); "smoother" keeps only the gains and Sigma the
-            RTS smoother needs (K n^2 x 2); "diag" keeps variances only (no smoother).
-        store_dtype : numpy float type, optional — dtype of the stored gains and Sigma;
-            default float64 below n = 24 and float32 from there (halves the smoother's
-            memory at ~1e-7 relative precision).
-        readout : ndarray (p, n), optional — matrix M whose M x and diag(M P M') are
-            recorded each step (e.g. interpolation to sensor radii).
-
-        Returns
-        -------
-        FilterResult
-        """
-        x0, P0, y = check_prior(x0, P0, y)
-        n = x0.shape[0]
-        m = y.shape[1]
-        if self._use_numba(n):
-            return self._run_numba(x0, P0, y, store, store_dtype, readout)
-        w = self.weights(n)
-        Q_of = as_provider(self.Q, (n, n), "Q")
-        R_of = as_provider(self.R, (m, m), "R")
-        H_of = None if self.H is None else as_provider(self.H, (m, n), "H")
-        h = self.h
-        return run_forward(
-            _sigma_predictor(self.f, Q_of, w),
-            None if h is None else _sigma_moments(h, w),
-            H_of,
-            R_of,
-            x0,
-            P0,
-            y,
-            store=store,
-            store_dtype=store_dtype,
-            readout=readout,
-            gate=self.gate,
-            guard=CovarianceGuard(abs_floor=self.eig_floor),
-            needs_prior_factor=h is not None,
-        )
-
-    def _use_numba(self, n: int) -> bool:
-        return use_numba(self.backend, self.h, n)
-
-    def _run_numba(
-        self,
-        x0: Array,
-        P0: Array,
-        y: Array,
-        store: Store,
-        store_dtype: type[np.floating] | None,
-        readout: Array | None,
-    ) -> FilterResult:
-        """The forward pass with the compiled per-step kernels (same results as numpy)."""
+        """The forward pass with :func:`_kernels.ukf_step` (same results as numpy)."""
         from brakethermo.estimation import _kernels
 
         K = y.shape[0]
         n = x0.shape[0]
-        w = self.weights(n)
-        ks = kernel_setup(self.Q, self.H, self.R, self.gate, y, n, readout, store, store_dtype)
         B = 2 * n + 1
         work = np.zeros((B + 2 * n + 1, n))  # [X; P; L; x], see _kernels._views
         X, P = work[:B], work[B : B + n]
@@ -232,7 +152,7 @@ class UnscentedKalmanFilter:
         return ks.result(P)
 
 
-def _sigma_predictor(f: BatchedTransition, Q_of: Callable[[int], Array], w: MerweWeights
+def _sigma_predictor(f: BatchedFunction, Q_of: Callable[[int], Array], w: MerweWeights
                      ) -> Predictor:
     """The unscented prediction (eq. 35-37) and its cross-covariance, over one sigma buffer.
 
@@ -268,7 +188,7 @@ def _sigma_predictor(f: BatchedTransition, Q_of: Callable[[int], Array], w: Merw
     return predict
 
 
-def _sigma_moments(h: BatchedTransition, w: MerweWeights) -> Moments:
+def _sigma_moments(h: BatchedFunction, w: MerweWeights) -> Moments:
     """The measurement's unscented moments (eq. 38-44) from the prior, over one buffer.
 
     Parameters

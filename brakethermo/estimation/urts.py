@@ -39,9 +39,12 @@ from threadpoolctl import threadpool_limits
 
 from brakethermo.errors import ConfigError
 from brakethermo.estimation._forward import (
+    Backend,
     MatrixOrCallable,
+    check_backend,
     check_prior,
     readout_matrix,
+    use_numba,
 )
 from brakethermo.estimation.covariance import symmetrise
 from brakethermo.estimation.results import (
@@ -51,13 +54,7 @@ from brakethermo.estimation.results import (
     WindowedSmootherResult,
 )
 from brakethermo.estimation.store import gain_dtype
-from brakethermo.estimation.ukf import (
-    BACKENDS,
-    HAVE_NUMBA,
-    NUMBA_MAX_N,
-    Backend,
-    UnscentedKalmanFilter,
-)
+from brakethermo.estimation.ukf import UnscentedKalmanFilter
 
 Array = NDArray[np.float64]
 
@@ -104,11 +101,8 @@ def urts_smooth(
     ro_var = None if M is None else np.empty((K, M.shape[0]))
 
     x_filt, x_pred, G_all, Sigma_all = result.x_filt, result.x_pred, result.G, result.Sigma
-    if backend not in BACKENDS:
-        raise ConfigError(f"backend must be one of {BACKENDS}, got {backend!r}")
-    if backend == "numba" and not HAVE_NUMBA:
-        raise ConfigError("backend='numba' asked for but numba is not installed")
-    if backend == "numba" or (backend == "auto" and HAVE_NUMBA and n <= NUMBA_MAX_N):
+    check_backend(backend)
+    if use_numba(backend, None, n):
         from brakethermo.estimation._kernels import rts_backward
 
         P_first = np.empty((n, n))
