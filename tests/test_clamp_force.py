@@ -17,7 +17,14 @@ from typer.testing import CliRunner
 from brakethermo.cli import app
 from brakethermo.estimation.kf import kalman_filter, kalman_filter_tv
 from brakethermo.io.writers import Channel, SessionData, write_session
-from brakethermo.models.clamp_force import Q_SCALES, estimate, fusion_check, train
+from brakethermo.models.clamp_force import (
+    Q_SCALES,
+    eq7_choice,
+    estimate,
+    fusion_check,
+    motor_rates,
+    train,
+)
 from brakethermo.numeric import rmse
 from brakethermo.pipelines import clamp_force as cfp
 from brakethermo.rigs.emb import (
@@ -497,3 +504,23 @@ def test_delagging_keeps_gaps_and_does_not_reach_across_them() -> None:
     np.testing.assert_allclose(out[ok], (F + lag * dF)[ok], atol=0.05)
     short = sensor_delagged(F[:4], lag, TS)
     assert np.isfinite(short).all()
+
+
+def test_eq7_choice_scores_around_a_gap_in_the_force_sensor() -> None:
+    """A few NaN samples of the sensor (the training allows gaps) are scored around: the
+    choice is the one without the gap, not the first pair by default (a NaN score)."""
+    rng = np.random.default_rng(1)
+    ts, K = 1e-3, 20000
+    t = np.arange(K) * ts
+    theta = 30.0 * np.sin(np.pi * t) + np.round(rng.normal(0.0, 1.0, K)) * 0.01
+    tb = TorqueBalance(gamma=1e-3, inertia=1e-4, mu=1e-4, offset=0.2, bias=0.05,
+                       omega_s=0.3)
+    F = np.clip(2000.0 * (1.0 + np.sin(np.pi * t)), 0.0, None) + rng.normal(0.0, 20.0, K)
+    omega, acc = motor_rates(theta, ts, 1)
+    sgn = np.tanh(omega / 0.3)
+    current = ((tb.gamma + tb.mu * sgn) * F + tb.inertia * acc + tb.offset * sgn + tb.bias
+               + rng.normal(0.0, 0.02, K))
+    whole = eq7_choice(theta, current, F, ts)
+    F_gap = F.copy()
+    F_gap[5000:5010] = np.nan
+    assert eq7_choice(theta, current, F_gap, ts) == whole == (1, 0.2)

@@ -63,15 +63,3 @@ def test_custom_datasheet_file_is_used_throughout(sim_race_session, tmp_path):
     assert res.disc.id == "my-disc" and res.disc.window_c == (300.0, 800.0)
     assert res.summary["run"]["disc"] == "my-disc"
     assert any("fitted for 4" in w for w in res.summary["run"]["warnings"])
-
-
-def test_tuning_is_read_once_per_state_of_the_file(tmp_path) -> None:
-    path = tmp_path / "mine.toml"
-    path.write_text("[estimate]\nsigma_meas = 4.0\n")
-    first = load_tuning(path)
-    assert load_tuning(path) is first  # the validation's dozen runs share one read
-    path.write_text("[estimate]\nsigma_meas = 3.5\n")  # edited: another size
-    assert load_tuning(path)[0].sigma_meas == 3.5
-    path.unlink()
-    with pytest.raises(ConfigError, match="not found"):
-        load_tuning(path)  # a file gone is said, not served from the cache

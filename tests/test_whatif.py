@@ -158,7 +158,7 @@ def test_law_of_another_disc_is_refused(sim_race_session, tmp_path: Path) -> Non
     assert r.exit_code == 1 and "cc-355-9" in r.output and "Traceback" not in r.output
 
 
-def test_law_h_rel_sigma_is_read_once_and_checked(tmp_path: Path) -> None:
+def test_law_h_rel_sigma_is_a_checked_calibration_value(tmp_path: Path) -> None:
     shipped = Path(__file__).resolve().parents[1] / "configs" / "hlaw" / "cc-340-8.toml"
     text = shipped.read_text()
     assert "[extra]" in text and "h_rel_sigma" not in text

@@ -13,7 +13,9 @@ Array = NDArray[np.float64]
 @dataclass(frozen=True)
 class ForwardTrace:
     """The per-step record of a forward pass over K steps (m measured), small whatever
-    the state size: a windowed run keeps it without the (K, n) state stacks.
+    the state size: a windowed run keeps it without the (K, n) state stacks
+    (:class:`FilterResult` is this record plus them; build a ``ForwardTrace`` itself
+    where only the record is to be kept).
 
     Attributes
     ----------

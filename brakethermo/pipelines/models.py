@@ -84,7 +84,9 @@ class DiscCalibration:
     h_rel_sigma: float | None = None
 
 
-# Ranges of the identified values an h_law.toml may carry (those identify-h can produce).
+# Ranges of the values an h_law.toml's [extra] may carry: those identify-h produces, and
+# h_rel_sigma, set by hand for whatif (checked wherever the law is read: a law with a
+# value out of range is wrong whichever command reads it).
 CALIBRATION_BOUNDS: dict[str, tuple[float, float]] = {
     "kz_ratio": (0.01, 10.0),
     "power_scale": (0.2, 5.0),

@@ -6,7 +6,6 @@ Also the names of the roller rig's noise presets: light enough for the CLI's opt
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -196,31 +195,8 @@ def check_overrides(overrides: dict[str, Any], where: str = "option") -> None:
 
 
 def load_tuning(path: str | Path | None = None) -> tuple[EstimateTuning, IdentifyTuning]:
-    """Load the shipped tuning, overlaid key by key with a user's TOML file when given.
-
-    Read once per state of the files (identify-h's validation and a race's decision run
-    the estimator a dozen times on one tuning); an edited file is read again.
-    """
-    shipped = config_dir() / "tuning.toml"
-    user = None if path is None else Path(path)
-    return _load_tuning(shipped, user, _file_state(shipped), _file_state(user))
-
-
-def _file_state(path: Path | None) -> tuple[int, int] | None:
-    """Modification time and size of ``path`` (None: no file, or none to read; reading
-    then raises the clear error, which is not cached)."""
-    try:
-        st = path.stat() if path is not None else None
-    except OSError:
-        return None
-    return None if st is None else (st.st_mtime_ns, st.st_size)
-
-
-@functools.lru_cache(maxsize=8)
-def _load_tuning(shipped_path: Path, path: Path | None, *_state: tuple[int, int] | None
-                 ) -> tuple[EstimateTuning, IdentifyTuning]:
-    """:func:`load_tuning` of these files in these states (the states are the cache key)."""
-    shipped = config_file(shipped_path)
+    """Load the shipped tuning, overlaid key by key with a user's TOML file when given."""
+    shipped = config_file(config_dir() / "tuning.toml")
     user = config_file(path) if path is not None else None
     if user is not None:
         user.only(("estimate", "identify"))

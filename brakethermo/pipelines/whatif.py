@@ -159,8 +159,8 @@ class WhatifOptions:
                               " each change once")
         if self.draws < 0 or self.draws > 200:
             raise ConfigError(f"--draws {self.draws}: give 0 to 200 replays")
-        if self.h_rel_sigma is not None and not (0.0 <= self.h_rel_sigma < 1.0):
-            raise ConfigError(f"h_rel_sigma {self.h_rel_sigma} must be in [0, 1)")
+        if self.h_rel_sigma is not None and not (0.0 <= self.h_rel_sigma <= 1.0):
+            raise ConfigError(f"h_rel_sigma {self.h_rel_sigma} must be in [0, 1]")
 
 
 @dataclass

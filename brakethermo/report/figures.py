@@ -3,8 +3,9 @@
 Creating a matplotlib figure costs far more than drawing it, and drawing the static
 parts (axes, ticks, labels, legends, titles) costs more than drawing the data. So
 :class:`LapFigures` creates its four figures and all their artists once; axis ranges
-are rounded (time to 10 s, spot temperatures to 50 degC) or fixed for the session
-(contact band, speed, pressure), so similar laps share one rendered background per figure:
+are rounded (time to 10 s, spot temperatures to 50 degC, the contact band's 1-sigma to
+5 degC) or fixed for the session (contact band, speed, pressure), so similar laps share
+one rendered background per figure:
 :meth:`LapFigures.render` swaps the data of the animated artists, restores the cached
 background and draws only those artists (blitting). All four figures share the same
 width and horizontal margins, so stacked in the HTML page their time axes line up.
@@ -457,16 +458,7 @@ class LapFigures:
                 t, r_mm, field, levels=levels, colors="white", linewidths=1.0, linestyles="--"
             )
 
-        self.contact_band.set_data(t, lap.contact - lap.contact_std, lap.contact + lap.contact_std)
-        # On a 600 °C axis a band of a few degrees is a hairline: the legend gives its size
-        # (the lap's median σ), the panel below its course through the lap.
-        std = lap.contact_std[np.isfinite(lap.contact_std)]
-        self._band_label.set_text(f"σ ≈ {np.median(std):.1f} °C (median)" if std.size else "")
-        self.contact_line.set_data(t, lap.contact)
-        self.sigma_line.set_data(t, lap.contact_std)
-        sigma_top = SIGMA_STEP_C * max(1.0, np.ceil(np.max(std, initial=0.0) / SIGMA_STEP_C))
-        self.ax_sigma.set_ylim(0.0, sigma_top)
-        self.zone_contact.update(lap.zones_t, lap.zone_names)
+        sigma_top = self._fill_contact(lap)
 
         self.speed_line.set_data(t, lap.speed_kmh)
         self.pressure_line.set_data(t, lap.pressure_bar)
@@ -503,6 +495,25 @@ class LapFigures:
                 ],
             ),
         }
+
+    def _fill_contact(self, lap: LapData) -> float:
+        """The contact plot and its σ panel for one lap; returns the panel's top, degC."""
+        t = lap.t
+        self.contact_band.set_data(t, lap.contact - lap.contact_std, lap.contact + lap.contact_std)
+        # On a 600 °C axis a band of a few degrees is a hairline: the legend gives its size
+        # (the lap's median σ), the panel below its course through the lap.
+        std = lap.contact_std[np.isfinite(lap.contact_std)]
+        self._band_label.set_text(f"σ ≈ {np.median(std):.1f} °C (median)" if std.size else "")
+        self.contact_line.set_data(t, lap.contact)
+        self.sigma_line.set_data(t, lap.contact_std)
+        # 5 % headroom keeps the peak off the frame; the start-up prior (tens of degrees)
+        # would flatten the rest of the first lap, so the panel stops at BAND_ROOM_C
+        peak = 1.05 * np.max(std, initial=0.0)
+        sigma_top = SIGMA_STEP_C * min(max(1.0, np.ceil(peak / SIGMA_STEP_C)),
+                                       BAND_ROOM_C / SIGMA_STEP_C)
+        self.ax_sigma.set_ylim(0.0, sigma_top)
+        self.zone_contact.update(lap.zones_t, lap.zone_names)
+        return float(sigma_top)
 
     def close(self) -> None:
         """Release the figures."""

@@ -55,7 +55,7 @@ from brakethermo.thermal.disc import DiscSpec, load_disc
 FIGURE_ALT = {
     "spots": "spot temperatures with 1-sigma bands and the measured spot",
     "heatmap": "disc temperature across the radius over the lap",
-    "contact": "contact-band average against the operating window",
+    "contact": "contact-band average against the operating window, its 1-sigma below",
     "context": "speed and front brake pressure",
 }
 

@@ -15,7 +15,6 @@ from brakethermo.diagnosis.verdict import (
     decide,
 )
 from brakethermo.errors import ConfigError, DataError
-from brakethermo.numeric import rmse
 from brakethermo.pipelines.diagnose._common import (
     RULE,
     DiagnoseOptions,
@@ -137,7 +136,8 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
         "reference": first["reference"],
         "train_laps": {r.stem: r.summary["train_laps"] for r in results},
         "heldout_laps": {r.stem: r.summary["heldout_laps"] for r in results},
-        "gap": {"rmse_c": rmse(gaps),
+        # a session without a score leaves the pooled gap unknown (NaN), not smaller
+        "gap": {"rmse_c": float(np.sqrt(np.mean(np.square(gaps)))),
                 "per_session": dict(zip(stems, gaps, strict=True))},
         "where": {r.stem: r.summary["where"]["by_spot_phase"] for r in results},
         "consistency": {r.stem: r.summary["consistency"] for r in results},
