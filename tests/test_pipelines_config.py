@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from brakethermo.config import config_dir
@@ -63,3 +65,28 @@ def test_custom_datasheet_file_is_used_throughout(sim_race_session, tmp_path):
     assert res.disc.id == "my-disc" and res.disc.window_c == (300.0, 800.0)
     assert res.summary["run"]["disc"] == "my-disc"
     assert any("fitted for 4" in w for w in res.summary["run"]["warnings"])
+
+
+def test_a_run_reads_the_tuning_file_once(sim_race_session, tmp_path, monkeypatch) -> None:
+    """The race's decision passes and its filter share one read of the user's file (a
+    file edited half-way through a run cannot give its passes two tunings)."""
+    import brakethermo.pipelines.tuning as tuning_module
+    from brakethermo.pipelines.tuning import TuningFiles, read_tuning
+
+    mine = tmp_path / "mine.toml"
+    mine.write_text("[estimate]\nsigma_meas = 4.0\n")
+    reads = []
+    real = tuning_module.config_file
+
+    def counted(path):
+        reads.append(Path(path))
+        return real(path)
+
+    monkeypatch.setattr(tuning_module, "config_file", counted)
+    files = read_tuning(mine)
+    assert isinstance(files, TuningFiles) and read_tuning(files) is files
+    assert files.estimate.sigma_meas == 4.0 and files.user_estimate == {"sigma_meas"}
+    reads.clear()
+    result = estimate_session(sim_race_session[0], EstimateOptions(tuning=mine))
+    assert result.summary["run"]["online_choice"].get("scores")  # the decision ran passes
+    assert reads.count(mine) == 1

@@ -63,8 +63,10 @@ from brakethermo.pipelines.race_filter import (
 from brakethermo.pipelines.speculative import Speculation
 from brakethermo.pipelines.tuning import (
     EstimateTuning,
+    TuningSource,
     check_overrides,
     load_tuning,
+    read_tuning,
     user_tuning_keys,
 )
 from brakethermo.report.braking_zones import detect_zones
@@ -87,8 +89,9 @@ class EstimateOptions:
         ``h_law.toml`` from identify-h; default: the law shipped for the disc.
     disc : str or path, optional
         Datasheet id or file; default: the session's ``disc`` fact, else cc-340-8.
-    tuning : path, optional
-        Filter tuning TOML overlaid on ``configs/tuning.toml``.
+    tuning : path or TuningFiles, optional
+        Filter tuning TOML overlaid on ``configs/tuning.toml`` (or those files as a
+        command already read them, :func:`~brakethermo.pipelines.tuning.read_tuning`).
     nodes, layers : int, optional
     smoother, adapt_power : bool, optional
     sigma_crown : float, optional
@@ -115,7 +118,7 @@ class EstimateOptions:
     spot: int = 3
     h_law: str | Path | None = None
     disc: str | Path | None = None
-    tuning: str | Path | None = None
+    tuning: TuningSource = None
     nodes: int | None = None
     layers: int | None = None
     smoother: bool | None = None
@@ -415,6 +418,7 @@ def estimate_from_session(
     calibrate the bands on its own session).
     """
     t_start = time.perf_counter()
+    options = replace(options, tuning=read_tuning(options.tuning))  # once for every pass
     disc = disc_for(session, options.disc)
     inputs = disc_inputs(session, disc, options.ambient_c)
     y = _measurement(inputs, options.spot, session.path)

@@ -44,7 +44,13 @@ from brakethermo.pipelines.inputs import MULTI_SPOT, DiscInputs, disc_inputs, lo
 from brakethermo.pipelines.models import DiscCalibration, disc_for, shipped_h_law
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.race_filter import disc_model
-from brakethermo.pipelines.tuning import EstimateTuning, IdentifyTuning, load_tuning
+from brakethermo.pipelines.tuning import (
+    EstimateTuning,
+    IdentifyTuning,
+    TuningSource,
+    load_tuning,
+    read_tuning,
+)
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.hlaw import HLaw, read_h_law
 from brakethermo.thermal.model import DiscFEModel
@@ -60,7 +66,7 @@ class IdentifyOptions:
     """Command-line choices; ``None`` means the tuning file's value."""
 
     disc: str | Path | None = None
-    tuning: str | Path | None = None
+    tuning: TuningSource = None
     nodes: int | None = None
     aliases: str | Path | None = None
     ambient_c: float | None = None
@@ -596,6 +602,7 @@ def _evidence_facts(level: dict[str, Any]) -> dict[str, Any]:
 def identify_from_session(session: Session, options: IdentifyOptions) -> IdentifyResult:
     """Run identify-h on a loaded session (see :func:`identify_h`)."""
     t0 = time.perf_counter()
+    options = replace(options, tuning=read_tuning(options.tuning))  # once for every run
     est_tuning, tuning = load_tuning(options.tuning)
     if options.nodes is not None:
         tuning = replace(tuning, nodes=options.nodes)

@@ -194,25 +194,62 @@ def check_overrides(overrides: dict[str, Any], where: str = "option") -> None:
             )
 
 
-def load_tuning(path: str | Path | None = None) -> tuple[EstimateTuning, IdentifyTuning]:
-    """Load the shipped tuning, overlaid key by key with a user's TOML file when given."""
+@dataclass(frozen=True)
+class TuningFiles:
+    """The tuning files as read for one command: the shipped file overlaid with the
+    user's, and the keys the user's file sets. A command reads them once and passes this
+    in place of the path (``tuning=``), so identify-h's validation runs and a race's
+    decision passes share one read and cannot see a file edited half-way through.
+
+    Attributes
+    ----------
+    estimate : EstimateTuning
+    identify : IdentifyTuning
+    user_estimate, user_identify : frozenset of str — keys the user's file sets per section.
+    path : Path or None — the user's file.
+    """
+
+    estimate: EstimateTuning
+    identify: IdentifyTuning
+    user_estimate: frozenset[str] = frozenset()
+    user_identify: frozenset[str] = frozenset()
+    path: Path | None = None
+
+
+TuningSource = str | Path | TuningFiles | None
+
+
+def read_tuning(path: TuningSource = None) -> TuningFiles:
+    """Read the shipped tuning, overlaid key by key with a user's TOML file when given
+    (a :class:`TuningFiles` already read is returned as it is)."""
+    if isinstance(path, TuningFiles):
+        return path
     shipped = config_file(config_dir() / "tuning.toml")
     user = config_file(path) if path is not None else None
     if user is not None:
         user.only(("estimate", "identify"))
-    tunings = []
+    tunings, keys = [], []
     for cls, section in ((EstimateTuning, "estimate"), (IdentifyTuning, "identify")):
         base = shipped.table(section, {})
         built = _build(cls, base)  # the shipped file alone must be valid too
+        mine = user.table(section, {}).raw if user is not None else {}
         if user is not None:
-            mine = user.table(section, {})
-            built = _build(cls, ConfigTable({**base.raw, **mine.raw}, user.path, section))
+            built = _build(cls, ConfigTable({**base.raw, **mine}, user.path, section))
         tunings.append(built)
-    return tunings[0], tunings[1]  # type: ignore[return-value]
+        keys.append(frozenset(mine))
+    return TuningFiles(tunings[0], tunings[1], keys[0], keys[1],  # type: ignore[arg-type]
+                       None if path is None else Path(path))
 
 
-def user_tuning_keys(path: str | Path | None, section: str) -> frozenset[str]:
+def load_tuning(path: TuningSource = None) -> tuple[EstimateTuning, IdentifyTuning]:
+    """The estimate and identify tunings (:func:`read_tuning`)."""
+    files = read_tuning(path)
+    return files.estimate, files.identify
+
+
+def user_tuning_keys(path: TuningSource, section: str) -> frozenset[str]:
     """The keys a user's tuning file sets in ``[section]`` (empty without a file)."""
     if path is None:
         return frozenset()
-    return frozenset(config_file(path).table(section, {}).raw)
+    files = read_tuning(path)
+    return files.user_estimate if section == "estimate" else files.user_identify

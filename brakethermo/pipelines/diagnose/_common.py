@@ -14,6 +14,7 @@ from brakethermo.diagnosis.verdict import (
     VerdictRule,
 )
 from brakethermo.io.session import Session
+from brakethermo.pipelines.tuning import TuningSource
 
 MIN_SHRINK_PCT = 10.0  # % — lower bootstrap bound a verdict needs
 
@@ -53,7 +54,7 @@ class DiagnoseOptions:
     holdout_laps: tuple[int, ...] | None = None
     h_law: str | Path | None = None
     disc: str | Path | None = None
-    tuning: str | Path | None = None
+    tuning: TuningSource = None
     aliases: str | Path | None = None
     ambient_c: float | None = None
     max_nfev: int = 25

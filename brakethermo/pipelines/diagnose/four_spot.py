@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -59,7 +60,7 @@ from brakethermo.pipelines.diagnose.where import _marginals, where_table
 from brakethermo.pipelines.estimate import SENSOR_FLOOR_C, SIGMA_MEAS_FLOOR_C
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs
 from brakethermo.pipelines.models import disc_for
-from brakethermo.pipelines.tuning import EstimateTuning, load_tuning
+from brakethermo.pipelines.tuning import EstimateTuning, read_tuning
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
 
@@ -73,7 +74,9 @@ def diagnose_session(
     options = options or DiagnoseOptions()
     t_start = time.perf_counter()
     names = parse_effects(options.effects)
-    est_tuning, _ = load_tuning(options.tuning)
+    files = read_tuning(options.tuning)
+    options = replace(options, tuning=files)  # read once for every fit and estimate
+    est_tuning = files.estimate
     disc = disc_for(session, options.disc)
     inputs = disc_inputs(session, disc, options.ambient_c)
     if not inputs.is_multi_spot:
