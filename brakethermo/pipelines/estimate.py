@@ -85,8 +85,9 @@ class EstimateOptions:
     ----------
     spot : int
         Spot (1..4) used as the filter's measurement; 3 is the race sensor.
-    h_law : path, optional
-        ``h_law.toml`` from identify-h; default: the law shipped for the disc.
+    h_law : path or DiscCalibration, optional
+        ``h_law.toml`` from identify-h (or that file as a command already read it);
+        default: the law shipped for the disc.
     disc : str or path, optional
         Datasheet id or file; default: the session's ``disc`` fact, else cc-340-8.
     tuning : path or TuningFiles, optional
@@ -116,7 +117,7 @@ class EstimateOptions:
     """
 
     spot: int = 3
-    h_law: str | Path | None = None
+    h_law: str | Path | DiscCalibration | None = None
     disc: str | Path | None = None
     tuning: TuningSource = None
     nodes: int | None = None

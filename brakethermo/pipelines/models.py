@@ -141,8 +141,12 @@ def _checked_effects(tables: dict[str, Any], path: str | Path) -> dict[str, dict
     return out
 
 
-def calibration_for(disc: DiscSpec, h_law: str | Path | None) -> DiscCalibration:
-    """The user's ``h_law.toml``, or the one shipped for the disc."""
+def calibration_for(disc: DiscSpec, h_law: str | Path | DiscCalibration | None
+                    ) -> DiscCalibration:
+    """The user's ``h_law.toml``, or the one shipped for the disc (a calibration a command
+    already read is returned as it is)."""
+    if isinstance(h_law, DiscCalibration):
+        return h_law
     path = Path(h_law) if h_law is not None else shipped_h_law(disc)
     if path is None:
         raise ConfigError(

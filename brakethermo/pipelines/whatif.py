@@ -390,7 +390,7 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
         if s.disc:
             _scenario_disc(s, disc_for(session, options.disc))
     est = estimate_from_session(session, EstimateOptions(
-        spot=options.spot, h_law=options.h_law, disc=options.disc, tuning=options.tuning,
+        spot=options.spot, h_law=cal, disc=options.disc, tuning=options.tuning,
         aliases=options.aliases, ambient_c=options.ambient_c, score=False))
     h_sig = options.h_rel_sigma
     if h_sig is None:
