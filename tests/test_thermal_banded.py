@@ -7,13 +7,12 @@ import pytest
 import scipy.linalg
 
 from brakethermo.thermal.banded import (
-    HAVE_NUMBA,
     factor_banded,
     solve_banded_batch,
     solve_factored,
 )
 
-BACKENDS = [False, pytest.param(True, marks=pytest.mark.skipif(not HAVE_NUMBA, reason="numba"))]
+BACKENDS = [False, True]
 
 
 def random_spd_band(rng: np.random.Generator, B: int, p: int, n: int) -> np.ndarray:
@@ -58,7 +57,6 @@ def test_shared_factor_many_rhs(use_numba: bool) -> None:
     np.testing.assert_allclose(x, scipy_reference(ab, rhs), rtol=1e-10, atol=1e-12)
 
 
-@pytest.mark.skipif(not HAVE_NUMBA, reason="numba not installed")
 def test_numba_equals_numpy_fallback() -> None:
     rng = np.random.default_rng(2)
     ab = random_spd_band(rng, 25, 3, 77)

@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,7 +10,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import i0, i1, k0, k1
 
-from brakethermo.thermal.banded import HAVE_NUMBA
 from brakethermo.thermal.disc import DiscSpec, load_disc
 from brakethermo.thermal.fe import nodal_areas
 from brakethermo.thermal.model import DiscFEModel
@@ -223,7 +219,6 @@ def test_low_kz_face_runs_hotter_than_midplane(disc: DiscSpec) -> None:
     assert np.all(gap[:, 0] - gap[:, 2] < layers[contact, 0] - layers[contact, 2])
 
 
-@pytest.mark.skipif(not HAVE_NUMBA, reason="numba not installed")
 @pytest.mark.parametrize(("n", "layers"), [(10, 1), (23, 2), (15, 3)])
 def test_numba_step_equals_numpy_step(disc: DiscSpec, n: int, layers: int) -> None:
     fast = DiscFEModel(disc, n, layers, use_numba=True)
@@ -282,7 +277,6 @@ def test_spot_matrix_interpolates_face_nodes(disc: DiscSpec) -> None:
         model.spot_matrix([0.05])
 
 
-@pytest.mark.skipif(not HAVE_NUMBA, reason="numba not installed")
 def test_shared_matrix_numba_equals_numpy(disc: DiscSpec) -> None:
     fast = DiscFEModel(disc, 20, 2, use_numba=True)
     slow = DiscFEModel(disc, 20, 2, use_numba=False)
@@ -294,8 +288,7 @@ def test_shared_matrix_numba_equals_numpy(disc: DiscSpec) -> None:
     np.testing.assert_allclose(a, b, rtol=1e-12)
 
 
-@pytest.mark.parametrize("use_numba", [False, pytest.param(True, marks=pytest.mark.skipif(
-    not HAVE_NUMBA, reason="numba not installed"))])  # fmt: skip
+@pytest.mark.parametrize("use_numba", [False, True])
 def test_per_member_load_equals_models_with_those_weights(disc: DiscSpec, use_numba) -> None:
     weights = np.array([[1.0, 1.0, 1.0], [0.3, 1.0, 2.0], [2.0, 0.5, 0.1]])
     base = DiscFEModel(disc, 15, 2, use_numba=use_numba)
@@ -340,33 +333,6 @@ def test_cooling_step_obeys_maximum_principle(t_amb, h, spread, seed) -> None:
     T_new = model.step(T, 0.0, h, t_amb)
     assert np.all(T_new <= T.max(axis=1, keepdims=True) + 1e-9)
     assert np.all(T_new >= t_amb - 1e-9)
-
-
-def test_model_works_without_numba(disc: DiscSpec, tmp_path: Path) -> None:
-    """With numba unimportable the numpy fallback is used and gives the same result."""
-    code = (
-        "import sys; sys.modules['numba'] = None\n"
-        "import numpy as np\n"
-        "from brakethermo.thermal.banded import HAVE_NUMBA\n"
-        "from brakethermo.thermal.disc import load_disc\n"
-        "from brakethermo.thermal.model import DiscFEModel\n"
-        "assert not HAVE_NUMBA\n"
-        "m = DiscFEModel(load_disc('cc-340-8'), 12, 2)\n"
-        "T = np.linspace(100.0, 600.0, 2 * m.n_state).reshape(2, -1)\n"
-        "np.save(sys.argv[1], m.step(T, 5.0e4, np.array([60.0, 90.0]), 20.0))\n"
-        "try:\n"
-        "    DiscFEModel(load_disc('cc-340-8'), 12, use_numba=True)\n"
-        "except RuntimeError as exc:\n"
-        "    assert 'numba is not installed' in str(exc)\n"
-        "else:\n"
-        "    raise AssertionError('use_numba=True must fail without numba')\n"
-    )
-    out = tmp_path / "fallback.npy"
-    subprocess.run([sys.executable, "-c", code, str(out)], check=True, timeout=120)
-    model = DiscFEModel(disc, 12, 2)
-    T = np.linspace(100.0, 600.0, 2 * model.n_state).reshape(2, -1)
-    expected = model.step(T, 5.0e4, np.array([60.0, 90.0]), 20.0)
-    np.testing.assert_allclose(np.load(out), expected, rtol=1e-12)
 
 
 def test_surface_temperature_brackets_face_layer(disc: DiscSpec) -> None:

@@ -10,13 +10,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_thermal_fe import assert_energy_conserved
 
-from brakethermo.thermal.banded import HAVE_NUMBA
 from brakethermo.thermal.disc import DiscSpec, load_disc
 from brakethermo.thermal.fe import conduction_factors, nodal_areas
 from brakethermo.thermal.model import SIGMA, DiscFEModel, layer_thicknesses
 
 DISC = load_disc("cc-340-8")
-NUMBA = [False, pytest.param(True, marks=pytest.mark.skipif(not HAVE_NUMBA, reason="no numba"))]
+NUMBA = [False, True]
 
 
 def dense_step(
@@ -126,7 +125,6 @@ def test_energy_conserved_per_step_graded(use_numba: bool) -> None:
     np.testing.assert_allclose(C[:, 1:] / C[:, :-1], 2.5, rtol=1e-13)
 
 
-@pytest.mark.skipif(not HAVE_NUMBA, reason="numba not installed")
 @pytest.mark.parametrize(("n", "layers", "growth"), [(10, 4, 2.5), (23, 2, 3.0), (15, 6, 1.7)])
 def test_numba_equals_numpy_graded(n: int, layers: int, growth: float) -> None:
     fast = DiscFEModel(DISC, n, layers, layer_growth=growth, use_numba=True)

@@ -24,6 +24,7 @@ from scipy.linalg.blas import dtrsm
 from scipy.special import chdtri  # scipy.stats costs 0.5 s of import
 
 from brakethermo.errors import ConfigError, DataError
+from brakethermo.estimation._kernels import chol_downdate
 from brakethermo.estimation.covariance import CovarianceGuard, symmetrise
 from brakethermo.estimation.results import FilterResult
 from brakethermo.estimation.store import gain_dtype, prefault
@@ -37,17 +38,7 @@ _LOG_2PI = math.log(2.0 * math.pi)
 # downdate of the prior's (O(n^2)) instead of a fresh factorisation (O(n^3)); below it
 # the call overhead is larger than the saving.
 DOWNDATE_MIN_N = 32
-try:
-    from brakethermo.estimation._kernels import chol_downdate
-except ImportError:  # numba missing: always factor afresh
-    chol_downdate = None
 MAX_STORE_BYTES = 4 * 2**30
-try:
-    import numba  # noqa: F401
-
-    HAVE_NUMBA = True
-except ImportError:  # numba may be missing on exotic platforms: numpy fallback
-    HAVE_NUMBA = False
 Backend = Literal["auto", "numba", "numpy"]
 BACKENDS = ("auto", "numba", "numpy")
 NUMBA_MAX_N = 64
@@ -58,7 +49,7 @@ def use_numba(backend: Backend, h: object | None, n: int) -> bool:
     """Whether a filter with this backend, measurement function and state size compiles."""
     if h is not None or backend == "numpy":
         return False
-    return backend == "numba" or (HAVE_NUMBA and n <= NUMBA_MAX_N)
+    return backend == "numba" or n <= NUMBA_MAX_N
 
 
 def check_backend(backend: Backend, h: object | None = None) -> None:
@@ -73,8 +64,6 @@ def check_backend(backend: Backend, h: object | None = None) -> None:
         raise ConfigError(f"backend must be one of {BACKENDS}, got {backend!r}")
     if backend == "numba" and h is not None:
         raise ConfigError("the numba backend needs a linear measurement matrix H")
-    if backend == "numba" and not HAVE_NUMBA:
-        raise ConfigError("backend='numba' asked for but numba is not installed")
 
 
 class Predictor(Protocol):
@@ -476,7 +465,7 @@ def run_forward(
     # the prior's factor, when the previous step computed it; lets a rank-1 update
     # downdate it into the posterior's (see chol_downdate)
     L_prior = L
-    downdate = chol_downdate is not None and moments is None and n >= DOWNDATE_MIN_N
+    downdate = moments is None and n >= DOWNDATE_MIN_N
 
     for k in range(K):
         out.x_pred[k] = x

@@ -328,7 +328,7 @@ class DiscStateSpace:
         if (lift is None) != (noise_parts is None):
             raise ValueError("compiled steps on reduced coordinates need both the lift and"
                              " the noise in those coordinates")
-        if not (self.model.use_numba and _disc_kernels.available()):
+        if not self.model.use_numba:
             return None
         *head, geometry = self._kernel_spec()
         base, crown, param_idx = noise_parts or (self._Q_base, self._S_crown, self._param_idx)
@@ -363,7 +363,7 @@ class DiscStateSpace:
         K = w.shape[0] + 1
         Xs = np.empty((K, *X0.shape))
         Xs[0] = X0
-        if not (self.model.use_numba and _disc_kernels.available()):
+        if not self.model.use_numba:
             for k in range(K - 1):
                 Xs[k + 1] = self.f(Xs[k], k0 + k) + w[k]
             return Xs

@@ -13,14 +13,8 @@ entries with ``i + o >= n`` are ignored.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
-
-try:
-    import numba
-
-    HAVE_NUMBA = True
-except ImportError:  # numba may be missing on exotic platforms: numpy fallback
-    HAVE_NUMBA = False
 
 
 def _factor_numpy(ab: np.ndarray) -> None:
@@ -51,46 +45,43 @@ def _solve_numpy(fac: np.ndarray, x: np.ndarray) -> None:
             x[:, j] -= fac[:, o, j] * x[:, j + o]
 
 
-if HAVE_NUMBA:
+@numba.njit(cache=True, nogil=True)
+def _factor_nb(ab: np.ndarray) -> None:  # pragma: no cover - compiled
+    nb, p1, n = ab.shape
+    p = p1 - 1
+    for b in range(nb):
+        for j in range(n):
+            d = ab[b, 0, j]
+            m = min(p, n - 1 - j)
+            for o1 in range(1, m + 1):
+                a1 = ab[b, o1, j] / d
+                for o2 in range(o1, m + 1):
+                    ab[b, o2 - o1, j + o1] -= ab[b, o2, j] * a1
+            for o in range(1, m + 1):
+                ab[b, o, j] /= d
 
-    @numba.njit(cache=True, nogil=True)
-    def _factor_nb(ab: np.ndarray) -> None:  # pragma: no cover - compiled
-        nb, p1, n = ab.shape
-        p = p1 - 1
-        for b in range(nb):
-            for j in range(n):
-                d = ab[b, 0, j]
-                m = min(p, n - 1 - j)
-                for o1 in range(1, m + 1):
-                    a1 = ab[b, o1, j] / d
-                    for o2 in range(o1, m + 1):
-                        ab[b, o2 - o1, j + o1] -= ab[b, o2, j] * a1
-                for o in range(1, m + 1):
-                    ab[b, o, j] /= d
 
-    @numba.njit(cache=True, nogil=True)
-    def _solve_nb(fac: np.ndarray, x: np.ndarray) -> None:  # pragma: no cover - compiled
-        nf, p1, n = fac.shape
-        p = p1 - 1
-        for b in range(x.shape[0]):
-            f = 0 if nf == 1 else b
-            for j in range(n):
-                xj = x[b, j]
-                for o in range(1, min(p, n - 1 - j) + 1):
-                    x[b, j + o] -= fac[f, o, j] * xj
-            for j in range(n):
-                x[b, j] /= fac[f, 0, j]
-            for j in range(n - 2, -1, -1):
-                acc = x[b, j]
-                for o in range(1, min(p, n - 1 - j) + 1):
-                    acc -= fac[f, o, j] * x[b, j + o]
-                x[b, j] = acc
+@numba.njit(cache=True, nogil=True)
+def _solve_nb(fac: np.ndarray, x: np.ndarray) -> None:  # pragma: no cover - compiled
+    nf, p1, n = fac.shape
+    p = p1 - 1
+    for b in range(x.shape[0]):
+        f = 0 if nf == 1 else b
+        for j in range(n):
+            xj = x[b, j]
+            for o in range(1, min(p, n - 1 - j) + 1):
+                x[b, j + o] -= fac[f, o, j] * xj
+        for j in range(n):
+            x[b, j] /= fac[f, 0, j]
+        for j in range(n - 2, -1, -1):
+            acc = x[b, j]
+            for o in range(1, min(p, n - 1 - j) + 1):
+                acc -= fac[f, o, j] * x[b, j + o]
+            x[b, j] = acc
 
 
 def _resolve(use_numba: bool | None) -> bool:
-    if use_numba and not HAVE_NUMBA:
-        raise RuntimeError("numba is not installed; pip install numba")
-    return HAVE_NUMBA if use_numba is None else use_numba
+    return True if use_numba is None else use_numba
 
 
 def factor_banded(ab: np.ndarray, *, use_numba: bool | None = None) -> np.ndarray:
@@ -102,7 +93,7 @@ def factor_banded(ab: np.ndarray, *, use_numba: bool | None = None) -> np.ndarra
         Lower band storage (module docstring), float64, C-contiguous; overwritten by
         the factor (D on row 0, unit-lower L on rows 1..p).
     use_numba : bool or None
-        ``None`` picks numba when installed.
+        ``None`` picks numba.
 
     Returns
     -------
@@ -152,7 +143,7 @@ def solve_banded_batch(
         is factorised once and shared by all right-hand sides.
     rhs : ndarray, shape (B, n)
     use_numba : bool or None
-        ``None`` picks numba when installed; ``False`` forces the numpy fallback.
+        ``None`` picks numba; ``False`` forces the numpy path.
     overwrite_ab : bool
         Factorise ``ab`` in place instead of a copy.
 

@@ -61,7 +61,7 @@ import numpy as np
 
 from brakethermo.thermal import _fe_kernels as kernels
 from brakethermo.thermal._fe_kernels import KELVIN, ramp_table
-from brakethermo.thermal.banded import HAVE_NUMBA, factor_banded, solve_factored
+from brakethermo.thermal.banded import factor_banded, solve_factored
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.fe import (
     conduction_factors,
@@ -177,7 +177,7 @@ class DiscFEModel:
     dt : float — s
         Time step (0.1 s = the 10 Hz grid).
     use_numba : bool or None
-        Banded kernel: numba when installed (``None``), or force numba / numpy.
+        Banded kernel: numba (``None``), or force numba / numpy.
     """
 
     def __init__(
@@ -207,9 +207,7 @@ class DiscFEModel:
         self.dt = float(dt)
         self.kz_ratio = float(kz_ratio)
         self.layer_growth = float(layer_growth)
-        if use_numba and not HAVE_NUMBA:
-            raise RuntimeError("numba is not installed; pip install numba")
-        self.use_numba = HAVE_NUMBA if use_numba is None else bool(use_numba)
+        self.use_numba = True if use_numba is None else bool(use_numba)
         self.radii = radial_nodes(disc.r_int, disc.r_est, self.n_nodes)
         self.face_index = np.arange(self.n_nodes) * self.layers
 
