@@ -135,12 +135,12 @@ def test_the_guessed_run_gives_the_sequential_answer(races, monkeypatch, race) -
     speculative.py, here on a 4-lap race by lowering the length it needs): used where the
     race decides so, stopped where it switches k_z on — the numbers the sequential path
     gives either way."""
-    import brakethermo.pipelines.estimate as est
+    import brakethermo.pipelines.race_run as race_run
 
     path, _ = races[race]
     opts = EstimateOptions(smoother=True)
     sequential = estimate_session(path, opts)
-    monkeypatch.setattr(est, "DECISION_LAPS", 1)
+    monkeypatch.setattr(race_run, "DECISION_LAPS", 1)
     guessed = estimate_session(path, opts)
     chose = guessed.summary["run"]["online_choice"]["chosen"]
     assert chose == sequential.summary["run"]["online_choice"]["chosen"]

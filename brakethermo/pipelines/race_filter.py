@@ -2,7 +2,7 @@
 states), the state space it runs on (full, or its leading POD modes), its UKF, what it
 reports beside its state, and the forward pass with the smoother.
 
-The estimate pipeline (:mod:`brakethermo.pipelines.estimate`) decides the law and the
+The race's decided run (:mod:`brakethermo.pipelines.race_run`) decides the law and the
 online effects and calls these; they know nothing of files.
 """
 

@@ -57,9 +57,10 @@ from brakethermo.pipelines.diagnose.scores import (
 )
 from brakethermo.pipelines.diagnose.single_spot import diagnose_single_spot
 from brakethermo.pipelines.diagnose.where import _marginals, where_table
-from brakethermo.pipelines.estimate import SENSOR_FLOOR_C, SIGMA_MEAS_FLOOR_C
+from brakethermo.pipelines.estimate import SENSOR_FLOOR_C
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs
 from brakethermo.pipelines.models import disc_for
+from brakethermo.pipelines.race_run import SIGMA_MEAS_FLOOR_C
 from brakethermo.pipelines.tuning import EstimateTuning, read_tuning
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel

@@ -1,0 +1,218 @@
+"""The race's decided run: its online decision, and the filter (and smoother) pass on the
+law and tuning that decision leaves.
+
+The race chooses the online effects nobody forced and the parts of the h law it drops
+(:mod:`brakethermo.pipelines.online_choice`); a race whose k_z came out lower than the
+law's gets identify-h's thin-skin layering; the filter is built and run on the outcome
+(:mod:`brakethermo.pipelines.race_filter`), the reading noise measured from the measured
+spot itself. On a long race the run for "nothing switched on, nothing dropped" starts
+before the decision, on a guess (:mod:`brakethermo.pipelines.speculative`). The estimate
+pipeline (:mod:`brakethermo.pipelines.estimate`) turns the run into its table and scores.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from dataclasses import dataclass, replace
+from functools import partial
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from brakethermo.io.session import Session
+from brakethermo.models.disc import DiscStateSpace
+from brakethermo.models.effects import true_from_reading
+from brakethermo.models.reduced import ReducedStateSpace
+from brakethermo.pipelines import scoring
+from brakethermo.pipelines.inputs import DiscInputs
+from brakethermo.pipelines.models import DiscCalibration
+from brakethermo.pipelines.online_choice import (
+    DECISION_LAPS,
+    ONLINE_FLAGS,
+    OnlineChoice,
+    choose_online,
+    droppable,
+    law_without,
+)
+from brakethermo.pipelines.race_filter import (
+    EffectPlan,
+    build_state_space,
+    disc_model,
+    effect_plan,
+    filter_space,
+    readout_rows,
+    run_filter,
+    ukf_for,
+)
+from brakethermo.pipelines.speculative import Speculation
+from brakethermo.pipelines.tuning import EstimateTuning, user_tuning_keys
+from brakethermo.thermal.disc import DiscSpec
+from brakethermo.thermal.model import DiscFEModel
+
+if TYPE_CHECKING:
+    from brakethermo.pipelines.estimate import EstimateOptions
+
+SIGMA_MEAS_FLOOR_C = 0.5  # degC: never trust a reading beyond its quantisation
+
+
+def _choice_inputs(options: EstimateOptions, cal: DiscCalibration,
+                   calibration: DiscCalibration | None
+                   ) -> tuple[tuple[str, ...], tuple[str, ...]] | None:
+    """The online effects the race chooses and the law's parts it may drop (None:
+    nothing to choose).
+
+    An effect the h law carries is on whatever the race says (identify-h found it on the
+    test session); a flag given as an option or in the user's tuning file is forced.
+    """
+    if not options.online_auto or calibration is not None:
+        return None  # identify-h's own validation runs choose their variants themselves
+    user = user_tuning_keys(options.tuning, "estimate")
+    given = options.overrides()
+    candidates = tuple(name for name, flag in ONLINE_FLAGS.items()
+                       if flag not in given and flag not in user and name not in cal.effects)
+    parts = droppable(cal)
+    return (candidates, parts) if candidates or parts else None
+
+
+def _online_choice(session: Session, options: EstimateOptions, cal: DiscCalibration,
+                   tuning: EstimateTuning,
+                   chooses: tuple[tuple[str, ...], tuple[str, ...]]) -> OnlineChoice:
+    """The race's own choice of the online effects nobody forced (:func:`_choice_inputs`)."""
+    candidates, parts = chooses
+    choice = choose_online(session, options, candidates, cal, parts)
+    forced = {flag: getattr(tuning, flag) for name, flag in ONLINE_FLAGS.items()
+              if name not in candidates}
+    return OnlineChoice(choice.flags, {**choice.facts, "forced_or_from_law": forced},
+                        choice.dropped)
+
+
+def _race_layering(choice: OnlineChoice, tuning: EstimateTuning, options: EstimateOptions
+                   ) -> tuple[EstimateTuning, str | None]:
+    """identify-h's thin-skin layering for a race whose disc conducts through the thickness
+    worse than the law's (the race chose k_z and learned it lower): heat stays nearer the
+    face, and the law's layering, built for its own disc, is too coarse to hold the skin.
+    Returns the tuning and what was changed, in words (None: nothing)."""
+    row = next((r for r in choice.facts.get("scores", [])
+                if r.get("name") == "thickness_gradient"), None)
+    user = user_tuning_keys(options.tuning, "estimate")
+    if (row is None or "thickness_gradient" not in choice.facts.get("chosen", [])
+            or not row.get("learned", 1.0) < 1.0 or options.layers is not None
+            or "layers" in user or tuning.layers >= tuning.thin_skin_layers):
+        return tuning, None
+    said = (f"{tuning.thin_skin_layers} layers (growth {tuning.thin_skin_layer_growth:g})"
+            f" instead of the law's {tuning.layers}: the race's k_z came out"
+            f" {row['learned']:.2f} of the law's, a thinner thermal skin")
+    return replace(tuning, layers=tuning.thin_skin_layers,
+                   layer_growth=tuning.thin_skin_layer_growth), said
+
+
+@dataclass(frozen=True)
+class RaceRun:
+    """The race's model, state space and filter (and smoother) pass on a decided law."""
+
+    cal: DiscCalibration
+    tuning: EstimateTuning
+    y: np.ndarray  # degC, the readings as filtered (emissivity-corrected where the law says)
+    h: np.ndarray
+    model: DiscFEModel
+    plan: EffectPlan
+    ssm: DiscStateSpace
+    order: dict[str, Any]
+    sigma_meas_source: str
+    x0: np.ndarray
+    forward: Any
+    states: np.ndarray
+    out: np.ndarray
+    out_var: np.ndarray
+    windows: int
+    filter_s: float
+    smoother_s: float
+    speculative: bool = False
+
+
+def _initial_temperature(y: np.ndarray, t_amb: np.ndarray) -> float:
+    """First temperature: the first valid reading if it comes in the first 5 s, else ambient."""
+    first = np.flatnonzero(np.isfinite(y))
+    if first.size and first[0] < 50:
+        return max(float(y[first[0]]), float(t_amb[0]))  # never colder than the air
+    return float(t_amb[0])
+
+
+def _reading_noise(y: np.ndarray, tuning: EstimateTuning, options: EstimateOptions
+                   ) -> tuple[EstimateTuning, str]:
+    """The reading noise of this very sensor, from the signal itself, unless the user's
+    tuning file sets it: a fixed guess either starves the filter of the measurement or
+    trusts it too much."""
+    if "sigma_meas" in user_tuning_keys(options.tuning, "estimate"):
+        return tuning, "tuning file"
+    noise = max(scoring.reading_noise(y), SIGMA_MEAS_FLOOR_C)
+    return (replace(tuning, sigma_meas=noise),
+            "measured from the signal (second differences)")
+
+
+def _filtered(disc: DiscSpec, inputs: DiscInputs, y: np.ndarray, cal: DiscCalibration,
+              tuning: EstimateTuning, options: EstimateOptions,
+              cancel: threading.Event | None = None) -> RaceRun:
+    """Build the race's filter for ``cal`` and ``tuning`` and run it (and the smoother)."""
+    h = cal.law(inputs.speed)
+    model = disc_model(disc, tuning, cal.weights, cal.kz_ratio)
+    spot_radius = float(disc.spot_radii[options.spot - 1])
+    plan = effect_plan(cal.effects, tuning)
+    if plan.emissivity_ratio is not None:
+        y = true_from_reading(y, plan.emissivity_ratio)
+    tuning, sigma_meas_source = _reading_noise(y, tuning, options)
+    ssm = build_state_space(model, inputs, h, tuning, cal.power_scale, plan, spot_radius)
+    filt, order = filter_space(ssm, model, inputs, h, cal.power_scale, options.modes)
+    readout = readout_rows(filt, np.asarray(disc.spot_radii), tuning.adapt_power)
+    x0, P0 = filt.prior(model.initial_state(_initial_temperature(y, inputs.t_amb)),
+                        tuning.init_sigma_temp)
+    ukf = ukf_for(filt, tuning, spot_radius, cancel)
+    t0 = time.perf_counter()
+    forward, states, out, out_var, windows, forward_s = run_filter(
+        ukf, x0, P0, y, readout, tuning.smoother, options.workers)
+    if isinstance(filt, ReducedStateSpace):
+        states, x0 = filt.lift(states), filt.lift(x0)  # the full model's nodes, everywhere
+    return RaceRun(cal, tuning, y, h, model, plan, ssm, order, sigma_meas_source, x0,
+                   forward, states, out, out_var, windows, forward_s,
+                   time.perf_counter() - t0 - forward_s)
+
+
+def decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
+                inputs: DiscInputs, y: np.ndarray, cal: DiscCalibration,
+                tuning: EstimateTuning, calibration: DiscCalibration | None
+                ) -> tuple[OnlineChoice | None, RaceRun, float]:
+    """The race's online decision and the filter run on what it decided, and when the
+    decision ended. On a race longer than the decision's laps, the run for "nothing
+    switched on, nothing dropped" starts before the decision on its own thread
+    (:mod:`brakethermo.pipelines.speculative`): a 25-lap race that decides so, 8.3 → 6.3–7 s
+    in process; one that switches k_z on waits for a decision on one core less."""
+    chooses = _choice_inputs(options, cal, calibration)
+    guess = null = None
+    # a race no longer than the decision's laps has a filter pass as short as one of the
+    # decision's: nothing to win there, and the decision would lose a core
+    # (and on one core the guess would only queue the decision behind it)
+    if (chooses is not None and sum(lap.lap >= 1 for lap in session.laps) > DECISION_LAPS
+            and (os.cpu_count() or 1) > 1):
+        null = replace(tuning, **{ONLINE_FLAGS[c]: False for c in chooses[0]})
+        guess = Speculation(partial(_filtered, disc, inputs, y, cal, null, options))
+    try:
+        choice = None if chooses is None else _online_choice(session, options, cal, tuning,
+                                                             chooses)
+    except BaseException:  # a bad session or Ctrl-C: the guess stops with the decision
+        if guess is not None:
+            guess.abandon()
+        raise
+    if choice is not None:
+        tuning, layering = _race_layering(choice, replace(tuning, **choice.flags), options)
+        if layering:
+            choice = replace(choice, facts={**choice.facts, "layering": layering})
+        for name in choice.dropped:
+            cal = law_without(cal, name)
+    t_choice = time.perf_counter()
+    if guess is not None and choice is not None and tuning == null and not choice.dropped:
+        return choice, replace(guess.result(), speculative=True), t_choice
+    if guess is not None:
+        guess.abandon()
+    return choice, _filtered(disc, inputs, y, cal, tuning, options), t_choice

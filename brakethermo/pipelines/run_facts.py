@@ -1,0 +1,47 @@
+"""What an estimate's ``summary.json`` says of the h law and the model it ran: the law,
+the mesh and the filter settings, and the warnings where the run is not what the law was
+made for (another disc, another layering).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from brakethermo.pipelines.models import DiscCalibration, other_disc
+from brakethermo.pipelines.tuning import EstimateTuning
+from brakethermo.thermal.disc import DiscSpec
+from brakethermo.thermal.model import DiscFEModel
+
+
+def model_facts(cal: DiscCalibration, tuning: EstimateTuning, model: DiscFEModel
+                ) -> dict[str, Any]:
+    """The run facts of the law, the mesh and the filter settings."""
+    return {
+        "h_law": cal.source,
+        "nodes": tuning.nodes,
+        "layers": tuning.layers,
+        "layer_growth": tuning.layer_growth,
+        "sigma_crown": tuning.sigma_crown,
+        "sigma_temp": tuning.sigma_temp,
+        "kz_ratio": cal.kz_ratio,
+        "power_scale_prior": cal.power_scale,
+        "band_scale_check": cal.band_scale,
+        "sigma_meas_c": tuning.sigma_meas,
+        "ir_calibration_pct": tuning.ir_calibration_pct,
+        "crown_balance_sd": tuning.crown_balance_sd,
+        "crown_weights": [float(w) for w in model.weights],
+        "filter": "UKF (Merwe scaled sigma points)",
+        "smoother": tuning.smoother,
+        "adapt_power": tuning.adapt_power,
+    }
+
+
+def law_warnings(cal: DiscCalibration, disc: DiscSpec, tuning: EstimateTuning) -> list[str]:
+    """What the h law was made for that this run is not: another disc, another layering."""
+    warnings = [w for w in (other_disc(cal, disc),) if w]
+    if cal.layers is not None and tuning.layers != cal.layers:
+        warnings.append(
+            f"the model runs {tuning.layers} layers but the h law's k_z ratio was fitted for"
+            f" {cal.layers}; re-run identify-h with the same layering for best accuracy"
+        )
+    return warnings
