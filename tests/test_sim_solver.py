@@ -131,7 +131,7 @@ def test_compiled_step_inputs_equal_the_per_sample_quantities():
     from brakethermo.sim.brake_chain import draw_brake_chain
     from brakethermo.sim.effects import EFFECT_NAMES, make_effects
     from brakethermo.sim.heat import HLaw, crown_weights
-    from brakethermo.sim.session import _Context, _derive, _geo, _step_inputs
+    from brakethermo.sim.ride_and_heat import _Context, _derive, _geo, _step_inputs
     from brakethermo.sim.track import load_track
     from brakethermo.sim.vehicle import VehicleSpec
     from brakethermo.thermal.disc import load_disc
