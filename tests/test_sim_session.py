@@ -689,3 +689,11 @@ def test_simulate_command_writes_session_and_truth(tmp_path: Path):
         bad = CliRunner().invoke(app, ["simulate", "--effects", arg, "--out", str(out)])
         assert bad.exit_code == 1 and msg in bad.output, arg
         assert "Traceback" not in bad.output
+
+
+@pytest.mark.parametrize("dt", [0.025, 0.0])
+def test_a_thermal_step_the_rider_cannot_step_is_refused(dt: float) -> None:
+    """0.025 s divides the 0.1 s grid but is 12.5 rider samples: it ran off the end of
+    the rider's arrays (IndexError); now a clear error before any work."""
+    with pytest.raises(ConfigError, match="thermal step"):
+        simulate(SimConfig(laps=1, dt=dt))

@@ -204,12 +204,15 @@ def _following_laps(
     return following
 
 
+RIDER_RATE_HZ = 500.0  # the speed's integration and output rate
+
+
 def drive_session(
     track: TrackSpec,
     laps: int,
     rng: np.random.Generator,
     veh: VehicleSpec | None = None,
-    rate: float = 500.0,
+    rate: float = RIDER_RATE_HZ,
     slip_fraction_laps: float = 0.2,
 ) -> RiderRun:
     """Drive an out-lap from the pit lane and ``laps`` flying laps.
