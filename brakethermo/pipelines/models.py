@@ -166,8 +166,8 @@ def other_disc(cal: DiscCalibration, disc: DiscSpec, option: str = "--disc") -> 
             f" name the session's disc with {option} if its facts are wrong")
 
 
-def own_h_law(folder: str | Path, session: Session) -> Path | None:
-    """The ``h_law.toml`` identify-h wrote for this very session into ``folder``, if any.
+def own_h_law(folder: str | Path, session: Session) -> DiscCalibration | None:
+    """The law identify-h wrote for this very session into ``folder``, read, if any.
 
     identify-h writes ``OUT/<stem>/h_law.toml`` and records the session in ``[extra]``;
     a law there of another session with the same file stem is not this session's.
@@ -175,16 +175,17 @@ def own_h_law(folder: str | Path, session: Session) -> Path | None:
     path = Path(folder) / "h_law.toml"
     if not path.is_file():
         return None
-    source = read_h_law(path).extra.get("session")
-    if isinstance(source, str) and Path(source).name != session.path.name:
+    cal = read_calibration(path)
+    if cal.identified_on is not None and Path(cal.identified_on).name != session.path.name:
         return None
-    return path
+    return cal
 
 
 def choose_h_law(
     given: str | Path | None, folder: str | Path, session: Session, disc: DiscSpec
-) -> tuple[Path | None, str]:
-    """The law a single ``estimate`` uses, and why (printed and recorded in summary.json).
+) -> tuple[Path | DiscCalibration | None, str]:
+    """The law a single ``estimate`` uses, and why (printed and recorded in summary.json):
+    a path, or the law beside the session as already read.
 
     Order: the ``--h-law`` file; the law identify-h wrote for this session beside its
     outputs (``OUT/<stem>/h_law.toml``); the law shipped for the disc.
