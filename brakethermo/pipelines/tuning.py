@@ -206,14 +206,12 @@ class TuningFiles:
     estimate : EstimateTuning
     identify : IdentifyTuning
     user_estimate, user_identify : frozenset of str — keys the user's file sets per section.
-    path : Path or None — the user's file.
     """
 
     estimate: EstimateTuning
     identify: IdentifyTuning
     user_estimate: frozenset[str] = frozenset()
     user_identify: frozenset[str] = frozenset()
-    path: Path | None = None
 
 
 TuningSource = str | Path | TuningFiles | None
@@ -237,8 +235,7 @@ def read_tuning(path: TuningSource = None) -> TuningFiles:
             built = _build(cls, ConfigTable({**base.raw, **mine}, user.path, section))
         tunings.append(built)
         keys.append(frozenset(mine))
-    return TuningFiles(tunings[0], tunings[1], keys[0], keys[1],  # type: ignore[arg-type]
-                       None if path is None else Path(path))
+    return TuningFiles(tunings[0], tunings[1], keys[0], keys[1])  # type: ignore[arg-type]
 
 
 def load_tuning(path: TuningSource = None) -> tuple[EstimateTuning, IdentifyTuning]:
