@@ -139,3 +139,21 @@ def test_checkpoints_of_a_killed_run_are_removed(tmp_path, monkeypatch):
     assert len(run.windows) == 3
     assert not stale.exists() and live.exists()
     assert [p.name for p in tmp_path.iterdir()] == [live.name]  # its own folder is gone too
+
+
+@pytest.mark.parametrize(("ram", "budget"), [
+    (4 * 2**30, 512 * 2**20),  # an eighth below the floor
+    (8 * 2**30, 2**30),
+    (64 * 2**30, 2 * 2**30),  # capped
+    (None, 512 * 2**20),  # no sysconf: the floor
+])
+def test_default_store_budget_is_an_eighth_of_memory_within_bounds(monkeypatch, ram, budget):
+    from brakethermo.estimation import urts
+
+    def sysconf(name):
+        if ram is None:
+            raise ValueError(name)
+        return {"SC_PAGE_SIZE": 4096, "SC_PHYS_PAGES": ram // 4096}[name]
+
+    monkeypatch.setattr(urts.os, "sysconf", sysconf)
+    assert urts.default_store_budget() == budget

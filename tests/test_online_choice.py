@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from brakethermo.pipelines import online_choice
 from brakethermo.pipelines.estimate import EstimateOptions, estimate_session
 from brakethermo.pipelines.truth_score import read_truth
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
@@ -63,6 +64,39 @@ def test_a_matching_disc_is_not_made_worse_and_flags_force(races) -> None:
     none = estimate_session(path, EstimateOptions(smoother=False, adapt_kz=False,
                                                   adapt_slipstream=False))
     assert "every online effect" in none.summary["run"]["online_choice"]["rule"]
+
+
+def _law_with_kz(tmp_path: Path, factor: float) -> tuple[Path, float]:
+    """The shipped law with its k_z ratio times ``factor``; the file and the new ratio."""
+    import re
+
+    shipped = Path(__file__).parents[1] / "configs" / "hlaw" / "cc-340-8.toml"
+    text = shipped.read_text()
+    kz = float(re.search(r"^kz_ratio = (.*)$", text, re.M).group(1)) * factor
+    law = tmp_path / f"kz{factor:g}.toml"
+    law.write_text(re.sub(r"^kz_ratio = .*$", f"kz_ratio = {kz!r}", text, flags=re.M))
+    return law, kz
+
+
+def test_a_kz_within_the_laws_own_error_stays_off_one_far_from_it_goes_on(races, tmp_path
+                                                                           ) -> None:
+    """A law whose k_z is 20 % low (as identify-h's can be): the normal race learns it
+    higher and predicts its spot better with it, but that is the law's own k_z error, so
+    k_z stays off, and the page says why; a law 4x off is another disc, and k_z goes on."""
+    path, _ = races["normal"]
+    law, _ = _law_with_kz(tmp_path, 0.8)
+    auto = estimate_session(path, EstimateOptions(h_law=law, smoother=False))
+    choice = auto.summary["run"]["online_choice"]
+    row = next(r for r in choice["scores"] if r["name"] == "thickness_gradient")
+    assert 1.0 < row["learned"] < online_choice.KZ_LIKE_LAW[1]
+    assert not row["significant"] and "thickness_gradient" not in choice["chosen"]
+    assert row["like_law"].startswith(f"left off: the race's k_z came out {row['learned']:.2f}")
+    far, _ = _law_with_kz(tmp_path, 0.25)
+    auto = estimate_session(path, EstimateOptions(h_law=far, smoother=False))
+    choice = auto.summary["run"]["online_choice"]
+    row = next(r for r in choice["scores"] if r["name"] == "thickness_gradient")
+    assert row["learned"] > online_choice.KZ_LIKE_LAW[1] and "like_law" not in row
+    assert "thickness_gradient" in choice["chosen"]
 
 
 def test_the_race_judges_the_laws_mu_t_a_lap_ahead(races, tmp_path) -> None:

@@ -210,7 +210,8 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
         lo, hi = row.get("shrink_ci95_pct", [float("nan")] * 2)
         verdict = "switched on" if row.get("name") in choice.get("chosen", []) else "left off"
         lines.append(f"online {row.get('name')}: {verdict} — {row.get('test', '')}, shrink"
-                     f" {row.get('shrink_pct', float('nan')):.0f} % (95 % {lo:.0f} to {hi:.0f} %)")
+                     f" {row.get('shrink_pct', float('nan')):.0f} % (95 % {lo:.0f} to {hi:.0f} %)"
+                     + (f"; {row['like_law']}" if row.get("like_law") else ""))
     for row in choice.get("law_effects_tested", []):
         name = str(row.get("name", "")).removeprefix("without ")
         lo, hi = row.get("shrink_ci95_pct", [float("nan")] * 2)
