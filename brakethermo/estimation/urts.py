@@ -142,8 +142,9 @@ def default_store_budget() -> int:
     between 512 MiB and 2 GiB.
 
     A window that does not fit is re-run by the backward pass, a second forward pass over
-    it: a 25-lap race on the thin-skin model (n = 62, float32, 0.9 GB of gains) took
-    17 s in two windows of 512 MiB, of which 3.4 s the re-run. 2 GiB holds a 60-lap race
+    it: a 25-lap race with k_z switched on (thin-skin layering, 63 states, float32,
+    0.9 GB of gains) smoothed in 5.0 s in two windows of 512 MiB, 1.1 s in one (peak
+    memory 0.93 -> 1.35 GB, the whole estimate 16.2 -> 13.2 s). 2 GiB holds a 60-lap race
     of it in one window; the floor keeps the default model's 25-lap race (~0.4 GB) in one
     on any machine, and finer meshes are still cut into windows.
     """
