@@ -141,19 +141,28 @@ def test_checkpoints_of_a_killed_run_are_removed(tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == [live.name]  # its own folder is gone too
 
 
-@pytest.mark.parametrize(("ram", "budget"), [
-    (4 * 2**30, 512 * 2**20),  # an eighth below the floor
-    (8 * 2**30, 2**30),
-    (64 * 2**30, 2 * 2**30),  # capped
-    (None, 512 * 2**20),  # no sysconf: the floor
+@pytest.mark.parametrize(("ram", "share", "budget"), [
+    (4 * 2**30, 1, 512 * 2**20),  # an eighth below the floor
+    (8 * 2**30, 1, 2**30),
+    (64 * 2**30, 1, 2 * 2**30),  # capped
+    (64 * 2**30, 8, 2**30),  # eight batch workers side by side
+    (0, 1, 512 * 2**20),  # memory unknown: the floor
 ])
-def test_default_store_budget_is_an_eighth_of_memory_within_bounds(monkeypatch, ram, budget):
+def test_default_store_budget_is_an_eighth_of_memory_within_bounds(monkeypatch, ram, share,
+                                                                   budget):
     from brakethermo.estimation import urts
 
-    def sysconf(name):
-        if ram is None:
-            raise ValueError(name)
-        return {"SC_PAGE_SIZE": 4096, "SC_PHYS_PAGES": ram // 4096}[name]
+    monkeypatch.setattr(urts, "memory_bytes", lambda: ram)
+    assert urts.default_store_budget(share) == budget
 
-    monkeypatch.setattr(urts.os, "sysconf", sysconf)
-    assert urts.default_store_budget() == budget
+
+def test_memory_is_the_machines_or_nothing_when_unreadable(monkeypatch):
+    from brakethermo.estimation import urts
+
+    assert urts.memory_bytes() > 2**28  # this machine: more than 256 MiB
+
+    def broken(name):
+        raise ValueError(name)
+
+    monkeypatch.setattr(urts.os, "sysconf", broken)
+    assert urts.memory_bytes() == 0

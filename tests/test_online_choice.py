@@ -89,14 +89,37 @@ def test_a_kz_within_the_laws_own_error_stays_off_one_far_from_it_goes_on(races,
     choice = auto.summary["run"]["online_choice"]
     row = next(r for r in choice["scores"] if r["name"] == "thickness_gradient")
     assert 1.0 < row["learned"] < online_choice.KZ_LIKE_LAW[1]
+    assert row["shrink_ci95_pct"][0] > online_choice.MIN_SHRINK_PCT  # won, but gated
     assert not row["significant"] and "thickness_gradient" not in choice["chosen"]
-    assert row["like_law"].startswith(f"left off: the race's k_z came out {row['learned']:.2f}")
+    assert row["like_law"].startswith(f"but the race's k_z came out {row['learned']:.2f}")
     far, _ = _law_with_kz(tmp_path, 0.25)
     auto = estimate_session(path, EstimateOptions(h_law=far, smoother=False))
     choice = auto.summary["run"]["online_choice"]
     row = next(r for r in choice["scores"] if r["name"] == "thickness_gradient")
     assert row["learned"] > online_choice.KZ_LIKE_LAW[1] and "like_law" not in row
     assert "thickness_gradient" in choice["chosen"]
+
+
+def test_a_gated_kz_still_lets_the_laws_mu_t_be_judged_beside_it(races, tmp_path) -> None:
+    """A law 20 % low in k_z carrying a μ(T) the race's pads lack: with k_z free beside
+    it the law without μ(T) wins; μ(T) is dropped on that evidence, said as such, and k_z
+    (within the law's own error) stays off."""
+    law, _ = _law_with_kz(tmp_path, 0.8)
+    law.write_text(law.read_text() + "\n[effects.friction_temperature]\nbeta = 0.45\n"
+                                     "t_mid = 380.0\n")
+    path, _ = races["normal"]
+    auto = estimate_session(path, EstimateOptions(h_law=law, smoother=False))
+    choice = auto.summary["run"]["online_choice"]
+    row = next(r for r in choice["scores"] if r["name"] == "thickness_gradient")
+    top = next(c for c in row["joint_test"] if c["significant"])
+    assert top["name"] == "without friction_temperature + thickness_gradient"
+    assert "thickness_gradient" not in choice["chosen"] and not row["significant"]
+    assert row["like_law"].startswith("but the race's k_z came out")
+    assert choice["law_effects_dropped"] == ["friction_temperature"]
+    (tested,) = choice["law_effects_tested"]
+    assert tested["significant"] and tested["shrink_pct"] == top["shrink_pct"]
+    assert "judged with k_z free beside it" in tested["test"]
+    assert "kz_factor" not in auto.frame
 
 
 def test_the_race_judges_the_laws_mu_t_a_lap_ahead(races, tmp_path) -> None:

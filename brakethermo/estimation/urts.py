@@ -137,22 +137,40 @@ def urts_smooth(
     )
 
 
-def default_store_budget() -> int:
-    """Bytes of gains held at one time by default: an eighth of the machine's memory,
-    between 512 MiB and 2 GiB.
+def default_store_budget(share: int = 1) -> int:
+    """Bytes of gains held at one time by default: an eighth of the memory this process may
+    use (the machine's, or its container's limit) over ``share`` processes running side by
+    side (a batch's workers), between 512 MiB and 2 GiB.
 
     A window that does not fit is re-run by the backward pass, a second forward pass over
     it: a 25-lap race with k_z switched on (thin-skin layering, 63 states, float32,
     0.9 GB of gains) smoothed in 5.0 s in two windows of 512 MiB, 1.1 s in one (peak
-    memory 0.93 -> 1.35 GB, the whole estimate 16.2 -> 13.2 s). 2 GiB holds a 60-lap race
+    memory 0.93 -> 1.35 GB, the whole estimate 16.2 -> 13.2 s). 2 GiB holds about 55 laps
     of it in one window; the floor keeps the default model's 25-lap race (~0.4 GB) in one
     on any machine, and finer meshes are still cut into windows.
     """
+    ram = memory_bytes()
+    return int(min(max(ram // (8 * max(share, 1)), 512 * 2**20), 2 * 2**30))
+
+
+def memory_bytes() -> int:
+    """The memory this process may use: the machine's, or its container's limit (cgroup
+    v2) when lower; 0 when neither can be read."""
     try:
         ram = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (AttributeError, ValueError, OSError):  # no sysconf (Windows) or no such name
         ram = 0
-    return int(min(max(ram // 8, 512 * 2**20), 2 * 2**30))
+    try:  # "max" when the container sets no limit
+        ram = min(ram, int(Path("/sys/fs/cgroup/memory.max").read_text()))
+    except (OSError, ValueError):
+        pass
+    return max(ram, 0)
+
+
+def share_store_budget(share: int) -> None:
+    """Set this process's default to its part of the budget (a batch worker's initializer)."""
+    global DEFAULT_MAX_STORE_BYTES
+    DEFAULT_MAX_STORE_BYTES = default_store_budget(share)
 
 
 DEFAULT_MAX_STORE_BYTES = default_store_budget()

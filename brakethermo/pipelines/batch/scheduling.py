@@ -12,6 +12,7 @@ from contextlib import contextmanager
 from brakethermo.errors import (
     ConfigError,
 )
+from brakethermo.estimation.urts import share_store_budget
 from brakethermo.pipelines.batch.session import failure_reason, process_session
 from brakethermo.pipelines.batch.tasks import BatchOptions, Event, Job, SessionOutcome, SessionTask
 
@@ -44,7 +45,10 @@ def executor_for(options: BatchOptions) -> Iterator[Executor | None]:
         # heavy imports done once, instead of every worker importing them on its own.
         ctx = multiprocessing.get_context("forkserver")
         ctx.set_forkserver_preload(list(WORKER_PRELOAD))
-        with ProcessPoolExecutor(max_workers=options.workers, mp_context=ctx) as pool:
+        # each worker smooths in its share of the memory budget, not the whole of it
+        with ProcessPoolExecutor(max_workers=options.workers, mp_context=ctx,
+                                 initializer=share_store_budget,
+                                 initargs=(options.workers,)) as pool:
             yield pool
     else:
         yield None
