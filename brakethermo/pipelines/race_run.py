@@ -3,11 +3,12 @@ law and tuning that decision leaves.
 
 The race chooses the online effects nobody forced and the parts of the h law it drops
 (:mod:`brakethermo.pipelines.online_choice`); a race that switched k_z on at a factor
-below the law's (under 0.67, the decision's gate) gets identify-h's thin-skin layering; the filter is built and run on the outcome
-(:mod:`brakethermo.pipelines.race_filter`), the reading noise measured from the measured
-spot itself. On a long race the run for "nothing switched on, nothing dropped" starts
-before the decision, on a guess (:mod:`brakethermo.pipelines.speculative`). The estimate
-pipeline (:mod:`brakethermo.pipelines.estimate`) turns the run into its table and scores.
+below the law's (under 0.67, the decision's gate) gets identify-h's thin-skin layering;
+the filter is built and run on the outcome (:mod:`brakethermo.pipelines.race_filter`),
+the reading noise measured from the measured spot itself. On a long race the run for
+"nothing switched on, nothing dropped" starts before the decision, on a guess
+(:mod:`brakethermo.pipelines.speculative`). The estimate pipeline
+(:mod:`brakethermo.pipelines.estimate`) turns the run into its table and scores.
 """
 
 from __future__ import annotations
