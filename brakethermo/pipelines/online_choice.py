@@ -278,24 +278,25 @@ def _judge_jointly(t: _Trial, joint: str, runs: dict[str, Any], rows: list[dict[
     ``tested``."""
     own = next(r for r in rows if r["name"] == joint)
     allowed = kz_allowed(own["learned"])
-    combos, best = _joint_test(runs, joint, t.later, t.lap, t.cycles, t.rule, allowed)
+    combos, winner, changes = _joint_test(runs, joint, t.later, t.lap, t.cycles, t.rule,
+                                       allowed)
     alone = next(r for r in combos if r["name"] == joint)
-    top = next((r["name"] for r in combos if r["significant"]), "reference").split(" + ")
+    gated = not allowed and joint in winner.split(" + ")  # k_z won but stays off
     # the joint verdict replaces the structural test's
     own.update({k: alone[k] for k in ("shrink_pct", "shrink_ci95_pct", "test")},
-               significant=joint in best, joint_test=combos)
+               significant=joint in changes, joint_test=combos)
     own.pop("like_law", None)
-    if joint in top and not allowed:
+    if gated:
         own["like_law"] = _LIKE_LAW_SAID.format(own["learned"])
     for p in t.later:
         name = f"without {p}"
         # dropped on the winner's evidence: say so when that had k_z free beside it
-        row = next(r for r in combos if r["name"] == (
-            " + ".join(top) if name in top and joint in top and not allowed else name))
-        if row["name"] != name:
+        on_winner = gated and name in winner.split(" + ")
+        row = next(r for r in combos if r["name"] == (winner if on_winner else name))
+        if on_winner:
             row = {**row, "test": f"{row['test']}; judged with k_z free beside it (a k_z"
                                   " difference otherwise masks it), k_z itself left off"}
-        tested.append({**row, "name": name, "significant": p in best})
+        tested.append({**row, "name": name, "significant": p in changes})
 
 
 def _later_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration, chosen: list[str]
@@ -339,12 +340,13 @@ def _online_rows(runs: dict[str, Any], candidates: tuple[str, ...], lap: np.ndar
 
 def _joint_test(runs: dict[str, Any], joint: str, later: tuple[str, ...], lap: np.ndarray,
                 cycles: np.ndarray, rule: VerdictRule, allowed: bool = True
-                ) -> tuple[list[dict[str, Any]], set[str]]:
+                ) -> tuple[list[dict[str, Any]], str, set[str]]:
     """k_z and the law's droppable effects judged together, each combination a whole lap
     ahead from its own filtered state (online states frozen at the lap's start) on the
     flying laps after the first: the best combination that beats the law as written by
-    the rule wins, and ``joint`` goes on with it only when ``allowed`` (k_z learned
-    outside :data:`KZ_LIKE_LAW`). Judged one after the other, the first change explains
+    the rule wins (returned with every combination's row and the changes it makes), and
+    ``joint`` goes on with it only when ``allowed`` (k_z learned outside
+    :data:`KZ_LIKE_LAW`). Judged one after the other, the first change explains
     what the second one causes (a μ(T) the race's pads lack made a normal disc's k_z look
     low)."""
     laps = np.unique(lap[lap >= 2])
@@ -362,7 +364,7 @@ def _joint_test(runs: dict[str, Any], joint: str, later: tuple[str, ...], lap: n
     # masks it); k_z itself goes on only when ``allowed``
     changes = {joint} if allowed and joint in best.split(" + ") else set()
     changes |= {p for p in later if best.startswith(f"without {p}")}
-    return combos, changes
+    return combos, best, changes
 
 
 def _likelihood_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
