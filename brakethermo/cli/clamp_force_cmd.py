@@ -71,7 +71,8 @@ def clamp_force_cmd(
     tab.add_column("peak, held 5 ms (kN)", justify="right")
     tab.add_column("mean applied (kN)", justify="right")
     est = summ["estimate_kn"]
-    rmses = {**summ["rmse_kn"], "kf_adaptive": summ["rmse_kn_adaptive"]}
+    rmses = {**summ["rmse_kn"], "kf_paper": summ["rmse_kn_kf_paper"],
+             "kf_adaptive": summ["rmse_kn_adaptive"]}
     for k, v in rmses.items():
         m = est[k]["mean_applied"]
         tab.add_row(k, "–" if v is None else f"{v:.3f}", f"{est[k]['peak']:.2f}",
