@@ -205,3 +205,70 @@ def test_the_guessed_run_gives_the_sequential_answer(races, monkeypatch, race) -
     assert bool(chose) is (race == "low_kz")
     np.testing.assert_array_equal(guessed.frame.to_numpy(), sequential.frame.to_numpy())
     assert guessed.summary["laps"] == sequential.summary["laps"]
+
+
+def _earned_trial(monkeypatch: pytest.MonkeyPatch, written: float, without: float,
+                  with_kz: float | None = None):
+    """A decision's trial and runs whose lap-ahead predictions miss the readings by the
+    given noise levels (°C): the law as written, without its μ(T), and (``with_kz``) each
+    with k_z online."""
+    from types import SimpleNamespace
+
+    from brakethermo.diagnosis.verdict import VerdictRule
+
+    rng = np.random.default_rng(5)
+    lap = np.repeat(np.arange(1, 5), 400)
+    cycles = np.arange(lap.size) // 80
+    y = 300.0 + 100.0 * np.sin(np.arange(lap.size) / 30.0)
+    monkeypatch.setattr(online_choice, "_lap_ahead", lambda run, lap, laps: run.pred)
+
+    def run(sd: float) -> SimpleNamespace:
+        return SimpleNamespace(pred=y + rng.normal(0.0, sd, y.size), y_measured=y)
+
+    bare = f"without {online_choice.EARNED}"
+    runs = {"reference": run(written), bare: run(without)}
+    if with_kz is not None:
+        runs["thickness_gradient"] = run(written)
+        runs[f"{bare} + thickness_gradient"] = run(with_kz)
+    trial = SimpleNamespace(joint=None, later=(online_choice.EARNED,), lap=lap, cycles=cycles,
+                            rule=VerdictRule(min_shrink_pct=online_choice.MIN_SHRINK_PCT))
+    return trial, runs
+
+
+@pytest.mark.parametrize(("written", "without", "dropped"),
+                         [(2.0, 6.0, False), (6.0, 2.0, True), (4.0, 4.05, True)])
+def test_the_laws_mu_t_is_kept_only_where_the_race_earns_it(monkeypatch, written, without,
+                                                            dropped) -> None:
+    """The burden is on the law's μ(T): kept where the law as written predicts the laps a
+    lap ahead clearly better than without it, dropped where it does worse and where the
+    two are alike (the data cannot tell: on development races keeping it cost the contact
+    band); the row is the law with it against without it, and the page says so."""
+    from brakethermo.report.lap_report import _decisions
+
+    trial, runs = _earned_trial(monkeypatch, written, without)
+    (row,) = online_choice._later_tests(trial, runs, None, [])
+    assert row["name"] == f"without {online_choice.EARNED}" and row["earned"]
+    assert row["significant"] is dropped
+    assert (row["shrink_ci95_pct"][0] > online_choice.MIN_SHRINK_PCT) is not dropped
+    assert row["test"].startswith("kept only where the race earns it")
+    summary = {"run": {"online_choice": {
+        "law_effects_tested": [row],
+        "law_effects_dropped": [online_choice.EARNED] if dropped else []}}}
+    (line,) = _decisions(summary)
+    assert ("dropped" if dropped else "kept") in line and "error with it" in line
+
+
+def test_the_joint_test_starts_from_the_law_without_its_mu_t(monkeypatch) -> None:
+    """With k_z a candidate the combinations compete against the law without its μ(T):
+    a k_z that wins there goes on and μ(T) stays out; where nothing beats that base, μ(T)
+    is dropped and k_z stays off."""
+    trial, runs = _earned_trial(monkeypatch, 6.0, 4.0, with_kz=2.0)
+    combos, winner, changes = online_choice._joint_test(
+        runs, "thickness_gradient", trial.later, trial.lap, trial.cycles, trial.rule)
+    assert winner == f"without {online_choice.EARNED} + thickness_gradient"
+    assert changes == {"thickness_gradient", online_choice.EARNED}
+    assert {c["name"] for c in combos} == {"reference", "thickness_gradient", winner}
+    trial, runs = _earned_trial(monkeypatch, 6.0, 4.0, with_kz=4.0)
+    _, winner, changes = online_choice._joint_test(
+        runs, "thickness_gradient", trial.later, trial.lap, trial.cycles, trial.rule)
+    assert winner == f"without {online_choice.EARNED}" and changes == {online_choice.EARNED}

@@ -505,16 +505,10 @@ def estimate(
     ra = _adaptive_filter(ds.alpha0, u, F_ds[0], y, Q, R, factor_walk**2 * ts)
     kf, kf_std, scale, consistency = _band(ra if switched else res, F_tb, R, check)
     kind = "adaptive" if switched else "fixed"
-    col = None if check is None else check.coloured
     # the coloured-error smoother where the pads are the trained ones (else the adaptive
     # filter follows them)
-    if col is not None and col.adopted and nis <= NIS_LIMIT:
-        m, phi = F_ds - F_tb, col.phi(ts)
-        consistency = nis_consistency(error_filter(m, phi, col.gain)[1] ** 2
-                                      / col.innovation_var)
-        scale = variance_scale(consistency)
-        kf = F_ds - error_smoother(m, phi, col.gain)
-        kf_std, kind = np.full(K, np.sqrt(col.variance(ts) * scale)), "coloured"
+    if check is not None and (col := check.coloured) and col.adopted and nis <= NIS_LIMIT:
+        (kf, kf_std, scale, consistency), kind = _coloured(col, F_ds, F_tb, ts), "coloured"
     source = "kf"
     if check is not None and not check.fusion_holds:
         source = check.best_single
@@ -538,6 +532,18 @@ def estimate(
         kf_consistency=consistency,
         kf_filter=kind,
     )
+
+
+def _coloured(col: ColouredError, F_ds: Array, F_tb: Array, ts: float
+              ) -> tuple[Array, Array, float, dict[str, Any]]:
+    """The coloured-error smoother's mean and std (N), the factor on its variance and its
+    consistency: its innovations against the held-out ones (:class:`ColouredError`),
+    the band widened where the session's are larger."""
+    m, phi = F_ds - F_tb, col.phi(ts)
+    consistency = nis_consistency(error_filter(m, phi, col.gain)[1] ** 2 / col.innovation_var)
+    scale = variance_scale(consistency)
+    return (F_ds - error_smoother(m, phi, col.gain),
+            np.full(m.size, np.sqrt(col.variance(ts) * scale)), float(scale), consistency)
 
 
 def _paper_filter(alpha0: float, u: Array, F0: float, y: Array, Q: float, R: float

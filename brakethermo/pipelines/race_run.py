@@ -31,6 +31,7 @@ from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.pipelines.models import DiscCalibration
 from brakethermo.pipelines.online_choice import (
     DECISION_LAPS,
+    EARNED,
     ONLINE_FLAGS,
     OnlineChoice,
     choose_online,
@@ -186,18 +187,21 @@ def decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
                 ) -> tuple[OnlineChoice | None, RaceRun, float]:
     """The race's online decision and the filter run on what it decided, and when the
     decision ended. On a race longer than the decision's laps, the run for "nothing
-    switched on, nothing dropped" starts before the decision on its own thread
+    switched on, the law's μ(T) unearned" starts before the decision on its own thread
     (:mod:`brakethermo.pipelines.speculative`): a 25-lap race that decides so, 8.3 → 6.3–7 s
     in process; one that switches k_z on waits for a decision on one core less."""
     chooses = _choice_inputs(options, cal, calibration)
     guess = null = None
+    # what the race most often decides: no online state, the law's μ(T) not earned
+    unearned = (EARNED,) if chooses is not None and EARNED in chooses[1] else ()
     # a race no longer than the decision's laps has a filter pass as short as one of the
     # decision's: nothing to win there, and the decision would lose a core
     # (and on one core the guess would only queue the decision behind it)
     if (chooses is not None and sum(lap.lap >= 1 for lap in session.laps) > DECISION_LAPS
             and (os.cpu_count() or 1) > 1):
         null = replace(tuning, **{ONLINE_FLAGS[c]: False for c in chooses[0]})
-        guess = Speculation(partial(_filtered, disc, inputs, y, cal, null, options))
+        bare = law_without(cal, EARNED) if unearned else cal
+        guess = Speculation(partial(_filtered, disc, inputs, y, bare, null, options))
     try:
         choice = None if chooses is None else _online_choice(session, options, cal, tuning,
                                                              chooses)
@@ -212,7 +216,8 @@ def decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
         for name in choice.dropped:
             cal = law_without(cal, name)
     t_choice = time.perf_counter()
-    if guess is not None and choice is not None and tuning == null and not choice.dropped:
+    if (guess is not None and choice is not None and tuning == null
+            and choice.dropped == unearned):
         return choice, replace(guess.result(), speculative=True), t_choice
     if guess is not None:
         guess.abandon()

@@ -219,7 +219,9 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
                    "kept")
         if "law" in row:  # the pad crown: say which weights were tested against uniform
             name = "pad-crown weights w = " + ", ".join(f"{w:.2f}" for w in row["law"])
-        lines.append(f"the h law's {name}: {verdict} — {row.get('test', '')}, error without it"
+        # an earned effect's row is the law with it against without it
+        side = "with" if row.get("earned") else "without"
+        lines.append(f"the h law's {name}: {verdict} — {row.get('test', '')}, error {side} it"
                      f" {-row.get('shrink_pct', float('nan')):+.0f} % (95 % {-hi:+.0f} to"
                      f" {-lo:+.0f} %)")
     if choice.get("layering"):
