@@ -318,7 +318,8 @@ def test_heldout_check_chooses_the_gain_and_falls_back_to_the_best_estimate() ->
     assert rmse(chosen.kf, truth) < 0.95 * min(rmse(paper.kf, truth),
                                                rmse(chosen.ml_fusion, truth))
     assert np.mean(np.abs(chosen.kf - truth) <= 1.96 * chosen.kf_std) > 0.85
-    worse = replace(check, fusion_holds=False, best_single="ml_fusion")
+    worse = replace(check, fusion_holds=False, best_single="ml_fusion",
+                    coloured=replace(check.coloured, holds=False))
     fell = estimate(models, th2, cur2, TS, check=worse)
     assert fell.kf_source == "ml_fusion"
     np.testing.assert_array_equal(fell.kf, fell.ml_fusion)

@@ -101,9 +101,10 @@ def test_a_kz_within_the_laws_own_error_stays_off_one_far_from_it_goes_on(races,
 
 
 def test_a_gated_kz_still_lets_the_laws_mu_t_be_judged_beside_it(races, tmp_path) -> None:
-    """A law 20 % low in k_z carrying a μ(T) the race's pads lack: with k_z free beside
-    it the law without μ(T) wins; μ(T) is dropped on that evidence, said as such, and k_z
-    (within the law's own error) stays off."""
+    """A law 20 % low in k_z carrying a μ(T) the race's pads lack: the best combination is
+    the law without μ(T) with k_z online, but k_z is like the law's and stays off, so
+    μ(T) is judged as the race runs — the law with it against without it, k_z off — and
+    dropped; the page's rows say which pair they compare."""
     law, _ = _law_with_kz(tmp_path, 0.8)
     law.write_text(law.read_text() + "\n[effects.friction_temperature]\nbeta = 0.45\n"
                                      "t_mid = 380.0\n")
@@ -115,10 +116,12 @@ def test_a_gated_kz_still_lets_the_laws_mu_t_be_judged_beside_it(races, tmp_path
     assert top["name"] == "without friction_temperature + thickness_gradient"
     assert "thickness_gradient" not in choice["chosen"] and not row["significant"]
     assert row["like_law"].startswith("but the race's k_z came out")
+    assert row["test"].startswith("k_z online against off, on the law without")
     assert choice["law_effects_dropped"] == ["friction_temperature"]
     (tested,) = choice["law_effects_tested"]
-    assert tested["significant"] and tested["shrink_pct"] == top["shrink_pct"]
-    assert "judged with k_z free beside it" in tested["test"]
+    assert tested["significant"] and tested["earned"]
+    assert "the law with its friction_temperature against without it" in tested["test"]
+    assert "k_z online in both" not in tested["test"]
     assert "kz_factor" not in auto.frame
 
 
@@ -258,17 +261,54 @@ def test_the_laws_mu_t_is_kept_only_where_the_race_earns_it(monkeypatch, written
     assert ("dropped" if dropped else "kept") in line and "error with it" in line
 
 
-def test_the_joint_test_starts_from_the_law_without_its_mu_t(monkeypatch) -> None:
-    """With k_z a candidate the combinations compete against the law without its μ(T):
-    a k_z that wins there goes on and μ(T) stays out; where nothing beats that base, μ(T)
-    is dropped and k_z stays off."""
-    trial, runs = _earned_trial(monkeypatch, 6.0, 4.0, with_kz=2.0)
-    combos, winner, changes = online_choice._joint_test(
-        runs, "thickness_gradient", trial.later, trial.lap, trial.cycles, trial.rule)
-    assert winner == f"without {online_choice.EARNED} + thickness_gradient"
-    assert changes == {"thickness_gradient", online_choice.EARNED}
-    assert {c["name"] for c in combos} == {"reference", "thickness_gradient", winner}
-    trial, runs = _earned_trial(monkeypatch, 6.0, 4.0, with_kz=4.0)
-    _, winner, changes = online_choice._joint_test(
-        runs, "thickness_gradient", trial.later, trial.lap, trial.cycles, trial.rule)
-    assert winner == f"without {online_choice.EARNED}" and changes == {online_choice.EARNED}
+@pytest.mark.parametrize(
+    ("written", "without", "with_kz", "allowed", "kept", "kz_on"),
+    [(6.0, 4.0, 2.0, True, False, True),    # k_z wins on the bare law: on, μ(T) out
+     (6.0, 4.0, 4.0, True, False, False),   # nothing beats the bare law
+     (6.0, 4.0, 2.0, False, False, False),  # k_z would win but is like the law's
+     (2.0, 6.0, 6.0, True, True, False)])   # μ(T) earns it; k_z adds nothing beside it
+def test_the_joint_test_judges_each_factor_against_its_counterpart(
+        monkeypatch, written, without, with_kz, allowed, kept, kz_on) -> None:
+    """k_z and the law's μ(T) as a 2 x 2 against the law without μ(T): each factor must
+    beat its own counterpart at the other's final level — μ(T) is kept only where the law
+    with it beats without it with k_z as it will run, k_z goes on only where it beats k_z
+    off on the law the race will use; the rows say which pair they compare."""
+    trial, runs = _earned_trial(monkeypatch, written, without, with_kz=with_kz)
+    j = online_choice._joint_test(runs, "thickness_gradient", online_choice.EARNED,
+                                  trial.lap, trial.cycles, trial.rule, allowed)
+    assert (j.kept, j.kz_on) == (kept, kz_on)
+    assert j.gated is (not allowed)
+    assert j.effect_row["significant"] is kept
+    assert "k_z online in both" not in j.effect_row["test"] or kz_on
+    assert j.kz_row["test"].startswith("k_z online against off, on the law "
+                                       + ("as written" if kept else "without"))
+    bare = f"without {online_choice.EARNED}"
+    assert {c["name"] for c in j.combos} == {"reference", "thickness_gradient",
+                                            f"{bare} + thickness_gradient"}
+
+
+def test_the_guess_run_assumes_mu_t_unearned_and_equals_the_decided_run(tmp_path,
+                                                                        monkeypatch) -> None:
+    """A race longer than the decision's laps starts the filter on the likeliest outcome
+    before the decision ends — no online state, the law's μ(T) unearned — and where the
+    race decides so, that run is the result, equal to the run made after the decision."""
+    from brakethermo.pipelines import race_run
+
+    shipped = Path(__file__).parents[1] / "configs" / "hlaw" / "cc-340-8.toml"
+    law = tmp_path / "law.toml"
+    law.write_text(shipped.read_text()
+                   + "\n[effects.friction_temperature]\nbeta = 0.45\nt_mid = 380.0\n")
+    path, _ = write_simulation(simulate(SimConfig(
+        laps=online_choice.DECISION_LAPS + 1, sensor="single", seed=SEED + 7)),
+        tmp_path / "long.parquet")
+    opts = EstimateOptions(h_law=law, smoother=False)
+    monkeypatch.setattr(race_run.os, "cpu_count", lambda: 2)
+    guessed = estimate_session(path, opts)
+    assert guessed.summary["run"]["online_choice"]["law_effects_dropped"] == [
+        online_choice.EARNED]
+    assert guessed.summary["run"]["timings_s"]["overlapped"] is True
+    monkeypatch.setattr(race_run.os, "cpu_count", lambda: 1)
+    after = estimate_session(path, opts)
+    assert after.summary["run"]["timings_s"]["overlapped"] is False
+    np.testing.assert_allclose(guessed.frame["contact_avg"], after.frame["contact_avg"],
+                               rtol=0, atol=1e-9)

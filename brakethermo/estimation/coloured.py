@@ -13,8 +13,8 @@ observed through the difference of the two sources, and the estimate is s1 − b
 filter is the steady-state scalar Kalman filter (gain g) and, since the log is processed
 after the run, its steady-state Rauch–Tung–Striebel smoother. The pair (φ, g) spans every
 such filter (for a measurement variance r, q = g r/(1−g) − φ² g r > 0), and φ = 0 with
-g = q/(q+r) is the ML fusion, so a choice of (φ, g) on held-out data is never worse
-there than it.
+g = q/(q+r) is the ML fusion (one gain for the whole log), so a choice of (φ, g) on
+held-out data is no worse there than it, up to the grid of gains tried.
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ def error_filter(m: Array, phi: float, g: float) -> tuple[Array, Array]:
 
     Parameters
     ----------
-    m : ndarray (K,) — the difference of the two sources (NaN: no measurement, taken as
-        the prior mean 0), in the sources' unit.
+    m : ndarray (K,) — the difference of the two sources, in the sources' unit; a NaN
+        (a derivative window's edge) counts as a measured 0, the error's prior mean.
     phi : float — the error's one-step correlation, e^(−ts/τ), –.
     g : float — the steady-state Kalman gain, 0 < g < 1, –.
 

@@ -54,7 +54,7 @@ Worn pads without re-training, development seeds: 95 % coverage 67–73 % → 88
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -275,6 +275,8 @@ class ColouredError:
         held-out Gaussian likelihood of the sensor's force, at least 1.
     adopted : bool — it did :data:`Q_MARGIN` better held out than the filter the check
         chose otherwise: it is the reported estimate where the pads are the trained ones.
+    holds : bool — it did at least as well there as the best of its inputs and the ML
+        fusion (else that is reported in its place, as for the filter).
     """
 
     tau_s: float
@@ -283,6 +285,7 @@ class ColouredError:
     innovation_var: float
     band_scale: float
     adopted: bool
+    holds: bool
 
     def phi(self, ts: float) -> float:
         """The one-step correlation e^(−ts/τ), –."""
@@ -371,17 +374,15 @@ def fusion_check(theta: Array, current: Array, F: Array, ts: float, *,
     chosen: float | tuple[str, float] = ("adaptive", q_best) if adaptive else q_best
     rms = {"kf": adaptive_by_q[q_best] if adaptive else by_q[q_best],
            **{k: v for k, v in rms.items() if isinstance(k, str)}}
-    coloured = _coloured_choice(halves, ts, rms["kf"])
-    if coloured.adopted:
-        rms["kf"] = coloured.rmse_n
     best = min(SINGLES, key=rms.__getitem__)
+    coloured = _coloured_choice(halves, ts, rms["kf"], rms[best])
     band = max(1.0, float(np.nanmean(np.concatenate(z2[chosen]))))
     return FusionCheck(rms, best, rms["kf"] <= rms[best], q_best, by_q, band, adaptive,
                        adaptive_by_q, coloured)
 
 
-def _coloured_choice(halves: list[tuple[Array, Array, Array]], ts: float, rmse_kf: float
-                     ) -> ColouredError:
+def _coloured_choice(halves: list[tuple[Array, Array, Array]], ts: float, rmse_kf: float,
+                     rmse_best: float) -> ColouredError:
     """The (τ, g) of :data:`COLOURED_TAUS_S` x :data:`COLOURED_GAINS` with the smallest
     held-out RMSE, its innovation variance and band factor there.
 
@@ -391,6 +392,7 @@ def _coloured_choice(halves: list[tuple[Array, Array, Array]], ts: float, rmse_k
         N, from the models trained on the other half.
     ts : float — s, sample time.
     rmse_kf : float — N, the held-out RMSE of the filter chosen otherwise.
+    rmse_best : float — N, the held-out RMSE of the best of its inputs and the ML fusion.
     """
     def errors(tau: float, g: float) -> Array:
         phi = float(np.exp(-ts / tau)) if tau > 0.0 else 0.0
@@ -400,12 +402,13 @@ def _coloured_choice(halves: list[tuple[Array, Array, Array]], ts: float, rmse_k
     grid = {(tau, g): float(np.sqrt(np.nanmean(errors(tau, g) ** 2)))
             for tau in COLOURED_TAUS_S for g in COLOURED_GAINS}
     tau, g = min(grid, key=grid.__getitem__)
-    choice = ColouredError(tau, g, grid[tau, g], 1.0, 1.0, False)
+    choice = ColouredError(tau, g, grid[tau, g], 1.0, 1.0, False, True)
     nu = np.concatenate([error_filter(ds - tb, choice.phi(ts), g)[1] for ds, tb, _ in halves])
     S = float(np.nanmean(nu**2))
-    z2 = errors(tau, g) ** 2 / ColouredError(tau, g, 0.0, S, 1.0, False).variance(ts)
-    return ColouredError(tau, g, grid[tau, g], S, max(1.0, float(np.nanmean(z2))),
-                         grid[tau, g] < (1.0 - Q_MARGIN) * rmse_kf)
+    z2 = errors(tau, g) ** 2 / replace(choice, innovation_var=S).variance(ts)
+    return replace(choice, innovation_var=S, band_scale=max(1.0, float(np.nanmean(z2))),
+                   adopted=grid[tau, g] < (1.0 - Q_MARGIN) * rmse_kf,
+                   holds=grid[tau, g] <= rmse_best)
 
 
 @dataclass(frozen=True)
@@ -428,11 +431,14 @@ class ClampForceEstimates:
         session's held-out check fell back to (``stiffness``, ``torque_balance`` or
         ``ml_fusion``).
     kf_noise_scale : float — factor on the reported filter's Q and R (so on its
-        variance) matching its innovations, 1 where they are consistent.
+        variance) matching its innovations, 1 where they are consistent (for the fixed
+        and adaptive filters at least the held-out likelihood's factor; the coloured
+        smoother carries that factor in its variance, and this is on top of it).
     kf_consistency : dict — :func:`nis_consistency` of the reported filter, before the
         scaling.
-    kf_filter : str — which filter ``kf`` is where ``kf_source`` is ``"kf"``: ``"fixed"``
-        (the paper's), ``"adaptive"`` or ``"coloured"``.
+    kf_filter : str — the filter the session calls for: ``"fixed"`` (the paper's),
+        ``"adaptive"`` or ``"coloured"``; ``kf`` where ``kf_source`` is ``"kf"``, else
+        what the held-out check found worse than ``kf_source``.
     """
 
     kf: Array
@@ -509,9 +515,9 @@ def estimate(
     # filter follows them)
     if check is not None and (col := check.coloured) and col.adopted and nis <= NIS_LIMIT:
         (kf, kf_std, scale, consistency), kind = _coloured(col, F_ds, F_tb, ts), "coloured"
-    source = "kf"
-    if check is not None and not check.fusion_holds:
-        source = check.best_single
+    source = "kf" if check is None or (
+        col.holds if kind == "coloured" else check.fusion_holds) else check.best_single
+    if check is not None and source != "kf":
         kf = {"stiffness": F_ds, "torque_balance": F_tb, "ml_fusion": F_ml}[source]
         kf_std = np.full(K, check.rmse_n[source])
     return ClampForceEstimates(

@@ -422,9 +422,11 @@ def _kf_text(res: ClampForceResult) -> str:
     """What the reported ``kf`` is on this session, in words (summary and page)."""
     est, check = res.reported, res.reported_check
     if check is not None and est.kf_source != "kf":
+        tried = (check.coloured.rmse_n if est.kf_filter == "coloured" and check.coloured
+                 else check.rmse_n["kf"])
         return (f"the {SOURCE_NAMES[est.kf_source]}, not a Kalman filter: on"
                 " held-out halves of the training session the filter did worse than it"
-                f" ({check.rmse_n['kf'] / 1e3:.3f} against"
+                f" ({tried / 1e3:.3f} against"
                 f" {check.rmse_n[est.kf_source] / 1e3:.3f} kN), so the band is that"
                 " held-out RMSE")
     if est.kf_filter == "coloured" and check is not None and check.coloured is not None:
@@ -434,7 +436,8 @@ def _kf_text(res: ClampForceResult) -> str:
                 " balance (steady-state Kalman gain"
                 f" {c.gain:.3g}, forward and backward over the log); on held-out halves of"
                 f" the training session {c.rmse_n / 1e3:.3f} kN against"
-                f" {check.rmse_by_q[check.q_scale] / 1e3:.3f} kN for the paper's filter and"
+                f" {check.rmse_n['kf'] / 1e3:.3f} kN for the"
+                f" {'adaptive' if check.adaptive else 'fixed'} filter and"
                 f" {check.rmse_n['ml_fusion'] / 1e3:.3f} kN for the ML fusion; its band is the"
                 " model's smoothed variance times the held-out likelihood's factor"
                 f" {c.band_scale:.2g} (the fixed filter's mean NIS here"
@@ -521,7 +524,7 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
                 f"{q:g}": v / 1e3 for q, v in (check.adaptive_rmse_by_q or {}).items()},
             "coloured": None if (c := check.coloured) is None else {
                 "tau_s": c.tau_s, "gain": c.gain, "heldout_rmse_kn": c.rmse_n / 1e3,
-                "band_scale": c.band_scale, "adopted": c.adopted},
+                "band_scale": c.band_scale, "adopted": c.adopted, "holds": c.holds},
             "what": "trained on one half of the training session, estimated on the other,"
                     " both ways, scored against the sensor with its lag taken out; the filter's"
                     " Q is the paper's times the factor with the smallest held-out RMSE (the"
@@ -529,9 +532,9 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
                     " the coloured-error smoother (the stiffness model's error as a"
                     " first-order Gauss-Markov state, its correlation time and gain those"
                     " with the smallest held-out RMSE) is kf where it did"
-                    f" {100 * Q_MARGIN:g} % better than that filter and the pads are the"
-                    " trained ones (the fixed filter's mean NIS at most"
-                    f" {NIS_LIMIT:g});"
+                    f" {100 * Q_MARGIN:g} % better than that filter (fixed or adaptive)"
+                    " and the pads are the trained ones (the fixed filter's mean NIS at"
+                    f" most {NIS_LIMIT:g}); heldout_rmse_kn.kf is the filter's;"
                     " where the filter did worse than its best input or the ML fusion, kf"
                     " is that (its band the held-out RMSE)",
         },

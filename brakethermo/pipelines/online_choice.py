@@ -174,10 +174,13 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     """
     flying = sorted({lap.lap for lap in session.laps if lap.lap >= 1})
     if not (candidates or parts) or len(flying) < 2:
+        unearned = (EARNED,) if EARNED in parts else ()
         return OnlineChoice({ONLINE_FLAGS[c]: False for c in candidates}, {
             "rule": "not decided: fewer than two flying laps; online effects left off, the"
-                    " h law's effects kept",
-            "candidates": list(candidates)})
+                    " h law's effects kept"
+                    + (f" but its {EARNED}, which a race must earn" if unearned else ""),
+            "candidates": list(candidates), "law_effects_dropped": list(unearned)},
+            unearned)
     t = _trial(session, base, candidates, parts, flying)
     runs = _one_pass(t, cal, True)
     tested = _first_tests(t, runs, cal)
@@ -284,34 +287,20 @@ def _first_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration
 
 def _judge_jointly(t: _Trial, joint: str, runs: dict[str, Any], rows: list[dict[str, Any]],
                    tested: list[dict[str, Any]]) -> None:
-    """``joint`` and the law's later parts judged together (:func:`_joint_test`): the
-    joint verdict replaces ``joint``'s own test in ``rows``, the later parts' rows join
+    """``joint`` and the law's :data:`EARNED` effect judged together (:func:`_joint_test`):
+    the joint verdict replaces ``joint``'s own test in ``rows``, the effect's row joins
     ``tested``."""
     own = next(r for r in rows if r["name"] == joint)
     allowed = kz_allowed(own["learned"])
-    combos, winner, changes = _joint_test(runs, joint, t.later, t.lap, t.cycles, t.rule,
-                                       allowed)
     (p,) = t.later
-    # k_z's own figures: on the law as the race uses it (without the effect unless kept)
-    alone = next(r for r in combos if r["name"] == (
-        f"without {p} + {joint}" if p in changes else joint))
-    gated = not allowed and joint in winner.split(" + ")  # k_z won but stays off
+    j = _joint_test(runs, joint, p, t.lap, t.cycles, t.rule, allowed)
     # the joint verdict replaces the structural test's
-    own.update({k: alone[k] for k in ("shrink_pct", "shrink_ci95_pct", "test")},
-               significant=joint in changes, joint_test=combos)
+    own.update({k: j.kz_row[k] for k in ("shrink_pct", "shrink_ci95_pct", "test")},
+               significant=j.kz_on, joint_test=j.combos)
     own.pop("like_law", None)
-    if gated:
+    if j.gated:
         own["like_law"] = _LIKE_LAW_SAID.format(own["learned"])
-    # the effect's row: the winner's where that kept it or had k_z beside it, else the law
-    # as written against without it
-    with_kz = joint in winner.split(" + ")
-    keep_row = with_kz or not winner.startswith(f"without {p}")
-    row = next(r for r in combos if r["name"] == (winner if keep_row else "reference"))
-    if with_kz:
-        row = {**row, "test": f"{row['test']}; judged with k_z free beside it (a k_z"
-                              " difference otherwise masks it)"
-                              + (", k_z itself left off" if gated else "")}
-    tested.append(_earned_row(row, p, p in changes))
+    tested.append(_earned_row(j.effect_row, p, not j.kept))
 
 
 def _later_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration, chosen: list[str]
@@ -338,8 +327,8 @@ def _later_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration, chosen: 
 
 
 def _earned_row(row: dict[str, Any], name: str, dropped: bool) -> dict[str, Any]:
-    """The :data:`EARNED` effect's row in ``law_effects_tested``: ``row`` is the law as
-    written (or the winning combination) against the law without it, so its shrink is
+    """The :data:`EARNED` effect's row in ``law_effects_tested``: ``row`` is the law with
+    the effect against the law without it (k_z as the race runs it), so its shrink is
     what keeping the effect gains (the page says "with it")."""
     return {**row, "name": f"without {name}", "significant": dropped, "earned": True,
             "test": f"kept only where the race earns it ({row['test']})"}
@@ -362,34 +351,72 @@ def _online_rows(runs: dict[str, Any], candidates: tuple[str, ...], lap: np.ndar
     return rows
 
 
-def _joint_test(runs: dict[str, Any], joint: str, later: tuple[str, ...], lap: np.ndarray,
-                cycles: np.ndarray, rule: VerdictRule, allowed: bool = True
-                ) -> tuple[list[dict[str, Any]], str, set[str]]:
-    """k_z and the law's :data:`EARNED` effect judged together, each combination a whole
-    lap ahead from its own filtered state (online states frozen at the lap's start) on the
-    flying laps after the first, against the law without that effect: the best
-    combination that beats it by the rule wins (returned with every combination's row and
-    the changes it makes: the effect dropped unless the winner keeps it), and ``joint``
-    goes on with it only when ``allowed`` (k_z learned outside :data:`KZ_LIKE_LAW`).
-    Judged one after the other, the first change explains what the second one causes (a
-    μ(T) the race's pads lack made a normal disc's k_z look low)."""
+@dataclass(frozen=True)
+class _Joint:
+    """The joint judgement of k_z and the law's effect (:func:`_joint_test`)."""
+
+    combos: list[dict[str, Any]]  # each combination against the law without the effect
+    kept: bool  # the law's effect earned its place
+    kz_on: bool  # k_z goes on
+    gated: bool  # k_z would have gone on but is like the law's (KZ_LIKE_LAW)
+    effect_row: dict[str, Any]  # the effect kept against dropped, at k_z's final state
+    kz_row: dict[str, Any]  # k_z on against off, on the law as the race uses it
+
+
+def _joint_test(runs: dict[str, Any], joint: str, p: str, lap: np.ndarray,
+                cycles: np.ndarray, rule: VerdictRule, allowed: bool = True) -> _Joint:
+    """k_z and the law's :data:`EARNED` effect ``p``, judged together: a 2 x 2 of the law
+    with or without ``p`` and k_z off or online, each a whole lap ahead from its own
+    filtered state (online states frozen at the lap's start) on the flying laps after
+    the first.
+
+    The best combination that beats the law without ``p`` by the rule says which factors
+    are worth testing (judged one after the other, the first change explains what the
+    second causes: a μ(T) the race's pads lack made a normal disc's k_z look low); each
+    factor then has to beat its own counterpart at the other's final level — ``p`` is
+    kept only where the law with it beats the law without it, with k_z as it will run,
+    and k_z goes on (only when ``allowed``: learned outside :data:`KZ_LIKE_LAW`) only
+    where it beats k_z off on the law as the race will use it.
+    """
     laps = np.unique(lap[lap >= 2])
     units = np.where(np.isin(lap, laps), cycles, -1)
     y = runs["reference"].y_measured
-    (p,) = later
     base = f"without {p}"
-    names = ["reference", joint, f"{base} + {joint}"]
-    sse = {n: unit_sse(_lap_ahead(runs[n], lap, laps) - y, units)[0] for n in (base, *names)}
-    d = decide(sse[base], [CandidateEvidence(n, sse[n]) for n in names], rule)
-    test = (f"against the law without its {p}, each a whole lap ahead from its own filtered"
-            f" state, flying laps {', '.join(str(int(v)) for v in laps)}")
-    combos = [{**r, "test": test} for r in d.rows]
-    best = next((r["name"] for r in combos if r["significant"]), base)
-    # the law's effect is judged with k_z free to take up a k_z difference (which otherwise
-    # masks it); k_z itself goes on only when ``allowed``
-    changes = {joint} if allowed and joint in best.split(" + ") else set()
-    changes |= {p} if best.startswith(base) else set()
-    return combos, best, changes
+    law_kz, base_kz = joint, f"{base} + {joint}"
+    sse = {n: unit_sse(_lap_ahead(runs[n], lap, laps) - y, units)[0]
+           for n in (base, "reference", law_kz, base_kz)}
+    where = "each a whole lap ahead from its own filtered state, flying laps " + ", ".join(
+        str(int(v)) for v in laps)
+    d = decide(sse[base], [CandidateEvidence(n, sse[n])
+                           for n in ("reference", law_kz, base_kz)], rule)
+    combos = [{**r, "test": f"against the law without its {p}, {where}"} for r in d.rows]
+    winner = next((r["name"] for r in combos if r["significant"]), base)
+    won_kz = winner in (law_kz, base_kz)
+
+    def pair(before: str, after: str, test: str) -> dict[str, Any]:
+        row = decide(sse[before], [CandidateEvidence(after, sse[after])], rule).rows[0]
+        return {**row, "test": f"{test}, {where}"}
+
+    def effect(kz: bool) -> dict[str, Any]:
+        if kz:
+            return pair(base_kz, law_kz, f"the law with its {p} against without it, k_z"
+                        " online in both (a k_z difference otherwise masks it)")
+        return pair(base, "reference", f"the law with its {p} against without it")
+
+    def kz(kept: bool) -> dict[str, Any]:
+        if kept:
+            return pair("reference", law_kz, "k_z online against off, on the law as written")
+        return pair(base, base_kz, f"k_z online against off, on the law without its {p}")
+
+    kz_try = allowed and won_kz
+    effect_row = effect(kz_try)
+    kz_row = kz(effect_row["significant"])
+    if kz_try and not kz_row["significant"]:  # k_z stays off: judge the effect so
+        effect_row = effect(False)
+        kz_row = kz(effect_row["significant"])
+    kz_on = kz_try and kz_row["significant"]
+    return _Joint(combos, effect_row["significant"], kz_on, won_kz and not allowed,
+                  effect_row, kz_row)
 
 
 def _likelihood_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
