@@ -120,7 +120,7 @@ JOINT = "thickness_gradient"  # judged together with the law's later parts (_joi
 # rule. Dropped only on evidence, it was kept in most races and cost the contact band:
 # on 28 development races (seeds 58300-58340 and 57330-57340, μ(T) test laws of 2- and
 # 5-lap sessions, races none / slipstream / pad split / μ(T)), the law without its μ(T)
-# was never worse, mean 0.44 -> 0.32x the single-spot baseline, 0.29-0.86x -> 0.23-0.57x
+# was never worse, mean 0.45 -> 0.33x the single-spot baseline, 0.26-0.86x -> 0.22-0.57x
 # where it had been kept — on races with the test session's own μ(T) too. One spot's
 # estimate feeds the power a temperature it does not measure, and the online power scale
 # already follows what friction does over a race.
