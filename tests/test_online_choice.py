@@ -312,3 +312,33 @@ def test_the_guess_run_assumes_mu_t_unearned_and_equals_the_decided_run(tmp_path
     assert after.summary["run"]["timings_s"]["overlapped"] is False
     np.testing.assert_allclose(guessed.frame["contact_avg"], after.frame["contact_avg"],
                                rtol=0, atol=1e-9)
+
+
+def test_law_as_written_keeps_the_laws_mu_t(races, tmp_path) -> None:
+    """``estimate --law-as-written``: a user who knows the race's pads share the test
+    session's μ(T) keeps it, and nothing is decided; by default the race, which does not
+    earn it, drops it."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from brakethermo.cli import app
+
+    shipped = Path(__file__).parents[1] / "configs" / "hlaw" / "cc-340-8.toml"
+    law = tmp_path / "law.toml"
+    law.write_text(shipped.read_text()
+                   + "\n[effects.friction_temperature]\nbeta = 0.2\nt_mid = 380.0\n")
+    path, _ = races["normal"]
+    runs = {}
+    for flag in ("--race-decides", "--law-as-written"):
+        r = CliRunner().invoke(app, ["estimate", str(path), "--h-law", str(law), "--out",
+                                     str(tmp_path / flag), "--no-reports", "--no-smoother",
+                                     "--json", flag])
+        assert r.exit_code == 0, r.output
+        runs[flag] = json.loads(r.stdout)["run"]
+    assert "friction_temperature" not in runs["--race-decides"]["effects"]
+    assert runs["--race-decides"]["online_choice"]["law_effects_dropped"] == [
+        "friction_temperature"]
+    assert "friction_temperature" in runs["--law-as-written"]["effects"]
+    assert runs["--law-as-written"]["online_choice"]["rule"].startswith(
+        "not decided (--law-as-written)")

@@ -223,6 +223,14 @@ def estimate_command(
                      help="The inner/outer pad-pressure balance as a state (pads that press "
                      "unlike the test session's)."),
     ] = None,
+    race_decides: Annotated[
+        bool,
+        typer.Option("--race-decides/--law-as-written",
+                     help="The race's own laps decide its online states and which of the h "
+                     "law's test-session effects hold for it (μ(T) only where the race earns "
+                     "it); --law-as-written uses the law unchanged and the --adapt-* flags "
+                     "as given."),
+    ] = True,
     disc: DiscOpt = None,
     tuning: TuningOpt = None,
     aliases: AliasesOpt = None,
@@ -257,7 +265,7 @@ def estimate_command(
         spot=spot, h_law=law, disc=disc, tuning=tuning, nodes=nodes, layers=layers,
         smoother=smoother, adapt_power=adapt_power, adapt_kz=adapt_kz,
         adapt_slipstream=adapt_slipstream, adapt_balance=adapt_balance, aliases=aliases,
-        ambient_c=ambient, workers=workers, modes=modes,
+        ambient_c=ambient, workers=workers, modes=modes, online_auto=race_decides,
     )  # fmt: skip
     result = run_with_status(as_json, f"estimating {session.name} ...",
                              lambda: estimate_from_session(loaded, options))

@@ -81,7 +81,9 @@ class EstimateOptions:
         windows to bound its memory; see ``estimation.urts``).
     online_auto : bool
         Let the race decide the online effects whose flag is neither given here nor set
-        in the user's tuning file (:mod:`brakethermo.pipelines.online_choice`).
+        in the user's tuning file, and which of the h law's test-session effects hold for
+        it (:mod:`brakethermo.pipelines.online_choice`); False: the law as written
+        (``estimate --law-as-written``).
     modes : int, optional
         Reduced-order filter (:mod:`brakethermo.models.reduced`): at most this many
         thermal modes; 0 runs the full-order filter; ``None`` reduces a model of more
@@ -291,7 +293,10 @@ def estimate_from_session(
             "measured_spot": options.spot,
             "effects": run.plan.facts,
             "online_choice": choice.facts if choice is not None else {
-                "rule": "every online effect set by the options or the tuning file"},
+                "rule": ("every online effect set by the options or the tuning file"
+                         if options.online_auto else
+                         "not decided (--law-as-written): the h law as written, the online"
+                         " effects as the options and the tuning file set them")},
             "steps": len(frame),
             "covariance_repairs": forward.n_repairs,
             "log_likelihood": forward.log_likelihood,
