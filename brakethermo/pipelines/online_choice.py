@@ -32,13 +32,13 @@ by default. Instead the race decides:
    loop, and the effect is kept only when the lap-ahead error with it shrinks by the same
    rule (:data:`EARNED`: dropped only on evidence, it was kept in most development races
    and cost their contact band, races with the test session's own μ(T) too). When k_z is
-   a candidate too, the two are judged together (:func:`_joint_test`): the law as
-   written, with k_z online, and without the effect with k_z — each a whole lap ahead
-   from its own filtered state — against the law without the effect, and the best that
-   beats it wins. Judged one after the other, the first change explains what the second
-   causes (a μ(T) the race's pads lack made a normal disc's k_z look low). A k_z like the
-   law's (item 2) still takes part, so that a k_z difference does not mask the effect,
-   but stays off when the winner includes it.
+   a candidate too, the two are judged together as a 2 x 2 (:func:`_joint_test`): with
+   or without the effect, k_z off or online, each a whole lap ahead from its own
+   filtered state. The best combination that beats the law without the effect says
+   which factors to test (judged one after the other, the first change explains what the
+   second causes: a μ(T) the race's pads lack made a normal disc's k_z look low); each
+   must then beat its own counterpart at the other's final level. A k_z like the law's
+   (item 2) stays off, and the effect is then judged with k_z off, as the race runs.
 6. **the law's pyrometer lag** is the test session's sensor: a race logged by another
    (or a cleaned) pyrometer has its own. It is judged by the one-step predictive
    likelihood (a lag is the measurement's own model and shapes every braking's reading
