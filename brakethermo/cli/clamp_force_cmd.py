@@ -81,7 +81,8 @@ def clamp_force_cmd(
     # The band of the reported estimate: the KF's, or the fallback's held-out RMSE.
     label = "KF" if summ.get("kf_source", "kf") == "kf" else "reported"
     console.print(f"{label} 95 % band: ± {est['kf_band95_median']:.2f} kN (median over the"
-                  " session)", highlight=False)
+                  f" session); kf is {summ['kf_noise'].split(':')[0]} (why: summary.json"
+                  " kf_noise, the page)", highlight=False)
     if summ["sensor_lag"]["text"]:
         console.print(summ["sensor_lag"]["text"], highlight=False)
     if all(v is None for v in rmses.values()):
