@@ -342,3 +342,59 @@ def test_law_as_written_keeps_the_laws_mu_t(races, tmp_path) -> None:
     assert "friction_temperature" in runs["--law-as-written"]["effects"]
     assert runs["--law-as-written"]["online_choice"]["rule"].startswith(
         "not decided (--law-as-written)")
+
+
+@pytest.mark.parametrize(("hetero", "kept"), [("without friction_temperature + "
+                                               "thickness_gradient", True),
+                                              ("reference", False)])
+def test_the_joint_test_leaves_kz_off_where_no_configuration_is_consistent(
+        monkeypatch, hetero, kept) -> None:
+    """Where k_z helps at one μ(T) level only (one of the four runs is better on average
+    but not on every braking cycle), no configuration has each factor beating its
+    counterpart at the other's level: k_z stays off and μ(T) is judged as the race then
+    runs, k_z off (its row saying k_z was left off where it cleared the rule there)."""
+    from types import SimpleNamespace
+
+    from brakethermo.diagnosis.verdict import VerdictRule
+
+    rng = np.random.default_rng(9)
+    lap = np.repeat(np.arange(1, 5), 400)
+    cycles = np.arange(lap.size) // 80
+    y = 300.0 + 100.0 * np.sin(np.arange(lap.size) / 30.0)
+    monkeypatch.setattr(online_choice, "_lap_ahead", lambda run, lap, laps: run.pred)
+    bare = f"without {online_choice.EARNED}"
+    var = {bare: 1.0, "reference": 0.7, "thickness_gradient": 0.49,
+           f"{bare} + thickness_gradient": 0.7}
+    if hetero == "reference":
+        var["thickness_gradient"] = 0.49
+    # the heterogeneous run: mean variance as listed, but 0.05 and 1.35 cycle by cycle
+    spread = np.where(cycles % 2 == 0, 0.05, 1.35) / 0.7
+    runs = {n: SimpleNamespace(pred=y + rng.normal(0.0, 1.0, y.size) * 4.0 * np.sqrt(
+        v * (spread if n == hetero else 1.0)), y_measured=y) for n, v in var.items()}
+    rule = VerdictRule(min_shrink_pct=online_choice.MIN_SHRINK_PCT)
+    j = online_choice._joint_test(runs, "thickness_gradient", online_choice.EARNED, lap,
+                                  cycles, rule)
+    assert (j.kept, j.kz_on, j.gated) == (kept, False, False)
+    assert "k_z online in both" not in j.effect_row["test"]
+    if j.kz_row["significant"]:
+        assert "left off" in j.kz_row["test"]
+
+
+def test_a_race_too_short_to_decide_drops_the_unearned_mu_t_and_says_so(tmp_path) -> None:
+    """One flying lap: nothing can be decided, the law's μ(T) (which a race must earn) is
+    left out, and the page says it was not tested."""
+    from brakethermo.report.lap_report import _decisions
+
+    shipped = Path(__file__).parents[1] / "configs" / "hlaw" / "cc-340-8.toml"
+    law = tmp_path / "law.toml"
+    law.write_text(shipped.read_text()
+                   + "\n[effects.friction_temperature]\nbeta = 0.2\nt_mid = 380.0\n")
+    path, _ = write_simulation(simulate(SimConfig(laps=1, sensor="single", seed=SEED + 3)),
+                               tmp_path / "short.parquet")
+    res = estimate_session(path, EstimateOptions(h_law=law, smoother=False))
+    choice = res.summary["run"]["online_choice"]
+    assert choice["law_effects_dropped"] == [online_choice.EARNED]
+    assert "friction_temperature" not in res.summary["run"]["effects"]
+    (line,) = [s for s in _decisions(res.summary) if s.startswith("the h law's")]
+    assert "dropped" in line and "not tested: fewer than two flying laps" in line
+    assert "nan" not in line

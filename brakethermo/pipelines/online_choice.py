@@ -30,8 +30,9 @@ by default. Instead the race decides:
    with the law as written and without that effect; from each run's own filtered state
    at the start of every flying lap after the first, its model predicts the lap open
    loop, and the effect is kept only when the lap-ahead error with it shrinks by the same
-   rule (:data:`EARNED`: dropped only on evidence, it was kept in most development races
-   and cost their contact band, races with the test session's own μ(T) too). When k_z is
+   rule (:data:`EARNED`: when it was dropped only on evidence it was kept in most
+   development races and cost their contact band, races with the test session's own
+   μ(T) too). When k_z is
    a candidate too, the two are judged together as a 2 x 2 (:func:`_joint_test`): with
    or without the effect, k_z off or online, each a whole lap ahead from its own
    filtered state. The best combination that beats the law without the effect says
@@ -117,7 +118,8 @@ MIN_LOGLIK_GAIN = 0.02  # nats per reading — lower bootstrap bound the drop mu
 JOINT = "thickness_gradient"  # judged together with the law's later parts (_joint_test)
 # The law's later part (its μ(T)) must earn its place in the race: it is kept only where
 # the law as written predicts the race's laps a lap ahead better than without it by the
-# rule. Dropped only on evidence, it was kept in most races and cost the contact band:
+# rule. Until then it was dropped only on evidence, kept in most races, and it cost the
+# contact band:
 # on 28 development races (seeds 58300-58340 and 57330-57340, μ(T) test laws of 2- and
 # 5-lap sessions, races none / slipstream / pad split / μ(T)), the law without its μ(T)
 # was never worse, mean 0.45 -> 0.33x the single-spot baseline, 0.26-0.86x -> 0.22-0.57x
@@ -175,12 +177,16 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     flying = sorted({lap.lap for lap in session.laps if lap.lap >= 1})
     if not (candidates or parts) or len(flying) < 2:
         unearned = (EARNED,) if EARNED in parts else ()
+        untested = [_earned_row({"shrink_pct": float("nan"),
+                                 "shrink_ci95_pct": [float("nan")] * 2,
+                                 "test": "not tested: fewer than two flying laps"}, p, True)
+                    for p in unearned]
         return OnlineChoice({ONLINE_FLAGS[c]: False for c in candidates}, {
             "rule": "not decided: fewer than two flying laps; online effects left off, the"
                     " h law's effects kept"
                     + (f" but its {EARNED}, which a race must earn" if unearned else ""),
-            "candidates": list(candidates), "law_effects_dropped": list(unearned)},
-            unearned)
+            "candidates": list(candidates), "law_effects_tested": untested,
+            "law_effects_dropped": list(unearned)}, unearned)
     t = _trial(session, base, candidates, parts, flying)
     runs = _one_pass(t, cal, True)
     tested = _first_tests(t, runs, cal)
@@ -206,7 +212,8 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
                  f" on flying laps 1-{min(DECISION_LAPS, flying[-1])}; of k_z and the crown"
                  " balance (one spot cannot tell them apart) only the better; the law's"
                  " pyrometer lag and uneven pad crown are judged first; its μ(T) is kept"
-                 " only where the race earns it, judged together with k_z"),
+                 " only where the race earns it"
+                 + (", judged together with k_z" if t.joint is not None else "")),
         "laps": [int(v) for v in np.unique(t.lap[t.lap >= 1])],
         "chosen": chosen,
         "scores": rows,
@@ -358,7 +365,7 @@ class _Joint:
     combos: list[dict[str, Any]]  # each combination against the law without the effect
     kept: bool  # the law's effect earned its place
     kz_on: bool  # k_z goes on
-    gated: bool  # k_z would have gone on but is like the law's (KZ_LIKE_LAW)
+    gated: bool  # k_z won its test but is like the law's (KZ_LIKE_LAW): left off
     effect_row: dict[str, Any]  # the effect kept against dropped, at k_z's final state
     kz_row: dict[str, Any]  # k_z on against off, on the law as the race uses it
 
@@ -411,12 +418,18 @@ def _joint_test(runs: dict[str, Any], joint: str, p: str, lap: np.ndarray,
     kz_try = allowed and won_kz
     effect_row = effect(kz_try)
     kz_row = kz(effect_row["significant"])
-    if kz_try and not kz_row["significant"]:  # k_z stays off: judge the effect so
+    kz_on = kz_try and kz_row["significant"]
+    if kz_try and not kz_on:
+        # no configuration where each factor beats its counterpart at the other's level
+        # (k_z helps at one μ(T) level only): k_z stays off, the effect judged as the
+        # race then runs
         effect_row = effect(False)
         kz_row = kz(effect_row["significant"])
-    kz_on = kz_try and kz_row["significant"]
-    return _Joint(combos, effect_row["significant"], kz_on, won_kz and not allowed,
-                  effect_row, kz_row)
+        if kz_row["significant"]:
+            kz_row = {**kz_row, "test": f"{kz_row['test']}; left off: with the law's {p}"
+                      " judged beside it, it did not clear the rule"}
+    gated = won_kz and not allowed and kz_row["significant"]
+    return _Joint(combos, effect_row["significant"], kz_on, gated, effect_row, kz_row)
 
 
 def _likelihood_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,

@@ -221,9 +221,10 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
             name = "pad-crown weights w = " + ", ".join(f"{w:.2f}" for w in row["law"])
         # an earned effect's row is the law with it against without it
         side = "with" if row.get("earned") else "without"
-        lines.append(f"the h law's {name}: {verdict} — {row.get('test', '')}, error {side} it"
-                     f" {-row.get('shrink_pct', float('nan')):+.0f} % (95 % {-hi:+.0f} to"
-                     f" {-lo:+.0f} %)")
+        shrink = row.get("shrink_pct", float("nan"))
+        lines.append(f"the h law's {name}: {verdict} — {row.get('test', '')}"
+                     + (f", error {side} it {-shrink:+.0f} % (95 % {-hi:+.0f} to"
+                        f" {-lo:+.0f} %)" if np.isfinite(shrink) else ""))
     if choice.get("layering"):
         lines.append(f"layering: {choice['layering']}")
     if choice.get("forced_or_from_law"):
