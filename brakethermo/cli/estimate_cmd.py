@@ -191,6 +191,37 @@ ModesOpt = Annotated[int | None, typer.Option(
     "cost of a coarse one), full below.")]
 
 
+AdaptPowerOpt = Annotated[
+    bool | None,
+    typer.Option("--adapt-power/--no-adapt-power", help="Braking-power scale as a state."),
+]
+AdaptKzOpt = Annotated[
+    bool | None,
+    typer.Option("--adapt-kz/--no-adapt-kz",
+                 help="Through-thickness conductivity factor as a state (a race disc that "
+                 "differs from the test session's)."),
+]
+AdaptSlipstreamOpt = Annotated[
+    bool | None,
+    typer.Option("--adapt-slipstream/--no-adapt-slipstream",
+                 help="An off-brake h factor as a state (slipstream, traffic)."),
+]
+AdaptBalanceOpt = Annotated[
+    bool | None,
+    typer.Option("--adapt-balance/--no-adapt-balance",
+                 help="The inner/outer pad-pressure balance as a state (pads that press "
+                 "unlike the test session's)."),
+]
+RaceDecidesOpt = Annotated[
+    bool,
+    typer.Option("--race-decides/--law-as-written",
+                 help="The race's own laps decide its online states and which of the h "
+                 "law's test-session effects hold for it (μ(T) only where the race earns "
+                 "it); --law-as-written uses the law unchanged and the --adapt-* flags as "
+                 "given."),
+]
+
+
 @app.command("estimate")
 def estimate_command(
     session: Annotated[Path, typer.Argument(help=f"Session file ({SESSION_FORMATS}).")],
@@ -202,35 +233,11 @@ def estimate_command(
     smoother: Annotated[
         bool | None, typer.Option("--smoother/--no-smoother", help="RTS smoother (offline).")
     ] = None,
-    adapt_power: Annotated[
-        bool | None,
-        typer.Option("--adapt-power/--no-adapt-power", help="Braking-power scale as a state."),
-    ] = None,
-    adapt_kz: Annotated[
-        bool | None,
-        typer.Option("--adapt-kz/--no-adapt-kz",
-                     help="Through-thickness conductivity factor as a state (a race disc "
-                     "that differs from the test session's)."),
-    ] = None,
-    adapt_slipstream: Annotated[
-        bool | None,
-        typer.Option("--adapt-slipstream/--no-adapt-slipstream",
-                     help="An off-brake h factor as a state (slipstream, traffic)."),
-    ] = None,
-    adapt_balance: Annotated[
-        bool | None,
-        typer.Option("--adapt-balance/--no-adapt-balance",
-                     help="The inner/outer pad-pressure balance as a state (pads that press "
-                     "unlike the test session's)."),
-    ] = None,
-    race_decides: Annotated[
-        bool,
-        typer.Option("--race-decides/--law-as-written",
-                     help="The race's own laps decide its online states and which of the h "
-                     "law's test-session effects hold for it (μ(T) only where the race earns "
-                     "it); --law-as-written uses the law unchanged and the --adapt-* flags "
-                     "as given."),
-    ] = True,
+    adapt_power: AdaptPowerOpt = None,
+    adapt_kz: AdaptKzOpt = None,
+    adapt_slipstream: AdaptSlipstreamOpt = None,
+    adapt_balance: AdaptBalanceOpt = None,
+    race_decides: RaceDecidesOpt = True,
     disc: DiscOpt = None,
     tuning: TuningOpt = None,
     aliases: AliasesOpt = None,
