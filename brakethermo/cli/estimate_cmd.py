@@ -191,27 +191,19 @@ ModesOpt = Annotated[int | None, typer.Option(
     "cost of a coarse one), full below.")]
 
 
-AdaptPowerOpt = Annotated[
-    bool | None,
-    typer.Option("--adapt-power/--no-adapt-power", help="Braking-power scale as a state."),
-]
-AdaptKzOpt = Annotated[
-    bool | None,
-    typer.Option("--adapt-kz/--no-adapt-kz",
-                 help="Through-thickness conductivity factor as a state (a race disc that "
-                 "differs from the test session's)."),
-]
-AdaptSlipstreamOpt = Annotated[
-    bool | None,
-    typer.Option("--adapt-slipstream/--no-adapt-slipstream",
-                 help="An off-brake h factor as a state (slipstream, traffic)."),
-]
-AdaptBalanceOpt = Annotated[
-    bool | None,
-    typer.Option("--adapt-balance/--no-adapt-balance",
-                 help="The inner/outer pad-pressure balance as a state (pads that press "
-                 "unlike the test session's)."),
-]
+def _state_flag(name: str, help_text: str) -> Any:
+    """An ``--adapt-NAME/--no-adapt-NAME`` option: unset lets the race (or the tuning) say."""
+    return Annotated[bool | None, typer.Option(f"--adapt-{name}/--no-adapt-{name}",
+                                               help=help_text)]
+
+
+AdaptPowerOpt = _state_flag("power", "Braking-power scale as a state.")
+AdaptKzOpt = _state_flag("kz", "Through-thickness conductivity factor as a state (a race "
+                         "disc that differs from the test session's).")
+AdaptSlipstreamOpt = _state_flag("slipstream", "An off-brake h factor as a state "
+                                 "(slipstream, traffic).")
+AdaptBalanceOpt = _state_flag("balance", "The inner/outer pad-pressure balance as a state "
+                              "(pads that press unlike the test session's).")
 RaceDecidesOpt = Annotated[
     bool,
     typer.Option("--race-decides/--law-as-written",
