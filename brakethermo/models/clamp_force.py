@@ -257,6 +257,11 @@ COLOURED_TAUS_S = (0.0, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0)
 COLOURED_GAINS = tuple(float(g) for g in 10.0 ** np.arange(-4.0, -0.24, 0.25))
 
 
+def _phi(tau_s: float, ts: float) -> float:
+    """A first-order error's one-step correlation e^(−ts/τ) (0 for a white error), –."""
+    return float(np.exp(-ts / tau_s)) if tau_s > 0.0 else 0.0
+
+
 @dataclass(frozen=True)
 class ColouredError:
     """The coloured-error smoother the training session's held-out halves chose.
@@ -289,7 +294,7 @@ class ColouredError:
 
     def phi(self, ts: float) -> float:
         """The one-step correlation e^(−ts/τ), –."""
-        return float(np.exp(-ts / self.tau_s)) if self.tau_s > 0.0 else 0.0
+        return _phi(self.tau_s, ts)
 
     def variance(self, ts: float) -> float:
         """N², the smoothed estimate's variance, the held-out likelihood's factor on it."""
@@ -395,8 +400,7 @@ def _coloured_choice(halves: list[tuple[Array, Array, Array]], ts: float, rmse_k
     rmse_best : float — N, the held-out RMSE of the best of its inputs and the ML fusion.
     """
     def errors(tau: float, g: float) -> Array:
-        phi = float(np.exp(-ts / tau)) if tau > 0.0 else 0.0
-        return np.concatenate([ds - error_smoother(ds - tb, phi, g) - F
+        return np.concatenate([ds - error_smoother(ds - tb, _phi(tau, ts), g) - F
                                for ds, tb, F in halves])
 
     grid = {(tau, g): float(np.sqrt(np.nanmean(errors(tau, g) ** 2)))
@@ -419,8 +423,6 @@ class ClampForceEstimates:
     ----------
     kf, kf_std : ndarray — the reported estimate (module docstring), mean and std.
     kf_paper : ndarray — the fixed filter (eq. 9-13), its Q the held-out choice.
-    kf_switched : bool — ``kf`` is the adaptive-stiffness filter (the fixed filter was
-        over-confident on this session, or the held-out check chose it).
     kf_paper_nis : float — mean NIS of the fixed filter on this session (1 = consistent).
     ml_fusion : ndarray — eq. 8.
     stiffness : ndarray — eq. 6 open loop.
@@ -444,7 +446,6 @@ class ClampForceEstimates:
     kf: Array
     kf_std: Array
     kf_paper: Array
-    kf_switched: bool
     kf_paper_nis: float
     ml_fusion: Array
     stiffness: Array
@@ -457,6 +458,12 @@ class ClampForceEstimates:
     kf_noise_scale: float = 1.0
     kf_consistency: dict[str, Any] | None = None
     kf_filter: str = "fixed"
+
+    @property
+    def kf_switched(self) -> bool:
+        """``kf`` is the adaptive-stiffness filter (the fixed filter was over-confident on
+        this session, or the held-out check chose it)."""
+        return self.kf_filter == "adaptive"
 
 
 def estimate(
@@ -524,7 +531,6 @@ def estimate(
         kf=kf,
         kf_std=kf_std,
         kf_paper=kf_paper,
-        kf_switched=kind == "adaptive",
         kf_paper_nis=nis,
         ml_fusion=F_ml,
         stiffness=F_ds,
