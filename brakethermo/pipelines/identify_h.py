@@ -279,11 +279,23 @@ def fit_structure(
         return run_many(p[None, :])[0]
 
     p0, lo, hi = _structure_start(law0)
-    evaluate = _batched_residual(run_many, y, ok, hi)
-    sol = least_squares(lambda p: evaluate(p)[0], p0, jac=lambda p: evaluate(p)[1],
-                        bounds=(lo, hi), x_scale="jac", loss="soft_l1", f_scale=20.0,
-                        ftol=1e-4, xtol=1e-4, max_nfev=30)
-    law, w, kz, scale = unpack(sol.x)
+    # without an upper branch c_1, c_2 enter nothing: left free, their Jacobian columns
+    # are the batch's rounding noise, which x_scale="jac" turns into huge scales, and the
+    # fit's path (it stops after 30 evaluations) then hangs on that noise
+    free = np.ones(p0.size, bool)
+    free[2:4] = upper_branch
+
+    def with_fixed(X: np.ndarray) -> np.ndarray:
+        P = np.tile(p0, (len(X), 1))
+        P[:, free] = X
+        return P
+
+    evaluate = _batched_residual(lambda X: run_many(with_fixed(X)), y, ok, hi[free])
+    sol = least_squares(lambda p: evaluate(p)[0], p0[free], jac=lambda p: evaluate(p)[1],
+                        bounds=(lo[free], hi[free]), x_scale="jac", loss="soft_l1",
+                        f_scale=20.0, ftol=1e-4, xtol=1e-4, max_nfev=30)
+    p = with_fixed(sol.x[None])[0]
+    law, w, kz, scale = unpack(p)
     uniform = np.array([*p0[:4], 0.0, 0.0, 0.0, 0.0])
     return law, StructureFit(
         weights=(float(w[0]), float(w[1]), float(w[2])),
@@ -291,7 +303,7 @@ def fit_structure(
         power_scale=scale,
         nodes=est.nodes,
         layers=est.layers,
-        rmse_c=_spot_rmse(run(sol.x), y),
+        rmse_c=_spot_rmse(run(p), y),
         rmse_uniform_c=_spot_rmse(run(uniform), y),
     )
 
