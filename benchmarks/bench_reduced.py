@@ -2,15 +2,15 @@
 
 For each mesh (nodes x layers) the estimate pipeline runs on one simulated four-spot
 session with the full-order UKF (``--modes 0``) and with the reduced-order one (the
-default above 64 temperature states: POD modes of the model's own open loop plus the
-crown-noise directions, ``brakethermo.models.reduced``); printed side by side: modes,
-seconds of filter + smoother per 1000 steps, the contact band's RMS and largest
-difference between the two (flying laps), the ratio of their mean bands, and the peak
-memory of the reduced run. filterpy's UKF on the 10-node paper model (``bench_filter``'s
-case) is timed in the same run for the issue's yardstick. Meshes whose full filter would
-take minutes (over ``--full-max`` states) are run reduced only.
+default above 24 temperature states, the default 10 x 4 mesh included: POD modes of the
+model's own open loop plus the crown-noise directions, ``brakethermo.models.reduced``);
+printed side by side: modes, seconds of filter + smoother per 1000 steps, the contact
+band's RMS and largest difference between the two (flying laps), the ratio of their mean
+bands, and the peak memory of the reduced run. filterpy's UKF on the 10-node paper model
+(``bench_filter``'s case) is timed in the same run for the issue's yardstick. Meshes
+whose full filter would take minutes (over ``--full-max`` states) are run reduced only.
 
-    python benchmarks/bench_reduced.py                      # 30x4, 150x1, 150x4; 2 laps
+    python benchmarks/bench_reduced.py                      # 10x4, 30x4, 150x1, 150x4; 2 laps
     python benchmarks/bench_reduced.py --meshes 60x4 --laps 6 --full-max 300
 """
 
@@ -41,7 +41,7 @@ def run(path: Path, nodes: int, layers: int, modes: int | None) -> tuple[Estimat
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--meshes", default="30x4,150x1,150x4")
+    ap.add_argument("--meshes", default="10x4,30x4,150x1,150x4")
     ap.add_argument("--laps", type=int, default=2)
     ap.add_argument("--full-max", type=int, default=200,
                     help="largest temperature-state count also run full-order")

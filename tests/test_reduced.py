@@ -84,6 +84,24 @@ def test_reduced_filter_matches_the_full_one(session: Path) -> None:
     assert np.sqrt(np.mean(node_diff**2)) < 1.5
 
 
+def test_default_mesh_runs_reduced_at_the_full_filters_figures(session: Path) -> None:
+    """The default 10 x 4 mesh runs reduced (the 0.001 degC basis) and stays within a tenth
+    of a degree of the full filter on the contact band, its band within 2 %; the paper's
+    10 x 1 model stays full."""
+    opts = {"online_auto": False, "score": False}
+    full = estimate_session(session, EstimateOptions(modes=0, **opts))
+    red = estimate_session(session, EstimateOptions(**opts))
+    order = red.summary["run"]["filter_order"]
+    assert order["kind"] == "reduced" and order["modes"] < 40
+    fly = full.frame["lap"].to_numpy() >= 1
+    diff = (full.frame["contact_avg"] - red.frame["contact_avg"]).to_numpy()[fly]
+    assert np.sqrt(np.mean(diff**2)) < 0.1
+    ratio = red.frame["contact_avg_std"].mean() / full.frame["contact_avg_std"].mean()
+    assert abs(ratio - 1.0) < 0.02
+    paper = estimate_session(session, EstimateOptions(layers=1, **opts))
+    assert paper.summary["run"]["filter_order"]["kind"] == "full"
+
+
 def test_modes_option_is_checked() -> None:
     with pytest.raises(ConfigError, match="modes"):
         EstimateOptions(modes=-1)

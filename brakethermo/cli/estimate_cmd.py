@@ -187,8 +187,8 @@ EstimateHLawOpt = Annotated[Path | None, typer.Option(
     "session in --out, else the law shipped for the disc.")]
 ModesOpt = Annotated[int | None, typer.Option(
     "--modes", min=0, max=40, help="Reduced-order filter on at most this many thermal modes; "
-    "0 = the full filter. Default: reduced above 64 temperature states (a fine mesh at the "
-    "cost of a coarse one), full below.")]
+    "0 = the full filter. Default: reduced above 24 temperature states (the default 10 x 4 "
+    "mesh and any finer one: a fine mesh at the cost of a coarse one), full below.")]
 
 
 def _state_flag(name: str, help_text: str) -> Any:

@@ -29,7 +29,7 @@ import numpy as np
 
 from brakethermo.models.disc import DiscStateSpace
 
-MODE_TOLERANCE_C = 0.003  # degC, RMS projection error of the open-loop snapshots
+MODE_TOLERANCE_C = 0.001  # degC, RMS projection error of the open-loop snapshots
 MAX_MODES = 40
 MIN_MODES = 4
 
