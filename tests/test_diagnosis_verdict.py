@@ -139,3 +139,24 @@ def test_gain_interval_is_the_mean_gain_per_sample_over_units() -> None:
     point, lo, hi = gain_interval(before, noisy, count, VerdictRule())
     assert lo < 0.0 < hi and lo <= point <= hi
     assert all(np.isnan(gain_interval(np.zeros(0), np.zeros(0), np.zeros(0), VerdictRule())))
+
+
+def test_one_unit_is_no_interval_and_names_nothing() -> None:
+    """A signature on a single unit (one fast straight in the session's one held-out lap)
+    halving its error is one observation: no interval, not significant; the whole-data
+    shrink of one unit is no interval either, while two units give one."""
+    rng = np.random.default_rng(5)
+    before = _units(40, rng, 100.0)
+    slight = before * rng.uniform(0.95, 0.99, 40)  # a few % whole shrink, interval above 0
+    where = "held-out straights above the knee speed"
+    knee = CandidateEvidence("knee", slight, signature=Signature(where, np.array([50.0]),
+                                                                 np.array([20.0])))
+    d = decide(before, [knee], RULE)
+    row = d.rows[0]
+    assert row["shrink_ci95_pct"][0] > 0.0
+    assert np.isnan(row["signature_shrink_ci95_pct"][0]) and row["signature_shrink_pct"] > 10
+    assert not row["significant"] and d.verdict == "none"
+    point, lo, hi = shrink_interval(np.array([50.0]), np.array([20.0]), RULE)
+    assert point > 30.0 and np.isnan(lo) and np.isnan(hi)
+    point, lo, hi = shrink_interval(np.array([50.0, 40.0]), np.array([20.0, 16.0]), RULE)
+    assert np.isfinite(lo) and lo <= point <= hi

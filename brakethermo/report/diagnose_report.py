@@ -86,8 +86,10 @@ def _significant_text(e: dict[str, Any]) -> str:
         return text
     lo, hi = e["signature_shrink_ci95_pct"]
     how = "by its signature" if e.get("significant_by") == "signature" else "signature"
-    return (f"{text} ({how}: {_f(e['signature_shrink_pct'], '{:+.0f}')} %"
-            f" [{_f(lo, '{:.0f}')} … {_f(hi, '{:.0f}')}] on {e['signature_where']})")
+    span = (f"[{_f(lo, '{:.0f}')} … {_f(hi, '{:.0f}')}]" if np.isfinite(lo)
+            else "[no interval: one unit]")
+    return (f"{text} ({how}: {_f(e['signature_shrink_pct'], '{:+.0f}')} % {span}"
+            f" on {e['signature_where']})")
 
 
 def effects_figure(effects: list[dict[str, Any]], verdict: str) -> Figure:
