@@ -160,3 +160,16 @@ def test_one_unit_is_no_interval_and_names_nothing() -> None:
     assert point > 30.0 and np.isnan(lo) and np.isnan(hi)
     point, lo, hi = shrink_interval(np.array([50.0, 40.0]), np.array([20.0, 16.0]), RULE)
     assert np.isfinite(lo) and lo <= point <= hi
+
+
+@pytest.mark.parametrize(("point", "ci", "said"), [
+    (12.6, [None, None], "[no interval: one unit]"),
+    (float("nan"), [float("nan"), float("nan")], "[none in the held-out laps]"),
+    (20.0, [12.0, 28.0], "[12 … 28]"),
+])
+def test_the_page_says_why_a_signature_has_no_interval(point, ci, said) -> None:
+    from brakethermo.report.diagnose_report import _significant_text
+
+    text = _significant_text({"significant": False, "signature_where": "fast straights",
+                              "signature_shrink_pct": point, "signature_shrink_ci95_pct": ci})
+    assert said in text

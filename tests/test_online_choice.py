@@ -3,6 +3,7 @@ matches; forced flags win; the decision and its evidence are in the run facts.""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -398,3 +399,20 @@ def test_a_race_too_short_to_decide_drops_the_unearned_mu_t_and_says_so(tmp_path
     (line,) = [s for s in _decisions(res.summary) if s.startswith("the h law's")]
     assert "dropped" in line and "not tested: fewer than two flying laps" in line
     assert "nan" not in line
+
+
+def test_decision_lines_read_a_summary_that_has_been_through_json() -> None:
+    """batch renders the page from summary.json, where a missing interval (fewer than two
+    units) or a test not run is null: the lines say so instead of failing."""
+    from brakethermo.report.lap_report import _decisions
+
+    summary = json.loads(json.dumps({"run": {"online_choice": {
+        "chosen": [], "law_effects_dropped": ["friction_temperature"],
+        "scores": [{"name": "slipstream", "test": "one-step innovations", "shrink_pct": 12.0,
+                    "shrink_ci95_pct": [None, None]}],
+        "law_effects_tested": [{"name": "without friction_temperature", "earned": True,
+                                "test": "not tested: fewer than two flying laps",
+                                "shrink_pct": None, "shrink_ci95_pct": [None, None]}]}}}))
+    online, law = _decisions(summary)
+    assert "left off" in online and "no interval: fewer than two units" in online
+    assert "dropped" in law and "not tested" in law and "nan" not in law

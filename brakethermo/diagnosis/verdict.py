@@ -8,7 +8,9 @@ hands over the sum of squared errors per unit. Everything here resamples those u
 
 - **shrink** of a candidate: ``100 (1 - sqrt(SSE_after / SSE_before))`` over all units,
   with a 95 % interval from a paired bootstrap over units;
-- **significant**: the lower end of that interval above ``min_shrink_pct``; or, for a
+- **significant**: the lower end of that interval above ``min_shrink_pct`` (no interval,
+  so never significant, over fewer than two units: one unit resampled is one observation
+  presented as certain); or, for a
   candidate that registers where its signature lives (a subset of the held-out data cut
   into its own units, e.g. the fastest straights for a cooling law's knee), the lower end
   of the shrink interval on those units above ``min_shrink_pct`` while the whole-data
@@ -190,10 +192,13 @@ def shrink_interval(sse_before: np.ndarray, sse_after: np.ndarray, rule: Verdict
 def gain_interval(before: np.ndarray, after: np.ndarray, count: np.ndarray, rule: VerdictRule
                   ) -> tuple[float, float, float]:
     """Mean gain per sample of ``after`` over ``before`` (sums per unit, e.g. predictive
-    log-likelihoods) and its 95 % paired-bootstrap interval over units."""
+    log-likelihoods) and its 95 % paired-bootstrap interval over units (none over fewer
+    than :data:`MIN_UNITS`)."""
     d, n = np.asarray(after, float) - np.asarray(before, float), np.asarray(count, float)
     if d.size == 0 or n.sum() <= 0:
         return float("nan"), float("nan"), float("nan")
+    if d.size < MIN_UNITS:
+        return float(d.sum() / n.sum()), float("nan"), float("nan")
     draw = _draws(d.size, rule)
     lo, hi = np.percentile(d[draw].sum(axis=1) / np.maximum(n[draw].sum(axis=1), 1.0),
                            [2.5, 97.5])
@@ -262,7 +267,8 @@ class Decision:
                 f"an effect is significant when the lower end of its 95 % bootstrap interval"
                 f" of held-out shrink exceeds {r.min_shrink_pct:g} % (on all held-out data, or"
                 f" on the units where its signature lives while its whole-data interval stays"
-                f" above 0 %); the best significant"
+                f" above 0 %; no interval over fewer than {MIN_UNITS} units); the best"
+                f" significant"
                 f" effect stands alone only when it beats each other significant or undecided"
                 f" one (interval straddling {r.min_shrink_pct:g} %) by more"
                 f" than {r.clear_margin_pct:g} percentage points (lower end of the paired"

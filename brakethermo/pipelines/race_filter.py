@@ -35,15 +35,16 @@ from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
 from brakethermo.thermal.power import crown_load
 
-# Temperature states beyond which the filter runs on modes: every mesh but the paper's
-# one- and two-layer ones. The default 10 x 4 model on its 0.001 degC basis (about 31
-# modes + 1-3 parameter states instead of 40 + 1-3): a 25-lap race 4.1 -> 3.0 s in
-# process, a k_z race (10 x 6) 11.6 -> 7.6 s, and on 30 development races (5 test effects
-# x 3 race effects x 2 tracks) the same online decisions, dropped law parts and identify-h
-# selections as the full filter, contact band within 0.01 of the single-spot baseline of
-# it in every race (mean 0.452 against 0.452). A 0.003 degC basis (28 modes, 2.5 s)
-# changed one race's online decision (0.72 -> 0.45x) and another's result (0.85 ->
-# 1.21x); a 14-mode one lost 0.03-0.07 on discs unlike the test session's.
+# Temperature states beyond which the filter runs on modes: the default 10 x 4 mesh and
+# every finer one; the paper's 10 x 1 model (and a 10 x 2 one) stays full. On the 0.001
+# degC basis (31 modes of 40 at the default mesh) a 25-lap race 3.3 -> 2.9 s in process
+# and a race that switches k_z on (thin-skin 10 x 6) 12.7 -> 7.9 s, beside the full
+# filter in the same session; on 30 development races (5 test effects x 3 race effects x
+# 2 tracks) the same online decisions, dropped law parts and identify-h selections as the
+# full filter, contact band within 0.01 of the single-spot baseline of it in every race
+# (mean 0.452 against 0.452). A 0.003 degC basis (28 modes) changed one race's online
+# decision (0.72 -> 0.45x) and another's result (0.85 -> 1.21x); a 14-mode one lost
+# 0.03-0.07 on discs unlike the test session's.
 AUTO_REDUCE_ABOVE = 24
 SNAPSHOTS = 2000  # open-loop steps per run the modes are taken from
 
@@ -197,8 +198,6 @@ def filter_space(ssm: DiscStateSpace, model: DiscFEModel, inputs: DiscInputs, h:
     # and the directions the crown-split process noise pushes the field in: the filter's
     # corrections live there, the open loop never goes
     Phi = with_directions(Phi, ssm.crown_directions())
-    if modes is None and Phi.shape[1] >= n_t:  # the modes hold every node: nothing to gain
-        return ssm, {"kind": "full", "states": ssm.n}
     reduced = ReducedStateSpace(ssm, Phi)
     return reduced, {
         "kind": "reduced", "modes": reduced.r, "states": reduced.n, "full_states": ssm.n,

@@ -86,9 +86,11 @@ def _significant_text(e: dict[str, Any]) -> str:
         return text
     lo, hi = e["signature_shrink_ci95_pct"]
     how = "by its signature" if e.get("significant_by") == "signature" else "signature"
-    span = (f"[{_f(lo, '{:.0f}')} … {_f(hi, '{:.0f}')}]" if np.isfinite(lo)
-            else "[no interval: one unit]")
-    return (f"{text} ({how}: {_f(e['signature_shrink_pct'], '{:+.0f}')} % {span}"
+    point = e["signature_shrink_pct"]
+    span = (f"[{_f(lo, '{:.0f}')} … {_f(hi, '{:.0f}')}]" if _f(lo) != "–"
+            else "[no interval: one unit]" if _f(point) != "–"
+            else "[none in the held-out laps]")
+    return (f"{text} ({how}: {_f(point, '{:+.0f}')} % {span}"
             f" on {e['signature_where']})")
 
 
