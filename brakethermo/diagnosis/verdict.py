@@ -31,7 +31,7 @@ hands over the sum of squared errors per unit. Everything here resamples those u
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -165,9 +165,16 @@ def unit_sse(err: np.ndarray, units: np.ndarray, mask: np.ndarray | None = None,
 MIN_UNITS = 2
 
 
-def _draws(n_units: int, rule: VerdictRule) -> np.ndarray:
-    rng = np.random.default_rng(rule.seed)
-    return rng.integers(0, n_units, size=(rule.n_boot, n_units))
+def _bootstrap(n_units: int, rule: VerdictRule, stat: Callable[[np.ndarray], np.ndarray]
+               ) -> tuple[float, float]:
+    """95 % interval of ``stat`` over paired bootstrap draws of the units (``stat`` maps
+    the (n_boot, n_units) unit indices to one value per draw); NaN over fewer than
+    :data:`MIN_UNITS`."""
+    if n_units < MIN_UNITS:
+        return float("nan"), float("nan")
+    draw = np.random.default_rng(rule.seed).integers(0, n_units, size=(rule.n_boot, n_units))
+    lo, hi = np.percentile(stat(draw), [2.5, 97.5])
+    return float(lo), float(hi)
 
 
 def _shrink(sse_before: np.ndarray, sse_after: np.ndarray) -> np.ndarray:
@@ -181,12 +188,9 @@ def shrink_interval(sse_before: np.ndarray, sse_after: np.ndarray, rule: Verdict
     sb, sa = np.asarray(sse_before, float), np.asarray(sse_after, float)
     if sb.size == 0 or sb.sum() <= 0:
         return float("nan"), float("nan"), float("nan")
-    point = float(_shrink(sb.sum(), sa.sum()))
-    if sb.size < MIN_UNITS:
-        return point, float("nan"), float("nan")
-    draw = _draws(sb.size, rule)
-    lo, hi = np.percentile(_shrink(sb[draw].sum(axis=1), sa[draw].sum(axis=1)), [2.5, 97.5])
-    return point, float(lo), float(hi)
+    lo, hi = _bootstrap(sb.size, rule,
+                        lambda draw: _shrink(sb[draw].sum(axis=1), sa[draw].sum(axis=1)))
+    return float(_shrink(sb.sum(), sa.sum())), lo, hi
 
 
 def gain_interval(before: np.ndarray, after: np.ndarray, count: np.ndarray, rule: VerdictRule
@@ -197,30 +201,25 @@ def gain_interval(before: np.ndarray, after: np.ndarray, count: np.ndarray, rule
     d, n = np.asarray(after, float) - np.asarray(before, float), np.asarray(count, float)
     if d.size == 0 or n.sum() <= 0:
         return float("nan"), float("nan"), float("nan")
-    if d.size < MIN_UNITS:
-        return float(d.sum() / n.sum()), float("nan"), float("nan")
-    draw = _draws(d.size, rule)
-    lo, hi = np.percentile(d[draw].sum(axis=1) / np.maximum(n[draw].sum(axis=1), 1.0),
-                           [2.5, 97.5])
-    return float(d.sum() / n.sum()), float(lo), float(hi)
+    lo, hi = _bootstrap(d.size, rule, lambda draw: d[draw].sum(axis=1)
+                        / np.maximum(n[draw].sum(axis=1), 1.0))
+    return float(d.sum() / n.sum()), lo, hi
 
 
 def difference_interval(sse_before: np.ndarray, sse_a: np.ndarray, sse_b: np.ndarray,
                         rule: VerdictRule) -> tuple[float, float, float]:
     """Shrink of ``a`` minus shrink of ``b`` (percentage points), 95 % interval, paired
     (none over fewer than :data:`MIN_UNITS`)."""
-    sb = np.asarray(sse_before, float)
+    sb, a, b = (np.asarray(v, float) for v in (sse_before, sse_a, sse_b))
     if sb.size == 0 or sb.sum() <= 0:
         return float("nan"), float("nan"), float("nan")
-    point = float(_shrink(sb.sum(), np.sum(sse_a)) - _shrink(sb.sum(), np.sum(sse_b)))
-    if sb.size < MIN_UNITS:
-        return point, float("nan"), float("nan")
-    draw = _draws(sb.size, rule)
-    base = sb[draw].sum(axis=1)
-    diff = (_shrink(base, np.asarray(sse_a)[draw].sum(axis=1))
-            - _shrink(base, np.asarray(sse_b)[draw].sum(axis=1)))
-    lo, hi = np.percentile(diff, [2.5, 97.5])
-    return point, float(lo), float(hi)
+
+    def diff(draw: np.ndarray) -> np.ndarray:
+        base = sb[draw].sum(axis=1)
+        return _shrink(base, a[draw].sum(axis=1)) - _shrink(base, b[draw].sum(axis=1))
+
+    lo, hi = _bootstrap(sb.size, rule, diff)
+    return float(_shrink(sb.sum(), a.sum()) - _shrink(sb.sum(), b.sum())), lo, hi
 
 
 def correlation(a: np.ndarray, b: np.ndarray) -> float:

@@ -19,12 +19,16 @@ SPOT_COLOURS = ("#1f77b4", "#2ca02c", "#ff7f0e", "#d62728")
 DIST_BIN_M = 25.0
 
 
-def _f(x: Any, fmt: str = "{:.1f}") -> str:
+def _finite(x: Any) -> bool:
+    """A number, and finite (a null from diagnosis.json is not)."""
     try:
-        v = float(x)
+        return bool(np.isfinite(float(x)))
     except (TypeError, ValueError):
-        return "–"
-    return fmt.format(v) if np.isfinite(v) else "–"
+        return False
+
+
+def _f(x: Any, fmt: str = "{:.1f}") -> str:
+    return fmt.format(float(x)) if _finite(x) else "–"
 
 
 def residual_map(dist: np.ndarray, lap: np.ndarray, res: np.ndarray) -> Figure:
@@ -87,8 +91,8 @@ def _significant_text(e: dict[str, Any]) -> str:
     lo, hi = e["signature_shrink_ci95_pct"]
     how = "by its signature" if e.get("significant_by") == "signature" else "signature"
     point = e["signature_shrink_pct"]
-    span = (f"[{_f(lo, '{:.0f}')} … {_f(hi, '{:.0f}')}]" if _f(lo) != "–"
-            else "[no interval: one unit]" if _f(point) != "–"
+    span = (f"[{_f(lo, '{:.0f}')} … {_f(hi, '{:.0f}')}]" if _finite(lo)
+            else "[no interval: one unit]" if _finite(point)
             else "[none in the held-out laps]")
     return (f"{text} ({how}: {_f(point, '{:+.0f}')} % {span}"
             f" on {e['signature_where']})")
