@@ -65,11 +65,13 @@ def run_row(track: str, test_effect: str, race_effects: tuple[str, ...], seed: i
                 "carried": carried, "online": res.summary["run"]["online_choice"].get("chosen"),
                 "dropped": res.summary["run"]["online_choice"].get("law_effects_dropped"),
                 "ratio": sc["contact_ratio"]["smoother"],
+                "open_loop_ratio": sc["contact_ratio"]["open-loop 1D-FE"],
                 "coverage_pct": 100.0 * float(np.mean(cov)),
             })
             r = rows[-1]
             print(f"{track} seed {seed}: test {test_effect:20s} (carried {carried})  race"
-                  f" {race_effect:20s} {r['ratio']:.2f}x  coverage {r['coverage_pct']:3.0f} %"
+                  f" {race_effect:20s} {r['ratio']:.2f}x (open loop {r['open_loop_ratio']:.2f}x)"
+                  f"  coverage {r['coverage_pct']:3.0f} %"
                   f"  online {r['online']} dropped {r['dropped']}", flush=True)
     return rows
 

@@ -45,6 +45,8 @@ def test_a_disc_of_other_kz_switches_kz_on_and_gains(races) -> None:
     # a thinner thermal skin than the law's disc: identify-h's thin-skin layering
     assert choice["layering"].startswith("6 layers")
     assert auto.summary["run"]["layers"] == 6
+    # and finer radial nodes: its face follows the pads' flux profile
+    assert auto.summary["run"]["nodes"] == 15 and "15 radial nodes" in choice["layering"]
     off = estimate_session(path, EstimateOptions(smoother=False, adapt_kz=False,
                                                  adapt_slipstream=False))
     truth = read_truth(truth_path)

@@ -37,6 +37,9 @@ class EstimateTuning(SigmaPointTuning):
     thin_skin_kz_ratio : float
         Below this identified k_z ratio, identify-h switches to the thin-skin layering.
     thin_skin_layers, thin_skin_layer_growth : int, float
+    thin_skin_nodes : int
+        Radial nodes of a race that learns a thinner skin than its law's: the face then
+        follows the radial profile of the pads' flux, which 10 nodes smear.
     smoother, adapt_power : bool
     sigma_meas : float — degC
     sigma_temp : float — degC per step
@@ -72,6 +75,7 @@ class EstimateTuning(SigmaPointTuning):
     thin_skin_kz_ratio: float = 0.15
     thin_skin_layers: int = 6
     thin_skin_layer_growth: float = 1.9
+    thin_skin_nodes: int = 15
     smoother: bool = True
     adapt_power: bool = True
     sigma_meas: float = 5.0
@@ -126,6 +130,7 @@ ROLLER_RIG_TUNINGS = ("measured", "paper")
 # or numerically broken. Keys not listed only need to be finite and > 0.
 BOUNDS: dict[str, tuple[float, float]] = {
     "nodes": (10, 400),
+    "thin_skin_nodes": (10, 400),
     "layers": (1, 8),
     "thin_skin_layers": (1, 8),
     "layer_growth": (0.2, 10.0),
