@@ -57,6 +57,43 @@ def test_reduced_noise_is_the_projected_full_noise() -> None:
         np.testing.assert_allclose(red.Q(k), red.L.T @ ssm.Q(k) @ red.L, atol=1e-12)
 
 
+def test_session_modes_are_computed_once_per_model_and_session(monkeypatch) -> None:
+    """The decision's filter variants of one model share its modes, also when they ask at
+    once; another law's h or another mesh computes its own."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from brakethermo.pipelines import race_filter
+    from brakethermo.pipelines.inputs import DiscInputs
+    from brakethermo.thermal.disc import load_disc
+    from brakethermo.thermal.model import DiscFEModel
+
+    K = 300
+    t = np.arange(K) * 0.1
+    q = np.where((t % 10.0) < 2.0, 6.0e4, 0.0)
+    inputs = DiscInputs(t, np.zeros(K, int), np.full(K, 60.0), q, np.full(K, 25.0),
+                        np.full((K, 4), np.nan), (3,))
+    h = np.full(K, 80.0)
+    calls = []
+    original = race_filter.open_loop_modes
+
+    def counted(*args):
+        calls.append(args[0].n_state)
+        return original(*args)
+
+    monkeypatch.setattr(race_filter, "open_loop_modes", counted)
+    model = DiscFEModel(load_disc(), 10, 4)
+    with ThreadPoolExecutor(4) as pool:
+        answers = list(pool.map(
+            lambda _: race_filter.session_modes(model, inputs, h, 1.0, 40), range(4)))
+    assert len(calls) == 1
+    assert all(a[0] is answers[0][0] for a in answers)
+    race_filter.session_modes(DiscFEModel(load_disc(), 10, 4), inputs, h, 1.0, 40)
+    assert len(calls) == 1  # an equal model of another variant: the same modes
+    race_filter.session_modes(model, inputs, 1.1 * h, 1.0, 40)
+    race_filter.session_modes(DiscFEModel(load_disc(), 15, 6), inputs, h, 1.0, 40)
+    assert calls == [40, 40, 90]
+
+
 @pytest.fixture(scope="module")
 def session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("reduced")

@@ -8,8 +8,11 @@ online effects and calls these; they know nothing of files.
 
 from __future__ import annotations
 
+import hashlib
 import threading
 import time
+from collections import OrderedDict
+from concurrent.futures import Future
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -47,6 +50,10 @@ from brakethermo.thermal.power import crown_load
 # 0.03-0.07 on discs unlike the test session's.
 AUTO_REDUCE_ABOVE = 24
 SNAPSHOTS = 2000  # open-loop steps per run the modes are taken from
+# The open loop the modes come from covers at most this many steps from the session's
+# start (about 10 laps): a race repeats its laps, and the open loop of all 25 laps was
+# the largest part of a long race's set-up (1.2 s of a k_z race's 15 x 6 filter)
+SNAPSHOT_SPAN = 12000
 
 
 def disc_model(
@@ -175,26 +182,11 @@ def filter_space(ssm: DiscStateSpace, model: DiscFEModel, inputs: DiscInputs, h:
                   ) -> tuple[DiscStateSpace | ReducedStateSpace, dict[str, Any]]:
     """The state space the filter runs on: the full one, or its reduced order
     (:mod:`brakethermo.models.reduced`) with the modes of the model's own open loop over
-    this session at a spread of braking-power scales and h factors."""
+    the session's first laps at a spread of braking-power scales and h factors."""
     n_t = ssm.n_temp
     if modes == 0 or (modes is None and n_t <= AUTO_REDUCE_ABOVE):
         return ssm, {"kind": "full", "states": ssm.n}
-    # (power scale, h factor, k_z factor, inner/outer crown tilt) of each open-loop run
-    spread = np.array([(1.0, 1.0, 1.0, 0.0), (0.7, 1.0, 1.0, 0.0), (1.3, 1.0, 1.0, 0.0),
-                       (1.0, 0.7, 1.0, 0.0), (1.0, 1.4, 1.0, 0.0), (1.0, 1.0, 0.5, 0.0),
-                       (1.0, 1.0, 2.0, 0.0), (1.0, 1.0, 1.0, 0.5), (1.0, 1.0, 1.0, -0.5)])
-    B, K = len(spread), inputs.q_brk.size - 1
-    edges = model.disc.crown_edges
-    loads = np.stack([crown_load(model.radii, edges, model.weights * [1 + b, 1.0, 1 - b])
-                      for b in spread[:, 3]])
-    runs = model.run_readout(
-        np.tile(model.initial_state(float(inputs.t_amb[0])), (B, 1)),
-        inputs.q_brk[:-1, None] * power_scale * spread[:, 0], h[:-1, None] * spread[:, 1],
-        inputs.t_amb[:-1], model.kz_ratio * spread[:, 2], loads[None], np.zeros(K, int),
-        np.eye(n_t))
-    stride = max(1, K // SNAPSHOTS)
-    Phi, error = pod_modes(runs[::stride].reshape(-1, n_t),
-                           max_modes=min(modes or MAX_MODES, n_t))
+    Phi, error = session_modes(model, inputs, h, power_scale, min(modes or MAX_MODES, n_t))
     # and the directions the crown-split process noise pushes the field in: the filter's
     # corrections live there, the open loop never goes
     Phi = with_directions(Phi, ssm.crown_directions())
@@ -203,9 +195,75 @@ def filter_space(ssm: DiscStateSpace, model: DiscFEModel, inputs: DiscInputs, h:
         "kind": "reduced", "modes": reduced.r, "states": reduced.n, "full_states": ssm.n,
         "snapshot_projection_rms_c": error,
         "approximation": "node temperatures on the leading POD modes of the model's own open"
-                         " loop over this session (power scale 0.7-1.3, h x 0.7-1.4, k_z x"
-                         " 0.5-2, crown tilt +-0.5); what the modes cannot hold is dropped"
-                         " each step"}
+                         f" loop over the session's first {SNAPSHOT_SPAN} steps (power scale"
+                         " 0.7-1.3, h x 0.7-1.4, k_z x 0.5-2, crown tilt +-0.5); what the"
+                         " modes cannot hold is dropped each step"}
+
+
+# Modes computed, or being computed, per (model, session, law): the race's decision runs
+# its filter variants on the same laps side by side, and most share the model
+_MODES: OrderedDict[str, Future[tuple[np.ndarray, float]]] = OrderedDict()
+_MODES_LOCK = threading.Lock()
+MODES_KEPT = 8
+
+
+def session_modes(model: DiscFEModel, inputs: DiscInputs, h: np.ndarray, power_scale: float,
+                  max_modes: int) -> tuple[np.ndarray, float]:
+    """:func:`open_loop_modes`, computed once per model, inputs, h and power scale and
+    shared: a variant that asks while another computes the same waits for its answer
+    (the decision's variants of one model, 5 open loops of 8 laps on one core, ran it
+    each)."""
+    K = min(inputs.q_brk.size - 1, SNAPSHOT_SPAN)
+    digest = hashlib.blake2b(digest_size=16)
+    for part in (repr(model.disc), repr((model.n_nodes, model.layers, model.layer_growth,
+                                         model.kz_ratio, model.dt, tuple(model.weights),
+                                         power_scale, max_modes, K))):
+        digest.update(part.encode())
+    for a in (inputs.q_brk[:K], inputs.t_amb[:K], h[:K]):
+        digest.update(np.ascontiguousarray(a, dtype=float).tobytes())
+    key = digest.hexdigest()
+    with _MODES_LOCK:
+        known = _MODES.get(key)
+        if known is None:
+            mine: Future[tuple[np.ndarray, float]] = Future()
+            _MODES[key] = mine
+            while len(_MODES) > MODES_KEPT:
+                _MODES.popitem(last=False)
+        else:
+            _MODES.move_to_end(key)
+    if known is not None:
+        return known.result()
+    try:
+        result = open_loop_modes(model, inputs, h, power_scale, max_modes, K)
+    except BaseException as err:
+        with _MODES_LOCK:
+            _MODES.pop(key, None)
+        mine.set_exception(err)
+        raise
+    mine.set_result(result)
+    return result
+
+
+def open_loop_modes(model: DiscFEModel, inputs: DiscInputs, h: np.ndarray,
+                    power_scale: float, max_modes: int, K: int) -> tuple[np.ndarray, float]:
+    """The leading POD modes (:func:`~brakethermo.models.reduced.pod_modes`) of the
+    model's open loop through the session's first ``K`` steps, at a spread of power
+    scales, h factors, k_z factors and crown tilts."""
+    # (power scale, h factor, k_z factor, inner/outer crown tilt) of each open-loop run
+    spread = np.array([(1.0, 1.0, 1.0, 0.0), (0.7, 1.0, 1.0, 0.0), (1.3, 1.0, 1.0, 0.0),
+                       (1.0, 0.7, 1.0, 0.0), (1.0, 1.4, 1.0, 0.0), (1.0, 1.0, 0.5, 0.0),
+                       (1.0, 1.0, 2.0, 0.0), (1.0, 1.0, 1.0, 0.5), (1.0, 1.0, 1.0, -0.5)])
+    edges = model.disc.crown_edges
+    loads = np.stack([crown_load(model.radii, edges, model.weights * [1 + b, 1.0, 1 - b])
+                      for b in spread[:, 3]])
+    n_t = model.n_state
+    runs = model.run_readout(
+        np.tile(model.initial_state(float(inputs.t_amb[0])), (len(spread), 1)),
+        inputs.q_brk[:K, None] * power_scale * spread[:, 0], h[:K, None] * spread[:, 1],
+        inputs.t_amb[:K], model.kz_ratio * spread[:, 2], loads[None], np.zeros(K, int),
+        np.eye(n_t))
+    stride = max(1, K // SNAPSHOTS)
+    return pod_modes(runs[::stride].reshape(-1, n_t), max_modes=max_modes)
 
 
 def readout_rows(ssm: DiscStateSpace | ReducedStateSpace, spot_radii: np.ndarray,
