@@ -171,3 +171,26 @@ def test_structure_fit_ignores_rounding_in_parameters_that_enter_nothing(tmp_pat
     assert noisy[0].a == pytest.approx(clean[0].a, rel=1e-4)
     assert noisy[0].b == pytest.approx(clean[0].b, rel=1e-4)
     assert noisy[1].kz_ratio == pytest.approx(clean[1].kz_ratio, rel=1e-4)
+
+
+def test_a_thin_skin_disc_gets_finer_layers_and_nodes_and_estimate_follows(tmp_path):
+    """A disc that conducts through its thickness far worse than the datasheet's: the law
+    is fitted, and written, on the thin-skin mesh (6 graded layers, 15 radial nodes: its
+    face follows the pads' flux profile), and estimate runs on the law's mesh."""
+    from brakethermo.pipelines.estimate import EstimateOptions, estimate_session
+    from brakethermo.pipelines.identify_h import write_identify
+    from brakethermo.sim.session import SimConfig, simulate, write_simulation
+
+    test = write_simulation(simulate(SimConfig(
+        laps=2, effects=("thickness_gradient",), sensor="multi", seed=61710,
+        bike_seed=61710)), tmp_path / "thin.mcap")[0]
+    law = write_identify(identify_h(test), tmp_path / "law") / "h_law.toml"
+    cal = read_calibration(law)
+    assert (cal.layers, cal.nodes) == (6, 15) and cal.kz_ratio < 0.15
+    race = write_simulation(simulate(SimConfig(laps=1, sensor="single", seed=61711,
+                                               bike_seed=61710)), tmp_path / "race.parquet")[0]
+    run = estimate_session(race, EstimateOptions(h_law=law, smoother=False)).summary["run"]
+    assert (run["nodes"], run["layers"]) == (15, 6)
+    # the user's choice still wins
+    forced = estimate_session(race, EstimateOptions(h_law=law, smoother=False, nodes=12))
+    assert forced.summary["run"]["nodes"] == 12

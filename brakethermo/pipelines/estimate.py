@@ -230,6 +230,8 @@ def calibrated_tuning(cal: DiscCalibration, options: EstimateOptions) -> Estimat
     if cal.layers is not None and "layers" not in user:
         calibrated["layers"] = cal.layers
         calibrated["layer_growth"] = cal.layer_growth
+    if cal.nodes is not None and "nodes" not in user:
+        calibrated["nodes"] = cal.nodes
     tuning = replace(tuning, **{k: v for k, v in calibrated.items()
                                 if v is not None and k not in user})
     return replace(tuning, **options.overrides())

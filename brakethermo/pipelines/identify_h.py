@@ -554,7 +554,8 @@ def _refit(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec, 
     law, structure = structure_fit(start, est_tuning)
     if structure.kz_ratio < est_tuning.thin_skin_kz_ratio:
         est_tuning = replace(est_tuning, layers=est_tuning.thin_skin_layers,
-                             layer_growth=est_tuning.thin_skin_layer_growth)
+                             layer_growth=est_tuning.thin_skin_layer_growth,
+                             nodes=max(est_tuning.nodes, est_tuning.thin_skin_nodes))
         law, structure = structure_fit(law, est_tuning)
     return law, structure, est_tuning
 
@@ -570,6 +571,7 @@ def _calibration(session: Session, law: HLaw, structure: StructureFit | None,
         power_scale=structure.power_scale if structure else 1.0,
         layers=est_tuning.layers,
         layer_growth=est_tuning.layer_growth,
+        nodes=est_tuning.nodes,
         effects=structure.effects if structure else {},
         source=str(session.path),
     )
@@ -675,6 +677,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             "layers": tuning.layers,
             "estimate_layers": est_tuning.layers,
             "estimate_layer_growth": est_tuning.layer_growth,
+            "estimate_nodes": est_tuning.nodes,
             **_filter_facts(forward),
             "timings_s": timings,
             "wall_time_s": timings["total_s"],
@@ -729,9 +732,8 @@ def write_identify(result: IdentifyResult, out_dir: str | Path,
         "adapt_power": cal.adapt_power,
         "layers": cal.layers,
         "layer_growth": cal.layer_growth,
+        "nodes": cal.nodes,
     }
-    if result.structure is not None:
-        extra.update(nodes=result.structure.nodes)
     write_text_atomic(folder / "h_law.toml",
                       result.law.toml_text(weights=cal.weights, extra=extra, effects=cal.effects))
     write_parquet(

@@ -53,6 +53,9 @@ class DiscCalibration:
     layers, layer_growth : int or None, float or None
         The through-thickness layering the calibration was fitted with (``kz_ratio``
         belongs to it); ``None`` leaves the tuning's.
+    nodes : int or None
+        The radial nodes it was fitted with (a thin-skin disc's law has more);
+        ``None`` leaves the tuning's.
     effects : dict of str to dict
         Fitted effect parameters by effect name (``[effects.<name>]`` of the file),
         validated against :data:`brakethermo.models.effects.EFFECTS`.
@@ -77,6 +80,7 @@ class DiscCalibration:
     adapt_power: bool | None = None
     layers: int | None = None
     layer_growth: float | None = None
+    nodes: int | None = None
     effects: dict[str, dict[str, Any]] = field(default_factory=dict)
     source: str = ""
     disc_id: str | None = None
@@ -95,6 +99,7 @@ CALIBRATION_BOUNDS: dict[str, tuple[float, float]] = {
     "sigma_temp": (0.0, 50.0),
     "layers": (1, 8),
     "layer_growth": (0.2, 10.0),
+    "nodes": (10, 400),
     "h_rel_sigma": (0.0, 1.0),
 }
 
@@ -106,7 +111,7 @@ def read_calibration(path: str | Path) -> DiscCalibration:
     values: dict[str, Any] = {}
     for key, (lo, hi) in CALIBRATION_BOUNDS.items():
         if extra.has(key):
-            if key == "layers":
+            if key in ("layers", "nodes"):
                 values[key] = extra.integer(key, lo=lo, hi=hi)
             else:
                 values[key] = extra.number(key, lo=lo, hi=hi)
