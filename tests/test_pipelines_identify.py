@@ -194,3 +194,5 @@ def test_a_thin_skin_disc_gets_finer_layers_and_nodes_and_estimate_follows(tmp_p
     # the user's choice still wins
     forced = estimate_session(race, EstimateOptions(h_law=law, smoother=False, nodes=12))
     assert forced.summary["run"]["nodes"] == 12
+    assert any("runs 12 radial nodes" in w and "fitted for 15" in w
+               for w in forced.summary["run"]["warnings"])

@@ -81,17 +81,72 @@ def test_session_modes_are_computed_once_per_model_and_session(monkeypatch) -> N
         return original(*args)
 
     monkeypatch.setattr(race_filter, "open_loop_modes", counted)
-    model = DiscFEModel(load_disc(), 10, 4)
+    monkeypatch.setattr(race_filter, "_MODES", type(race_filter._MODES)())
+    disc = load_disc()
+    model = DiscFEModel(disc, 10, 4)
     with ThreadPoolExecutor(4) as pool:
         answers = list(pool.map(
             lambda _: race_filter.session_modes(model, inputs, h, 1.0, 40), range(4)))
     assert len(calls) == 1
     assert all(a[0] is answers[0][0] for a in answers)
-    race_filter.session_modes(DiscFEModel(load_disc(), 10, 4), inputs, h, 1.0, 40)
+    assert not answers[0][0].flags.writeable  # shared: nobody may change it
+    race_filter.session_modes(DiscFEModel(disc, 10, 4), inputs, h, 1.0, 40)
     assert len(calls) == 1  # an equal model of another variant: the same modes
+    # whatever changes the open loop computes its own
+    for other in (DiscFEModel(disc, 15, 6), DiscFEModel(disc, 10, 4, kz_ratio=0.5),
+                  DiscFEModel(disc, 10, 4, weights=(1.2, 1.0, 0.8)),
+                  DiscFEModel(disc, 10, 4, layer_growth=1.5),
+                  DiscFEModel(disc, 10, 4, k_z=2.0)):
+        race_filter.session_modes(other, inputs, h, 1.0, 40)
     race_filter.session_modes(model, inputs, 1.1 * h, 1.0, 40)
-    race_filter.session_modes(DiscFEModel(load_disc(), 15, 6), inputs, h, 1.0, 40)
-    assert calls == [40, 40, 90]
+    race_filter.session_modes(model, inputs, h, 1.2, 40)
+    assert calls == [40, 90, 40, 40, 40, 40, 40, 40]
+
+
+def test_a_failed_modes_computation_reaches_the_waiters_and_is_retried(monkeypatch) -> None:
+    import threading
+
+    from brakethermo.pipelines import race_filter
+    from brakethermo.pipelines.inputs import DiscInputs
+    from brakethermo.thermal.disc import load_disc
+    from brakethermo.thermal.model import DiscFEModel
+
+    K = 50
+    inputs = DiscInputs(np.arange(K) * 0.1, np.zeros(K, int), np.full(K, 60.0),
+                        np.full(K, 3.0e4), np.full(K, 25.0), np.full((K, 4), np.nan), (3,))
+    h = np.full(K, 80.0)
+    model = DiscFEModel(load_disc(), 10, 4)
+    started, release = threading.Event(), threading.Event()
+    original = race_filter.open_loop_modes
+
+    def failing(*args):
+        started.set()
+        release.wait(5.0)
+        raise RuntimeError("interrupted")
+
+    monkeypatch.setattr(race_filter, "_MODES", type(race_filter._MODES)())
+    monkeypatch.setattr(race_filter, "open_loop_modes", failing)
+    errors = []
+
+    def ask() -> None:
+        try:
+            race_filter.session_modes(model, inputs, h, 1.0, 40)
+        except RuntimeError as err:
+            errors.append(str(err))
+
+    first = threading.Thread(target=ask)
+    first.start()
+    started.wait(5.0)
+    waiter = threading.Thread(target=ask)
+    waiter.start()
+    waiter.join(0.2)  # it now waits for the first one's answer
+    release.set()
+    first.join(5.0)
+    waiter.join(5.0)
+    assert errors == ["interrupted", "interrupted"]
+    monkeypatch.setattr(race_filter, "open_loop_modes", original)
+    Phi, _ = race_filter.session_modes(model, inputs, h, 1.0, 40)
+    assert Phi.shape[0] == model.n_state
 
 
 @pytest.fixture(scope="module")

@@ -544,7 +544,8 @@ def _refit(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec, 
            est_tuning: EstimateTuning, effects: tuple[str, ...]
            ) -> tuple[HLaw, StructureFit, EstimateTuning]:
     """The law refitted with the layered model (and the effects); a thin-skin disc is
-    refitted once more on the finer layering it needs."""
+    refitted once more on the finer mesh it needs (the tuning's thin-skin layers and
+    radial nodes; a user's finer nodes are kept)."""
 
     def structure_fit(start: HLaw, tuning_: EstimateTuning) -> tuple[HLaw, StructureFit]:
         if effects:

@@ -41,7 +41,7 @@ from brakethermo.thermal.power import crown_load
 # Temperature states beyond which the filter runs on modes: the default 10 x 4 mesh and
 # every finer one; the paper's 10 x 1 model (and a 10 x 2 one) stays full. On the 0.001
 # degC basis (31 modes of 40 at the default mesh) a 25-lap race 3.3 -> 2.9 s in process
-# and a race that switches k_z on (thin-skin 10 x 6) 12.7 -> 7.9 s, beside the full
+# and a race that switches k_z on (thin-skin 10 x 6 then) 12.7 -> 7.9 s, beside the full
 # filter in the same session; on 30 development races (5 test effects x 3 race effects x
 # 2 tracks) the same online decisions, dropped law parts and identify-h selections as the
 # full filter, contact band within 0.01 of the single-spot baseline of it in every race
@@ -51,8 +51,10 @@ from brakethermo.thermal.power import crown_load
 AUTO_REDUCE_ABOVE = 24
 SNAPSHOTS = 2000  # open-loop steps per run the modes are taken from
 # The open loop the modes come from covers at most this many steps from the session's
-# start (about 10 laps): a race repeats its laps, and the open loop of all 25 laps was
-# the largest part of a long race's set-up (1.2 s of a k_z race's 15 x 6 filter)
+# start (1200 s at the model's 10 Hz: about 10 laps of the Mugello-like track): a race
+# repeats its laps, and the open loop of all 25 laps was the largest part of a long
+# race's set-up (1.2 s of a k_z race's 15 x 6 filter); on two 25-lap races the estimate
+# stayed within 0.004 degC RMS of the one on modes of every lap
 SNAPSHOT_SPAN = 12000
 
 
@@ -187,6 +189,7 @@ def filter_space(ssm: DiscStateSpace, model: DiscFEModel, inputs: DiscInputs, h:
     if modes == 0 or (modes is None and n_t <= AUTO_REDUCE_ABOVE):
         return ssm, {"kind": "full", "states": ssm.n}
     Phi, error = session_modes(model, inputs, h, power_scale, min(modes or MAX_MODES, n_t))
+    span = min(inputs.q_brk.size - 1, SNAPSHOT_SPAN)
     # and the directions the crown-split process noise pushes the field in: the filter's
     # corrections live there, the open loop never goes
     Phi = with_directions(Phi, ssm.crown_directions())
@@ -195,13 +198,15 @@ def filter_space(ssm: DiscStateSpace, model: DiscFEModel, inputs: DiscInputs, h:
         "kind": "reduced", "modes": reduced.r, "states": reduced.n, "full_states": ssm.n,
         "snapshot_projection_rms_c": error,
         "approximation": "node temperatures on the leading POD modes of the model's own open"
-                         f" loop over the session's first {SNAPSHOT_SPAN} steps (power scale"
-                         " 0.7-1.3, h x 0.7-1.4, k_z x 0.5-2, crown tilt +-0.5); what the"
-                         " modes cannot hold is dropped each step"}
+                         f" loop over the session's first {span} steps (power scale 0.7-1.3,"
+                         " h x 0.7-1.4, k_z x 0.5-2, crown tilt +-0.5), at most"
+                         f" {MAX_MODES}; what the modes cannot hold is dropped each step"}
 
 
 # Modes computed, or being computed, per (model, session, law): the race's decision runs
-# its filter variants on the same laps side by side, and most share the model
+# its filter variants on the same laps side by side, and most share the model. A race
+# asks for at most 3 distinct sets (the law's, the law without its crown, the race's
+# final mesh); 8 keep a batch worker's last few races without growing.
 _MODES: OrderedDict[str, Future[tuple[np.ndarray, float]]] = OrderedDict()
 _MODES_LOCK = threading.Lock()
 MODES_KEPT = 8
@@ -209,23 +214,34 @@ MODES_KEPT = 8
 
 def session_modes(model: DiscFEModel, inputs: DiscInputs, h: np.ndarray, power_scale: float,
                   max_modes: int) -> tuple[np.ndarray, float]:
-    """:func:`open_loop_modes`, computed once per model, inputs, h and power scale and
-    shared: a variant that asks while another computes the same waits for its answer
-    (the decision's variants of one model, 5 open loops of 8 laps on one core, ran it
-    each)."""
+    """:func:`open_loop_modes` over the session's first :data:`SNAPSHOT_SPAN` steps,
+    computed once per model, inputs, h and power scale and shared: a variant that asks
+    while another computes the same waits for its answer (the decision's variants of one
+    model, open loops of 8 laps on one core, ran it each).
+
+    Parameters
+    ----------
+    model : DiscFEModel
+    inputs : DiscInputs
+    h : ndarray (K,) — W/(m^2 K), the law's h on the session's grid
+    power_scale : float — the law's braking-power scale
+    max_modes : int — at most this many modes
+
+    Returns
+    -------
+    Phi : ndarray (n_state, r) — orthonormal modes, read-only (shared between callers).
+    error_c : float — degC, RMS projection error of the snapshots.
+    """
     K = min(inputs.q_brk.size - 1, SNAPSHOT_SPAN)
     digest = hashlib.blake2b(digest_size=16)
-    for part in (repr(model.disc), repr((model.n_nodes, model.layers, model.layer_growth,
-                                         model.kz_ratio, model.dt, tuple(model.weights),
-                                         power_scale, max_modes, K))):
-        digest.update(part.encode())
+    digest.update(repr((model.fingerprint(), power_scale, max_modes, K)).encode())
     for a in (inputs.q_brk[:K], inputs.t_amb[:K], h[:K]):
         digest.update(np.ascontiguousarray(a, dtype=float).tobytes())
     key = digest.hexdigest()
+    mine: Future[tuple[np.ndarray, float]] = Future()
     with _MODES_LOCK:
         known = _MODES.get(key)
         if known is None:
-            mine: Future[tuple[np.ndarray, float]] = Future()
             _MODES[key] = mine
             while len(_MODES) > MODES_KEPT:
                 _MODES.popitem(last=False)
@@ -234,21 +250,30 @@ def session_modes(model: DiscFEModel, inputs: DiscInputs, h: np.ndarray, power_s
     if known is not None:
         return known.result()
     try:
-        result = open_loop_modes(model, inputs, h, power_scale, max_modes, K)
-    except BaseException as err:
+        Phi, error = open_loop_modes(model, inputs, h, power_scale, max_modes, K)
+        Phi.setflags(write=False)
+    except BaseException as err:  # Ctrl-C too: a waiter must never wait for ever
         with _MODES_LOCK:
-            _MODES.pop(key, None)
+            if _MODES.get(key) is mine:
+                del _MODES[key]
         mine.set_exception(err)
         raise
-    mine.set_result(result)
-    return result
+    mine.set_result((Phi, error))
+    return Phi, error
+
+
+def forget_modes() -> None:
+    """Empty the modes :func:`session_modes` keeps (a benchmark timing cold runs)."""
+    with _MODES_LOCK:
+        _MODES.clear()
 
 
 def open_loop_modes(model: DiscFEModel, inputs: DiscInputs, h: np.ndarray,
                     power_scale: float, max_modes: int, K: int) -> tuple[np.ndarray, float]:
     """The leading POD modes (:func:`~brakethermo.models.reduced.pod_modes`) of the
     model's open loop through the session's first ``K`` steps, at a spread of power
-    scales, h factors, k_z factors and crown tilts."""
+    scales, h factors, k_z factors and crown tilts (arguments as :func:`session_modes`;
+    ``K`` in steps)."""
     # (power scale, h factor, k_z factor, inner/outer crown tilt) of each open-loop run
     spread = np.array([(1.0, 1.0, 1.0, 0.0), (0.7, 1.0, 1.0, 0.0), (1.3, 1.0, 1.0, 0.0),
                        (1.0, 0.7, 1.0, 0.0), (1.0, 1.4, 1.0, 0.0), (1.0, 1.0, 0.5, 0.0),

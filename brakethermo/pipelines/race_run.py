@@ -96,7 +96,7 @@ def _race_layering(choice: OnlineChoice, tuning: EstimateTuning, options: Estima
     conducts through the thickness worse than the law's (the race chose k_z and learned
     it lower): heat stays nearer the face, and the law's layering, built for its own disc,
     is too coarse to hold the skin; a face that thin follows the radial profile of the
-    pads' flux, which 10 nodes smear (8 development races, 10 -> 15 nodes: 0.66 -> 0.59
+    pads' flux, which 10 nodes smear (8 development races, 10 -> 15 nodes: 0.66 -> 0.58
     of the single-spot baseline, 7 better; 20 nodes no better than 15).
     Returns the tuning and what was changed, in words (None: nothing)."""
     row = next((r for r in choice.facts.get("scores", [])

@@ -37,11 +37,14 @@ def model_facts(cal: DiscCalibration, tuning: EstimateTuning, model: DiscFEModel
 
 
 def law_warnings(cal: DiscCalibration, disc: DiscSpec, tuning: EstimateTuning) -> list[str]:
-    """What the h law was made for that this run is not: another disc, another layering."""
+    """What the h law was made for that this run is not: another disc, another mesh
+    (before the race's own decision, which may refine the mesh for a thinner skin)."""
     warnings = [w for w in (other_disc(cal, disc),) if w]
-    if cal.layers is not None and tuning.layers != cal.layers:
-        warnings.append(
-            f"the model runs {tuning.layers} layers but the h law's k_z ratio was fitted for"
-            f" {cal.layers}; re-run identify-h with the same layering for best accuracy"
-        )
+    for what, runs, fitted in (("layers", tuning.layers, cal.layers),
+                               ("radial nodes", tuning.nodes, cal.nodes)):
+        if fitted is not None and runs != fitted:
+            warnings.append(
+                f"the model runs {runs} {what} but the h law's k_z ratio was fitted for"
+                f" {fitted}; re-run identify-h with the same mesh for best accuracy"
+            )
     return warnings

@@ -53,6 +53,7 @@ half-layer temperature jump of the surface flux balance.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -252,6 +253,15 @@ class DiscFEModel:
             self._z_geo.ravel().copy(), area.ravel().copy(), self._rad_geo,
             ramp_table(*self._c_tab), ramp_table(*self._k_tab), ramp_table(*self._z_tab),
         )  # fmt: skip
+
+    def fingerprint(self) -> str:
+        """A digest of everything the model steps with: mesh, time step, geometric
+        factors, property tables (k_z included), node radii, crown edges and weights and
+        the k_z ratio. Two models of one fingerprint step every state alike."""
+        digest = hashlib.blake2b(digest_size=16)
+        _feed(digest, (self._kernel_args, self.radii, self.disc.crown_edges,
+                       tuple(self.weights), self.kz_ratio, self.use_numba))
+        return digest.hexdigest()
 
     @property
     def kernel_geometry(self) -> tuple[Any, ...]:
@@ -650,3 +660,16 @@ class DiscFEModel:
         shares = self._load_rows(load, B).sum(axis=1)
         fric = self._per_member(q, B) * self._per_member(scale, B) * shares
         return PowerTerms(friction=fric, convection=conv, radiation=rad)
+
+
+def _feed(digest: Any, value: Any) -> None:
+    """Feed ``value`` (numbers, strings, arrays and tuples of them) into ``digest``."""
+    if isinstance(value, tuple | list):
+        digest.update(b"(%d" % len(value))
+        for v in value:
+            _feed(digest, v)
+    elif isinstance(value, np.ndarray):
+        digest.update(f"{value.dtype}{value.shape}".encode())
+        digest.update(np.ascontiguousarray(value).tobytes())
+    else:
+        digest.update(repr(value).encode())
