@@ -173,10 +173,13 @@ def test_structure_fit_ignores_rounding_in_parameters_that_enter_nothing(tmp_pat
     assert noisy[1].kz_ratio == pytest.approx(clean[1].kz_ratio, rel=1e-4)
 
 
-def test_a_thin_skin_disc_gets_finer_layers_and_nodes_and_estimate_follows(tmp_path):
+def test_a_thin_skin_disc_gets_finer_layers_and_estimate_follows_the_laws_mesh(tmp_path):
     """A disc that conducts through its thickness far worse than the datasheet's: the law
-    is fitted, and written, on the thin-skin mesh (6 graded layers, 15 radial nodes: its
-    face follows the pads' flux profile), and estimate runs on the law's mesh."""
+    is fitted, and written, on the thin-skin layering (6 graded layers) with its radial
+    nodes, and estimate runs on the mesh the law names (layers and nodes), unless told
+    otherwise, and then says so."""
+    import re
+
     from brakethermo.pipelines.estimate import EstimateOptions, estimate_session
     from brakethermo.pipelines.identify_h import write_identify
     from brakethermo.sim.session import SimConfig, simulate, write_simulation
@@ -186,13 +189,16 @@ def test_a_thin_skin_disc_gets_finer_layers_and_nodes_and_estimate_follows(tmp_p
         bike_seed=61710)), tmp_path / "thin.mcap")[0]
     law = write_identify(identify_h(test), tmp_path / "law") / "h_law.toml"
     cal = read_calibration(law)
-    assert (cal.layers, cal.nodes) == (6, 15) and cal.kz_ratio < 0.15
+    assert (cal.layers, cal.nodes) == (6, 10) and cal.kz_ratio < 0.15
+    fine = tmp_path / "fine.toml"
+    fine.write_text(re.sub(r"^nodes = .*$", "nodes = 15", law.read_text(), flags=re.M))
     race = write_simulation(simulate(SimConfig(laps=1, sensor="single", seed=61711,
                                                bike_seed=61710)), tmp_path / "race.parquet")[0]
-    run = estimate_session(race, EstimateOptions(h_law=law, smoother=False)).summary["run"]
+    run = estimate_session(race, EstimateOptions(h_law=fine, smoother=False)).summary["run"]
     assert (run["nodes"], run["layers"]) == (15, 6)
-    # the user's choice still wins
-    forced = estimate_session(race, EstimateOptions(h_law=law, smoother=False, nodes=12))
+    assert not any("radial nodes" in w for w in run["warnings"])
+    # the user's choice still wins, and is told what the law was fitted on
+    forced = estimate_session(race, EstimateOptions(h_law=fine, smoother=False, nodes=12))
     assert forced.summary["run"]["nodes"] == 12
     assert any("runs 12 radial nodes" in w and "fitted for 15" in w
                for w in forced.summary["run"]["warnings"])

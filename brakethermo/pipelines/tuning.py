@@ -38,9 +38,8 @@ class EstimateTuning(SigmaPointTuning):
         Below this identified k_z ratio, identify-h switches to the thin-skin layering.
     thin_skin_layers, thin_skin_layer_growth : int, float
     thin_skin_nodes : int
-        Radial nodes of the thin-skin mesh (identify-h's refit of such a disc, and a race
-        that learns a thinner skin than its law's): the face of a thin skin follows the
-        radial profile of the pads' flux, which coarser nodes smear.
+        Radial nodes of a race that learns a thinner skin than its law's: the face of a
+        thin skin follows the radial profile of the pads' flux, which 10 nodes smear.
     smoother, adapt_power : bool
     sigma_meas : float — degC
     sigma_temp : float — degC per step
