@@ -16,9 +16,10 @@ and in the parameters is kept — but only ``2(r + p) + 1`` sigma points go thro
 The modes are the leading left singular vectors of the model's own open-loop run over
 the session's first laps (its snapshots, not centred, so the first mode carries the mean
 level), as many as keep the snapshots' projection error under :data:`MODE_TOLERANCE_C`,
-at most :data:`MAX_MODES` (the thin-skin 15 x 6 mesh of a low-k_z law would take 49-52:
-at 40 its basis holds 0.002-0.003 degC, and on nine development races the estimate moved
-by at most 0.002 of the single-spot baseline, the decisions not at all, 10-40 % faster). The
+at most :data:`MAX_MODES` (a 15 x 6 mesh at a thin-skin law's k_z ratio near 0.1 would
+take 49-52: at 40 its basis holds 0.002-0.003 degC, and on nine development races run so
+the estimate moved by at most 0.002 of the single-spot baseline, the decisions not at
+all, 10-40 % faster). The
 approximation — what the modes cannot represent is dropped each step, and so is the
 process noise outside their span — is checked against the full filter on the same
 session (``tests/test_reduced.py``) and reported in the run facts.
