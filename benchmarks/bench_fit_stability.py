@@ -23,9 +23,8 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from brakethermo.io.load import load_session
-from brakethermo.pipelines.identify_h import _measurements, fit_structure
-from brakethermo.pipelines.inputs import disc_inputs
-from brakethermo.pipelines.models import disc_for, shipped_h_law
+from brakethermo.pipelines.identify_h import fit_inputs, fit_structure
+from brakethermo.pipelines.models import shipped_h_law
 from brakethermo.pipelines.tuning import load_tuning
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
 from brakethermo.thermal.hlaw import read_h_law
@@ -54,10 +53,7 @@ def main() -> None:
                 path = write_simulation(simulate(SimConfig(
                     track=args.track, laps=2, sensor="multi", effects=effects, seed=seed,
                     bike_seed=seed)), Path(tmp) / "s.parquet")[0]
-                session = load_session(path)
-                disc = disc_for(session)
-                inputs = disc_inputs(session, disc)
-                y = _measurements(inputs, path)
+                disc, inputs, y = fit_inputs(load_session(path))
                 est = load_tuning()[0]
                 law0 = read_h_law(shipped_h_law(disc)).law
                 DiscFEModel.run_readout = run_readout

@@ -8,9 +8,9 @@ import pytest
 
 from brakethermo.pipelines.estimate import EstimateOptions, calibrated_tuning
 from brakethermo.pipelines.h_evidence import law_level, straight_factors
-from brakethermo.pipelines.identify_h import _measurements, off_brake_mask
-from brakethermo.pipelines.inputs import disc_inputs, load_timed
-from brakethermo.pipelines.models import calibration_for, disc_for
+from brakethermo.pipelines.identify_h import fit_inputs, off_brake_mask
+from brakethermo.pipelines.inputs import load_timed
+from brakethermo.pipelines.models import calibration_for
 
 SAMPLE = Path(__file__).parents[1] / "sample_sessions" / "mugello_test_multi.mcap"
 
@@ -18,10 +18,9 @@ SAMPLE = Path(__file__).parents[1] / "sample_sessions" / "mugello_test_multi.mca
 @pytest.fixture(scope="module")
 def setup():
     session, _ = load_timed(SAMPLE, None)
-    disc = disc_for(session, None)
-    inputs = disc_inputs(session, disc, None)
+    disc, inputs, y = fit_inputs(session)
     cal = calibration_for(disc, None)  # the shipped law, identified on this very session
-    return inputs, _measurements(inputs, session.path), disc, cal
+    return inputs, y, disc, cal
 
 
 @pytest.mark.parametrize("scale", [1.0, 0.7])

@@ -142,9 +142,8 @@ def test_structure_fit_ignores_rounding_in_parameters_that_enter_nothing(tmp_pat
     nothing; the fit must not hang on the rounding noise of their Jacobian columns (a
     freshly compiled and a cached kernel gave laws 25 % apart on one session)."""
     from brakethermo.io.load import load_session
-    from brakethermo.pipelines.identify_h import _measurements, fit_structure
-    from brakethermo.pipelines.inputs import disc_inputs
-    from brakethermo.pipelines.models import disc_for, shipped_h_law
+    from brakethermo.pipelines.identify_h import fit_inputs, fit_structure
+    from brakethermo.pipelines.models import shipped_h_law
     from brakethermo.pipelines.tuning import load_tuning
     from brakethermo.sim.session import SimConfig, simulate, write_simulation
     from brakethermo.thermal.hlaw import read_h_law
@@ -153,10 +152,7 @@ def test_structure_fit_ignores_rounding_in_parameters_that_enter_nothing(tmp_pat
     path, _ = write_simulation(simulate(SimConfig(track="tight-like", laps=2, sensor="multi",
                                                   effects=("slipstream",), seed=61500,
                                                   bike_seed=61500)), tmp_path / "t.parquet")
-    session = load_session(path)
-    disc = disc_for(session)
-    inputs = disc_inputs(session, disc)
-    y = _measurements(inputs, path)
+    disc, inputs, y = fit_inputs(load_session(path))
     est = load_tuning()[0]
     law0 = read_h_law(shipped_h_law(disc)).law
     clean = fit_structure(inputs, y, disc, law0, est)

@@ -132,6 +132,27 @@ class IdentifyResult:
         return self.session.path.stem
 
 
+def fit_inputs(session: Session, disc: str | Path | None = None,
+               ambient_c: float | None = None) -> tuple[DiscSpec, DiscInputs, np.ndarray]:
+    """What identify-h fits on a test session: its disc, the model's inputs and the four
+    spots' readings (NaN below the sensor's floor), degC, shape (K, 4).
+
+    Parameters
+    ----------
+    session : Session
+    disc : str or path, optional — datasheet id or file; default: the session's fact.
+    ambient_c : float, optional — degC, overrides the logged air temperature.
+
+    Raises
+    ------
+    DataError
+        The session does not log the four-spot sensor.
+    """
+    spec = disc_for(session, disc)
+    inputs = disc_inputs(session, spec, ambient_c)
+    return spec, inputs, _measurements(inputs, session.path)
+
+
 def _measurements(inputs: DiscInputs, path: Path) -> np.ndarray:
     if not inputs.is_multi_spot:
         raise DataError(
@@ -621,9 +642,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
     est_tuning, tuning = load_tuning(options.tuning)
     if options.nodes is not None:
         tuning = replace(tuning, nodes=options.nodes)
-    disc = disc_for(session, options.disc)
-    inputs = disc_inputs(session, disc, options.ambient_c)
-    y = _measurements(inputs, session.path)
+    disc, inputs, y = fit_inputs(session, options.disc, options.ambient_c)
     h_mean, h_std, forward = identify_h_samples(inputs, y, disc, tuning)
     t_ukf = time.perf_counter()
 
