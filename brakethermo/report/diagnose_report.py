@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import matplotlib
@@ -13,22 +14,11 @@ from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
 from scipy.special import chdtri  # scipy.stats costs 0.5 s of import
 
-from brakethermo.report.page import Card, Page, Section, TableBlock
+from brakethermo.report.page import Card, Page, Section, TableBlock, as_number
+from brakethermo.report.page import number_text as num
 
 SPOT_COLOURS = ("#1f77b4", "#2ca02c", "#ff7f0e", "#d62728")
 DIST_BIN_M = 25.0
-
-
-def _finite(x: Any) -> bool:
-    """A number, and finite (a null from diagnosis.json is not)."""
-    try:
-        return bool(np.isfinite(float(x)))
-    except (TypeError, ValueError):
-        return False
-
-
-def _f(x: Any, fmt: str = "{:.1f}") -> str:
-    return fmt.format(float(x)) if _finite(x) else "–"
 
 
 def residual_map(dist: np.ndarray, lap: np.ndarray, res: np.ndarray) -> Figure:
@@ -91,10 +81,10 @@ def _significant_text(e: dict[str, Any]) -> str:
     lo, hi = e["signature_shrink_ci95_pct"]
     how = "by its signature" if e.get("significant_by") == "signature" else "signature"
     point = e["signature_shrink_pct"]
-    span = (f"[{_f(lo, '{:.0f}')} … {_f(hi, '{:.0f}')}]" if _finite(lo)
-            else "[no interval: one unit]" if _finite(point)
+    span = (f"[{num(lo, '.0f')} … {num(hi, '.0f')}]" if math.isfinite(as_number(lo))
+            else "[no interval: one unit]" if math.isfinite(as_number(point))
             else "[none in the held-out laps]")
-    return (f"{text} ({how}: {_f(point, '{:+.0f}')} % {span}"
+    return (f"{text} ({how}: {num(point, '+.0f')} % {span}"
             f" on {e['signature_where']})")
 
 
@@ -111,7 +101,7 @@ def effects_figure(effects: list[dict[str, Any]], verdict: str) -> Figure:
     ax.bar(x + 0.2, after, 0.4, color=colours, label="with the effect")
     for xi, e in zip(x, effects, strict=True):
         lo, hi = e["shrink_ci95_pct"]
-        ax.annotate(f"{_f(e['shrink_pct'], '{:+.0f}')} %\n[{_f(lo, '{:.0f}')}, {_f(hi, '{:.0f}')}]",
+        ax.annotate(f"{num(e['shrink_pct'], '+.0f')} %\n[{num(lo, '.0f')}, {num(hi, '.0f')}]",
                     (xi + 0.2, e["rmse_after"]), ha="center", va="bottom", fontsize=8)
     ax.set_xticks(x, [n.replace("_", "\n") for n in names], fontsize=9)
     ax.set_ylabel("held-out RMSE [°C]")
@@ -167,9 +157,9 @@ def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
     shown = (" or ".join(v.replace("_", " ") for v in vset) if len(vset) > 1 else
              verdict.replace("_", " "))
     cards = [
-        Card("Gap (held-out RMSE)", _f(summary["gap"]["rmse_c"]), "°C"),
+        Card("Gap (held-out RMSE)", num(summary["gap"]["rmse_c"]), "°C"),
         Card("Verdict" if len(vset) < 2 else "Verdict: cannot tell apart", shown),
-        Card("Shrink", _f(top["shrink_pct"], "{:.0f}") if top else "–", "%" if top else ""),
+        Card("Shrink", num(top["shrink_pct"], '.0f') if top else "–", "%" if top else ""),
         Card("Held-out laps", ", ".join(map(str, summary["heldout_laps"]))),
     ]
     ref_section = _reference_section(summary)
@@ -207,7 +197,7 @@ def _reference_section(summary: dict[str, Any]) -> Section:
          " no fit saw (the out-lap is used by neither)."],
         [TableBlock(["contains"], [[c] for c in summary["reference"]["contains"]])],
         notes=["Fitted: " + ", ".join(
-            f"{k} = {_f(v, '{:.3g}') if not isinstance(v, list) else [round(x, 3) for x in v]}"
+            f"{k} = {num(v, '.3g') if not isinstance(v, list) else [round(x, 3) for x in v]}"
             for k, v in summary["reference"]["fitted"].items())],
     )
 
@@ -227,9 +217,9 @@ def _consistency_section(cons: dict[str, Any], time: np.ndarray, nis: np.ndarray
         "Consistency first",
         [cons["summary"]],
         [TableBlock(["spot", "mean NIS", "χ² band", "lag-1 autocorrelation", "state"],
-                    [[k, _f(v["mean_nis"], "{:.2f}"),
-                      f"{_f(v['chi2_band'][0], '{:.2f}')}–{_f(v['chi2_band'][1], '{:.2f}')}",
-                      _f(v["lag1_autocorrelation"], "{:.2f}"), v["state"]]
+                    [[k, num(v["mean_nis"], '.2f'),
+                      f"{num(v['chi2_band'][0], '.2f')}–{num(v['chi2_band'][1], '.2f')}",
+                      num(v["lag1_autocorrelation"], '.2f'), v["state"]]
                      for k, v in cons["per_spot"].items()])],
         {"nis": nis_figure(time, nis)},
     )
@@ -252,13 +242,13 @@ def _where_section(summary: dict[str, Any], dist: np.ndarray, lap: np.ndarray,
     """
     gap = summary["gap"]["per_spot_phase"]
     where_rows = [[c["spot"], c["phase"], c["zone"] or "–",
-                   c["speed_band_kmh"], c["temp_band_c"], _f(c["rmse_c"]), _f(c["bias_c"]),
-                   _f(c["share_pct"])] for c in summary["where"]["ranked_cells"]]
+                   c["speed_band_kmh"], c["temp_band_c"], num(c["rmse_c"]), num(c["bias_c"]),
+                   num(c["share_pct"])] for c in summary["where"]["ranked_cells"]]
     return Section(
         "Where the model parts from the disc",
         ["Held-out RMSE of the reference model per spot and phase (°C):"],
         [TableBlock(["spot", "braking", "cooling"],
-                    [[k, _f(v["braking"]), _f(v["cooling"])] for k, v in gap.items()]),
+                    [[k, num(v["braking"]), num(v["cooling"])] for k, v in gap.items()]),
          TableBlock(["spot", "phase", "zone", "speed km/h", "temperature °C", "RMSE °C",
                      "bias °C", "share of squared error %"], where_rows,
                     caption="Cells ranked by their share of the squared error (all flying"
@@ -281,10 +271,10 @@ def _which_section(summary: dict[str, Any], vset: list[str], shown: str) -> Sect
         The verdict in words.
     """
     effects = summary["effects"]
-    which_rows = [[e["rank"], e["name"], _f(e["rmse_before"]), _f(e["rmse_after"]),
-                   _f(e["shrink_pct"], "{:+.1f}"),
-                   f"{_f(e['shrink_ci95_pct'][0])} … {_f(e['shrink_ci95_pct'][1])}",
-                   _f(e["heldout_loglik_gain"], "{:+.3f}"), _significant_text(e),
+    which_rows = [[e["rank"], e["name"], num(e["rmse_before"]), num(e["rmse_after"]),
+                   num(e["shrink_pct"], '+.1f'),
+                   f"{num(e['shrink_ci95_pct'][0])} … {num(e['shrink_ci95_pct'][1])}",
+                   num(e["heldout_loglik_gain"], '+.3f'), _significant_text(e),
                    e["evidence"]] for e in effects]
     combined = summary["combined"]
     sizes = [[e["name"], e.get("size_text", "")] for e in effects if e["name"] in vset]

@@ -11,7 +11,15 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from brakethermo.numeric import rmse
-from brakethermo.report.page import Card, Page, Section, TableBlock, finish_figure
+from brakethermo.report.page import (
+    Card,
+    Page,
+    Section,
+    TableBlock,
+    as_number,
+    finish_figure,
+    number_text,
+)
 from brakethermo.results.ebooster import (
     OBSERVERS,
     PRESSURES,
@@ -29,10 +37,6 @@ PAPER_TABLE1 = (("open loop", 0.2758, 0.2406, 12.75), ("closed loop", 0.2405, 0.
 
 def _every(n: int) -> slice:
     return slice(None, None, max(1, n // MAX_POINTS))
-
-
-def _fmt(v: float | None, digits: int = 3) -> str:
-    return "–" if v is None else f"{v:.{digits}f}"
 
 
 def _states_figure(r: EboosterResult) -> Figure:
@@ -89,16 +93,17 @@ def booster_page(r: EboosterResult) -> Page:
     s = r.summary
     res = s["residual_rmse_mm"]
     cards = [
-        Card("δ residual RMSE UKF", _fmt(res["ukf"], 4), "mm"),
-        Card("δ residual RMSE EKF", _fmt(res["ekf"], 4), "mm"),
-        Card("UKF improvement over EKF (residual RMSE)", _fmt(s["improvement_pct"], 1), "%"),
+        Card("δ residual RMSE UKF", number_text(res["ukf"], ".4f"), "mm"),
+        Card("δ residual RMSE EKF", number_text(res["ekf"], ".4f"), "mm"),
+        Card("UKF improvement over EKF (residual RMSE)", number_text(s["improvement_pct"], ".1f"),
+             "%"),
     ]
-    if s["pressure_rmse_mpa"]["ukf"]["p_m"] is not None:
-        cards.append(Card("p_m RMSE UKF", _fmt(s["pressure_rmse_mpa"]["ukf"]["p_m"]), "MPa"))
+    if (p_m := s["pressure_rmse_mpa"]["ukf"]["p_m"]) is not None:
+        cards.append(Card("p_m RMSE UKF", number_text(p_m, ".3f"), "MPa"))
     table1 = TableBlock(
         header=("case", "EKF residual RMSE mm", "UKF residual RMSE mm", "improvement %"),
-        rows=[("this session", _fmt(res["ekf"], 4), _fmt(res["ukf"], 4),
-               _fmt(s["improvement_pct"], 2))]
+        rows=[("this session", number_text(res["ekf"], ".4f"), number_text(res["ukf"], ".4f"),
+               number_text(s["improvement_pct"], ".2f"))]
         + [(f"paper: {c}", f"{e:.4f}", f"{u:.4f}", f"{i:.2f}") for c, e, u, i in PAPER_TABLE1],
         caption="Table 1 of the paper for this session (residual = measured minus one-step "
         "predicted δ); the paper's rows for reference.",
@@ -106,16 +111,15 @@ def booster_page(r: EboosterResult) -> Page:
     rows = []
     for w in OBSERVERS:
         pr, out1 = s["pressure_rmse_mpa"][w], s["outside_1sigma"][w]
-        rows.append((w.upper(), *(_fmt(pr[k]) for k in PRESSURES),
-                     *(_fmt(None if out1[k] is None else 100 * out1[k], 1) for k in PRESSURES),
-                     *(_fmt(None if c is None else 100 * c, 1)
+        rows.append((w.upper(), *(number_text(pr[k], ".3f") for k in PRESSURES),
+                     *(number_text(100 * as_number(out1[k]), ".1f") for k in PRESSURES),
+                     *(number_text(100 * as_number(c), ".1f")
                        for c in (s["coverage_95"][w], s["coverage_95_braking"][w])),
                      f"{s['consistency'][w]['mean_nis']:.2f} ({s['consistency'][w]['state']})"))
     ptable = TableBlock(
         header=("observer", "p_m RMSE MPa", "p_f RMSE MPa", "p_r RMSE MPa", "p_m outside 1σ %",
                 "p_f outside 1σ %", "p_r outside 1σ %", "95 % band coverage %",
-                "… while braking %",
-                "δ mean NIS"),
+                "… while braking %", "δ mean NIS"),
         rows=rows,
         caption="Against the session's pressure channels (validation only; – where the "
         "session has none). A consistent 1σ band leaves about 32 % outside, a 95 % band 5 %."

@@ -38,7 +38,7 @@ from brakethermo.report.figures import (
     padded_range,
     trend_figure,
 )
-from brakethermo.report.page import template_environment
+from brakethermo.report.page import as_number, template_environment
 from brakethermo.results.laps import (
     flying_laps,
     lap_folder,
@@ -202,15 +202,6 @@ def _scores_view(summary: dict[str, Any] | None) -> dict[str, Any] | None:
     }
 
 
-def _num(x: Any) -> float:
-    """A summary number as a float: NaN for a missing one (null once the summary has been
-    through summary.json, as in batch)."""
-    try:
-        return float(x)
-    except (TypeError, ValueError):
-        return float("nan")
-
-
 def _interval(lo: float, hi: float, fmt: str = "{:.0f}") -> str:
     """'95 % lo to hi %', or why there is none (the verdict engine draws none over fewer
     than two units)."""
@@ -224,21 +215,21 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
     choice = ((summary or {}).get("run") or {}).get("online_choice") or {}
     lines = []
     for row in choice.get("scores", []):
-        lo, hi = (_num(v) for v in row.get("shrink_ci95_pct", [None] * 2))
+        lo, hi = (as_number(v) for v in row.get("shrink_ci95_pct", [None] * 2))
         verdict = "switched on" if row.get("name") in choice.get("chosen", []) else "left off"
         lines.append(f"online {row.get('name')}: {verdict} — {row.get('test', '')}, shrink"
-                     f" {_num(row.get('shrink_pct')):.0f} % ({_interval(lo, hi)})"
+                     f" {as_number(row.get('shrink_pct')):.0f} % ({_interval(lo, hi)})"
                      + (f"; {row['like_law']}" if row.get("like_law") else ""))
     for row in choice.get("law_effects_tested", []):
         name = str(row.get("name", "")).removeprefix("without ")
-        lo, hi = (_num(v) for v in row.get("shrink_ci95_pct", [None] * 2))
+        lo, hi = (as_number(v) for v in row.get("shrink_ci95_pct", [None] * 2))
         verdict = ("dropped" if name in choice.get("law_effects_dropped", []) else
                    "kept")
         if "law" in row:  # the pad crown: say which weights were tested against uniform
             name = "pad-crown weights w = " + ", ".join(f"{w:.2f}" for w in row["law"])
         # an earned effect's row is the law with it against without it
         side = "with" if row.get("earned") else "without"
-        shrink = _num(row.get("shrink_pct"))
+        shrink = as_number(row.get("shrink_pct"))
         lines.append(f"the h law's {name}: {verdict} — {row.get('test', '')}"
                      + (f", error {side} it {-shrink:+.0f} % ({_interval(-hi, -lo, '{:+.0f}')})"
                         if np.isfinite(shrink) else ""))

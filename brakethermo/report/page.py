@@ -10,6 +10,7 @@ becomes markup.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -75,6 +76,22 @@ class Page:
     sections: list[Section] = field(default_factory=list)
     footer: str = ""
     back_href: str | None = None
+
+
+def as_number(x: Any) -> float:
+    """A value for a page as a float: NaN when it is missing (None, a JSON null once the
+    summary has been through summary.json) or not a number."""
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def number_text(x: Any, spec: str = ".1f") -> str:
+    """``x`` formatted by ``spec`` (Python's format mini-language); '–' when it is missing
+    or not finite."""
+    v = as_number(x)
+    return format(v, spec) if math.isfinite(v) else "–"
 
 
 def template_environment(**options: bool) -> Environment:

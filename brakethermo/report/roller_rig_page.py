@@ -9,7 +9,14 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from brakethermo.report.page import Card, Page, Section, TableBlock, consistency_text
+from brakethermo.report.page import (
+    Card,
+    Page,
+    Section,
+    TableBlock,
+    consistency_text,
+    number_text,
+)
 from brakethermo.results.rig_diagnosis import carried_text
 from brakethermo.results.roller_rig import RollerRigResult
 
@@ -21,10 +28,6 @@ MAX_POINTS = 4000  # plotted points per line (the PNG cannot show more)
 
 def _thin(n: int) -> slice:
     return slice(None, None, max(1, n // MAX_POINTS))
-
-
-def _fmt(x: float | None, spec: str = ".2f") -> str:
-    return "–" if x is None else format(x, spec)
 
 
 def paper_speed_kmh(supply_hz: float) -> int:
@@ -152,8 +155,8 @@ def roller_rig_page(result: RollerRigResult) -> Page:
     cards = [
         Card("rolling radius", f"{first['radius_mm']:.2f}", "mm"),
         Card("1-sigma", f"{first['radius_std_mm']:.3f}", "mm"),
-        Card("reference", _fmt(ref), "mm" if ref is not None else ""),
-        Card("converged within 1 mm", _fmt(max(conv_ok) if conv_ok else None), "s"),
+        Card("reference", number_text(ref, ".2f"), "mm" if ref is not None else ""),
+        Card("converged within 1 mm", number_text(max(conv_ok) if conv_ok else None, ".2f"), "s"),
     ]
     table1 = _table1(result)
     cmp_table = _naive_table(s["naive_vs_ukf"])
@@ -199,14 +202,14 @@ def _table1(result: RollerRigResult) -> TableBlock:
         paper_mm = None if ref is None else paper[0 if r["r0_mm"] < ref else 1]
         rows.append([
             f"{r['r0_mm']:g}", kind,
-            _fmt(r["filter_rmse_vs_ref_mm"], ".3f") + (
+            number_text(r["filter_rmse_vs_ref_mm"], ".3f") + (
                 "" if ref is None else f" ({r['filter_rmse_vs_ref_pct']:.3f} %)"),
-            _fmt(r["rmse_vs_ref_mm"], ".3f") + (
+            number_text(r["rmse_vs_ref_mm"], ".3f") + (
                 "" if ref is None else f" ({r['rmse_vs_ref_pct']:.3f} %)"),
-            _fmt(paper_mm, ".4f")
+            number_text(paper_mm, ".4f")
             + ("" if paper_mm is None else f" ({100 * paper_mm / PAPER_RADIUS_MM:.2f} %)"),
-            "restarted" if r["restarted"] else _fmt(r["convergence_time_s"]),
-            _fmt(r["max_error_after_convergence_mm"], ".3f"),
+            "restarted" if r["restarted"] else number_text(r["convergence_time_s"], ".2f"),
+            number_text(r["max_error_after_convergence_mm"], ".3f"),
         ])  # fmt: skip
     out_name = "smoothed" if result.options.smoother else "filter"
     return TableBlock(
@@ -223,11 +226,12 @@ def _naive_table(cmp: dict[str, Any]) -> TableBlock:
     """The naive speed-ratio radius and the UKF's by phase, mm (``cmp``: the summary's
     ``naive_vs_ukf``)."""
     cmp_rows = [
-        ["free rolling", _fmt(cmp["naive_free_mm"], ".3f"),
-         _fmt(cmp.get("naive_free_error_mm"), "+.3f"), "", ""],
-        ["traction", _fmt(cmp["naive_traction_mm"], ".3f"),
-         _fmt(cmp.get("naive_traction_error_mm"), "+.3f"), _fmt(cmp["ukf_traction_mm"], ".3f"),
-         _fmt(cmp.get("ukf_traction_error_mm"), "+.3f")],
+        ["free rolling", number_text(cmp["naive_free_mm"], ".3f"),
+         number_text(cmp.get("naive_free_error_mm"), "+.3f"), "", ""],
+        ["traction", number_text(cmp["naive_traction_mm"], ".3f"),
+         number_text(cmp.get("naive_traction_error_mm"), "+.3f"),
+         number_text(cmp["ukf_traction_mm"], ".3f"),
+         number_text(cmp.get("ukf_traction_error_mm"), "+.3f")],
     ]  # fmt: skip
     return TableBlock(
         ["phase", "naive, mm", "naive − ref, mm", "UKF, mm", "UKF − ref, mm"], cmp_rows,

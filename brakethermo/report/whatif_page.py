@@ -19,6 +19,7 @@ from brakethermo.report.page import (
     Section,
     TableBlock,
     finish_figure,
+    number_text,
     write_page,
 )
 from brakethermo.results.laps import lap_label
@@ -28,11 +29,9 @@ BASE_COLOR = "#444444"
 
 
 def _f(x: float | None, spec: str = ".0f") -> str:
-    if x is None or not math.isfinite(x):
-        return "–"
-    text = format(x, spec)
+    text = number_text(x, spec)
     # a change that rounds to nothing is no change: "-0" (or "+0") reads as a direction
-    return text.lstrip("+-") if float(text) == 0.0 else text
+    return text.lstrip("+-") if text != "–" and float(text) == 0.0 else text
 
 
 def shown(label: str) -> str:
