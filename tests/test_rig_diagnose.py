@@ -82,10 +82,17 @@ def test_the_cli_finds_the_rig_and_keeps_the_rig_commands_results(tmp_path):
     assert r.exit_code == 0, r.output
     folder = out / path.stem
     assert (folder / "diagnosis" / "index.html").is_file()
+    # the diagnosis page's back link lands on a small index naming the rig's command
+    assert 'href="../index.html"' in (folder / "diagnosis" / "index.html").read_text()
+    small = (folder / "index.html").read_text()
+    assert "brakethermo ebooster" in small and 'href="diagnosis/index.html"' in small
     r = runner.invoke(app, ["ebooster", str(path), "--out", str(out)])
     assert r.exit_code == 0, r.output
     assert json.loads((folder / "diagnosis.json").read_text())["rig"] == "ebooster"
     assert (folder / "diagnosis.parquet").is_file() and (folder / "ebooster.parquet").is_file()
+    page = (folder / "index.html").read_text()  # the booster's page, linking the diagnosis
+    assert "E-Booster observation" in page and 'href="diagnosis/index.html"' in page
+    assert "from the rig" in page and "from the disc" not in page
 
 
 def test_a_production_session_is_refused_in_one_line(tmp_path):

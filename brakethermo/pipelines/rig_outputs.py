@@ -6,7 +6,8 @@ session start, then its named columns, each with its unit in the field metadata)
 The files are staged and swapped in together; the command owns its parquet, its summary,
 its page and PNGs, so a re-run never leaves files of an earlier run beside new ones, a
 failure leaves the previous results untouched, and what another command wrote into the
-same folder (``diagnose``'s ``diagnosis.json`` and ``diagnosis/``) stays.
+same folder (``diagnose``'s ``diagnosis.json`` and ``diagnosis/``) stays, and the page
+links it.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import pandas as pd
 from brakethermo.io.atomic import atomic_entries, write_bytes_atomic
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.report.page import Page, Section, write_page
+from brakethermo.report.session_links import refresh_page_links
 
 WARNINGS = "Warnings"
 
@@ -67,6 +69,7 @@ def write_rig_outputs(
     if said and not any(s.heading == WARNINGS for s in page.sections):
         # what the console and summary.json warn of, first on the page too
         page = replace(page, sections=[Section(WARNINGS, paragraphs=said), *page.sections])
+    page = replace(page, sibling_pages=True)
     owned = (f"{pipeline}.parquet", "summary.json", "index.html", "*.png",
              *(attachments or {}))
     with atomic_entries(folder, owned) as tmp:
@@ -75,4 +78,5 @@ def write_rig_outputs(
         write_page(page, tmp)
         for name, data in (attachments or {}).items():
             write_bytes_atomic(tmp / name, data)
+    refresh_page_links(folder)  # a diagnosis already beside it is linked
     return folder

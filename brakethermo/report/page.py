@@ -76,6 +76,9 @@ class Page:
     sections: list[Section] = field(default_factory=list)
     footer: str = ""
     back_href: str | None = None
+    #: a session folder's own page: a list of the pages other commands wrote beside it
+    #: (``report.session_links``) is kept in it
+    sibling_pages: bool = False
 
 
 def as_number(x: Any) -> float:
@@ -143,6 +146,7 @@ def write_page(page: Page, folder: Path, name: str = "index.html") -> Path:
             "sections": sections,
             "footer": page.footer,
             "back_href": page.back_href,
+            "sibling_pages": page.sibling_pages,
         }
     )
     target = folder / name

@@ -80,4 +80,5 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
                     " reference holds on this session"]),
         ],
         footer=f"brakethermo {s['run']['brakethermo']}",
+        back_href="../index.html",
     )

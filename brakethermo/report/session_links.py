@@ -1,7 +1,8 @@
 """The links of a session folder's index to the pages other commands wrote beside it.
 
 Several commands write into ``OUT/<stem>/``: estimate (the lap reports and the session
-index), identify-h (the h(V) plot), diagnose (``diagnosis/``), whatif (``whatif/``).
+index) or a rig command (its page), identify-h (the h(V) plot), diagnose
+(``diagnosis/``), whatif (``whatif/``).
 Whichever runs last refreshes the index's list of pages from what is on disk, so the
 index links every page that exists and nothing that is gone; when no lap report was
 written, a small index holds the links (the pages' back links land there).
@@ -21,6 +22,20 @@ PAGES = (
     ("h_law.png", "h(V) law identified here"),
 )
 START, END = "<!--pages-->", "<!--/pages-->"
+
+
+# the command that writes a rig session's own page, by the rig diagnosis.json names
+RIG_COMMANDS = {"ebooster": "ebooster", "emb": "clamp-force", "roller-rig": "roller-rig",
+                "tyre": "mu-slip"}
+
+
+def _rig_of(folder: Path) -> str | None:
+    """The rig a diagnosis beside the page was made for (None: a disc session)."""
+    try:
+        rig = json.loads((folder / "diagnosis.json").read_text(encoding="utf-8")).get("rig")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return rig if rig in RIG_COMMANDS else None
 
 
 def _law_of(path: Path) -> str | None:
@@ -45,7 +60,10 @@ def _note(folder: Path, href: str) -> str:
 
 def page_links(folder: Path) -> str:
     """The HTML list of the sibling pages present in ``folder``."""
-    items = [f'<a href="{href}">{html.escape(label)}</a>{html.escape(_note(folder, href))}'
+    rig = _rig_of(folder)
+    items = [f'<a href="{href}">'
+             f'{html.escape(label.replace("the disc", "the rig") if rig else label)}</a>'
+             f'{html.escape(_note(folder, href))}'
              for href, label in PAGES if (folder / href).exists()]
     return " · ".join(items)
 
@@ -67,10 +85,13 @@ def refresh_page_links(folder: str | Path) -> Path | None:
     if not links:
         return None
     name = html.escape(folder.name)
+    rig = _rig_of(folder)
+    own = (f"No page of the rig's own run here (run <code>brakethermo {RIG_COMMANDS[rig]}"
+           "</code> for it)." if rig else "No per-lap reports here (run <code>brakethermo"
+           " estimate</code> without --no-report for them).")
     write_text_atomic(index, (
         "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
         f"<title>{name}</title><link rel=\"icon\" href=\"data:,\"></head><body>"
-        f"<h1>{name}</h1><p>No per-lap reports here (run <code>brakethermo estimate</code>"
-        " without --no-report for them).</p>"
+        f"<h1>{name}</h1><p>{own}</p>"
         f"<nav class=\"pages\">{START}{links}{END}</nav></body></html>\n"))
     return index
