@@ -169,6 +169,19 @@ def test_pooled_sessions_and_pooling_bad_input(lag_session: Path, tmp_path: Path
                 "reference", "train_laps", "heldout_laps", "consistency", "per_session"):
         assert key in pooled, key
     assert len(pooled["sessions"]) == 2 and pooled["verdict"] == "sensor_lag"
+    # the keys of a session's diagnosis.json (OUTPUTS.md: "same keys"), pooled
+    assert set(pooled["gap"]["per_spot"]) == {"spot1", "spot2", "spot3", "spot4"}
+    assert set(pooled["gap"]["per_phase"]) == {"braking", "cooling"}
+    for spot in pooled["consistency"]["per_spot"].values():
+        lo, hi = spot["chi2_band"]
+        assert lo < 1.0 < hi and spot["n"] > 0
+    for e in pooled["effects"]:
+        assert {"rmse_before", "rmse_after", "shrink_pct", "params", "evidence"} <= set(e)
+        assert np.isclose(e["shrink_pct"], 100 * (1 - e["rmse_after"] / e["rmse_before"]))
+        assert set(e["params_per_session"]) == {lag_session.stem, "lag2"}
+    lag = next(e for e in pooled["effects"] if e["name"] == "sensor_lag")
+    taus = [p["tau_s"] for p in lag["params_per_session"].values()]
+    assert lag["params"]["tau_s"] == pytest.approx(np.median(taus))
     assert (tmp_path / "o" / "pooled" / "diagnosis.json").is_file()
     assert (tmp_path / "o" / "lag2" / "diagnosis.json").is_file()
     # another disc in the same call

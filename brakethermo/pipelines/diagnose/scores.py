@@ -87,7 +87,7 @@ def consistency(model: DiscFEModel, inputs: DiscInputs, y: np.ndarray, law_h: np
         c = nis_consistency(nis_spot[scored, i], 1, res.innovation[scored, i])
         verdicts.append(c["state"])
         out["per_spot"][f"spot{i + 1}"] = {k: c[k] for k in (
-            "mean_nis", "chi2_band", "lag1_autocorrelation", "state")}
+            "mean_nis", "chi2_band", "lag1_autocorrelation", "state", "n")}
     over = verdicts.count("over-confident")
     ac = [v["lag1_autocorrelation"] for v in out["per_spot"].values()
           if np.isfinite(v["lag1_autocorrelation"])]

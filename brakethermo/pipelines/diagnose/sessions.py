@@ -22,6 +22,7 @@ from brakethermo.pipelines.diagnose._common import (
     with_out,
 )
 from brakethermo.pipelines.diagnose.four_spot import diagnose_session
+from brakethermo.pipelines.diagnose.pooled import pooled_consistency, pooled_effect, pooled_gap
 from brakethermo.pipelines.inputs import load_timed
 from brakethermo.pipelines.models import disc_for
 
@@ -110,13 +111,16 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
              for n, why in blind_sets[0].items() if all(n in b for b in blind_sets)}
     decision = decide(ref, evidence, RULE, untestable=blind)
     stems = [r.stem for r in results]
+    summaries = [r.summary for r in results]
     seen_in = {n: [r.stem for r in results for e in r.summary["effects"]
                    if e["name"] == n and e["significant"]] for n in names}
     rows = []
     for row in decision.rows:
         per = {r.stem: next(e["shrink_pct"] for e in r.summary["effects"]
                             if e["name"] == row["name"]) for r in results}
-        rows.append({**row, "per_session_shrink_pct": per, "significant_in": seen_in[row["name"]]})
+        pooled = pooled_effect(row["name"], summaries, stems, row["shrink_pct"])
+        rows.append({"name": row["name"], **pooled, **row, "per_session_shrink_pct": per,
+                     "significant_in": seen_in[row["name"]]})
     shrinks = {row["name"]: row["per_session_shrink_pct"] for row in rows}
     notes = [f"{n} is significant in {seen_in[n][0]} only (held-out shrink per session: "
              + ", ".join(f"{k} {v:+.0f} %" for k, v in shrinks.get(n, {}).items())
@@ -129,18 +133,15 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
                      + "): the pooled figures weigh each run's braking cycles by the size of"
                      " its gap, so the run with the larger gap leads them — read the"
                      " per-session verdicts")
-    gaps = [r.summary["gap"]["rmse_c"] for r in results]
     first = results[0].summary
     return {
         "sessions": [str(r.session.path) for r in results],
         "reference": first["reference"],
         "train_laps": {r.stem: r.summary["train_laps"] for r in results},
         "heldout_laps": {r.stem: r.summary["heldout_laps"] for r in results},
-        # a session without a score leaves the pooled gap unknown (NaN), not smaller
-        "gap": {"rmse_c": float(np.sqrt(np.mean(np.square(gaps)))),
-                "per_session": dict(zip(stems, gaps, strict=True))},
+        "gap": pooled_gap(summaries, stems),
         "where": {r.stem: r.summary["where"]["by_spot_phase"] for r in results},
-        "consistency": {r.stem: r.summary["consistency"] for r in results},
+        "consistency": pooled_consistency(summaries, stems),
         "effects": rows,
         **decision.summary(),
         "per_session": [{"session": r.stem, "verdict": r.summary["verdict"],
