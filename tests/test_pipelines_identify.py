@@ -137,6 +137,25 @@ def test_with_effect_writes_its_table_and_estimate_uses_it(sim_test_session, tmp
     assert run["effects"]["sensor_lag"]["values"] == table
 
 
+def test_a_given_effect_the_session_cannot_test_is_not_carried(sim_test_session, tmp_path):
+    """--with-effect emissivity_error on a session never read near the air: fitted, the
+    ratio came out of the noise (0.91 on a pyrometer set right) and estimate put every
+    race reading about 20 degC off with it. It is left out, with why and what would
+    test it; the lag beside it is carried."""
+    import tomllib
+
+    from brakethermo.pipelines.identify_h import write_identify
+
+    result = identify_h(sim_test_session[0],
+                        IdentifyOptions(with_effects="emissivity_error,sensor_lag"))
+    sel = result.summary["effect_selection"]
+    assert result.summary["with_effects"] == ["sensor_lag"] == sel["selected"]
+    assert "never within 100 °C of the air" in sel["not_carried"]["emissivity_error"]
+    assert any("emissivity_error: not carried" in w for w in result.summary["run"]["warnings"])
+    law = tomllib.loads((write_identify(result, tmp_path) / "h_law.toml").read_text())
+    assert set(law["effects"]) == {"sensor_lag"}
+
+
 def test_structure_fit_ignores_rounding_in_parameters_that_enter_nothing(tmp_path, monkeypatch):
     """On a track with too little time above the knee the upper branch's c_1, c_2 enter
     nothing; the fit must not hang on the rounding noise of their Jacobian columns (a

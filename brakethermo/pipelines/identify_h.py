@@ -96,6 +96,7 @@ class StructureFit:
     rmse_c: dict[str, float]
     rmse_uniform_c: dict[str, float]
     effects: dict[str, dict[str, Any]] = field(default_factory=dict)
+    at_bounds: dict[str, float] = field(default_factory=dict)  # "effect.param": value
 
     def facts(self) -> dict[str, Any]:
         """``structure`` of identify.json."""
@@ -108,6 +109,7 @@ class StructureFit:
             "open_loop_rmse_c": self.rmse_c,
             "open_loop_rmse_uniform_c": self.rmse_uniform_c,
             "effects": self.effects,
+            "at_bounds": self.at_bounds,
         }
 
 
@@ -377,6 +379,14 @@ def fit_with_effects(
     kz = ext.values(p, "thickness_gradient")["kz_factor"]
     assert isinstance(kz, float)
     fitted = {name: ext.values(p, name) for name in effects}
+    lo, hi = ext.bounds()
+    p_neutral = ext.neutral()
+    tol = 1e-4 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    at_bounds = {f"{sl.effect}.{sl.param.name}": float(sl.param.from_fit(p[sl.index]))
+                 for sl in ext.slots if sl.segment < 0  # at a bound, unless it is the
+                 and abs(p[sl.index] - p_neutral[sl.index]) > tol[sl.index]  # "absent" one
+                 and (p[sl.index] <= lo[sl.index] + tol[sl.index]
+                      or p[sl.index] >= hi[sl.index] - tol[sl.index])}
     return law, StructureFit(
         weights=ext.weights(p),
         kz_ratio=kz,
@@ -386,6 +396,7 @@ def fit_with_effects(
         rmse_c=_spot_rmse(ext.predict(p)[0], y),
         rmse_uniform_c=_spot_rmse(ext.predict(p0)[0], y),
         effects=fitted,
+        at_bounds=at_bounds,
     )
 
 
@@ -540,6 +551,27 @@ def _effect_choice(session: Session, options: IdentifyOptions
     return (), {"mode": "none", "selected": [], "why": "--with-effect none: the plain law"}, None
 
 
+def _testable(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec,
+              effects: tuple[str, ...], selection: dict[str, Any], notes: list[str]
+              ) -> tuple[tuple[str, ...], dict[str, Any]]:
+    """The given effects less those whose signature the session does not hold: fitted
+    there, such an effect's parameter comes out of the noise and the other parameters'
+    trade-offs (a pyrometer emissivity ratio of 0.91 on a session read at the true
+    setting), and estimate would then apply it to every race unchecked."""
+    from brakethermo.pipelines.diagnose.data_power import untestable_on
+
+    blind = untestable_on(session, inputs, y, disc.v_ref)
+    dropped = {name: blind[name] for name in effects if name in blind}
+    if not dropped:
+        return effects, selection
+    kept = tuple(name for name in effects if name not in dropped)
+    for name, why in dropped.items():
+        notes.append(f"--with-effect {name}: not carried, this session cannot test it —"
+                     f" {why}")
+    return kept, {**selection, "selected": list(kept), "not_carried": dropped,
+                  "why": f"--with-effect, less {', '.join(dropped)} (untestable here)"}
+
+
 def _sample_law(inputs: DiscInputs, h_mean: np.ndarray, h_std: np.ndarray,
                 fit_mask: np.ndarray, disc: DiscSpec, tuning: IdentifyTuning, refit: bool,
                 notes: list[str]) -> tuple[HLaw | None, HLaw]:
@@ -650,6 +682,8 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
     fit_mask = off_brake_mask(braking) & np.isfinite(y).all(axis=1) & (inputs.speed > 1.0)
     effects, selection, diagnosis = _effect_choice(session, options)
     notes: list[str] = []
+    if selection["mode"] == "given":
+        effects, selection = _testable(session, inputs, y, disc, effects, selection, notes)
     law_ukf, start = _sample_law(inputs, h_mean, h_std, fit_mask, disc, tuning,
                                  options.fit_structure or bool(effects), notes)
     t_law = time.perf_counter()
@@ -658,6 +692,10 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         law, structure, est_tuning = _refit(session, inputs, y, disc, start, est_tuning,
                                             effects)
     t_struct = time.perf_counter()
+    notes.extend(f"{name} = {value:.4g} sits at the bound the fit allows: the data push it"
+                 " further than the model's range, so the effect's form does not fit them"
+                 " (check the carried effects against `brakethermo diagnose`)"
+                 for name, value in (structure.at_bounds if structure else {}).items())
     calibration = _calibration(session, law, structure, est_tuning)
     sigma_crown, sigma_temp, adapt_power, band_scale, validation = validate_filter(
         session, calibration, options

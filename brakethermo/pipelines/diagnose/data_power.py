@@ -13,7 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from brakethermo.io.plausibility import SENSOR_FLOOR_C
+from brakethermo.io.session import Session
 from brakethermo.models.disc_effects import KNEE
+from brakethermo.pipelines.inputs import DiscInputs
 
 MIN_ABOVE_KNEE = 0.03  # share of off-brake flying time above the knee speed
 MAX_COLD_GAP_C = 100.0  # degC: lowest reading above the air a wrong emissivity can show at
@@ -91,3 +94,16 @@ def disc_data_power(
                     " with temperature — the cold first stops of a run against hot laps,"
                     " or a brake-torque measurement, would test it")
     return out
+
+
+def untestable_on(session: Session, inputs: DiscInputs, y: np.ndarray, v_ref: float
+                  ) -> dict[str, str]:
+    """:func:`disc_data_power` of a session over its flying laps (all of it when it has
+    none), with the pyrometers' floor: what identify-h cannot fit there either."""
+    from brakethermo.pipelines.diagnose.layout import flying_laps
+
+    flying = np.isin(inputs.lap, flying_laps(session, inputs))
+    if not flying.any():
+        flying = np.ones(inputs.lap.size, bool)
+    return disc_data_power(inputs.speed, y, inputs.t_amb, inputs.braking, flying, v_ref,
+                           SENSOR_FLOOR_C)
