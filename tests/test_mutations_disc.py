@@ -161,15 +161,32 @@ def test_estimate_mutation(case, build, words, tmp_path):
         assert "NaN" not in text and "Infinity" not in text
 
 
-def test_stuck_span_is_a_warning_not_silent():
-    from brakethermo.io.plausibility import check_pyrometer
+def test_stuck_span_is_a_warning_and_left_out():
+    from brakethermo.io.plausibility import unusable_readings
 
     temps = np.linspace(20.0, 400.0, 3000)
     temps[1000:2000] = 300.0
-    braking = np.zeros(3000, dtype=bool)
-    braking[10:] = True
-    warnings = check_pyrometer(temps, braking, 25.0, 0.1, None, "TDisc3")
+    mask, warnings = unusable_readings(temps, 0.1, "TDisc3")
     assert len(warnings) == 1 and "TDisc3: constant at 300.0 °C for 100 s" in warnings[0]
+    assert "left out" in warnings[0]
+    assert mask[1000:2000].all() and mask.sum() == 1000
+
+
+def test_a_clipped_pyrometer_is_found_and_its_plateaus_left_out():
+    """A pyrometer whose range ends below the disc's peaks reads exactly its top value
+    at every hot stop; taken as measurements, the peaks came out 90 degC low."""
+    from brakethermo.io.plausibility import unusable_readings
+
+    t = np.arange(0.0, 300.0, 0.1)
+    rng = np.random.default_rng(5)
+    temps = 400.0 + 200.0 * np.sin(2 * np.pi * t / 60.0) + rng.normal(0, 2, t.size)
+    mask, warnings = unusable_readings(temps, 0.1, "TDisc3")
+    assert not mask.any() and warnings == []  # a noisy peak is never repeated exactly
+    clipped = np.minimum(temps, 550.0)
+    mask, warnings = unusable_readings(clipped, 0.1, "TDisc3")
+    assert len(warnings) == 1 and "reads exactly 550.0 °C" in warnings[0]
+    assert "in 5 spans" in warnings[0]
+    assert np.array_equal(mask, clipped >= 550.0)
 
 
 def test_clean_session_passes_every_check(tmp_path):

@@ -26,6 +26,7 @@ KELVIN_OFFSET = 273.15
 PRE_BRAKE_EXCESS_C = 200.0  # a disc before the first stop is not this far above ambient
 STUCK_SPAN_S = 60.0  # a pyrometer that does not move for this long is stuck
 STUCK_TOLERANCE_C = 0.01
+CLIP_RUN_S = 0.5  # s: a pyrometer at exactly its highest value this long is clipped
 SENSOR_FLOOR_C = 100.0  # degC: IR pyrometers read nothing useful below this (datasheet floor)
 SILENT_START_S = 5.0  # s: a channel empty this long at the start began below its floor
 FIRST_READ_EXCESS_C = 150.0  # a disc heating past the floor is first read within this
@@ -126,7 +127,7 @@ def check_pyrometer(temps: np.ndarray, braking: np.ndarray, ambient_c: float,
 
     Returns
     -------
-    list of str — warnings (a stuck span shorter than the whole session)
+    list of str — warnings (a frozen or clipped span: :func:`unusable_readings`)
     """
     t = _finite(temps)
     if t.size == 0:
@@ -158,7 +159,7 @@ def check_pyrometer(temps: np.ndarray, braking: np.ndarray, ambient_c: float,
             f" at {ambient_c:.0f} °C: a session started on a hot disc, or "
             + ("the values are kelvin labelled degC (then set the unit to K)" if kelvin
                else "a unit or sensor problem") + "; check the channel if the disc was cold")
-    return warnings + _stuck_spans(temps, dt, source)
+    return warnings
 
 
 def _late_start(temps: np.ndarray, dt: float, source: str) -> list[str]:
@@ -178,17 +179,59 @@ def _late_start(temps: np.ndarray, dt: float, source: str) -> list[str]:
                else "a unit or sensor problem") + "; check the channel"]
 
 
-def _stuck_spans(temps: np.ndarray, dt: float, source: str) -> list[str]:
-    """Warn about the longest span where a channel does not move (sensor frozen)."""
+def _runs(flag: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and (exclusive) ends of the runs of True in ``flag``."""
+    edges = np.diff(np.concatenate(([0], flag.astype(np.int8), [0])))
+    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+
+
+def unusable_readings(temps: np.ndarray, dt: float, source: str
+                      ) -> tuple[np.ndarray, list[str]]:
+    """Readings that are not the disc, to be left out of every fit, and why.
+
+    - **Frozen**: a span of :data:`STUCK_SPAN_S` or more where the channel does not move.
+    - **Clipped**: the channel sits at exactly its highest value for :data:`CLIP_RUN_S`
+      or more, in two or more spans: the pyrometer's range ends there and the disc was
+      at least that hot (a real peak is reached once, and noise never repeats it).
+
+    Parameters
+    ----------
+    temps : ndarray — degC, on the grid
+    dt : float — s, grid step
+    source : str — the channel's name in the file
+
+    Returns
+    -------
+    mask : ndarray of bool — the readings to leave out
+    warnings : list of str — one line per finding
+    """
+    mask = np.zeros(temps.size, bool)
+    warnings: list[str] = []
     flat = np.abs(np.diff(temps)) <= STUCK_TOLERANCE_C
-    if not flat.any():
-        return []
-    edges = np.diff(np.concatenate(([0], flat.astype(np.int8), [0])))
-    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    longest = int(np.argmax(ends - starts))
-    span = (ends[longest] - starts[longest]) * dt
-    if span < STUCK_SPAN_S:
-        return []
-    return [f"{source}: constant at {temps[starts[longest]]:.1f} °C for {span:.0f} s from "
-            f"t = {starts[longest] * dt:.0f} s (sensor frozen?); those readings weigh as "
-            "measurements"]
+    starts, ends = _runs(flat)
+    long = (ends - starts) * dt >= STUCK_SPAN_S
+    if long.any():
+        for a, b in zip(starts[long], ends[long], strict=True):
+            mask[a: b + 1] = True
+        i = int(np.argmax(np.where(long, ends - starts, -1)))
+        warnings.append(
+            f"{source}: constant at {temps[starts[i]]:.1f} °C for"
+            f" {(ends[i] - starts[i]) * dt:.0f} s from t = {starts[i] * dt:.0f} s (sensor"
+            f" frozen?); {int(mask.sum()) * dt:.0f} s of such readings are left out of the"
+            " fit")
+    finite = np.isfinite(temps)
+    if finite.sum() > 1:
+        top = float(np.max(temps[finite]))
+        at_top = finite & (temps >= top - STUCK_TOLERANCE_C)
+        starts, ends = _runs(at_top)
+        keep = (ends - starts) * dt >= CLIP_RUN_S
+        if keep.sum() >= 2:  # then every reading at that value is the range's end
+            clipped = at_top
+            mask |= clipped
+            warnings.append(
+                f"{source}: reads exactly {top:.1f} °C, its highest value, for"
+                f" {int(clipped.sum()) * dt:.1f} s in {int(keep.sum())} spans: the"
+                " pyrometer's range ends there (clipped); those readings are left out of"
+                " the fit (the disc was at least that hot) — a pyrometer with a higher"
+                " range would read them")
+    return mask, warnings

@@ -49,7 +49,8 @@ def check_estimate_result(temps_c: np.ndarray, nis: np.ndarray) -> list[str]:
         out.append(
             f"IMPLAUSIBLE RESULT: mean NIS {mean_nis:.1f} (≈1 when the model fits the "
             "readings): the inputs disagree with the pyrometer — a channel's unit or scale "
-            "is likely wrong (brake pressure, wheel speed); do not trust these temperatures"
+            "is likely wrong (brake pressure, wheel speed), or the pyrometer itself (its "
+            "warnings above); do not trust these temperatures"
         )
     return out
 

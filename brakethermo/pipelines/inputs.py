@@ -9,7 +9,12 @@ from pathlib import Path
 import numpy as np
 
 from brakethermo.io.load import load_session
-from brakethermo.io.plausibility import check_pressure, check_pyrometer, check_speeds
+from brakethermo.io.plausibility import (
+    check_pressure,
+    check_pyrometer,
+    check_speeds,
+    unusable_readings,
+)
 from brakethermo.io.session import Session
 from brakethermo.thermal.disc import DiscSpec
 
@@ -119,6 +124,9 @@ def disc_inputs(session: Session, disc: DiscSpec, ambient_c: float | None = None
         name = MULTI_SPOT[i - 1] if session.has(MULTI_SPOT[i - 1]) else SINGLE_SPOT
         warnings.extend(check_pyrometer(spots[:, i - 1], braking, float(np.nanmedian(t_amb)),
                                         dt, session.path, sources.get(name, name)))
+        bad, said = unusable_readings(spots[:, i - 1], dt, sources.get(name, name))
+        spots[bad, i - 1] = np.nan
+        warnings.extend(said)
     return DiscInputs(
         time=session.time,
         lap=session.lap,
