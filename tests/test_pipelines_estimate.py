@@ -126,6 +126,35 @@ def test_dropout_spike_and_bad_start_do_not_derail(sim_race_session, identified)
     assert res.summary["run"]["covariance_repairs"] == 0
 
 
+def test_a_pyrometer_slower_than_the_grid_weighs_each_reading_once(
+        estimated, sim_race_session, identified, tmp_path):
+    """A 2 Hz pyrometer interpolated onto the 10 Hz grid: its noise taken from the grid's
+    second differences came out near 0 (floor 0.5 degC), five interpolated points per
+    reading counted as five readings, and the mean NIS of 6.5 read as 'IMPLAUSIBLE
+    RESULT ... brake pressure, wheel speed'."""
+    import pyarrow as pa
+
+    table = pq.read_table(sim_race_session[0])
+    frame = table.to_pandas()
+    ir = [c for c in frame.columns if c.startswith("disc_temp")]
+    have = np.flatnonzero(frame[ir[0]].notna().to_numpy())
+    rate = 1.0 / np.median(np.diff(frame["time"].to_numpy()[have]))
+    drop = np.setdiff1d(have, have[:: round(float(rate) / 2.0)])
+    frame.loc[frame.index[drop], ir] = np.nan
+    slow = tmp_path / "slow_ir.parquet"
+    pq.write_table(pa.Table.from_pandas(frame, schema=table.schema, preserve_index=False), slow)
+    res = estimate_session(slow, EstimateOptions(h_law=identified[1]))
+    run, native = res.summary["run"], estimated.summary["run"]
+    assert not any("IMPLAUSIBLE" in w for w in run["warnings"])
+    assert any("logged at 2.0" in w and "each reading counts once" in w
+               for w in run["warnings"])
+    assert "sqrt(5)" in run["sigma_meas_source"]
+    # a 2 Hz reading is one raw sample; a native one (20 Hz) the mean of two in its bin
+    raw = run["sigma_meas_c"] / np.sqrt(5)
+    assert raw / np.sqrt(2) == pytest.approx(native["sigma_meas_c"], rel=0.3)
+    assert 0.2 < run["mean_nis"] < 2.0
+
+
 def test_spot_not_logged_is_a_clear_error(sim_race_session, identified, tmp_path):
     from brakethermo.sim.session import SimConfig, simulate, write_simulation
 

@@ -40,7 +40,13 @@ from brakethermo.pipelines.estimate import (
     estimate_from_session,
 )
 from brakethermo.pipelines.h_evidence import law_level, straight_factors
-from brakethermo.pipelines.inputs import MULTI_SPOT, DiscInputs, disc_inputs, load_timed
+from brakethermo.pipelines.inputs import (
+    MULTI_SPOT,
+    DiscInputs,
+    disc_inputs,
+    grid_points_per_reading,
+    load_timed,
+)
 from brakethermo.pipelines.models import DiscCalibration, disc_for, shipped_h_law
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.race_filter import disc_model
@@ -459,7 +465,8 @@ def _held_out(
         ok = np.isfinite(ref)
         err.append(est.frame[f"spot{i}"].to_numpy()[ok] - ref[ok])
         std.append(est.spread[ok, i - 1])
-        noise.append(np.full(int(ok.sum()), scoring.reading_noise(ref)))
+        per = grid_points_per_reading(session, MULTI_SPOT[i - 1])
+        noise.append(np.full(int(ok.sum()), scoring.reading_noise(ref, per)))
     return np.concatenate(err), np.concatenate(std), np.concatenate(noise)
 
 

@@ -21,6 +21,7 @@ from brakethermo.thermal.disc import DiscSpec
 MULTI_SPOT = ("disc_temp_spot1", "disc_temp_spot2", "disc_temp_spot3", "disc_temp_spot4")
 SINGLE_SPOT = "disc_temp"
 SINGLE_SPOT_INDEX = 3  # the race sensor sits at the spot-3 radius (CHANNELS.md §2)
+STEADY_MARGIN = 10  # grid points (1 s) kept clear of a brake application
 
 
 @dataclass(frozen=True)
@@ -40,6 +41,10 @@ class DiscInputs:
     measured : tuple of int
         Spot numbers (1..4) the session logs.
     warnings : tuple of str
+    per_reading : tuple of 4 int
+        Grid points per native reading of each spot's pyrometer (1 at or above the grid
+        rate; 5 for a 2 Hz pyrometer on the 10 Hz grid, whose points in between are
+        interpolated, not measured).
     """
 
     time: np.ndarray
@@ -50,6 +55,15 @@ class DiscInputs:
     spots: np.ndarray
     measured: tuple[int, ...]
     warnings: tuple[str, ...] = ()
+    per_reading: tuple[int, ...] = (1, 1, 1, 1)
+
+    @property
+    def steady(self) -> np.ndarray:
+        """Grid points a second or more from any brake application (the reading's own
+        noise is measured there when the pyrometer is slower than the grid)."""
+        busy = self.braking.astype(float)
+        near = np.convolve(busy, np.ones(2 * STEADY_MARGIN + 1), mode="same") > 0
+        return ~near
 
     @property
     def braking(self) -> np.ndarray:
@@ -120,8 +134,19 @@ def disc_inputs(session: Session, disc: DiscSpec, ambient_c: float | None = None
     t_amb = session.ambient_c(ambient_c)
     braking = q_brk > 0.01 * max(float(np.nanmax(q_brk)), 1.0)
     dt = float(np.median(np.diff(session.time))) if n > 1 else 0.1
+    per_reading = [1, 1, 1, 1]
+    slow: dict[str, float] = {}
     for i in measured:
         name = MULTI_SPOT[i - 1] if session.has(MULTI_SPOT[i - 1]) else SINGLE_SPOT
+        per_reading[i - 1] = grid_points_per_reading(session, name)
+        if per_reading[i - 1] > 1:
+            slow[sources.get(name, name)] = session.channels[name].rate_hz
+    if slow:
+        warnings.append(
+            f"{', '.join(slow)}: logged at {', '.join(f'{r:.1f}' for r in slow.values())} Hz,"
+            f" below the {session.rate_hz:.0f} Hz grid: the values between readings are"
+            " interpolated, so each reading counts once (its noise measured at its own"
+            " rate)")
         warnings.extend(check_pyrometer(spots[:, i - 1], braking, float(np.nanmedian(t_amb)),
                                         dt, session.path, sources.get(name, name)))
         bad, said = unusable_readings(spots[:, i - 1], dt, sources.get(name, name))
@@ -136,7 +161,17 @@ def disc_inputs(session: Session, disc: DiscSpec, ambient_c: float | None = None
         spots=spots,
         measured=tuple(measured),
         warnings=tuple(warnings),
+        per_reading=tuple(per_reading),
     )
+
+
+def grid_points_per_reading(session: Session, name: str) -> int:
+    """Grid points per native reading of channel ``name`` (1 when it is logged at the
+    grid's rate or faster)."""
+    rate = session.channels[name].rate_hz
+    if not (np.isfinite(rate) and rate > 0):
+        return 1
+    return max(1, round(session.rate_hz / rate))
 
 
 def load_timed(path: str | Path, aliases: str | Path | None) -> tuple[Session, float]:

@@ -156,16 +156,22 @@ def _initial_temperature(y: np.ndarray, t_amb: np.ndarray) -> float:
     return float(t_amb[0])
 
 
-def _reading_noise(y: np.ndarray, tuning: EstimateTuning, options: EstimateOptions
-                   ) -> tuple[EstimateTuning, str]:
+def _reading_noise(y: np.ndarray, tuning: EstimateTuning, options: EstimateOptions,
+                   per_reading: int, steady: np.ndarray) -> tuple[EstimateTuning, str]:
     """The reading noise of this very sensor, from the signal itself, unless the user's
     tuning file sets it: a fixed guess either starves the filter of the measurement or
-    trusts it too much."""
+    trusts it too much. A pyrometer slower than the grid spreads each reading over
+    ``per_reading`` grid points: the filter's noise is sqrt(per_reading) times the
+    reading's, so that those points together weigh as the one reading they are."""
     if "sigma_meas" in user_tuning_keys(options.tuning, "estimate"):
         return tuning, "tuning file"
-    noise = max(scoring.reading_noise(y), SIGMA_MEAS_FLOOR_C)
-    return (replace(tuning, sigma_meas=noise),
-            "measured from the signal (second differences)")
+    noise = max(scoring.reading_noise(y, per_reading, steady), SIGMA_MEAS_FLOOR_C)
+    if per_reading == 1:
+        return (replace(tuning, sigma_meas=noise),
+                "measured from the signal (second differences)")
+    return (replace(tuning, sigma_meas=noise * np.sqrt(per_reading)),
+            f"measured from the signal at its own rate (second differences, {noise:.2f} °C),"
+            f" times sqrt({per_reading}): each reading spans {per_reading} grid points")
 
 
 def _filtered(disc: DiscSpec, inputs: DiscInputs, y: np.ndarray, cal: DiscCalibration,
@@ -178,7 +184,9 @@ def _filtered(disc: DiscSpec, inputs: DiscInputs, y: np.ndarray, cal: DiscCalibr
     plan = effect_plan(cal.effects, tuning)
     if plan.emissivity_ratio is not None:
         y = true_from_reading(y, plan.emissivity_ratio)
-    tuning, sigma_meas_source = _reading_noise(y, tuning, options)
+    tuning, sigma_meas_source = _reading_noise(y, tuning, options,
+                                               inputs.per_reading[options.spot - 1],
+                                               inputs.steady)
     ssm = build_state_space(model, inputs, h, tuning, cal.power_scale, plan, spot_radius)
     filt, order = filter_space(ssm, model, inputs, h, cal.power_scale, options.modes)
     readout = readout_rows(filt, np.asarray(disc.spot_radii), tuning.adapt_power)

@@ -22,13 +22,33 @@ def contact_average(spots: np.ndarray) -> np.ndarray:
     return spots[:, 1:4].mean(axis=1)
 
 
-def reading_noise(y: np.ndarray) -> float:
-    """White noise of a 10 Hz reading, degC, from robust second differences.
+def reading_noise(y: np.ndarray, per_reading: int = 1, steady: np.ndarray | None = None
+                  ) -> float:
+    """White noise of a reading, degC, from robust second differences.
 
     ``y[k+1] - 2 y[k] + y[k-1]`` cancels the temperature's slope and has variance
     ``6 sigma²`` for white noise; the median keeps braking transients out.
+
+    A pyrometer slower than the grid (``per_reading`` grid points per reading) is taken
+    at its own rate: between its readings the grid holds interpolations, whose second
+    differences shrink. Every phase of the grid is tried and the largest estimate kept
+    (the phase that lands on the readings), over the differences that lie wholly in
+    ``steady`` (off the brakes: at the reading's spacing, a difference across a brake
+    application is no longer small).
     """
-    d2 = np.diff(y[np.isfinite(y)], 2)
+    if per_reading <= 1:
+        return _d2_noise(y, None)
+    return max(_d2_noise(y[o::per_reading],
+                         None if steady is None else steady[o::per_reading])
+               for o in range(per_reading))
+
+
+def _d2_noise(y: np.ndarray, steady: np.ndarray | None) -> float:
+    if steady is None:
+        d2 = np.diff(y[np.isfinite(y)], 2)
+    else:
+        d2 = y[2:] - 2.0 * y[1:-1] + y[:-2]
+        d2 = d2[np.isfinite(d2) & steady[2:] & steady[1:-1] & steady[:-2]]
     if d2.size < 10:
         return 0.0
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))

@@ -337,8 +337,11 @@ class _FourSpot:
                 ) -> dict[str, Any]:
         """diagnosis.json (with the consistency header and the 'where' tables)."""
         y, layout, inputs = self.y, self.layout, self.inputs
-        sigma_meas = np.array([max(scoring.reading_noise(y[:, i]), SIGMA_MEAS_FLOOR_C)
-                               for i in range(4)])
+        m = np.asarray(inputs.per_reading, float)  # each reading weighs once (race_run)
+        sigma_meas = np.sqrt(m) * np.array([
+            max(scoring.reading_noise(y[:, i], inputs.per_reading[i], inputs.steady),
+                SIGMA_MEAS_FLOOR_C)
+            for i in range(4)])
         cons, self.nis = consistency(
             self.model, inputs, y, self.ref.law(self.p_ref)(inputs.speed),
             float(np.exp(self.p_ref[2])), self.T0, self.spot_radii, sigma_meas,
