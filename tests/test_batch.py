@@ -198,6 +198,33 @@ def test_outputs_replaced_since_are_redone_and_earlier_sessions_kept(
     assert "earlier batch" in index
 
 
+def test_the_batch_page_follows_commands_run_into_its_folder(folder: Path, tmp_path: Path
+                                                             ) -> None:
+    """`estimate … --out OUT` into a batch's session folder left OUT/index.html showing
+    the batch's peaks and law for results no longer the batch's; a later batch with
+    --no-reports left the page without its sessions."""
+    from brakethermo.pipelines.batch.index import refresh_batch_index
+
+    options = _options(tmp_path)
+    run_batch(folder, options, job=JOB)
+    index = options.out / "index.html"
+    assert "replaced by another command" not in index.read_text()
+    est = options.out / "race" / "estimate.parquet"
+    est.write_bytes(est.read_bytes() + b"\0")  # as another command's rewrite would
+    assert refresh_batch_index(options.out) == index
+    page = index.read_text()
+    assert page.count("replaced by another command since") == 1
+    assert 'href="race/index.html"' in page and 'href="fp1/index.html"' in page
+    assert refresh_batch_index(tmp_path) is None  # no batch there: nothing written
+    assert not (tmp_path / "index.html").exists()
+
+    other = tmp_path / "day2"
+    other.mkdir()
+    write_session_parquet(other / "quali.parquet", 1, seed=7)
+    run_batch(other, _options(tmp_path, reports=False), job=JOB)
+    assert "quali" in index.read_text()
+
+
 def test_given_h_law_used_and_part_of_the_key(folder: Path, tmp_path: Path) -> None:
     law = tmp_path / "law.toml"
     shipped = (config_dir() / "hlaw" / "cc-340-8.toml").read_text()

@@ -122,8 +122,7 @@ def _write_outputs(result: EstimateResult, out: Path, mdf_out: bool, reports: bo
     """The estimate's folder, swapped in whole: parquet, summary, MDF / MCAP, lap pages,
     links."""
     from brakethermo.pipelines.estimate import disc_of, write_estimate
-    from brakethermo.pipelines.output_dir import replace_session_dir
-    from brakethermo.report.session_links import refresh_page_links
+    from brakethermo.pipelines.output_dir import refresh_indexes, replace_session_dir
 
     folder = out / result.stem
     with replace_session_dir(folder) as stage:
@@ -153,7 +152,7 @@ def _write_outputs(result: EstimateResult, out: Path, mdf_out: bool, reports: bo
             write_session_report(result.frame, result.session, stage,
                                  node_radii=result.node_radii, disc=disc_of(result),
                                  summary=result.summary, back_href=up)
-    refresh_page_links(folder)
+    refresh_indexes(folder)
     return folder
 
 

@@ -64,9 +64,9 @@ def identify_command(
     result = run_with_status(as_json, f"identifying h(V) on {session.name} ...",
                              lambda: identify_h(session, options))
     folder = write_identify(result, out)
-    from brakethermo.report.session_links import refresh_page_links
+    from brakethermo.pipelines.output_dir import refresh_indexes
 
-    refresh_page_links(folder)
+    refresh_indexes(folder)
     if as_json:
         print(to_json({**result.summary, "output": str(folder)}))
         return

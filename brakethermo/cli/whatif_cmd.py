@@ -93,9 +93,9 @@ def whatif_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Replay the session's own laps with a change: window, peaks, friction, heat to the tyre."""
+    from brakethermo.pipelines.output_dir import refresh_indexes
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.whatif import WhatifOptions, whatif_session, write_whatif
-    from brakethermo.report.session_links import refresh_page_links
     from brakethermo.report.whatif_page import write_whatif_page
     from brakethermo.thermal.tyre_radiation import TyreView
 
@@ -108,7 +108,7 @@ def whatif_cmd(
     res = run_with_status(as_json, "whatif…", lambda: whatif_session(session, opts))
     folder = write_whatif(res, out)
     page = write_whatif_page(res.summary, res.frame, folder / "whatif")
-    refresh_page_links(folder)
+    refresh_indexes(folder)
     res.summary["output"] = {"parquet": str(folder / "whatif.parquet"), "page": str(page)}
     if as_json:
         typer.echo(to_json(res.summary))

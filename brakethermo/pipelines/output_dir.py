@@ -84,3 +84,14 @@ def replace_session_dir(target: str | Path, owned: tuple[str, ...] = ESTIMATE_FI
     every other entry (another command's results) is left as it was.
     """
     return atomic_entries(target, owned)
+
+
+def refresh_indexes(folder: str | Path) -> None:
+    """After a command wrote into a session's folder: the folder's links to the pages
+    beside it (``report.session_links``) and, where a batch wrote ``OUT/index.html``,
+    that page (``pipelines.batch.index``)."""
+    from brakethermo.pipelines.batch.index import refresh_batch_index
+    from brakethermo.report.session_links import refresh_page_links
+
+    refresh_page_links(folder)
+    refresh_batch_index(Path(folder).parent)

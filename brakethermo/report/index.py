@@ -65,6 +65,7 @@ def write_batch_index(
                 "status": s["status"],
                 "peaks": s.get("peaks_c", {}),
                 "reason": s.get("reason", ""),
+                "replaced": bool(s.get("replaced")),
                 "h_law": s.get("h_law") or "–",
                 "h_law_reason": s.get("h_law_reason", ""),
                 "href": f"{s['name']}/index.html" if page.is_file() else None,

@@ -149,6 +149,22 @@ def up_to_date(manifest: dict[str, Any] | None, sha: str, key: str,
         return False
 
 
+def outputs_replaced(folder: Path) -> bool | None:
+    """Whether another command replaced what the batch wrote in a session's folder since
+    (None: no manifest, or one from before the fingerprints, cannot say)."""
+    manifest = read_manifest(folder)
+    written = manifest.get("outputs_sha256") if isinstance(manifest, dict) else None
+    if not isinstance(written, dict):
+        return None
+    try:
+        return output_fingerprints(folder) != written
+    except OSError:
+        return True
+
+
+REPLACED = "its results were replaced by another command since (peaks on its own page)"
+
+
 def earlier_sessions(out: Path, current: Iterable[str]) -> list[dict[str, Any]]:
     """Index records of the session folders an earlier batch left in ``out`` that this
     batch did not process (another input folder into the same ``--out``): kept and
@@ -165,17 +181,14 @@ def earlier_sessions(out: Path, current: Iterable[str]) -> list[dict[str, Any]]:
         manifest = read_manifest(folder)
         if folder.name.casefold() in skip or not isinstance(manifest, dict):
             continue
-        written = manifest.get("outputs_sha256")
-        try:
-            same = None if written is None else output_fingerprints(folder) == written
-        except OSError:
-            same = False
+        replaced = outputs_replaced(folder)
+        same = None if replaced is None else not replaced
         row = skipped_outcome(Path(str(manifest.get("input", ""))), folder.name, manifest,
                               out).to_json()
         row["status"] = "earlier batch"
         row["reason"] = (f"from an earlier batch of {manifest.get('input', '?')}" + (
             "" if same else " (not checked since: an older manifest)" if same is None else
-            "; its results were replaced by another command since (peaks on its own page)"))
+            f"; {REPLACED}"))
         if same is False:
             row["peaks_c"] = {}
         rows.append(row)

@@ -37,6 +37,7 @@ from brakethermo.pipelines.batch.tasks import (
     file_sha256,
 )
 from brakethermo.pipelines.preflight import preflight
+from brakethermo.report.index import is_batch_index
 
 # an up-to-date single-spot session whose law the second pass chooses again
 KnownSingle = tuple[Path, str, str, dict[str, Any]]  # path, name, sha256, manifest
@@ -69,10 +70,10 @@ def _finish(out: Path, folder: Path, result: BatchResult, index: bool) -> None:
 
 def _write_index(out: Path, folder: Path, outcomes: list[SessionOutcome]) -> None:
     """``out/index.html``: these sessions, then those earlier batches left in ``out``."""
-    from brakethermo.report.index import write_batch_index
+    from brakethermo.pipelines.batch.index import write_index
 
-    write_batch_index(out, folder, [*(o.to_json() for o in outcomes),
-                                    *earlier_sessions(out, [o.name for o in outcomes])])
+    write_index(out, folder, [*(o.to_json() for o in outcomes),
+                              *earlier_sessions(out, [o.name for o in outcomes])])
 
 
 def _check_places(folder: Path, out: Path) -> None:
@@ -213,5 +214,7 @@ def run_batch(
                                        if o.status in ("ok", "skipped")])
         raise _interrupted(files, names, done, options.force) from None
     result = BatchResult([done[p] for p in files], time.perf_counter() - t0, not_read)
-    _finish(out, folder, result, index=options.reports and bool(files))
+    # without reports, an index an earlier batch left is still redrawn: it lists these too
+    _finish(out, folder, result, index=bool(files) and (
+        options.reports or is_batch_index(out / "index.html")))
     return result

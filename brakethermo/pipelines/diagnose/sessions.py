@@ -173,10 +173,10 @@ def write_diagnosis(result: DiagnoseResult, out_dir: str | Path,
     import pandas as pd
 
     from brakethermo.io.atomic import atomic_dir
+    from brakethermo.pipelines.output_dir import refresh_indexes
     from brakethermo.pipelines.outputs import write_json, write_parquet
     from brakethermo.report.diagnose_report import diagnosis_page
     from brakethermo.report.page import write_page
-    from brakethermo.report.session_links import refresh_page_links
 
     folder = Path(out_dir) / result.stem
     folder.mkdir(parents=True, exist_ok=True)
@@ -200,6 +200,6 @@ def write_diagnosis(result: DiagnoseResult, out_dir: str | Path,
                           result.nis, result.stem)
     with atomic_dir(folder / "diagnosis") as tmp:
         write_page(page, tmp)
-    refresh_page_links(folder)  # the session index links the page (or a small one does)
+    refresh_indexes(folder)  # the session index links the page (or a small one does)
     return folder
 

@@ -1,0 +1,52 @@
+"""The batch's root page ``OUT/index.html`` and the rows it was drawn from.
+
+The batch writes the page from its sessions' outcomes, and the rows beside it
+(``OUT/batch_index.json``). Other commands may write into a session's folder later
+(``estimate … --out OUT``, ``identify-h``, ``diagnose``); they redraw the page from those
+rows, so that it never shows the batch's peaks for results that are no longer the
+batch's (the session's manifest fingerprints what the batch wrote) and lists the
+diagnosis now beside a session.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from brakethermo.io.atomic import write_text_atomic
+from brakethermo.pipelines.batch.discovery import REPLACED, outputs_replaced
+
+INDEX_ROWS = "batch_index.json"
+
+
+def write_index(out: Path, folder: Path, rows: list[dict[str, Any]]) -> Path:
+    """``out/index.html`` from ``rows`` (:meth:`SessionOutcome.to_json` records) and the
+    rows themselves beside it."""
+    from brakethermo.report.index import write_batch_index
+
+    write_text_atomic(out / INDEX_ROWS, json.dumps(
+        {"folder": str(folder), "sessions": rows}, indent=1, default=str) + "\n")
+    return write_batch_index(out, folder, rows)
+
+
+def refresh_batch_index(out: str | Path) -> Path | None:
+    """Redraw a batch's ``out/index.html`` after another command wrote into ``out``: a
+    session whose results were replaced since loses the batch's peaks and says so.
+    Nothing happens where no batch index is."""
+    from brakethermo.report.index import is_batch_index, write_batch_index
+
+    out = Path(out)
+    if not is_batch_index(out / "index.html"):
+        return None
+    try:
+        saved = json.loads((out / INDEX_ROWS).read_text(encoding="utf-8"))
+        rows = [dict(r) for r in saved["sessions"]]
+        folder = Path(saved["folder"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    for row in rows:
+        if row.get("status") in ("ok", "skipped") and outputs_replaced(out / str(row["name"])):
+            row.update(reason=REPLACED, peaks_c={}, replaced=True, h_law=None,
+                       h_law_reason="")
+    return write_batch_index(out, folder, rows)
