@@ -61,11 +61,14 @@ class ChannelInfo:
 
 @dataclass(frozen=True)
 class Lap:
-    """One lap: number (0 = out-lap), start time and duration on the session grid, s."""
+    """One lap: number (0 = out-lap), start time and duration on the session grid, s;
+    ``cut_start``: the log began inside it (its first beacon numbers a later lap), so it
+    is a fragment, not a lap."""
 
     lap: int
     start_s: float
     duration_s: float
+    cut_start: bool = False
 
 
 @dataclass(frozen=True)

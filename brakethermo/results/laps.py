@@ -64,17 +64,20 @@ SHORT_LAP = 0.8  # a flying lap under this share of the typical one is partial (
 
 def partial_laps(laps: tuple[Lap, ...]) -> set[int]:
     """Flying laps shorter than :data:`SHORT_LAP` of the typical flying lap: the session
-    ended in them, or the rider came in — their times and peaks are not a lap's. The
+    ended in them, or the rider came in — their times and peaks are not a lap's — and a
+    lap the log began inside (:attr:`Lap.cut_start`). The
     typical lap is the median of three or more; of two, the longer one, and only the last
     lap can then be the short one (a log cut short); one lap alone cannot be judged."""
-    flying = {lap.lap: lap.duration_s for lap in laps if lap.lap >= 1 and lap.duration_s > 0}
+    cut = {lap.lap for lap in laps if lap.cut_start}  # the log began inside it
+    flying = {lap.lap: lap.duration_s for lap in laps
+              if lap.lap >= 1 and lap.duration_s > 0 and lap.lap not in cut}
     if len(flying) < 2:
-        return set()
+        return cut
     if len(flying) == 2:
         first, last = sorted(flying)
-        return {last} if flying[last] < SHORT_LAP * flying[first] else set()
+        return cut | ({last} if flying[last] < SHORT_LAP * flying[first] else set())
     typical = float(np.median(list(flying.values())))
-    return {n for n, d in flying.items() if d < SHORT_LAP * typical}
+    return cut | {n for n, d in flying.items() if d < SHORT_LAP * typical}
 
 
 def lap_time_text(seconds: float | None) -> str:
