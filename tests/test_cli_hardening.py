@@ -80,6 +80,20 @@ def test_out_that_is_a_file_fails_first(tmp_path, multi_session, command):
     assert out.read_text() == "not a folder"
 
 
+@pytest.mark.parametrize("command", [("ebooster",), ("clamp-force", "--train", "x"), ("mu-slip",),
+                                     ("roller-rig",), ("diagnose", "--rig", "tyre")])
+def test_a_rig_commands_out_that_is_a_file_fails_first(tmp_path, multi_session, command):
+    """The rig commands checked --out only when writing: a NotADirectoryError traceback
+    after all the work."""
+    out = tmp_path / "out"
+    out.write_text("not a folder")
+    res = _invoke(command[0], multi_session, *(multi_session if a == "x" else a
+                                               for a in command[1:]), "--out", out)
+    assert res.exit_code == 1, res.output
+    assert f"{out}: is a file, but --out needs a folder" in res.output.replace("\n", "")
+    assert "Traceback" not in res.output and out.read_text() == "not a folder"
+
+
 def test_out_below_a_file_and_read_only_folders(tmp_path, monkeypatch):
     (tmp_path / "f").write_text("x")
     with pytest.raises(ConfigError, match=r"is a file \(inside .*f/sub\)"):

@@ -131,6 +131,24 @@ def test_the_caliper_diagnosis_names_what_the_pads_did(caliper, pads, verdict):
     assert s["rig"] == "emb" and s["unit"] == "kN"
 
 
+def test_a_caliper_session_of_a_second_is_estimated_or_refused_in_one_line(caliper,
+                                                                           tmp_path):
+    """A 1 s session that logs the force sensor: the sensor-lag choice cross-validates on
+    2 s blocks and took the max of an empty array (a traceback in both commands)."""
+    from brakethermo.sim.emb import simulate_emb, write_emb_simulation
+
+    train_path, _ = caliper
+    short = write_emb_simulation(simulate_emb("nominal", seed=7105, duration_s=1),
+                                 tmp_path / "short.mcap")[0]
+    r = runner.invoke(app, ["clamp-force", str(short), "--train", str(train_path),
+                            "--out", str(tmp_path / "o")])
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(app, ["diagnose", str(short), "--train", str(train_path),
+                            "--out", str(tmp_path / "o")])
+    assert r.exit_code == 1 and "needs at least 2.5 s" in r.output.replace("\n", " ")
+    assert "Traceback" not in r.output
+
+
 def test_the_cli_finds_the_caliper_and_needs_its_training(caliper, tmp_path):
     train_path, runs = caliper
     r = runner.invoke(app, ["diagnose", str(runs["worn"]), "--out", str(tmp_path)])

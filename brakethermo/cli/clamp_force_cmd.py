@@ -34,6 +34,9 @@ def clamp_force_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Clamp force without a force sensor: paper's KF, ML fusion, each model, adaptive KF."""
+    from brakethermo.pipelines.output_dir import check_output_dir
+
+    check_output_dir(out)  # before the work, not a traceback after it
     from brakethermo.pipelines.clamp_force import (
         MAX_FACTOR_WALK,
         UNITS,

@@ -206,6 +206,9 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
         raise ConfigError(f"--rig {rig!r}: diagnose reads rig sessions of {', '.join(RIGS)}")
     if len(sessions) != 1:
         raise ConfigError("a rig diagnosis takes one session at a time")
+    from brakethermo.pipelines.output_dir import check_output_dir
+
+    check_output_dir(out)
     if rig == "roller-rig":
         from brakethermo.pipelines.diagnose.rig_roller import diagnose_roller_rig
 

@@ -47,6 +47,9 @@ def ebooster_command(
     as_json: JsonOpt = False,
 ) -> None:
     """Observe p_m, p_f, p_r and the reaction-disk state with a UKF and an EKF (paper 004)."""
+    from brakethermo.pipelines.output_dir import check_output_dir
+
+    check_output_dir(out)  # before the work, not a traceback after it
     import pandas as pd
 
     from brakethermo.pipelines.ebooster import frame_columns, observe

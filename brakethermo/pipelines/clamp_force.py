@@ -184,8 +184,11 @@ def choose_sensor_lag(theta: np.ndarray, current: np.ndarray, F: np.ndarray | No
     current : ndarray (K,) — motor current, A.
     F : ndarray (K,) or None — clamp-force sensor, N.
     ts : float — sample time, s.
+
+    None too for a session shorter than :data:`MIN_TRAIN_S`: the choice is cross-validated
+    on blocks of :data:`CV_BLOCK_S` and needs both folds.
     """
-    if F is None:
+    if F is None or F.size * ts < MIN_TRAIN_S:
         return None
     window, band = eq7_choice(theta, current, F, ts)
     sse = lag_scores(theta, current, F, ts, window, band)

@@ -162,8 +162,9 @@ def diagnose_emb(
     effects: str | None = "all",
 ) -> RigDiagnosis:
     """Diagnose an EMB caliper session with the clamp-force sensor (module docstring)."""
+    from brakethermo.models.clamp_force import CV_BLOCK_S
     from brakethermo.models.clamp_force import train as train_emb
-    from brakethermo.pipelines.clamp_force import choose_sensor_lag, load_emb
+    from brakethermo.pipelines.clamp_force import MIN_TRAIN_S, choose_sensor_lag, load_emb
     from brakethermo.rigs.emb import sensor_delagged
 
     t_start = time.perf_counter()
@@ -178,7 +179,12 @@ def diagnose_emb(
             path=data.session.path, channel="clamp_force")
     lag = choose_sensor_lag(tr.theta, tr.current, tr.force, tr.ts)
     own = choose_sensor_lag(data.theta, data.current, data.force, data.ts)
-    assert lag is not None and own is not None  # both sessions have the sensor (above)
+    if own is None:
+        raise DataError(
+            f"is {data.force.size * data.ts:.1f} s long; diagnose fits on some blocks of"
+            f" {CV_BLOCK_S:g} s and checks on others, so it needs at least {MIN_TRAIN_S:g} s"
+            " of the caliper working", path=data.session.path, channel="clamp_force")
+    assert lag is not None  # the training session has the sensor and its length
     models = train_emb(tr.theta, tr.current, tr.force, tr.ts, sensor_lag_s=lag.lag_s,
                        eq7=lag.eq7)
     ds = models.stiffness
