@@ -94,6 +94,22 @@ def test_a_rig_commands_out_that_is_a_file_fails_first(tmp_path, multi_session, 
     assert "Traceback" not in res.output and out.read_text() == "not a folder"
 
 
+@pytest.mark.parametrize("command", [("estimate", "--no-reports"), ("mu-slip",)])
+def test_a_folder_of_another_session_of_that_name_is_refused_first(tmp_path, multi_session,
+                                                                    command):
+    """A roller-rig A/day1.mcap and a tyre B/day1.mcap into one --out: the second command
+    replaced the first's summary.json, page and PNGs and left its parquet orphaned."""
+    folder = tmp_path / "out" / multi_session.stem
+    folder.mkdir(parents=True)
+    (folder / "roller_rig.parquet").write_bytes(b"kept")
+    (folder / "summary.json").write_text(json.dumps({"session": "/rig/A/t4.mcap"}))
+    res = _invoke(command[0], multi_session, *command[1:], "--out", tmp_path / "out")
+    assert res.exit_code == 1, res.output
+    said = res.output.replace("\n", "")
+    assert "holds the roller-rig results of /rig/A/t4.mcap" in said and "--out" in said
+    assert json.loads((folder / "summary.json").read_text())["session"] == "/rig/A/t4.mcap"
+
+
 def test_out_below_a_file_and_read_only_folders(tmp_path, monkeypatch):
     (tmp_path / "f").write_text("x")
     with pytest.raises(ConfigError, match=r"is a file \(inside .*f/sub\)"):

@@ -47,9 +47,10 @@ def ebooster_command(
     as_json: JsonOpt = False,
 ) -> None:
     """Observe p_m, p_f, p_r and the reaction-disk state with a UKF and an EKF (paper 004)."""
-    from brakethermo.pipelines.output_dir import check_output_dir
+    from brakethermo.pipelines.output_dir import check_output_dir, check_session_folder
 
     check_output_dir(out)  # before the work, not a traceback after it
+    check_session_folder(out, session.stem, "ebooster")
     import pandas as pd
 
     from brakethermo.pipelines.ebooster import frame_columns, observe

@@ -251,11 +251,13 @@ def estimate_command(
     )
     from brakethermo.pipelines.inputs import load_timed
     from brakethermo.pipelines.models import choose_h_law, disc_for
+    from brakethermo.pipelines.output_dir import check_session_folder
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.preflight import preflight
 
     reports = not no_reports and legacy_report is not False
     preflight(out=out, tuning=tuning, h_law=h_law, aliases=aliases, disc=disc)
+    check_session_folder(out, session.stem, "estimate")
     loaded, read_s = run_with_status(as_json, f"reading {session.name} ...",
                                      lambda: load_timed(session, aliases))
     law, law_reason = choose_h_law(h_law, out / session.stem, loaded, disc_for(loaded, disc))

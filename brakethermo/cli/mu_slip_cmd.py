@@ -39,9 +39,10 @@ def mu_slip_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Peak μ and slip: Rudd's EKF, batch LM, and the curve family with the best held-out fit."""
-    from brakethermo.pipelines.output_dir import check_output_dir
+    from brakethermo.pipelines.output_dir import check_output_dir, check_session_folder
 
     check_output_dir(out)  # before the work, not a traceback after it
+    check_session_folder(out, session.stem, "mu_slip")
     from brakethermo.pipelines.mu_slip import (
         UNITS,
         MuSlipOptions,

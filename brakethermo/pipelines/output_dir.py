@@ -67,6 +67,39 @@ def check_output_dir(out: str | Path, option: str = "--out") -> Path:
     return out
 
 
+# The table each command writes into OUT/<stem>/ beside a summary.json and index.html of
+# its own: two of them in one folder are two sessions of one name (a roller-rig day1.mcap
+# and a tyre day1.mcap), whose pages would replace each other's.
+SESSION_TABLES = ("estimate", "roller_rig", "ebooster", "clamp_force", "mu_slip")
+
+
+def check_session_folder(out: str | Path, stem: str, table: str) -> None:
+    """Refuse, before any work, to write ``table``'s run of session ``stem`` into a folder
+    that holds another command's run (another session of that name).
+
+    Raises
+    ------
+    ConfigError
+        ``OUT/<stem>/`` holds another of :data:`SESSION_TABLES`.
+    """
+    folder = Path(out) / stem
+    other = next((t for t in SESSION_TABLES
+                  if t != table and (folder / f"{t}.parquet").is_file()), None)
+    if other is None:
+        return
+    try:
+        import json
+
+        source = json.loads((folder / "summary.json").read_text(encoding="utf-8"))["session"]
+        whose = f" of {source}"
+    except (OSError, ValueError, KeyError, TypeError):
+        whose = ""
+    raise ConfigError(
+        f"holds the {other.replace('_', '-')} results{whose}, another session named"
+        f" '{stem}': this run would replace its summary and page; give another --out (or"
+        " rename one of the files)", path=folder)
+
+
 def check_output_file(path: str | Path, option: str = "--out") -> Path:
     """Make sure ``path`` can be written as a file (not a folder, writable parent)."""
     path = Path(path)
