@@ -110,6 +110,39 @@ def test_rig_sessions_peak_targets(tmp_path: Path, tyre: str, seed: int, ext: st
     assert peak["mu_std"] >= summ["ekf"]["mu_peak_std"] and len(peak["families"]) >= 1
 
 
+def test_a_force_that_drops_out_is_left_out_or_refused(tmp_path: Path) -> None:
+    """The drag force at 0 for 0.2 s inside the ramp put the peak at 0.76 against 1.16,
+    with a tight band and no word; frozen over much of the ramp, the curve is not there."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from brakethermo.errors import DataError
+
+    sim = simulate_tyre_rig("dry", seed=8105)
+    path, _ = write_tyre_simulation(sim, tmp_path / "rig.parquet")
+    table = pq.read_table(path)
+    frame = table.to_pandas()
+    t = frame["time"].to_numpy()
+    a, b = int(0.35 * len(t)), int(0.6 * len(t))  # the ramp's middle
+
+    def broken(name: str, sl: slice, value: float) -> Path:
+        f = frame.copy()
+        f.loc[f.index[sl], "drag_force"] = value
+        out = tmp_path / f"{name}.parquet"
+        pq.write_table(pa.Table.from_pandas(f, schema=table.schema, preserve_index=False), out)
+        return out
+
+    mid = (a + b) // 2
+    drop = broken("drop", slice(mid, mid + max(int(0.2 / (t[1] - t[0])), 101)), 0.0)
+    summ = summary(mu_slip(drop, MuSlipOptions()))
+    assert abs(summ["peak"]["mu"] / sim.peak[0] - 1.0) < 0.05
+    assert any("'drag_force' holds one value exactly" in w and "left out" in w
+               for w in summ["warnings"])
+    stuck = broken("stuck", slice(a, b), float(frame["drag_force"].iloc[a]))
+    with pytest.raises(DataError, match="froze or dropped out"):
+        mu_slip(stuck, MuSlipOptions())
+
+
 def test_cli_writes_all_outputs(tmp_path: Path) -> None:
     path, _ = write_tyre_simulation(
         simulate_tyre_rig("dry", seed=8102), tmp_path / "rig.mcap"

@@ -34,10 +34,9 @@ def clamp_force_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Clamp force without a force sensor: paper's KF, ML fusion, each model, adaptive KF."""
-    from brakethermo.pipelines.output_dir import check_output_dir, check_session_folder
+    from brakethermo.pipelines.output_dir import check_session_output
 
-    check_output_dir(out)  # before the work, not a traceback after it
-    check_session_folder(out, session.stem, "clamp_force")
+    check_session_output(out, session, "clamp_force")  # before the work
     from brakethermo.pipelines.clamp_force import (
         MAX_FACTOR_WALK,
         UNITS,

@@ -47,10 +47,6 @@ def ebooster_command(
     as_json: JsonOpt = False,
 ) -> None:
     """Observe p_m, p_f, p_r and the reaction-disk state with a UKF and an EKF (paper 004)."""
-    from brakethermo.pipelines.output_dir import check_output_dir, check_session_folder
-
-    check_output_dir(out)  # before the work, not a traceback after it
-    check_session_folder(out, session.stem, "ebooster")
     import pandas as pd
 
     from brakethermo.pipelines.ebooster import frame_columns, observe
@@ -62,6 +58,9 @@ def ebooster_command(
         from brakethermo.pipelines.output_dir import check_output_file
 
         check_output_file(save_fit, "--save-fit")
+    from brakethermo.pipelines.output_dir import check_session_output
+
+    check_session_output(out, session, "ebooster")  # before the work
     result = run_with_status(
         as_json, f"observing {session.name} ...",
         lambda: observe(session, train_path=train, fit_path=fit, bench=bench, aliases=aliases,

@@ -39,10 +39,9 @@ def mu_slip_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Peak μ and slip: Rudd's EKF, batch LM, and the curve family with the best held-out fit."""
-    from brakethermo.pipelines.output_dir import check_output_dir, check_session_folder
+    from brakethermo.pipelines.output_dir import check_session_output
 
-    check_output_dir(out)  # before the work, not a traceback after it
-    check_session_folder(out, session.stem, "mu_slip")
+    check_session_output(out, session, "mu_slip")  # before the work
     from brakethermo.pipelines.mu_slip import (
         UNITS,
         MuSlipOptions,

@@ -92,10 +92,9 @@ def roller_rig_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Rolling radius of the tram wheel by joint UKF from every starting guess."""
-    from brakethermo.pipelines.output_dir import check_output_dir, check_session_folder
+    from brakethermo.pipelines.output_dir import check_session_output
 
-    check_output_dir(out)  # before the work, not a traceback after it
-    check_session_folder(out, session.stem, "roller_rig")
+    check_session_output(out, session, "roller_rig")  # before the work
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.roller_rig import RollerRigOptions, run_roller_rig, write_roller_rig
 

@@ -36,6 +36,7 @@ from brakethermo.models.mu_slip import (
     rudd_lm,
 )
 from brakethermo.numeric import noise_std, rmse
+from brakethermo.pipelines.rig_checks import frozen_stretches
 from brakethermo.report.page import Card, Page, Section, TableBlock, consistency_text
 from brakethermo.rigs.tyre import rudd_mu
 
@@ -290,6 +291,9 @@ def free_rolling_check(session: Session, slip: np.ndarray, mu: np.ndarray, start
     return [text]
 
 
+MAX_FROZEN_SHARE = 0.2  # of a ramp's samples lost to a frozen force: the curve is not there
+
+
 def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | None = None
                 ) -> RampPoints:
     """Read a session and keep the points ``mu-slip`` fits: the first braking ramp to lock
@@ -298,6 +302,15 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
                            indexed=options.points)
     slip, mu, radius = slip_and_mu(session, options.radius_m)
     warnings = _radius_warning(session, options.radius_m)
+    frozen, where = np.zeros(mu.size, bool), []
+    for channel in ("drag_force", "normal_force"):
+        if session.has(channel) and not _mu_logged(session):
+            mask, said = frozen_stretches(session, channel, "N")
+            if said:
+                frozen |= mask
+                where.append(said.split(" where ")[0])
+                warnings.append(f"{said}; the (slip, μ) points there are left out")
+    mu[frozen] = np.nan  # a dropped-out force is not a point of the curve
     if options.points:
         start, lock = 0, slip.size
     else:
@@ -305,6 +318,12 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
         warnings += free_rolling_check(session, slip, mu, start, radius,
                                        options.radius_m is not None)
     sl = slice(start, lock)
+    if frozen[sl].mean() > MAX_FROZEN_SHARE:
+        raise DataError(
+            f"{100 * frozen[sl].mean():.0f} % of the braking ramp's samples come from a force"
+            f" sensor that froze or dropped out ({'; '.join(where)}): the curve is not"
+            " measured there; fix the sensor's logging or record the ramp again",
+            path=session.path)
     ok = np.isfinite(slip[sl]) & np.isfinite(mu[sl]) & (slip[sl] > 0.0) & (slip[sl] <= 1.0)
     t, s, m = session.time[sl][ok], slip[sl][ok], mu[sl][ok]
     if options.points:

@@ -100,6 +100,13 @@ def check_session_folder(out: str | Path, stem: str, table: str) -> None:
         " rename one of the files)", path=folder)
 
 
+def check_session_output(out: str | Path, session: str | Path, table: str) -> None:
+    """Before any work: ``out`` can be written (:func:`check_output_dir`) and its folder for
+    ``session`` holds no other session's run (:func:`check_session_folder`)."""
+    check_output_dir(out)
+    check_session_folder(out, Path(session).stem, table)
+
+
 def check_output_file(path: str | Path, option: str = "--out") -> Path:
     """Make sure ``path`` can be written as a file (not a folder, writable parent)."""
     path = Path(path)

@@ -83,6 +83,8 @@ def check_rig_channels(session: Session, expects: Sequence[Expect]) -> list[str]
             continue
         fault = _fault(v, e)
         if fault is None:
+            if e.channel not in session.constants:
+                warnings.extend(_frozen_stretches(session, e))
             continue
         if e.role == "input":
             raise DataError(f"channel '{e.channel}' {fault}", path=session.path,
@@ -90,3 +92,46 @@ def check_rig_channels(session: Session, expects: Sequence[Expect]) -> list[str]
         warnings.append(f"channel '{e.channel}' {fault}; it only scores the estimate, whose"
                         " figures against it mean nothing")
     return warnings
+
+
+# A stretch of exactly repeated values this long (samples and seconds, both) in a channel
+# that otherwise changes at nearly every sample is a sensor that froze or dropped out.
+FROZEN_SAMPLES = 100
+FROZEN_S = 0.1
+MAX_REPEAT_SHARE = 0.05  # a channel repeating more often is quantised: not judged
+
+
+def frozen_stretches(session: Session, channel: str, unit: str) -> tuple[np.ndarray, str]:
+    """Stretches where a noisy channel holds one value exactly (a dropout to zero, a frozen
+    sensor) while the rest of the log moves: a per-sample mask and the stretches in words
+    ('' when none).
+
+    A channel that repeats values at more than :data:`MAX_REPEAT_SHARE` of its samples
+    elsewhere (quantised, or an input held between applications) is not judged.
+    """
+    v = session.values(channel)
+    mask = np.zeros(v.size, bool)
+    same = np.diff(v) == 0.0
+    if same.size < 2 * FROZEN_SAMPLES:
+        return mask, ""
+    edges = np.diff(np.concatenate(([0], same.astype(np.int8), [0])))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    need = max(FROZEN_SAMPLES, int(np.ceil(FROZEN_S / session.dt)))
+    long = (ends - starts) >= need
+    inside = int((ends - starts)[long].sum())
+    if not long.any() or (same.sum() - inside) / max(same.size - inside, 1) > MAX_REPEAT_SHARE:
+        return mask, ""
+    for a, b in zip(starts[long], ends[long], strict=True):
+        mask[a: b + 1] = True
+    t = session.time
+    spans = ", ".join(f"{t[a]:.2f}–{t[b]:.2f} s at {v[a]:.4g}"
+                      for a, b in zip(starts[long][:4], ends[long][:4], strict=True))
+    return mask, (f"channel '{channel}' holds one value exactly ({spans}"
+                  f"{' …' if long.sum() > 4 else ''} {unit}) where it otherwise changes at"
+                  " every sample: the sensor froze or dropped out there")
+
+
+def _frozen_stretches(session: Session, e: Expect) -> list[str]:
+    said = frozen_stretches(session, e.channel, e.unit)[1]
+    return [f"{said}, and the estimate over that stretch stands on a value the rig did not"
+            " have"] if said else []
