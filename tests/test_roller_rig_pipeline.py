@@ -266,3 +266,23 @@ def test_a_model_free_rolling_does_not_follow_is_said_and_admitted(tmp_path: Pat
     late = wrong.time - wrong.time[0] > 2.0
     inside = np.abs(run.radius_mm[late] - truth) <= 1.96 * run.radius_std_mm[late]
     assert inside.mean() > 0.9  # ...and the band says so
+
+
+def test_a_reversed_torque_sign_is_said(sessions: dict[str, Path], tmp_path: Path) -> None:
+    """wheel_torque logged with braking as + (CHANNELS.md: traction +) ran with the mean
+    NIS at 80, the band silently widened 40x, the radius 4 mm off and no word; a clean
+    session carries no such warning, nor one for the torque request of 0 in free rolling
+    (a command holds a value exactly)."""
+    import pyarrow as pa
+
+    table = pq.read_table(sessions["30"])
+    frame = table.to_pandas()
+    frame["wheel_torque"] = -frame["wheel_torque"]
+    flipped = tmp_path / "flipped.parquet"
+    pq.write_table(pa.Table.from_pandas(frame, schema=table.schema, preserve_index=False),
+                   flipped)
+    opts = RollerRigOptions(r0_mm=(320.0,), smoother=False)
+    said = run_roller_rig(flipped, opts).summary["warnings"]
+    assert any("IMPLAUSIBLE RESULT" in w and "wheel_torque's sign" in w for w in said)
+    clean = run_roller_rig(sessions["30"], opts).summary["warnings"]
+    assert not any("IMPLAUSIBLE" in w or "holds one value" in w for w in clean)

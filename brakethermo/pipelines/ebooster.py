@@ -78,7 +78,7 @@ def _expect(training: bool) -> tuple[Expect, ...]:
     """What a booster's channels look like (SI); pressures and the pedal force are inputs
     of the training and only score the observer otherwise."""
     role: Literal["input", "score"] = "input" if training else "score"
-    return (Expect(S2, "m", 0.1, positive=True), Expect(DELTA, "m", 0.01),
+    return (Expect(S2, "m", 0.1, positive=True, measured=False), Expect(DELTA, "m", 0.01),
             *(Expect(ch, "Pa", 3e7, positive=True, role=role) for ch in PRESSURES.values()),
             Expect(PEDAL, "N", 5e3, positive=True, role=role))
 

@@ -31,6 +31,8 @@ class Expect:
     most : float — the largest magnitude any such rig reaches (beyond it: a unit error).
     positive : bool — the quantity is not negative in use (a force pressing, a pressure).
     role : ``"input"`` (the estimate is made from it) or ``"score"`` (it only scores).
+    measured : bool — a sensor's reading (False: a command, which may hold a value
+        exactly, as a torque request of 0 in free rolling does).
     """
 
     channel: str
@@ -38,6 +40,7 @@ class Expect:
     most: float
     positive: bool = False
     role: Literal["input", "score"] = "input"
+    measured: bool = True
 
 
 def _fault(v: np.ndarray, e: Expect) -> str | None:
@@ -83,7 +86,7 @@ def check_rig_channels(session: Session, expects: Sequence[Expect]) -> list[str]
             continue
         fault = _fault(v, e)
         if fault is None:
-            if e.channel not in session.constants:
+            if e.measured and e.channel not in session.constants:
                 warnings.extend(_frozen_stretches(session, e))
             continue
         if e.role == "input":

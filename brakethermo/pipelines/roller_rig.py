@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import os
 import time
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -238,7 +239,7 @@ def rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
     # the rig's own checks above name the common faults first; then every channel
     notes = check_rig_channels(session, (
         Expect("wheel_omega", "rad/s", 1e3), Expect("roller_omega", "rad/s", 1e3),
-        Expect("normal_force", "N", 5e5), Expect("wheel_torque", "N m", 1e5),
+        Expect("normal_force", "N", 5e5), Expect("wheel_torque", "N m", 1e5, measured=False),
         Expect("roller_torque", "N m", 1e5, role="score"),
         REF_EXPECT))
     warnings = [*session.warnings, *notes]
@@ -369,7 +370,8 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
                               free & both, traction & both)
     warnings = [*warnings, *dict.fromkeys(
         w for run in runs
-        if (w := ratio_warning(run, ratio_mm, _settled(run, free & both, t))) is not None)]
+        if (w := ratio_warning(run, ratio_mm, _settled(run, free & both, t))) is not None),
+        *_implausible(runs)]
     s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2], normal)
     naive = w_r * spec.roller_radius / np.where(np.abs(w_w) > 1e-9, w_w, np.nan) * 1e3
     ref = session.constant("rolling_radius_ref")
@@ -393,6 +395,21 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         }
     )
     return result
+
+
+MAX_MEAN_NIS = 20.0  # clean sessions give 1-5; a reversed torque sign gave 80
+
+
+def _implausible(runs: Sequence[GuessRun]) -> list[str]:
+    """A warning when the filter's innovations are far beyond its noise on every guess:
+    no setting of the noise makes such a model describe the session."""
+    nis = min(float(r.consistency["mean_nis"]) for r in runs)
+    if not nis > MAX_MEAN_NIS:
+        return []
+    return [f"IMPLAUSIBLE RESULT: the filter's innovations are {nis:.0f}x its noise (mean NIS)"
+            " on every guess, the band widened to match: the model does not describe this"
+            " session — check wheel_torque's sign (traction +, CHANNELS.md) and the units of"
+            " the speeds, the torque and normal_force"]
 
 
 def _guess_run(r0: float, res: Any, smoother: bool, t: np.ndarray, dt: float) -> GuessRun:
