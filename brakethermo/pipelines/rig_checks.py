@@ -110,7 +110,8 @@ def frozen_stretches(session: Session, channel: str, unit: str) -> tuple[np.ndar
     ('' when none).
 
     A channel that repeats values at more than :data:`MAX_REPEAT_SHARE` of its samples
-    elsewhere (quantised, or an input held between applications) is not judged.
+    elsewhere (quantised, or an input held between applications) is not judged, nor a
+    stretch that starts or ends the log.
     """
     v = session.values(channel)
     mask = np.zeros(v.size, bool)
@@ -122,6 +123,8 @@ def frozen_stretches(session: Session, channel: str, unit: str) -> tuple[np.ndar
     need = max(FROZEN_SAMPLES, int(np.ceil(FROZEN_S / session.dt)))
     long = (ends - starts) >= need
     inside = int((ends - starts)[long].sum())
+    # at the log's ends the rig may simply not have started yet (a resolver at rest)
+    long &= (starts > 0) & (ends < same.size)
     if not long.any() or (same.sum() - inside) / max(same.size - inside, 1) > MAX_REPEAT_SHARE:
         return mask, ""
     for a, b in zip(starts[long], ends[long], strict=True):
