@@ -62,6 +62,15 @@ def test_bad_option_values_are_usage_errors_before_any_work(args, words):
     assert "Traceback" not in res.output
 
 
+@pytest.mark.parametrize(("value", "words"), [
+    ("bogus", "unknown effect(s) bogus"), ("none,sensor_lag", "'none' stands alone")])
+def test_a_bad_with_effect_is_said_before_the_work(multi_session, tmp_path, value, words):
+    res = _invoke("identify-h", multi_session, "--with-effect", value, "--out", tmp_path)
+    said = res.output.replace("\n", " ")
+    assert res.exit_code == 1 and words in said and "'auto'" in said, res.output
+    assert not (tmp_path / multi_session.stem).exists()
+
+
 def test_the_pipeline_options_keep_the_same_limits():
     with pytest.raises(ConfigError, match="nodes = 100000 must be between 10 and 400"):
         EstimateOptions(nodes=100000)

@@ -108,6 +108,11 @@ def test_toml_round_trip_and_layout(tmp_path: Path) -> None:
         ("v_ref_kmh = -1\nknee = 0.8\n[power]\na = 1.0\nb = 0.0\n[cubic]\nc = [1, 0, 0, 0]\n",
          "key 'v_ref_kmh': expected a finite number > 0, found -1"),
         ("v_ref_kmh = 350\nknee = [\n", "invalid TOML"),
+        # an edit of v_ref_kmh that v_ref_mps beside it silently overruled
+        ("v_ref_kmh = 250\nv_ref_mps = 97.2222222\nknee = 0.8\n[power]\na = 1.0\nb = 0.0\n"
+         "[cubic]\nc = [1, 0, 0, 0]\n", "key 'v_ref_kmh': expected 350 km/h, as v_ref_mps"),
+        ('kind = "power-cubc"\nv_ref_kmh = 350\nknee = 0.8\n[power]\na = 1.0\nb = 0.0\n'
+         "[cubic]\nc = [1, 0, 0, 0]\n", "key 'kind': expected \"power-cubic\""),
     ],
 )  # fmt: skip
 def test_invalid_files_raise_config_error(tmp_path: Path, text: str, match: str) -> None:

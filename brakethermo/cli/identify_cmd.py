@@ -58,6 +58,15 @@ def identify_command(
     from brakethermo.pipelines.preflight import preflight
 
     preflight(out=out, tuning=tuning, aliases=aliases, disc=disc)
+    if with_effect.strip().lower() not in ("auto", "none", ""):
+        from brakethermo.errors import ConfigError
+        from brakethermo.models.effects import parse_effects
+
+        try:  # a bad name before the work, with 'auto' beside the others
+            parse_effects(with_effect)
+        except ConfigError as exc:
+            raise ConfigError(f"--with-effect {with_effect!r}: {exc.detail} (or alone 'auto',"
+                              " the default)") from None
     options = IdentifyOptions(disc=disc, tuning=tuning, nodes=nodes, aliases=aliases,
                               ambient_c=ambient, fit_structure=structure,
                               with_effects=with_effect)

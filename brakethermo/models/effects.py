@@ -237,11 +237,15 @@ def parse_effects(text: str | None) -> tuple[str, ...]:
     if text.strip().lower() == "none":
         return ()
     names = tuple(dict.fromkeys(s.strip() for s in text.split(",") if s.strip()))
+    words = [n for n in names if n.lower() in ("all", "none", "auto")]
+    if words:
+        raise ConfigError(f"'{words[0]}' stands alone, not in a list of effects (got"
+                          f" '{text}'); give it alone, or name the effects")
     unknown = [n for n in names if n not in EFFECTS]
     if unknown:
         raise ConfigError(
             f"unknown effect(s) {', '.join(unknown)}; valid effects are: "
-            f"{', '.join(EFFECT_NAMES)}, or 'all'"
+            f"{', '.join(EFFECT_NAMES)}, or alone 'all' or 'none'"
         )
     return names
 

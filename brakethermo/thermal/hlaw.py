@@ -27,6 +27,7 @@ from brakethermo.config import config_file
 from brakethermo.errors import ConfigError, DataError
 
 KMH = 1.0 / 3.6  # m/s per km/h
+KIND = "power-cubic"  # the law's form, written in h_law.toml
 TABLE_SPEEDS_KMH = np.arange(0.0, 361.0, 10.0)
 MIN_SAMPLES_POWER = 5  # below the knee, to fit a and b
 MIN_SAMPLES_CUBIC = 100  # above the knee (10 s at 10 Hz) to fit c1..c3; else the tangent
@@ -180,7 +181,7 @@ class HLaw:
             "#   h = a * x^b                                   for x < knee",
             "#   h = c[0] + c[1] u + c[2] u^2 + c[3] u^3, u = x - knee, for x >= knee",
             "#   c[0] = a * knee^b (continuous at the knee); h is clipped at 0.",
-            'kind = "power-cubic"',
+            f'kind = "{KIND}"',
             f"v_ref_kmh = {_fmt(round(self.v_ref / KMH, 9))}",
             f"v_ref_mps = {_fmt(self.v_ref)}  # exact; v_ref_kmh is for people",
             f"knee = {_fmt(self.knee)}",
@@ -242,8 +243,16 @@ def read_h_law(path: str | Path) -> HLawRecord:
             f"not an h law: none of {', '.join(law_keys)} is set (it sets:"
             f" {', '.join(sorted(raw.raw)) or 'none'}); give the h_law.toml that"
             " `brakethermo identify-h` wrote", path=path)
+    if raw.has("kind"):
+        kind = raw.raw["kind"]
+        raw.check(kind == KIND, "kind", f'"{KIND}" (the only law identify-h writes)', kind)
     if raw.has("v_ref_mps"):
         v_ref = raw.number("v_ref_mps", positive=True)
+        if raw.has("v_ref_kmh"):  # both written: an edit of one alone must not go unseen
+            kmh = raw.number("v_ref_kmh", positive=True)
+            raw.check(math.isclose(kmh * KMH, v_ref, rel_tol=1e-3), "v_ref_kmh",
+                      f"{v_ref / KMH:.6g} km/h, as v_ref_mps = {v_ref:.6g} m/s says (edit"
+                      " both, or delete one)", kmh)
     else:
         v_ref = raw.number("v_ref_kmh", positive=True) * KMH
     knee = raw.number("knee", positive=True, hi=10.0)
