@@ -364,6 +364,21 @@ def test_simulate_rig_emb_sets_the_force_sensor_lag(tmp_path: Path, lag_s: float
     assert abs(shifts[int(np.argmin(err))] - a / (1.0 - a)) <= 1.0  # the discrete lag's delay
 
 
+def test_a_training_sensor_lagging_100_ms_is_found(tmp_path: Path) -> None:
+    """The simulator's sensor lags up to 0.1 s; the candidates stopped at 20 ms, and a
+    caliper trained on a 100 ms sensor was estimated 4.4 kN from the truth (band covering
+    28 %): the lag is found and the estimate is near the truth."""
+    sim = simulate_emb("nominal", seed=6313, duration_s=24,
+                       caliper=replace(EmbCaliper(), force_lag_s=0.1))
+    train = write_emb_simulation(sim, tmp_path / "tr.mcap")[0]
+    run = write_emb_simulation(simulate_emb("nominal", seed=6314, duration_s=12,
+                                            with_sensor=False), tmp_path / "run.mcap")
+    res = cfp.clamp_force(run[0], train)
+    assert res.train_lag is not None and res.train_lag.lag_s == pytest.approx(0.1, rel=0.5)
+    truth = pd.read_parquet(run[1])["clamp_force"].to_numpy() * 1e3
+    assert rmse(res.est.kf, truth) < 600.0  # N; 4400 when the lag was left in
+
+
 @pytest.mark.parametrize("which", ["estimated", "training"])
 def test_motor_angle_in_degrees_labelled_rad_is_refused(tmp_path: Path, which: str) -> None:
     """One file's angle in degrees labelled rad: 57x the other's spread. Both files are

@@ -119,7 +119,8 @@ CV_BLOCK_S = 2.0  # s, blocks of the two-fold cross-validation of eq. 7's choice
 MIN_HALF_S = 5.0  # s, shortest half of a training session the fusion is checked on
 # Candidate time constants of the clamp-force sensor, s: a load cell behind an amplifier
 # filter reads the force late (0 = the paper's ideal sensor, the first candidate).
-SENSOR_LAGS_S = (0.0, 0.5e-3, 1e-3, 2e-3, 3e-3, 5e-3, 8e-3, 12e-3, 20e-3)
+SENSOR_LAGS_S = (0.0, 0.5e-3, 1e-3, 2e-3, 3e-3, 5e-3, 8e-3, 12e-3, 20e-3, 35e-3, 60e-3, 100e-3,
+                 150e-3)
 
 
 def _blocks(K: int, ts: float) -> NDArray[np.int_]:
