@@ -255,3 +255,20 @@ def test_the_roller_rigs_creep_law_is_diagnosed_against_its_torque_transducer(
                                 str(tmp_path / "o")])
         assert r.exit_code == 1 and words in r.output and "roller_torque" in r.output, r.output
         assert "Traceback" not in r.output
+
+
+def test_a_roller_rig_log_shorter_than_three_averaging_windows_is_refused(tmp_path):
+    """A 5 s log, averaged over 4 s windows, named a creep slope 4x the truth's with 89 %
+    held-out shrink, and --with-effect auto carried it."""
+    from brakethermo.sim.roller_rig import (
+        RollerRigSimConfig,
+        simulate_roller_rig,
+        write_roller_rig_simulation,
+    )
+
+    sim = simulate_roller_rig(RollerRigSimConfig(speed_kmh=30, duration_s=5, free_s=1,
+                                                 seed=15))
+    path = write_roller_rig_simulation(sim, tmp_path / "short.mcap")[0]
+    r = runner.invoke(app, ["diagnose", str(path), "--out", str(tmp_path / "o")])
+    assert r.exit_code == 1 and "needs at least 12 s" in r.output.replace("\n", " ")
+    assert "Traceback" not in r.output

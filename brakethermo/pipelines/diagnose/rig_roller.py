@@ -43,6 +43,7 @@ REST_SHARE = 0.2  # creepage below this share of its 95th percentile: the rig is
 # that the encoders' once-per-revolution errors and an out-of-round roller average out (a
 # single wheel revolution left creepage swings of +-0.7e-3, larger than traction's)
 AVERAGE_S = 4.0
+MIN_SPAN_WINDOWS = 3  # a log this many averaging windows long, at least: what is held out
 
 
 def diagnose_roller_rig(
@@ -70,6 +71,13 @@ def diagnose_roller_rig(
             " without can only be estimated: brakethermo roller-rig)",
             path=session.path, channel="roller_torque")
     w_w, w_r, torque, normal, _, free, traction, both = rig_inputs(session, spec)
+    span = float(session.time[-1] - session.time[0])
+    if span + session.dt < MIN_SPAN_WINDOWS * AVERAGE_S:
+        raise DataError(
+            f"is {span:.1f} s long; the diagnosis averages speeds and forces over"
+            f" {AVERAGE_S:g} s (several revolutions) and fits on some stretches, checks on"
+            f" others, so it needs at least {MIN_SPAN_WINDOWS * AVERAGE_S:g} s (a 5 s log"
+            " named a creep slope 4x the truth's with 89 % shrink)", path=session.path)
     radius = free_rolling_radius_mm(session, spec, w_w, w_r, free & both) * 1e-3
     force = (rolling_sign(session.values("roller_omega")) * session.values("roller_torque")
              / spec.roller_radius)
