@@ -364,6 +364,18 @@ def test_simulate_rig_emb_sets_the_force_sensor_lag(tmp_path: Path, lag_s: float
     assert abs(shifts[int(np.argmin(err))] - a / (1.0 - a)) <= 1.0  # the discrete lag's delay
 
 
+def test_a_session_logged_at_another_rate_names_both_files(tmp_path: Path) -> None:
+    train = write_emb_simulation(simulate_emb("nominal", seed=6315, duration_s=6),
+                                 tmp_path / "tr.mcap")[0]
+    slow = write_emb_simulation(simulate_emb("nominal", seed=6316, duration_s=6,
+                                             caliper=replace(EmbCaliper(), rate_hz=200.0)),
+                                tmp_path / "slow.mcap")[0]
+    res = CliRunner().invoke(app, ["clamp-force", str(slow), "--train", str(train),
+                                   "--out", str(tmp_path / "o")])
+    said = res.output.replace("\n", " ")
+    assert res.exit_code == 1 and "slow.mcap" in said and "tr.mcap every 1 ms" in said
+
+
 def test_a_training_sensor_lagging_100_ms_is_found(tmp_path: Path) -> None:
     """The simulator's sensor lags up to 0.1 s; the candidates stopped at 20 ms, and a
     caliper trained on a 100 ms sensor was estimated 4.4 kN from the truth (band covering

@@ -138,7 +138,10 @@ def load_fit(path: str | Path) -> BoosterFit:
             q_heldout_nats=tuple(float(v) for v in raw.get("q_heldout_nats", ())),
         )
     except (KeyError, TypeError, ValueError) as exc:
-        raise ConfigError(f"not a valid training result ({exc})", path=Path(path)) from None
+        what = f"missing key {exc}" if isinstance(exc, KeyError) else str(exc)
+        raise ConfigError(f"not a valid training result ({what}); write one with"
+                          " `brakethermo ebooster TRAIN --train TRAIN --save-fit FILE`",
+                          path=Path(path)) from None
     problem = _fit_problem(fit)
     if problem:
         raise ConfigError(f"not a valid training result: {problem}; write one with"

@@ -266,7 +266,14 @@ def clamp_force(
 def _check_like(train: EmbData, data: EmbData, role: str) -> None:
     """The inputs of ``data`` in the units of the training session's: their spreads
     within :data:`MAX_SPREAD_RATIO` of each other (which of the two is wrong, only the
-    user can tell, so both files are named)."""
+    user can tell, so both files are named), and logged at the training session's rate
+    (the models' derivatives are per sample)."""
+    if not np.isclose(train.ts, data.ts, rtol=1e-3):
+        raise DataError(
+            f"is logged every {data.ts * 1e3:g} ms and the training session"
+            f" {train.session.path.name} every {train.ts * 1e3:g} ms: the models are trained"
+            " per sample; train on a session logged at this one's rate (or resample one"
+            " file to the other's)", path=data.session.path)
     for channel, a, b in (("motor_angle", train.theta, data.theta),
                           ("motor_current", train.current, data.current)):
         sa, sb = (float(np.subtract(*np.nanpercentile(v, [99, 1]))) for v in (a, b))

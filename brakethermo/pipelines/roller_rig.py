@@ -364,7 +364,10 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
                        (w_w[first], w_r[first]), torque, normal, supply, Q, R, ratio_mm,
                        free & both)
     model = RollerRigModel.from_spec(spec, creep_law=opts.creep_law)
-    runs = guesses(model)
+    try:
+        runs = guesses(model)
+    except DataError as exc:  # the filter's verdict on the session: name the file
+        raise DataError(exc.detail, path=session.path) from None
     if effects != CreepEffects():
         model, runs = _judged(model, runs, replace(model, effects=effects), guesses, carried,
                               free & both, traction & both)
@@ -443,7 +446,11 @@ def _judged(law: RollerRigModel, law_runs: list[GuessRun], changed: RollerRigMod
     curve is kept only where it makes the radius more constant. Records both drifts and the
     choice in ``carried`` (the summary's ``filter.with_effect``).
     """
-    runs = guesses(changed)
+    try:
+        runs = guesses(changed)
+    except DataError as exc:  # the filter does not converge with it: the datasheet's law
+        carried.update({"kept": False, "note": f"not kept: with it {exc.detail}"})
+        return law, law_runs
     before = traction_drift_mm(law_runs[0].radius_mm, free, traction)
     after = traction_drift_mm(runs[0].radius_mm, free, traction)
     kept = abs(after) < abs(before)
@@ -495,7 +502,8 @@ def _checked_guess(run: GuessRun, ratio_mm: float, rerun: Any) -> GuessRun:
             f"the rolling-radius filter does not converge near the free-rolling ratio radius"
             f" {ratio_mm:.1f} mm (from --r0 {run.r0_mm:g} mm it ended at {final:.1f} mm, from"
             f" the ratio at {end:.1f} mm): the speeds and the torque do not fit one radius;"
-            " check the channels' units and the rig datasheet")
+            " check the units of wheel_omega, roller_omega, wheel_torque and normal_force,"
+            " and the rig datasheet")
     return replace(again, r0_mm=run.r0_mm, restart=(
         f"from {run.r0_mm:g} mm the filter ended at {final:.1f} mm, more than"
         f" {100 * RATIO_TOLERANCE:g} % from the free-rolling ratio radius {ratio_mm:.1f} mm"
