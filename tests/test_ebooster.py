@@ -322,13 +322,16 @@ def test_bad_input_exits_1_with_one_clear_line(tmp_path):
     (("disk", "[1.0, 2.0]"), "'disk' holds 2 values"),
     (("omega_n", "-3.0"), "'omega_n' = -3 is not > 0"),
     (("tau_z", "nan"), "'tau_z' is not finite"),
+    (("disk", "[-93.0, 234.0, 0.0056, 0.0038, 0.0015]"), "is no reaction-disk curve"),
+    (("stroke_mm", None), "missing key 'stroke_mm'"),
 ])
 def test_a_malformed_training_result_is_refused_before_the_run(tmp_path, edit, said):
     """--fit files with wrong counts or impossible values: one line, exit 1 (were
     tracebacks, or a 100 000-term p-V curve accepted)."""
     key, value = edit
     lines = [f"{key} = {value}" if line.startswith(f"{key} =") else line
-             for line in default_fit_path().read_text().splitlines()]
+             for line in default_fit_path().read_text().splitlines()
+             if value is not None or not line.startswith(f"{key} =")]
     bad = tmp_path / "fit.toml"
     bad.write_text("\n".join(lines) + "\n")
     sim = simulate_ebooster(EboosterSimConfig("closed", seed=2, rate_hz=200.0, duration_s=1.0))

@@ -169,6 +169,10 @@ def _fit_problem(fit: BoosterFit) -> str | None:
             return f"'{key}' = {value:g} is not > 0"
         if count is None and value < 0:
             return f"'{key}' = {value:g} is negative"
+    p1, p2, *slopes = fit.disk  # eq. 14: breakpoints 0 <= p1 <= p2 (N), slopes >= 0 (mm/N)
+    if not (0.0 <= p1 <= p2 and all(k >= 0.0 for k in slopes)):
+        return (f"'disk' = {list(fit.disk)} is no reaction-disk curve (breakpoints"
+                " 0 <= p1 <= p2 in N, then three slopes >= 0 in mm/N)")
     return None
 
 
