@@ -138,20 +138,21 @@ def disc_inputs(session: Session, disc: DiscSpec, ambient_c: float | None = None
     slow: dict[str, float] = {}
     for i in measured:
         name = MULTI_SPOT[i - 1] if session.has(MULTI_SPOT[i - 1]) else SINGLE_SPOT
-        per_reading[i - 1] = grid_points_per_reading(session, name)
-        if per_reading[i - 1] > 1:
-            slow[sources.get(name, name)] = session.channels[name].rate_hz
-    if slow:
-        warnings.append(
-            f"{', '.join(slow)}: logged at {', '.join(f'{r:.1f}' for r in slow.values())} Hz,"
-            f" below the {session.rate_hz:.0f} Hz grid: the values between readings are"
-            " interpolated, so each reading counts once (its noise measured at its own"
-            " rate)")
         warnings.extend(check_pyrometer(spots[:, i - 1], braking, float(np.nanmedian(t_amb)),
                                         dt, session.path, sources.get(name, name)))
         bad, said = unusable_readings(spots[:, i - 1], dt, sources.get(name, name))
         spots[bad, i - 1] = np.nan
         warnings.extend(said)
+        per_reading[i - 1] = grid_points_per_reading(session, name)
+        if per_reading[i - 1] > 1:
+            slow[sources.get(name, name)] = session.channels[name].rate_hz
+    if slow:
+        warnings.append(
+            f"{', '.join(slow)}: logged at"
+            f" {', '.join(dict.fromkeys(f'{r:.1f}' for r in slow.values()))} Hz,"
+            f" below the {session.rate_hz:.0f} Hz grid: the values between readings are"
+            " interpolated, so each reading counts once (its noise measured at its own"
+            " rate)")
     return DiscInputs(
         time=session.time,
         lap=session.lap,
