@@ -210,6 +210,8 @@ def test_slip_ratio_channel_used(tmp_path: Path) -> None:
     chans = tuple(c for c in sim.session.channels if c.name != "wheel_speed")
     path = write_session(tmp_path / "s.parquet", SessionData(chans, {"rig": "tyre"}))
     assert summary(mu_slip(path))["wheel_radius_m"] is None
+    said = summary(mu_slip(path, MuSlipOptions(radius_m=0.3)))["warnings"]
+    assert any("--radius 0.3 m is not used" in w for w in said)  # was taken silently
 
 
 def _bad(tmp_path: Path, channels: tuple[Channel, ...], facts: dict[str, str], *args: str) -> str:

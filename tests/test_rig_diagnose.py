@@ -95,6 +95,20 @@ def test_the_cli_finds_the_rig_and_keeps_the_rig_commands_results(tmp_path):
     assert "from the rig" in page and "from the disc" not in page
 
 
+def test_options_a_rig_session_would_ignore_are_refused(tmp_path):
+    """diagnose took a disc's --h-law or --holdout-laps, and --fit beside --train, on a
+    rig session without a word, as if they had been used."""
+    path = _session(tmp_path, 0.0)
+    for extra, words in ((["--holdout-laps", "2"], "--holdout-laps: options of a disc"),
+                         (["--h-law", "x.toml"], "--h-law: options of a disc"),
+                         (["--train", str(path), "--fit", "f.toml"], "give one of the two")):
+        r = runner.invoke(app, ["diagnose", str(path), *extra, "--out", str(tmp_path / "o")])
+        assert r.exit_code == 1 and words in r.output.replace("\n", " "), r.output
+    r = runner.invoke(app, ["ebooster", str(path), "--train", str(path), "--fit", "f.toml",
+                            "--out", str(tmp_path / "o")])
+    assert r.exit_code == 1 and "not both" in r.output.replace("\n", " ")
+
+
 def test_a_production_session_is_refused_in_one_line(tmp_path):
     path = _session(tmp_path, 0.0, channels=PRODUCTION_CHANNELS)
     with pytest.raises(DataError, match="master-cylinder pressure"):

@@ -87,6 +87,12 @@ def diagnose_command(
     if rig is None and len(sessions) == 1 and not sessions[0].suffix.lower() == ".toml":
         rig = _detect_rig(sessions[0], aliases)
     if rig is not None:
+        disc_only = [name for name, given in (
+            ("--holdout-laps", holdout_laps), ("--h-law", h_law), ("--disc", disc),
+            ("--tuning", tuning), ("--ambient", ambient)) if given is not None]
+        if disc_only:  # taken silently, they would seem to have been used
+            raise ConfigError(f"{', '.join(disc_only)}: options of a disc diagnosis; this is"
+                              f" a {rig} session — leave them out")
         _diagnose_rig(RIG_NAMES.get(rig, rig), sessions, out, effects, train, fit, radius,
                       aliases, as_json)
         return
@@ -204,6 +210,9 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
 
     if rig not in RIGS:
         raise ConfigError(f"--rig {rig!r}: diagnose reads rig sessions of {', '.join(RIGS)}")
+    if fit is not None and (train is not None or rig != "ebooster"):
+        raise ConfigError("--fit is a saved E-Booster training result, the reference instead"
+                          " of --train: give one of the two, and only for a booster session")
     if len(sessions) != 1:
         raise ConfigError("a rig diagnosis takes one session at a time")
     from brakethermo.pipelines.output_dir import check_output_dir

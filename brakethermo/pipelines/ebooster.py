@@ -21,7 +21,7 @@ from scipy.optimize import least_squares
 from scipy.signal import lfilter, ss2tf
 
 from brakethermo.config import config_dir
-from brakethermo.errors import DataError
+from brakethermo.errors import ConfigError, DataError
 from brakethermo.estimation import ExtendedKalmanFilter, UnscentedKalmanFilter, urts_smooth
 from brakethermo.estimation.consistency import nis_consistency, variance_scale
 from brakethermo.estimation.rls import even_powers, rls_fit
@@ -384,6 +384,9 @@ def observe(
     -------
     EboosterResult
     """
+    if train_path is not None and fit_path is not None:
+        raise ConfigError("--train and --fit both given: the observer runs on one p–V and disk"
+                          " fit; give the training session or a saved fit, not both")
     spec = load_booster(bench)
     t_start = time.perf_counter()
     if train_path is not None:

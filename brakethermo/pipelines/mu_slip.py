@@ -345,8 +345,11 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
 
 def _radius_warning(session: Session, radius_m: float | None) -> list[str]:
     """--radius beside a session fact that says otherwise: the option wins, and says so."""
+    if radius_m is not None and session.has("slip_ratio"):
+        return [f"--radius {radius_m:g} m is not used: the session logs slip_ratio, which"
+                " needs no radius"]
     fact = next((k for k in RADIUS_FACTS if k in session.metadata), None)
-    if radius_m is None or fact is None or session.has("slip_ratio"):
+    if radius_m is None or fact is None:
         return []
     try:
         logged = float(session.metadata[fact])
