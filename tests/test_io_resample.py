@@ -167,20 +167,21 @@ def test_laps_from_beacons() -> None:
     assert lap[122] == 0 and lap[123] == 1 and lap[549] == 1 and lap[550] == 2
 
 
-def test_a_log_begun_inside_a_lap_lists_that_lap_as_a_fragment() -> None:
+def test_a_log_begun_inside_a_lap_marks_its_first_stretch_cut() -> None:
     """The first beacon numbers lap 3: before it the log ran inside lap 2 (it began
-    mid-lap), not an out-lap — listed as lap 2, cut at its start, never a whole lap."""
+    mid-lap). That stretch stays lap 0, as an out-lap does (no flying lap: its lap distance
+    does not run from the line), but marked cut and partial, never a whole lap."""
     from brakethermo.results.laps import partial_laps
 
     g = grid(400.0)
     laps, lap = laps_from_beacons(np.array([90.6, 190.0, 290.0]), np.array([3.0, 4.0, 5.0]),
                                   g, 400.0)
     assert [(x.lap, x.cut_start) for x in laps] == [
-        (2, True), (3, False), (4, False), (5, False)]
-    assert lap[0] == 2 and lap[905] == 2 and lap[906] == 3
-    assert partial_laps(laps) == {2}  # 90.6 s of ~100 s laps: still not a lap
+        (0, True), (3, False), (4, False), (5, False)]
+    assert lap[0] == 0 and lap[905] == 0 and lap[906] == 3
+    assert partial_laps(laps) == {0}  # 90.6 s of ~100 s laps: still not a lap
     laps, _ = laps_from_beacons(np.array([12.3, 55.0]), np.array([1.0, 2.0]), g, 100.0)
-    assert laps[0].lap == 0 and not laps[0].cut_start  # an out-lap as before
+    assert laps[0].lap == 0 and not laps[0].cut_start and partial_laps(laps) == set()
 
 
 def test_no_beacon_is_one_lap_and_beacon_at_zero_has_no_outlap() -> None:

@@ -44,7 +44,7 @@ def laps_from_beacons(
         Lap 0 (out-lap) from 0 s to the first beacon if that is later than 0, then one lap
         per beacon; with no beacon, the whole session as lap 0. A first beacon numbered 0
         starts lap 0 at 0 s (no lap is listed twice); one numbered N >= 2 says the log
-        began inside lap N - 1, listed before it as a fragment (``cut_start``).
+        began inside lap N - 1: the stretch before it is lap 0 marked ``cut_start``.
     lap : ndarray of int64
         Lap number of every grid point.
 
@@ -63,14 +63,16 @@ def laps_from_beacons(
         )
     numbers = lap_number.astype(np.int64)
     starts = t_beacon.astype(np.float64)
-    # a first beacon of lap N >= 2 after the start: the log began inside lap N - 1
+    # a first beacon of lap N >= 2 after the start: the log began inside lap N - 1; the
+    # stretch before it stays lap 0 (no flying lap: its lap distance does not start at the
+    # line) and is marked cut, so that no output counts it as a lap
     cut = bool(numbers.size and numbers[0] >= 2 and starts[0] > _ON_GRID)
     if starts.size and numbers[0] == 0:
         starts = starts.copy()
         starts[0] = 0.0  # a beacon "lap 0" marks the out-lap, which began with the session
     elif starts.size == 0 or starts[0] > _ON_GRID:
         starts = np.concatenate(([0.0], starts))
-        numbers = np.concatenate(([numbers[0] - 1 if cut else 0], numbers))
+        numbers = np.concatenate(([0], numbers))
     ends = np.append(starts[1:], max(end_s, starts[-1]))
     laps = tuple(
         Lap(int(n), float(s), float(e - s), cut_start=cut and i == 0)

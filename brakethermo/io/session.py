@@ -62,8 +62,8 @@ class ChannelInfo:
 @dataclass(frozen=True)
 class Lap:
     """One lap: number (0 = out-lap), start time and duration on the session grid, s;
-    ``cut_start``: the log began inside it (its first beacon numbers a later lap), so it
-    is a fragment, not a lap."""
+    ``cut_start``: the log began inside a lap (its first beacon numbers lap 2 or later),
+    so lap 0 is the fragment of a flying lap, not an out-lap from the pits."""
 
     lap: int
     start_s: float

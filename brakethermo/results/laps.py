@@ -68,7 +68,7 @@ def partial_laps(laps: tuple[Lap, ...]) -> set[int]:
     lap the log began inside (:attr:`Lap.cut_start`). The
     typical lap is the median of three or more; of two, the longer one, and only the last
     lap can then be the short one (a log cut short); one lap alone cannot be judged."""
-    cut = {lap.lap for lap in laps if lap.cut_start}  # the log began inside it
+    cut = {lap.lap for lap in laps if lap.cut_start}  # the log began inside it (lap 0)
     flying = {lap.lap: lap.duration_s for lap in laps
               if lap.lap >= 1 and lap.duration_s > 0 and lap.lap not in cut}
     if len(flying) < 2:
