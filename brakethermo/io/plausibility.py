@@ -127,7 +127,8 @@ def check_pyrometer(temps: np.ndarray, braking: np.ndarray, ambient_c: float,
 
     Returns
     -------
-    list of str — warnings (a frozen or clipped span: :func:`unusable_readings`)
+    list of str — warnings (a hot disc before the first stop, a late first reading);
+    frozen and clipped stretches are :func:`unusable_readings`'s
     """
     t = _finite(temps)
     if t.size == 0:

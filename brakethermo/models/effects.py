@@ -238,6 +238,9 @@ def parse_effects(text: str | None) -> tuple[str, ...]:
         return ()
     names = tuple(dict.fromkeys(s.strip() for s in text.split(",") if s.strip()))
     words = [n for n in names if n.lower() in ("all", "none", "auto")]
+    if words and len(names) == 1:
+        raise ConfigError(f"'{names[0]}' is not taken here; give 'all', 'none' or effect"
+                          f" names: {', '.join(EFFECT_NAMES)}")
     if words:
         raise ConfigError(f"'{words[0]}' stands alone, not in a list of effects (got"
                           f" '{text}'); give it alone, or name the effects")

@@ -49,6 +49,8 @@ def score_estimate(
     base = rows[-1]
     validation = [i for i in range(1, 5) if i != spot]
     braking = inputs.braking
+    noise = {i: scoring.reading_noise(ref[:, i - 1], inputs.per_reading[i - 1], inputs.steady)
+             for i in validation}
     return {
         "reference": "measured spots",
         "measured_spot": spot,
@@ -62,7 +64,7 @@ def score_estimate(
         },
         "coverage95": {
             f"spot{i}": scoring.coverage(smooth[:, i - 1], std[:, i - 1], ref[:, i - 1],
-                                         extra_var=scoring.reading_noise(ref[:, i - 1]) ** 2)
+                                         extra_var=noise[i] ** 2)
             for i in validation
         },
         # the band estimate.parquet carries (``spot<i>_std``): the filter's spread, the
@@ -70,8 +72,7 @@ def score_estimate(
         # the pads' crown balance
         "coverage95_written_band": {
             f"spot{i}": scoring.coverage(smooth[:, i - 1], frame[f"spot{i}_std"].to_numpy(),
-                                         ref[:, i - 1],
-                                         extra_var=scoring.reading_noise(ref[:, i - 1]) ** 2)
+                                         ref[:, i - 1], extra_var=noise[i] ** 2)
             for i in validation if f"spot{i}_std" in frame
         },
         "coverage95_band": "the filter's own spread (plus each reading's noise), without the"

@@ -44,7 +44,6 @@ from brakethermo.pipelines.inputs import (
     MULTI_SPOT,
     DiscInputs,
     disc_inputs,
-    grid_points_per_reading,
     load_timed,
 )
 from brakethermo.pipelines.models import DiscCalibration, disc_for, shipped_h_law
@@ -388,9 +387,10 @@ def fit_with_effects(
     lo, hi = ext.bounds()
     p_neutral = ext.neutral()
     tol = 1e-4 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    # an effect's parameter at a bound of its range, unless that bound is its "absent"
     at_bounds = {f"{sl.effect}.{sl.param.name}": float(sl.param.from_fit(p[sl.index]))
-                 for sl in ext.slots if sl.segment < 0  # at a bound, unless it is the
-                 and abs(p[sl.index] - p_neutral[sl.index]) > tol[sl.index]  # "absent" one
+                 for sl in ext.slots if sl.segment < 0 and sl.effect != "reference"
+                 and abs(p[sl.index] - p_neutral[sl.index]) > tol[sl.index]
                  and (p[sl.index] <= lo[sl.index] + tol[sl.index]
                       or p[sl.index] >= hi[sl.index] - tol[sl.index])}
     return law, StructureFit(
@@ -455,7 +455,9 @@ def _held_out(
                         adapt_kz=False, adapt_slipstream=False),
         calibration=calibration,
     )  # fmt: skip
-    readings = np.column_stack([session.values(name) for name in MULTI_SPOT])
+    # the readings as every fit takes them (frozen and clipped stretches left out)
+    inputs = disc_inputs(session, est.disc, options.ambient_c)
+    readings = inputs.spots.copy()
     readings[readings <= SENSOR_FLOOR_C] = np.nan
     err, std, noise = [], [], []
     for i in range(1, 5):
@@ -465,8 +467,8 @@ def _held_out(
         ok = np.isfinite(ref)
         err.append(est.frame[f"spot{i}"].to_numpy()[ok] - ref[ok])
         std.append(est.spread[ok, i - 1])
-        per = grid_points_per_reading(session, MULTI_SPOT[i - 1])
-        noise.append(np.full(int(ok.sum()), scoring.reading_noise(ref, per)))
+        sigma = scoring.reading_noise(ref, inputs.per_reading[i - 1], inputs.steady)
+        noise.append(np.full(int(ok.sum()), sigma))
     return np.concatenate(err), np.concatenate(std), np.concatenate(noise)
 
 
@@ -549,10 +551,10 @@ def _law_dict(law: HLaw) -> dict[str, Any]:
 def _effect_choice(session: Session, options: IdentifyOptions
                    ) -> tuple[tuple[str, ...], dict[str, Any], Any]:
     """The effects to carry (``--with-effect``), why, and the diagnosis when it chose them."""
-    text = (options.with_effects or "").strip()
+    text = (options.with_effects or "").strip().lower()
     if text == "auto":
         return auto_effects(session, options)
-    if text and text.lower() != "none":
+    if text and text != "none":
         effects = parse_effects(options.with_effects)
         return effects, {"mode": "given", "selected": list(effects), "why": "--with-effect"}, None
     return (), {"mode": "none", "selected": [], "why": "--with-effect none: the plain law"}, None

@@ -121,7 +121,7 @@ def frozen_stretches(session: Session, channel: str, unit: str) -> tuple[np.ndar
     edges = np.diff(np.concatenate(([0], same.astype(np.int8), [0])))
     starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
     need = max(FROZEN_SAMPLES, int(np.ceil(FROZEN_S / session.dt)))
-    long = (ends - starts) >= need
+    long = (ends - starts) + 1 >= need  # a run of k equal differences holds k + 1 samples
     inside = int((ends - starts)[long].sum())
     # at the log's ends the rig may simply not have started yet (a resolver at rest)
     long &= (starts > 0) & (ends < same.size)

@@ -46,7 +46,8 @@ def refresh_batch_index(out: str | Path) -> Path | None:
     except (OSError, ValueError, KeyError, TypeError):
         return None
     for row in rows:
-        if row.get("status") in ("ok", "skipped") and outputs_replaced(out / str(row["name"])):
+        if (row.get("status") in ("ok", "skipped", "earlier batch")
+                and outputs_replaced(out / str(row["name"]))):
             row.update(reason=REPLACED, peaks_c={}, replaced=True, h_law=None,
                        h_law_reason="")
     return write_batch_index(out, folder, rows)
