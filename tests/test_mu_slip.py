@@ -143,6 +143,26 @@ def test_a_force_that_drops_out_is_left_out_or_refused(tmp_path: Path) -> None:
         mu_slip(stuck, MuSlipOptions())
 
 
+def test_a_second_ramp_in_the_log_is_said(tmp_path: Path) -> None:
+    """A dry then a wet ramp in one log: only the first was reported, without a word."""
+    import pandas as pd
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    path, _ = write_tyre_simulation(simulate_tyre_rig("dry", seed=8107), tmp_path / "a.parquet")
+    table = pq.read_table(path)
+    one = table.to_pandas()
+    two = one.copy()
+    two["time"] = two["time"] + one["time"].iloc[-1] + (one["time"].iloc[1] - one["time"].iloc[0])
+    both = tmp_path / "two.parquet"
+    pq.write_table(pa.Table.from_pandas(pd.concat([one, two], ignore_index=True),
+                                        schema=table.schema, preserve_index=False), both)
+    said = summary(mu_slip(both, MuSlipOptions()))["warnings"]
+    assert any("another braking ramp" in w for w in said), said
+    assert not any("another braking ramp" in w
+                   for w in summary(mu_slip(path, MuSlipOptions()))["warnings"])
+
+
 def test_cli_writes_all_outputs(tmp_path: Path) -> None:
     path, _ = write_tyre_simulation(
         simulate_tyre_rig("dry", seed=8102), tmp_path / "rig.mcap"

@@ -187,6 +187,19 @@ def find_ramp(session: Session, slip: np.ndarray) -> tuple[int, int]:
     return start, lock
 
 
+def later_ramp_s(session: Session, slip: np.ndarray, lock: int) -> float | None:
+    """Time of a second braking ramp after the first one's lock (slip back to free rolling,
+    then past :data:`SECOND_RAMP_SLIP` again), s; None when the log holds one."""
+    w = max(3, round(0.01 / session.dt) | 1)
+    smooth = median_filter(np.nan_to_num(slip, nan=0.0), size=w, mode="nearest")
+    released = np.flatnonzero(smooth[lock:] <= 0.02)
+    if released.size == 0:
+        return None
+    again = np.flatnonzero(smooth[lock + released[0]:] > SECOND_RAMP_SLIP)
+    return None if again.size == 0 else float(session.time[lock + released[0] + again[0]])
+
+
+SECOND_RAMP_SLIP = 0.1  # –, slip a later braking must pass to count as another ramp
 MU_PLAUSIBLE = (0.05, 3.0)  # peak friction of any tyre on any surface, –
 
 
@@ -317,6 +330,10 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
         start, lock = find_ramp(session, slip)
         warnings += free_rolling_check(session, slip, mu, start, radius,
                                        options.radius_m is not None)
+        if (t2 := later_ramp_s(session, slip, lock)) is not None:
+            warnings.append(f"the log holds another braking ramp from t = {t2:.1f} s; only the"
+                            " first (to its lock) is analysed here: split the log to analyse"
+                            " the other")
     sl = slice(start, lock)
     if frozen[sl].mean() > MAX_FROZEN_SHARE:
         raise DataError(
