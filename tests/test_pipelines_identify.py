@@ -156,6 +156,27 @@ def test_a_given_effect_the_session_cannot_test_is_not_carried(sim_test_session,
     assert set(law["effects"]) == {"sensor_lag"}
 
 
+def test_a_given_mu_t_is_carried_where_the_stops_start_close_together(tmp_path):
+    """The data-power test calls μ(T) untestable on most 2-lap tight sessions (stops all
+    near one temperature), yet a strong μ(T) shows there and the race tests a law's μ(T)
+    before keeping it: it is carried (it was dropped, against diagnose's own verdict)."""
+    from brakethermo.io.load import load_session
+    from brakethermo.pipelines.diagnose.data_power import untestable_on
+    from brakethermo.pipelines.identify_h import fit_inputs, identify_from_session
+    from brakethermo.sim.session import SimConfig, simulate, write_simulation
+
+    path = write_simulation(simulate(SimConfig(
+        track="tight-like", laps=2, sensor="multi", seed=61502,
+        effects={"friction_temperature": 1.0})), tmp_path / "mu.parquet")[0]
+    session = load_session(path)
+    disc, inputs, y = fit_inputs(session)
+    assert "friction_temperature" in untestable_on(session, inputs, y, disc.v_ref)
+    result = identify_from_session(
+        session, IdentifyOptions(with_effects="friction_temperature"))
+    assert result.summary["with_effects"] == ["friction_temperature"]
+    assert "not_carried" not in result.summary["effect_selection"]
+
+
 def test_structure_fit_ignores_rounding_in_parameters_that_enter_nothing(tmp_path, monkeypatch):
     """On a track with too little time above the knee the upper branch's c_1, c_2 enter
     nothing; the fit must not hang on the rounding noise of their Jacobian columns (a

@@ -30,6 +30,9 @@ def parse_scenario(text: str) -> dict[str, object]:
         if not sep or key not in SCENARIO_KEYS:
             raise ConfigError(f"--scenario '{text}': give KEY=VALUE pairs separated by commas,"
                               f" KEY one of {', '.join(SCENARIO_KEYS)}")
+        if FIELD.get(key, key) in kw:
+            raise ConfigError(f"--scenario '{text}': {key} is given twice; one scenario takes"
+                              " each key once (give another --scenario for the other value)")
         if key == "disc":
             kw["disc"] = value.strip()
             continue

@@ -260,7 +260,10 @@ def estimate_from_session(
     t_done = time.perf_counter()
 
     std = np.sqrt(np.maximum(run.out_var, 0.0))
-    warnings.extend(check_estimate_result(out[:, :5], forward.nis))
+    # judged as published: never colder than the air (estimate_table's projection); a
+    # smoother's transient below it on a -40 degC day is no unit error
+    warnings.extend(check_estimate_result(np.fmax(out[:, :5], inputs.t_amb[:, None]),
+                                          forward.nis))
     online = {p.name: run.ssm.index[p.name] for p in run.plan.online}
     band = reported_band(out, std, tuning, model, x0[: model.n_state],
                          inputs.q_brk * cal.power_scale, h, inputs.t_amb, spot_radii,

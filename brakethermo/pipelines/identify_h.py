@@ -560,6 +560,9 @@ def _effect_choice(session: Session, options: IdentifyOptions
     return (), {"mode": "none", "selected": [], "why": "--with-effect none: the plain law"}, None
 
 
+RACE_TESTED = ("friction_temperature",)  # a law's effects the race checks before use
+
+
 def _testable(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec,
               effects: tuple[str, ...], selection: dict[str, Any], notes: list[str]
               ) -> tuple[tuple[str, ...], dict[str, Any]]:
@@ -570,7 +573,11 @@ def _testable(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpe
     from brakethermo.pipelines.diagnose.data_power import untestable_on
 
     blind = untestable_on(session, inputs, y, disc.v_ref)
-    dropped = {name: blind[name] for name in effects if name in blind}
+    # μ(T) stays: the race tests a law's μ(T) on its own laps before keeping it, and a
+    # strong one shows on a session whose stops start close together (diagnose names it
+    # there, significant, and so does not call it untestable)
+    dropped = {name: blind[name] for name in effects
+               if name in blind and name not in RACE_TESTED}
     if not dropped:
         return effects, selection
     kept = tuple(name for name in effects if name not in dropped)

@@ -98,12 +98,16 @@ def disc_data_power(
 
 def untestable_on(session: Session, inputs: DiscInputs, y: np.ndarray, v_ref: float
                   ) -> dict[str, str]:
-    """:func:`disc_data_power` of a session over its flying laps (all of it when it has
-    none), with the pyrometers' floor: what identify-h cannot fit there either."""
-    from brakethermo.pipelines.diagnose.layout import flying_laps
+    """:func:`disc_data_power` of a session as diagnose computes it: its braking zones, its
+    flying laps (all of the session when it has none), the readings above the
+    pyrometers' floor (identify-h judges the effects it is told to carry by it)."""
+    from brakethermo.pipelines.diagnose.layout import flying_laps, session_segments, zone_masks
 
     flying = np.isin(inputs.lap, flying_laps(session, inputs))
     if not flying.any():
         flying = np.ones(inputs.lap.size, bool)
-    return disc_data_power(inputs.speed, y, inputs.t_amb, inputs.braking, flying, v_ref,
+    zones = session_segments(session, inputs)[0]
+    braking = zone_masks(zones, inputs.lap.size, 0)[0]
+    readings = np.where(y > SENSOR_FLOOR_C, y, np.nan)
+    return disc_data_power(inputs.speed, readings, inputs.t_amb, braking, flying, v_ref,
                            SENSOR_FLOOR_C)
