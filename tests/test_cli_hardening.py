@@ -119,6 +119,24 @@ def test_a_folder_of_another_session_of_that_name_is_refused_first(tmp_path, mul
     assert json.loads((folder / "summary.json").read_text())["session"] == "/rig/A/t4.mcap"
 
 
+def test_another_file_of_the_same_name_is_refused_before_the_work(tmp_path, multi_session):
+    """estimate A/x then whatif, identify-h, diagnose or estimate B/x into one --out mixed
+    the two sessions' results on one page (or replaced A's) with exit 0."""
+    a = tmp_path / "A" / "x.parquet"
+    a.parent.mkdir()
+    a.write_bytes(multi_session.read_bytes())
+    (tmp_path / "B").mkdir()
+    b = write_session_parquet(tmp_path / "B" / "x.parquet", 1, seed=8, multi=True)
+    out = tmp_path / "out"
+    assert _invoke("estimate", a, "--out", out, "--no-reports").exit_code == 0
+    for args in (("whatif", b, "--cooling", "1.2"), ("identify-h", b), ("diagnose", b),
+                 ("estimate", b)):
+        res = _invoke(*args, "--out", out)
+        said = res.output.replace("\n", "")
+        assert res.exit_code == 1 and f"holds the results of {a}" in said, res.output
+    assert _invoke("estimate", a, "--out", out, "--no-reports").exit_code == 0  # itself
+
+
 def test_out_below_a_file_and_read_only_folders(tmp_path, monkeypatch):
     (tmp_path / "f").write_text("x")
     with pytest.raises(ConfigError, match=r"is a file \(inside .*f/sub\)"):

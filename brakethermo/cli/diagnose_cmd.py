@@ -119,8 +119,11 @@ def _diagnose_discs(sessions: list[Path], out: Path, options: DiagnoseOptions,
         Print the JSON summary (the pooled one when several) instead of tables.
     """
     from brakethermo.pipelines.diagnose import write_diagnosis, write_pooled
+    from brakethermo.pipelines.output_dir import check_session_folder
     from brakethermo.pipelines.outputs import to_json
 
+    for session in sessions:  # beside each session's own estimate only, before the work
+        check_session_folder(out, session, "estimate")
     results, pooled = _run_with_progress(sessions, options, as_json)
     folders = [write_diagnosis(r, out) for r in results]
     pooled_path = write_pooled(pooled, out) if pooled is not None else None
@@ -182,6 +185,9 @@ def _run_with_progress(sessions: list[Path], options: DiagnoseOptions,
 
 RIGS = ("ebooster", "emb", "roller-rig", "tyre")
 RIG_NAMES = {"mu-slip": "tyre"}  # the tyre rig by its command's name
+# the table the rig's own command writes beside a diagnosis (output_dir.SESSION_TABLES)
+RIG_TABLES = {"ebooster": "ebooster", "emb": "clamp_force", "roller-rig": "roller_rig",
+              "tyre": "mu_slip"}
 
 
 def _detect_rig(session: Path, aliases: Path | None) -> str | None:
@@ -215,9 +221,10 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
                           " of --train: give one of the two, and only for a booster session")
     if len(sessions) != 1:
         raise ConfigError("a rig diagnosis takes one session at a time")
-    from brakethermo.pipelines.output_dir import check_output_dir
+    from brakethermo.pipelines.output_dir import check_output_dir, check_session_folder
 
     check_output_dir(out)
+    check_session_folder(out, sessions[0], RIG_TABLES[rig])
     if rig == "roller-rig":
         from brakethermo.pipelines.diagnose.rig_roller import diagnose_roller_rig
 

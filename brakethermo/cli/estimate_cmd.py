@@ -257,7 +257,7 @@ def estimate_command(
 
     reports = not no_reports and legacy_report is not False
     preflight(out=out, tuning=tuning, h_law=h_law, aliases=aliases, disc=disc)
-    check_session_folder(out, session.stem, "estimate")
+    check_session_folder(out, session, "estimate")
     loaded, read_s = run_with_status(as_json, f"reading {session.name} ...",
                                      lambda: load_timed(session, aliases))
     law, law_reason = choose_h_law(h_law, out / session.stem, loaded, disc_for(loaded, disc))

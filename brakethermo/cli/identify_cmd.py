@@ -58,6 +58,9 @@ def identify_command(
     from brakethermo.pipelines.preflight import preflight
 
     preflight(out=out, tuning=tuning, aliases=aliases, disc=disc)
+    from brakethermo.pipelines.output_dir import check_session_folder
+
+    check_session_folder(out, session, "estimate")  # beside this session's estimate only
     if with_effect.strip().lower() not in ("auto", "none", ""):
         from brakethermo.errors import ConfigError
         from brakethermo.models.effects import parse_effects

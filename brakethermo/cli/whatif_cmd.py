@@ -96,12 +96,13 @@ def whatif_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Replay the session's own laps with a change: window, peaks, friction, heat to the tyre."""
-    from brakethermo.pipelines.output_dir import refresh_indexes
+    from brakethermo.pipelines.output_dir import check_session_folder, refresh_indexes
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.whatif import WhatifOptions, whatif_session, write_whatif
     from brakethermo.report.whatif_page import write_whatif_page
     from brakethermo.thermal.tyre_radiation import TyreView
 
+    check_session_folder(out, session, "estimate")  # beside this session's estimate only
     scenarios = _scenarios(cooling, disc, ambient, pads, scenario)
     if not math.isfinite(tyre_temp) or not -20.0 <= tyre_temp <= 200.0:
         raise ConfigError(f"--tyre-temp {tyre_temp}: give the sidewall in degC, -20 to 200")

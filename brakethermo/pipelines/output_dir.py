@@ -11,6 +11,8 @@ command's results, and a run killed half-way leaves the old folder as it was.
 
 from __future__ import annotations
 
+import filecmp
+import json
 import os
 import tempfile
 from contextlib import AbstractContextManager
@@ -71,40 +73,73 @@ def check_output_dir(out: str | Path, option: str = "--out") -> Path:
 # its own: two of them in one folder are two sessions of one name (a roller-rig day1.mcap
 # and a tyre day1.mcap), whose pages would replace each other's.
 SESSION_TABLES = ("estimate", "roller_rig", "ebooster", "clamp_force", "mu_slip")
+# What the commands record of the session they ran on, in OUT/<stem>/ ("session": path).
+SESSION_RECORDS = ("summary.json", "identify.json", "diagnosis.json", "whatif/summary.json")
 
 
-def check_session_folder(out: str | Path, stem: str, table: str) -> None:
-    """Refuse, before any work, to write ``table``'s run of session ``stem`` into a folder
-    that holds another command's run (another session of that name).
+def _recorded(folder: Path) -> list[str]:
+    out = []
+    for name in SESSION_RECORDS:
+        try:
+            source = json.loads((folder / name).read_text(encoding="utf-8"))["session"]
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+        if isinstance(source, str):
+            out.append(source)
+    return out
+
+
+def _other_file(recorded: str, session: Path) -> bool:
+    """Whether ``recorded`` is, for sure, another file than ``session``: it still exists
+    and holds other bytes (a file since moved, or named relative to another folder,
+    cannot be told: no refusal)."""
+    other = Path(recorded)
+    try:
+        if not other.is_file() or other.samefile(session):
+            return False
+        return other.stat().st_size != session.stat().st_size or not filecmp.cmp(
+            other, session, shallow=False)
+    except OSError:
+        return False
+
+
+def check_session_folder(out: str | Path, session: str | Path, table: str | None) -> None:
+    """Refuse, before any work, to write a run of ``session`` into ``OUT/<stem>/`` when
+    that folder holds another session of that name: another command's table
+    (:data:`SESSION_TABLES`, ``table`` being this command's own, or None), or a record of
+    a session file that is another one (estimate, whatif, identify-h and diagnose
+    results of two sessions would sit on one page).
 
     Raises
     ------
     ConfigError
-        ``OUT/<stem>/`` holds another of :data:`SESSION_TABLES`.
+        ``OUT/<stem>/`` holds another session's results.
     """
-    folder = Path(out) / stem
+    session = Path(session)
+    folder = Path(out) / session.stem
     other = next((t for t in SESSION_TABLES
                   if t != table and (folder / f"{t}.parquet").is_file()), None)
+    sources = _recorded(folder)
     if other is None:
-        return
-    try:
-        import json
-
-        source = json.loads((folder / "summary.json").read_text(encoding="utf-8"))["session"]
-        whose = f" of {source}"
-    except (OSError, ValueError, KeyError, TypeError):
-        whose = ""
+        elsewhere = next((s for s in sources if _other_file(s, session)), None)
+        if elsewhere is None:
+            return
+        raise ConfigError(
+            f"holds the results of {elsewhere}, another session named '{session.stem}':"
+            " this run would mix them on one page; give another --out (or rename one of"
+            " the files)", path=folder)
+    whose = f" of {sources[0]}" if sources else ""
     raise ConfigError(
         f"holds the {other.replace('_', '-')} results{whose}, another session named"
-        f" '{stem}': this run would replace its summary and page; give another --out (or"
-        " rename one of the files)", path=folder)
+        f" '{session.stem}': this run would replace its summary and page; give another"
+        " --out (or rename one of the files)", path=folder)
 
 
 def check_session_output(out: str | Path, session: str | Path, table: str) -> None:
     """Before any work: ``out`` can be written (:func:`check_output_dir`) and its folder for
     ``session`` holds no other session's run (:func:`check_session_folder`)."""
     check_output_dir(out)
-    check_session_folder(out, Path(session).stem, table)
+    check_session_folder(out, session, table)
 
 
 def check_output_file(path: str | Path, option: str = "--out") -> Path:
