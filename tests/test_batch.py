@@ -225,6 +225,23 @@ def test_the_batch_page_follows_commands_run_into_its_folder(folder: Path, tmp_p
     assert "quali" in index.read_text()
 
 
+def test_a_rig_log_in_the_folder_is_listed_not_failed(tmp_path: Path) -> None:
+    """A test day's folder with a caliper log beside the disc sessions: the log was
+    counted as a failed disc session (exit 3)."""
+    from brakethermo.sim.emb import simulate_emb, write_emb_simulation
+
+    src = tmp_path / "day"
+    src.mkdir()
+    write_session_parquet(src / "race.parquet", 1, seed=3)
+    write_emb_simulation(simulate_emb("nominal", seed=7, duration_s=3), src / "emb.mcap")
+    result = run_batch(src, _options(tmp_path), job=JOB)
+    status = {o.name: (o.status, o.reason) for o in result.outcomes}
+    assert status["race"][0] == "ok" and status["emb"][0] == "rig session"
+    assert "brakethermo clamp-force reads it" in status["emb"][1]
+    assert result.exit_code == 0 and "rig session" in (tmp_path / "out" / "index.html"
+                                                        ).read_text()
+
+
 def test_given_h_law_used_and_part_of_the_key(folder: Path, tmp_path: Path) -> None:
     law = tmp_path / "law.toml"
     shipped = (config_dir() / "hlaw" / "cc-340-8.toml").read_text()

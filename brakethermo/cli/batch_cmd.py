@@ -25,7 +25,7 @@ from brakethermo.cli._options import (
 if TYPE_CHECKING:
     from brakethermo.pipelines.batch import BatchOptions, BatchResult
 
-STATUS_STYLE = {"ok": "green", "skipped": "cyan", "failed": "bold red"}
+STATUS_STYLE = {"ok": "green", "skipped": "cyan", "failed": "bold red", "rig session": "cyan"}
 SPOTS = ("spot1", "spot2", "spot3", "spot4")
 
 
@@ -176,6 +176,10 @@ def _render(result: BatchResult, out: Path, reports: bool) -> None:
     console.print(f"wall time {result.wall_s:.1f} s" + (f"  ({share})" if share else ""))
     if reports:
         console.print(f"open [bold]{escape(str(out / 'index.html'))}[/] for the reports")
+    for o in result.outcomes:
+        if o.status == "rig session":
+            console.print(f"[cyan]not a disc session:[/] {escape(str(o.path))}: "
+                          f"{escape(o.reason)}", soft_wrap=True)
     for o in result.failed:
         where = "" if str(o.path) in o.reason else f"{o.path}: "
         console.print(f"[bold red]failed:[/] {escape(where + o.reason)}", soft_wrap=True)

@@ -192,16 +192,9 @@ RIG_TABLES = {"ebooster": "ebooster", "emb": "clamp_force", "roller-rig": "rolle
 
 def _detect_rig(session: Path, aliases: Path | None) -> str | None:
     """The rig a session comes from, from its channels (None: a disc session)."""
-    from brakethermo.errors import BrakethermoError
-    from brakethermo.io.kinds import RIG_MARKS, session_kind
-    from brakethermo.io.load import load_session
+    from brakethermo.io.kinds import detect_rig
 
-    try:
-        s = load_session(session, rate_hz=None, aliases=aliases, channels=RIG_MARKS)
-    except BrakethermoError:
-        return None
-    kind = session_kind({*s.available, *s.channels})
-    return None if kind == "disc" else kind
+    return detect_rig(session, aliases)
 
 
 def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,

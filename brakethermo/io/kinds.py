@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from pathlib import Path
 
 
 @dataclass(frozen=True)
@@ -73,3 +74,17 @@ def kind_hint(channels: Iterable[str], missing: str) -> str:
         return ""
     k = KINDS[kind]
     return f" Its channels are those of {k.words} session: {k.command} reads it."
+
+
+def detect_rig(path: str | Path, aliases: str | Path | None = None) -> str | None:
+    """The rig a session file comes from, from its channels (None: a disc session, or a
+    file that cannot be read)."""
+    from brakethermo.errors import BrakethermoError
+    from brakethermo.io.load import load_session
+
+    try:
+        s = load_session(path, rate_hz=None, aliases=aliases, channels=RIG_MARKS)
+    except BrakethermoError:
+        return None
+    kind = session_kind({*s.available, *s.channels})
+    return None if kind == "disc" else kind

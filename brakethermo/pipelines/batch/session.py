@@ -21,11 +21,13 @@ from brakethermo.errors import (
     BrakethermoError,
 )
 from brakethermo.io.atomic import write_text_atomic
+from brakethermo.io.kinds import KINDS, detect_rig
 from brakethermo.io.session import Session
 from brakethermo.pipelines.batch.discovery import MANIFEST, output_fingerprints
 from brakethermo.pipelines.batch.laws import is_multi_spot, session_facts
 from brakethermo.pipelines.batch.tasks import (
     DEFAULT_LAW,
+    RIG_SESSION,
     BatchOptions,
     RunOutput,
     SessionOutcome,
@@ -123,6 +125,12 @@ def process_session(
         outcome.status = "ok"
     except Exception as exc:  # one bad file never stops the batch
         outcome.status, outcome.reason = "failed", failure_reason(exc)
+        rig = detect_rig(task.path, task.options.aliases)
+        if rig is not None:  # a rig log in the folder is not a disc session that failed
+            kind = KINDS[rig]
+            outcome.status = RIG_SESSION
+            outcome.reason = (f"{kind.words} session, not a disc one: {kind.command} reads"
+                              " it (batch estimates the disc sessions)")
     outcome.wall_s = time.perf_counter() - t0
     return outcome
 

@@ -173,6 +173,10 @@ class SessionTask:
     h_law_reason: str = ""
 
 
+# a file of the folder that is a rig's log: listed, not estimated, and no failure
+RIG_SESSION = "rig session"
+
+
 @dataclass
 class SessionOutcome:
     """What happened to one session.
