@@ -32,3 +32,10 @@ def noise_std(x: ArrayLike) -> float:
     if d.size < 3:
         return float("nan")
     return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))
+
+
+def true_runs(flag: ArrayLike) -> np.ndarray:
+    """The runs of True in ``flag`` as half-open ``[start, stop)`` index rows, (n, 2) int."""
+    f = np.asarray(flag, dtype=bool).astype(np.int8)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], f, [0]))))
+    return edges.reshape(-1, 2)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from brakethermo.errors import DataError
+from brakethermo.numeric import true_runs
 
 RPM_PER_RAD_S = 60.0 / (2.0 * np.pi)
 KMH_PER_M_S = 3.6
@@ -180,12 +181,6 @@ def _late_start(temps: np.ndarray, dt: float, source: str) -> list[str]:
                else "a unit or sensor problem") + "; check the channel"]
 
 
-def _runs(flag: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Starts and (exclusive) ends of the runs of True in ``flag``."""
-    edges = np.diff(np.concatenate(([0], flag.astype(np.int8), [0])))
-    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-
-
 def unusable_readings(temps: np.ndarray, dt: float, source: str
                       ) -> tuple[np.ndarray, list[str]]:
     """Readings that are not the disc, to be left out of every fit, and why.
@@ -209,7 +204,7 @@ def unusable_readings(temps: np.ndarray, dt: float, source: str
     mask = np.zeros(temps.size, bool)
     warnings: list[str] = []
     flat = np.abs(np.diff(temps)) <= STUCK_TOLERANCE_C
-    starts, ends = _runs(flat)
+    starts, ends = true_runs(flat).T
     long = (ends - starts) * dt >= STUCK_SPAN_S
     if long.any():
         for a, b in zip(starts[long], ends[long], strict=True):
@@ -224,7 +219,7 @@ def unusable_readings(temps: np.ndarray, dt: float, source: str
     if finite.sum() > 1:
         top = float(np.max(temps[finite]))
         at_top = finite & (temps >= top - STUCK_TOLERANCE_C)
-        starts, ends = _runs(at_top)
+        starts, ends = true_runs(at_top).T
         keep = (ends - starts) * dt >= CLIP_RUN_S
         if keep.sum() >= 2:  # then every reading at that value is the range's end
             clipped = at_top

@@ -20,19 +20,13 @@ from brakethermo.io.session import GRID_DT
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.pipelines.models import DiscCalibration
 from brakethermo.pipelines.race_filter import disc_model
+from brakethermo.pipelines.scoring import segments
 from brakethermo.pipelines.tuning import EstimateTuning
 from brakethermo.thermal.disc import DiscSpec
 
 MIN_STRAIGHT_S = 3.0  # s of continuous off-brake cooling a straight needs
 MIN_SPEED = 20.0 / 3.6  # m/s: slower is pit lane or a spin, not the law's regime
 FACTORS = np.exp(np.linspace(np.log(0.4), np.log(2.5), 41))
-
-
-def _runs(mask: np.ndarray, min_len: int) -> list[tuple[int, int]]:
-    """``[start, stop)`` of the runs of True at least ``min_len`` long."""
-    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(np.int8), 0]))
-    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)
-            if b - a >= min_len]
 
 
 def straight_factors(
@@ -69,7 +63,7 @@ def straight_factors(
     B = FACTORS.size
     u = np.log(FACTORS)
     spot_radii = np.asarray(disc.spot_radii)
-    for a, b in _runs(usable, round(MIN_STRAIGHT_S / GRID_DT)):
+    for a, b in segments(usable, round(MIN_STRAIGHT_S / GRID_DT)):
         # the straight starts from the open-loop state moved to the measured spots (each
         # radial node through the thickness by the offset at its radius): a law off by
         # tens of per cent leaves the open-loop disc tens of degrees off, which would

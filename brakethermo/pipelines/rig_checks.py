@@ -18,6 +18,7 @@ import numpy as np
 
 from brakethermo.errors import DataError
 from brakethermo.io.session import Session
+from brakethermo.numeric import true_runs
 
 
 @dataclass(frozen=True)
@@ -118,8 +119,7 @@ def frozen_stretches(session: Session, channel: str, unit: str) -> tuple[np.ndar
     same = np.diff(v) == 0.0
     if same.size < 2 * FROZEN_SAMPLES:
         return mask, ""
-    edges = np.diff(np.concatenate(([0], same.astype(np.int8), [0])))
-    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    starts, ends = true_runs(same).T
     need = max(FROZEN_SAMPLES, int(np.ceil(FROZEN_S / session.dt)))
     long = (ends - starts) + 1 >= need  # a run of k equal differences holds k + 1 samples
     inside = int((ends - starts)[long].sum())

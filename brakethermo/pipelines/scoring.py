@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from brakethermo.numeric import rmse
+from brakethermo.numeric import rmse, true_runs
 
 CONTACT_SPOTS = (2, 3, 4)  # spot numbers inside the pad contact band
 Z95 = 1.959963984540054
@@ -61,10 +61,7 @@ def ratio(a: float, b: float) -> float:
 
 def segments(flag: np.ndarray, min_len: int = 1) -> list[tuple[int, int]]:
     """Contiguous runs of True in ``flag`` as half-open index ranges ``(start, stop)``."""
-    padded = np.concatenate(([False], flag.astype(bool), [False]))
-    edges = np.flatnonzero(np.diff(padded.astype(np.int8)))
-    runs = edges.reshape(-1, 2)
-    return [(int(a), int(b)) for a, b in runs if b - a >= min_len]
+    return [(int(a), int(b)) for a, b in true_runs(flag) if b - a >= min_len]
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from brakethermo.numeric import true_runs
+
 BAR = 1.0e5  # Pa
 KMH = 3.6  # (km/h) per (m/s)
 SPOTS = ("spot1", "spot2", "spot3", "spot4")
@@ -66,9 +68,7 @@ def detect_zones(
     """
     det = detection or ZoneDetection()
     braking = np.nan_to_num(np.asarray(pressure_pa, dtype=float), nan=0.0) > det.on_pa
-    edges = np.diff(np.concatenate(([0], braking.astype(np.int8), [0])))
-    starts = np.flatnonzero(edges == 1)
-    stops = np.flatnonzero(edges == -1)
+    starts, stops = true_runs(braking).T
     if starts.size == 0:
         return np.empty((0, 2), dtype=np.int64)
     t = np.asarray(time, dtype=float)
