@@ -85,7 +85,9 @@ def diagnose_command(
     if radius is not None and not 0.05 <= radius <= 2.0:
         raise ConfigError(f"--radius {radius} m is not a wheel radius; give metres, 0.05 to 2")
     if rig is None and len(sessions) == 1 and not sessions[0].suffix.lower() == ".toml":
-        rig = _detect_rig(sessions[0], aliases)
+        from brakethermo.io.kinds import detect_rig
+
+        rig = detect_rig(sessions[0], aliases)
     if rig is not None:
         disc_only = [name for name, given in (
             ("--holdout-laps", holdout_laps), ("--h-law", h_law), ("--disc", disc),
@@ -185,16 +187,7 @@ def _run_with_progress(sessions: list[Path], options: DiagnoseOptions,
 
 RIGS = ("ebooster", "emb", "roller-rig", "tyre")
 RIG_NAMES = {"mu-slip": "tyre"}  # the tyre rig by its command's name
-# the table the rig's own command writes beside a diagnosis (output_dir.SESSION_TABLES)
-RIG_TABLES = {"ebooster": "ebooster", "emb": "clamp_force", "roller-rig": "roller_rig",
-              "tyre": "mu_slip"}
 
-
-def _detect_rig(session: Path, aliases: Path | None) -> str | None:
-    """The rig a session comes from, from its channels (None: a disc session)."""
-    from brakethermo.io.kinds import detect_rig
-
-    return detect_rig(session, aliases)
 
 
 def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
@@ -214,10 +207,11 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
                           " of --train: give one of the two, and only for a booster session")
     if len(sessions) != 1:
         raise ConfigError("a rig diagnosis takes one session at a time")
+    from brakethermo.io.kinds import rig_kind
     from brakethermo.pipelines.output_dir import check_output_dir, check_session_folder
 
     check_output_dir(out)
-    check_session_folder(out, sessions[0], RIG_TABLES[rig])
+    check_session_folder(out, sessions[0], rig_kind(rig).table)
     if rig == "roller-rig":
         from brakethermo.pipelines.diagnose.rig_roller import diagnose_roller_rig
 

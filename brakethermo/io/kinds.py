@@ -29,6 +29,11 @@ class SessionKind:
     contract: tuple[str, ...]
     command: str
 
+    @property
+    def table(self) -> str:
+        """The parquet a rig's command writes in ``OUT/<stem>/`` (``clamp_force``, ...)."""
+        return self.command.split()[-1].replace("-", "_")
+
 
 KINDS: dict[str, SessionKind] = {
     "ebooster": SessionKind(
@@ -55,6 +60,16 @@ KINDS: dict[str, SessionKind] = {
          "lap_beacon"),
         "brakethermo estimate, identify-h or diagnose"),
 }
+# a rig as diagnose names it (diagnosis.json "rig"), where that is not its kind's name
+DIAGNOSIS_RIGS = {"tyre": "mu-slip"}
+
+
+def rig_kind(name: str) -> SessionKind | None:
+    """The rig kind of a name as :data:`KINDS` or diagnose gives it (None: no rig)."""
+    kind = DIAGNOSIS_RIGS.get(name, name)
+    return KINDS[kind] if kind in KINDS and kind != "disc" else None
+
+
 RIG_MARKS = tuple(c for k, kind in KINDS.items() if k != "disc" for c in kind.marks)
 
 

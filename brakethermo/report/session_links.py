@@ -15,6 +15,7 @@ import json
 from pathlib import Path
 
 from brakethermo.io.atomic import write_text_atomic
+from brakethermo.io.kinds import rig_kind
 
 PAGES = (
     ("diagnosis/index.html", "diagnosis: where the model parts from the disc"),
@@ -24,18 +25,15 @@ PAGES = (
 START, END = "<!--pages-->", "<!--/pages-->"
 
 
-# the command that writes a rig session's own page, by the rig diagnosis.json names
-RIG_COMMANDS = {"ebooster": "ebooster", "emb": "clamp-force", "roller-rig": "roller-rig",
-                "tyre": "mu-slip"}
-
-
 def _rig_of(folder: Path) -> str | None:
-    """The rig a diagnosis beside the page was made for (None: a disc session)."""
+    """The command of the rig a diagnosis beside the page was made for (None: a disc
+    session)."""
     try:
         rig = json.loads((folder / "diagnosis.json").read_text(encoding="utf-8")).get("rig")
     except (OSError, ValueError, AttributeError):
         return None
-    return rig if rig in RIG_COMMANDS else None
+    kind = rig_kind(rig) if isinstance(rig, str) else None
+    return None if kind is None else kind.command
 
 
 def _law_of(path: Path) -> str | None:
@@ -86,9 +84,9 @@ def refresh_page_links(folder: str | Path) -> Path | None:
         return None
     name = html.escape(folder.name)
     rig = _rig_of(folder)
-    own = (f"No page of the rig's own run here (run <code>brakethermo {RIG_COMMANDS[rig]}"
-           "</code> for it)." if rig else "No per-lap reports here (run <code>brakethermo"
-           " estimate</code> without --no-report for them).")
+    own = (f"No page of the rig's own run here (run <code>{rig}</code> for it)." if rig
+           else "No per-lap reports here (run <code>brakethermo estimate</code> without"
+           " --no-report for them).")
     write_text_atomic(index, (
         "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
         f"<title>{name}</title><link rel=\"icon\" href=\"data:,\"></head><body>"
