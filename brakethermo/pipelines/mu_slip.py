@@ -150,6 +150,13 @@ def slip_and_mu(
     return slip, mu, radius_m
 
 
+def _smoothed(session: Session, slip: np.ndarray) -> np.ndarray:
+    """Slip through a 10 ms median filter (odd, at least 3 samples), NaN as 0: the ramp's
+    shape without single-sample spikes."""
+    w = max(3, round(0.01 / session.dt) | 1)
+    return median_filter(np.nan_to_num(slip, nan=0.0), size=w, mode="nearest")
+
+
 def find_ramp(session: Session, slip: np.ndarray) -> tuple[int, int]:
     """Index range [start, end) of the first braking ramp from free rolling: up to wheel
     lock, or, without a lock, up to the deepest slip of that braking.
@@ -159,8 +166,7 @@ def find_ramp(session: Session, slip: np.ndarray) -> tuple[int, int]:
     DataError
         No braking in the session.
     """
-    w = max(3, round(0.01 / session.dt) | 1)
-    smooth = median_filter(np.nan_to_num(slip, nan=0.0), size=w, mode="nearest")
+    smooth = _smoothed(session, slip)
     locked = np.flatnonzero(smooth >= LOCK_SLIP)
     if locked.size:
         lock = int(locked[0])
@@ -190,8 +196,7 @@ def find_ramp(session: Session, slip: np.ndarray) -> tuple[int, int]:
 def later_ramp_s(session: Session, slip: np.ndarray, lock: int) -> float | None:
     """Time of a second braking ramp after the first one's lock (slip back to free rolling,
     then past :data:`SECOND_RAMP_SLIP` again), s; None when the log holds one."""
-    w = max(3, round(0.01 / session.dt) | 1)
-    smooth = median_filter(np.nan_to_num(slip, nan=0.0), size=w, mode="nearest")
+    smooth = _smoothed(session, slip)
     released = np.flatnonzero(smooth[lock:] <= 0.02)
     if released.size == 0:
         return None
