@@ -31,7 +31,7 @@ from brakethermo.models.disc import DiscStateSpace
 from brakethermo.models.reduced import MAX_MODES
 from brakethermo.pipelines.checks import check_estimate_result, check_power_scale
 from brakethermo.pipelines.estimate_scores import self_scores
-from brakethermo.pipelines.estimate_table import estimate_frame, reported_band
+from brakethermo.pipelines.estimate_table import above_air, estimate_frame, reported_band
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
@@ -260,10 +260,8 @@ def estimate_from_session(
     t_done = time.perf_counter()
 
     std = np.sqrt(np.maximum(run.out_var, 0.0))
-    # judged as published: never colder than the air (estimate_table's projection); a
-    # smoother's transient below it on a -40 degC day is no unit error
-    warnings.extend(check_estimate_result(np.fmax(out[:, :5], inputs.t_amb[:, None]),
-                                          forward.nis))
+    # judged as published (a smoother's transient below a -40 degC air is no unit error)
+    warnings.extend(check_estimate_result(above_air(out, inputs.t_amb)[:, :5], forward.nis))
     online = {p.name: run.ssm.index[p.name] for p in run.plan.online}
     band = reported_band(out, std, tuning, model, x0[: model.n_state],
                          inputs.q_brk * cal.power_scale, h, inputs.t_amb, spot_radii,

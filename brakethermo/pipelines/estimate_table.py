@@ -54,6 +54,17 @@ def reported_band(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning,
     return band
 
 
+def above_air(out: np.ndarray, t_amb: np.ndarray) -> np.ndarray:
+    """The spots and the contact average (``out[:, :5]``, degC) as published: a disc is
+    never colder than the air (degC) around it, so the estimate is projected onto
+    T >= T_amb (estimate projection of a constrained Kalman filter, Simon & Chia 2002).
+    Without it the smoother, with no reading below the pyrometer floor, can start the
+    disc colder."""
+    out = np.array(out, dtype=float, copy=True)
+    out[:, :5] = np.fmax(out[:, :5], np.asarray(t_amb)[:, None])
+    return out
+
+
 def estimate_frame(
     inputs: DiscInputs,
     model: DiscFEModel,
@@ -69,12 +80,8 @@ def estimate_frame(
     (``mid_<k>``), the power scale and online effect factors the filter learned, the
     braking power and h."""
     cols: dict[str, np.ndarray] = {"time": inputs.time, "lap": inputs.lap.astype(np.int64)}
-    # A disc is never colder than the air around it: project the estimate onto T >= T_amb
-    # (estimate projection of a constrained Kalman filter, Simon & Chia 2002). Without it
-    # the smoother, with no reading below the pyrometer floor, can start the disc colder.
-    floor = inputs.t_amb
-    out = out.copy()
-    out[:, :5] = np.fmax(out[:, :5], floor[:, None])
+    floor = inputs.t_amb  # every node, too, is never colder than the air
+    out = above_air(out, floor)
     for i in range(4):
         cols[f"spot{i + 1}"] = out[:, i]
         cols[f"spot{i + 1}_std"] = std[:, i]
