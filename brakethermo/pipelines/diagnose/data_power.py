@@ -101,9 +101,9 @@ def untestable_on(session: Session, inputs: DiscInputs, y: np.ndarray, v_ref: fl
     """:func:`disc_data_power` of a session as diagnose computes it: its braking zones, its
     flying laps (all of the session when it has none), the readings above the
     pyrometers' floor (identify-h judges the effects it is told to carry by it)."""
-    from brakethermo.pipelines.diagnose.layout import flying_laps, session_segments, zone_masks
+    from brakethermo.pipelines.diagnose.layout import full_laps, session_segments, zone_masks
 
-    flying = np.isin(inputs.lap, flying_laps(session, inputs))
+    flying = np.isin(inputs.lap, full_laps(session, inputs))
     if not flying.any():
         flying = np.ones(inputs.lap.size, bool)
     zones = session_segments(session, inputs)[0]

@@ -62,8 +62,9 @@ def session_segments(session: Session, inputs: DiscInputs
     return zones, dist, build_segments(inputs, zones, dist)
 
 
-def flying_laps(session: Session, inputs: DiscInputs) -> list[int]:
-    """The session's flying laps: the out-lap and a partial last lap excluded."""
+def full_laps(session: Session, inputs: DiscInputs) -> list[int]:
+    """The session's whole flying laps (the out-lap and partial laps excluded), by number
+    (results.laps.flying_laps counts the flying laps, partial ones included)."""
     present = sorted(int(v) for v in np.unique(inputs.lap) if v >= 1)
     durations = {lap.lap: lap.duration_s for lap in session.laps}
     short = partial_laps(session.laps)
@@ -73,7 +74,7 @@ def flying_laps(session: Session, inputs: DiscInputs) -> list[int]:
 def split_laps(session: Session, inputs: DiscInputs, holdout: Sequence[int] | None
                ) -> tuple[tuple[int, ...], tuple[int, ...]]:
     """Training and held-out flying laps (out-lap and partial last lap excluded)."""
-    full = flying_laps(session, inputs)
+    full = full_laps(session, inputs)
     if len(full) < 2:
         raise DataError(
             f"diagnose needs at least two flying laps to fit on some and check on others; the"
