@@ -243,8 +243,9 @@ def test_bad_inputs_exit_1(tmp_path: Path) -> None:
         simulate_emb("nominal", seed=6302, duration_s=3, with_sensor=False), tmp_path / "ns.mcap"
     )
     assert "sensor" in _run_bad(tmp_path, str(good), "--train", str(nosensor))
-    assert "--factor-walk" in _run_bad(tmp_path, str(good), "--train", str(good),
-                                       "--factor-walk", "1e6")
+    walk = CliRunner().invoke(app, ["clamp-force", str(good), "--train", str(good),
+                                    "--factor-walk", "1e6", "--out", str(tmp_path / "o")])
+    assert walk.exit_code == 2 and "--factor-walk" in walk.output  # a usage error
     ch = {c.name: c for c in sim.session.channels}
     no_current = write_session(
         tmp_path / "nc.csv", SessionData((ch["motor_angle"], ch["clamp_force"]), {})

@@ -209,8 +209,9 @@ def test_impossible_answers_are_said_or_refused(tmp_path: Path) -> None:
                                    "--out", str(tmp_path / "o")])
     assert res.exit_code == 1 and "free rolling" in res.output and "0.300 m" in res.output, (
         res.output)
-    assert "--mu-max 0" in CliRunner().invoke(
-        app, ["mu-slip", str(path), "--mu-max", "0", "--out", str(tmp_path / "o")]).output
+    bad = CliRunner().invoke(app, ["mu-slip", str(path), "--mu-max", "0",
+                                   "--out", str(tmp_path / "o")])
+    assert bad.exit_code == 2 and "--mu-max 0" in bad.output  # a usage error
     # a log that starts already braking has no free rolling to judge: the right peak, no
     # word about the radius (the first version of the check refused it)
     sim = simulate_tyre_rig("dry", seed=8107)

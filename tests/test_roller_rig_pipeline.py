@@ -190,14 +190,20 @@ def test_bad_input_one_clear_line_exit_1(tmp_path: Path, kwargs: dict, needle: s
     assert str(path) in got.output.replace("\n", "")
 
 
-def test_bad_options_exit_1(tmp_path: Path) -> None:
+@pytest.mark.parametrize("args, needle", [
+    (["--r0", "320", "--r0", "320"], "repeat"),
+    (["--creep", "coulomb"], "--creep"),
+    (["--r0", "99"], "--r0 99"),
+    (["--supply-hz", "0"], "--supply-hz"),
+])
+def test_bad_options_are_usage_errors(tmp_path: Path, args: list[str], needle: str) -> None:
+    """Option values out of range are usage errors, exit 2 as Typer's own checks."""
     path = _synthetic(tmp_path, "ok.csv")
-    got = runner.invoke(app, ["roller-rig", str(path), "--r0", "320", "--r0", "320"])
-    assert got.exit_code == 1 and "repeat" in got.output
+    got = runner.invoke(app, ["roller-rig", str(path), *args, "--out", str(tmp_path / "o")])
+    assert got.exit_code == 2 and needle in got.output, got.output
+    assert not (tmp_path / "o").exists()
     with pytest.raises(ConfigError, match="tuning"):
         RollerRigOptions(tuning="magic").validated()
-    got = runner.invoke(app, ["roller-rig", str(path), "--creep", "coulomb"])
-    assert got.exit_code == 1 and "--creep" in got.output
 
 
 def test_supply_frequency_inferred_without_the_fact(tmp_path: Path) -> None:

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from brakethermo.errors import ConfigError
 from brakethermo.pipelines.tuning import BOUNDS
 
 NODES_MIN, NODES_MAX = (int(v) for v in BOUNDS["nodes"])
@@ -29,6 +32,20 @@ def positive_finite(value: float) -> float:
     if not (math.isfinite(value) and value > 0):
         raise typer.BadParameter(f"{value} must be a finite number > 0")
     return value
+
+
+@contextmanager
+def option_values() -> Iterator[None]:
+    """An option value the command checks itself (a range, a combination) is a usage
+    error, exit 2 as Typer's own checks, not a data problem (exit 1).
+
+    Wrap only the building of a command's options from its arguments: a session or
+    file read inside stays a data problem.
+    """
+    try:
+        yield
+    except ConfigError as exc:
+        raise typer.BadParameter(str(exc)) from None
 
 
 # what the readers take (io.formats.SUFFIXES; a test keeps the two in step without

@@ -12,7 +12,6 @@ from rich.table import Table
 
 from brakethermo.cli._app import app, console, print_warnings, run_with_status
 from brakethermo.cli._options import AliasesOpt, JsonOpt, OutDir
-from brakethermo.errors import ConfigError
 
 
 @app.command("clamp-force")
@@ -34,9 +33,6 @@ def clamp_force_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Clamp force without a force sensor: paper's KF, ML fusion, each model, adaptive KF."""
-    from brakethermo.pipelines.output_dir import check_session_output
-
-    check_session_output(out, session, "clamp_force")  # before the work
     from brakethermo.pipelines.clamp_force import (
         MAX_FACTOR_WALK,
         UNITS,
@@ -45,14 +41,16 @@ def clamp_force_cmd(
         result_frame,
         summary,
     )
+    from brakethermo.pipelines.output_dir import check_session_output
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.rig_outputs import write_rig_outputs
 
     if not (math.isfinite(factor_walk) and 0 < factor_walk <= MAX_FACTOR_WALK):
-        raise ConfigError(
+        raise typer.BadParameter(
             f"--factor-walk {factor_walk:g}: give a random walk in (0, {MAX_FACTOR_WALK:g}]"
             " 1/√s (default 0.02; pads soften over seconds — a larger walk hands the"
             " estimate to the torque balance alone and lets the stiffness factor go negative)")
+    check_session_output(out, session, "clamp_force")  # before the work
     res = run_with_status(
         as_json,
         "clamp-force…",

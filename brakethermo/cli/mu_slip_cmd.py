@@ -10,7 +10,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, print_warnings, run_with_status
-from brakethermo.cli._options import AliasesOpt, JsonOpt, OutDir
+from brakethermo.cli._options import AliasesOpt, JsonOpt, OutDir, option_values
 
 
 @app.command("mu-slip")
@@ -39,9 +39,6 @@ def mu_slip_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Peak μ and slip: Rudd's EKF, batch LM, and the curve family with the best held-out fit."""
-    from brakethermo.pipelines.output_dir import check_session_output
-
-    check_session_output(out, session, "mu_slip")  # before the work
     from brakethermo.pipelines.mu_slip import (
         UNITS,
         MuSlipOptions,
@@ -51,11 +48,14 @@ def mu_slip_cmd(
         result_frame,
         summary,
     )
+    from brakethermo.pipelines.output_dir import check_session_output
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.rig_outputs import write_rig_outputs
 
-    opts = MuSlipOptions(mu_range=(0.1, mu_max), slip_range=(0.05, slip_max), radius_m=radius,
-                         points=points)
+    with option_values():
+        opts = MuSlipOptions(mu_range=(0.1, mu_max), slip_range=(0.05, slip_max),
+                             radius_m=radius, points=points)
+    check_session_output(out, session, "mu_slip")  # before the work
     res = run_with_status(as_json, "mu-slip…", lambda: mu_slip(session, opts, aliases=aliases))
     summ = summary(res)
     folder = write_rig_outputs(

@@ -9,7 +9,7 @@ import typer
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, print_warnings, run_with_status
-from brakethermo.cli._options import SESSION_FORMATS, AliasesOpt, JsonOpt, OutDir
+from brakethermo.cli._options import SESSION_FORMATS, AliasesOpt, JsonOpt, OutDir, option_values
 from brakethermo.pipelines.tuning import ROLLER_RIG_TUNINGS
 
 if TYPE_CHECKING:
@@ -93,21 +93,21 @@ def roller_rig_cmd(
 ) -> None:
     """Rolling radius of the tram wheel by joint UKF from every starting guess."""
     from brakethermo.pipelines.output_dir import check_session_output
-
-    check_session_output(out, session, "roller_rig")  # before the work
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.roller_rig import RollerRigOptions, run_roller_rig, write_roller_rig
 
-    options = RollerRigOptions(
-        r0_mm=tuple(r0) if r0 else RollerRigOptions().r0_mm,
-        smoother=smoother,
-        rig=rig,
-        supply_hz=supply_hz,
-        aliases=aliases,
-        tuning=tuning,
-        creep_law=creep,
-        with_effect=with_effect,
-    )
+    with option_values():
+        options = RollerRigOptions(
+            r0_mm=tuple(r0) if r0 else RollerRigOptions().r0_mm,
+            smoother=smoother,
+            rig=rig,
+            supply_hz=supply_hz,
+            aliases=aliases,
+            tuning=tuning,
+            creep_law=creep,
+            with_effect=with_effect,
+        ).validated()
+    check_session_output(out, session, "roller_rig")  # before the work
     result = run_with_status(as_json, "estimating the rolling radius…",
                              lambda: run_roller_rig(session, options))  # fmt: skip
     folder = write_roller_rig(result, out)

@@ -11,7 +11,14 @@ from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console, run_with_status
-from brakethermo.cli._options import AliasesOpt, AmbientOpt, JsonOpt, OutDir, TuningOpt
+from brakethermo.cli._options import (
+    AliasesOpt,
+    AmbientOpt,
+    JsonOpt,
+    OutDir,
+    TuningOpt,
+    option_values,
+)
 from brakethermo.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -102,10 +109,11 @@ def whatif_cmd(
     from brakethermo.report.whatif_page import write_whatif_page
     from brakethermo.thermal.tyre_radiation import TyreView
 
+    with option_values():
+        scenarios = _scenarios(cooling, disc, ambient, pads, scenario)
+        if not math.isfinite(tyre_temp) or not -20.0 <= tyre_temp <= 200.0:
+            raise ConfigError(f"--tyre-temp {tyre_temp}: give the sidewall in degC, -20 to 200")
     check_session_folder(out, session, "estimate")  # beside this session's estimate only
-    scenarios = _scenarios(cooling, disc, ambient, pads, scenario)
-    if not math.isfinite(tyre_temp) or not -20.0 <= tyre_temp <= 200.0:
-        raise ConfigError(f"--tyre-temp {tyre_temp}: give the sidewall in degC, -20 to 200")
     opts = WhatifOptions(scenarios=tuple(scenarios), h_law=h_law, spot=spot, disc=session_disc,
                          tuning=tuning, aliases=aliases, ambient_c=session_ambient, draws=draws,
                          tyre=TyreView(carcass_c=tyre_temp))
