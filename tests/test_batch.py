@@ -225,6 +225,29 @@ def test_the_batch_page_follows_commands_run_into_its_folder(folder: Path, tmp_p
     assert "quali" in index.read_text()
 
 
+def test_another_session_of_a_name_in_out_fails_alone(folder: Path, tmp_path: Path) -> None:
+    """A second day's race.parquet batched into the first day's --out replaced the first
+    race's results with no word (estimate and the other commands refuse it): that session
+    fails, naming both files, and the others are run."""
+    options = _options(tmp_path)
+    run_batch(folder, options, job=JOB)
+    before = (options.out / "race" / "estimate.parquet").read_bytes()
+    day2 = tmp_path / "day2"
+    day2.mkdir()
+    write_session_parquet(day2 / "race.parquet", 2, seed=9)
+    write_session_parquet(day2 / "quali.parquet", 1, seed=7)
+    result = run_batch(day2, options, job=JOB)
+    status = {o.name: o for o in result.outcomes}
+    assert status["quali"].status == "ok" and status["race"].status == "failed"
+    assert result.exit_code == EXIT_BATCH_PARTIAL
+    reason = status["race"].reason
+    assert str(folder / "race.parquet") in reason and "another --out" in reason, reason
+    assert (options.out / "race" / "estimate.parquet").read_bytes() == before
+    # the same file again (the first day's folder re-run) is its own session: no refusal
+    assert {o.name: o.status for o in run_batch(folder, options, job=JOB).outcomes
+            }["race"] == "skipped"
+
+
 def test_a_rig_log_in_the_folder_is_listed_not_failed(tmp_path: Path) -> None:
     """A test day's folder with a caliper log beside the disc sessions: the log was
     counted as a failed disc session (exit 3)."""

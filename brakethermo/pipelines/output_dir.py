@@ -73,15 +73,18 @@ def check_output_dir(out: str | Path, option: str = "--out") -> Path:
 # its own: two of them in one folder are two sessions of one name (a roller-rig day1.mcap
 # and a tyre day1.mcap), whose pages would replace each other's.
 SESSION_TABLES = ("estimate", "roller_rig", "ebooster", "clamp_force", "mu_slip")
-# What the commands record of the session they ran on, in OUT/<stem>/ ("session": path).
-SESSION_RECORDS = ("summary.json", "identify.json", "diagnosis.json", "whatif/summary.json")
+# What the commands record of the session they ran on, in OUT/<stem>/: file, key of the
+# session file's path (batch's manifest records it as "input").
+SESSION_RECORDS = (("summary.json", "session"), ("identify.json", "session"),
+                   ("diagnosis.json", "session"), ("whatif/summary.json", "session"),
+                   ("batch_manifest.json", "input"))
 
 
 def _recorded(folder: Path) -> list[str]:
     out = []
-    for name in SESSION_RECORDS:
+    for name, key in SESSION_RECORDS:
         try:
-            source = json.loads((folder / name).read_text(encoding="utf-8"))["session"]
+            source = json.loads((folder / name).read_text(encoding="utf-8"))[key]
         except (OSError, ValueError, KeyError, TypeError):
             continue
         if isinstance(source, str):
@@ -119,20 +122,33 @@ def check_session_folder(out: str | Path, session: str | Path, table: str | None
     folder = Path(out) / session.stem
     other = next((t for t in SESSION_TABLES
                   if t != table and (folder / f"{t}.parquet").is_file()), None)
-    sources = _recorded(folder)
     if other is None:
-        elsewhere = next((s for s in sources if _other_file(s, session)), None)
-        if elsewhere is None:
-            return
-        raise ConfigError(
-            f"holds the results of {elsewhere}, another session named '{session.stem}':"
-            " this run would mix them on one page; give another --out (or rename one of"
-            " the files)", path=folder)
+        check_same_session(folder, session)
+        return
+    sources = _recorded(folder)
     whose = f" of {sources[0]}" if sources else ""
     raise ConfigError(
         f"holds the {other.replace('_', '-')} results{whose}, another session named"
         f" '{session.stem}': this run would replace its summary and page; give another"
         " --out (or rename one of the files)", path=folder)
+
+
+def check_same_session(folder: str | Path, session: str | Path,
+                       fix: str = "give another --out (or rename one of the files)") -> None:
+    """Refuse to write ``session``'s results into ``folder`` when the results there record
+    another session file (one that still exists and holds other bytes).
+
+    Raises
+    ------
+    ConfigError
+        ``folder`` holds another session's results; ``fix`` says what to do.
+    """
+    folder, session = Path(folder), Path(session)
+    elsewhere = next((s for s in _recorded(folder) if _other_file(s, session)), None)
+    if elsewhere is not None:
+        raise ConfigError(
+            f"holds the results of {elsewhere}, another session named '{session.stem}':"
+            f" this run would mix them on one page; {fix}", path=folder)
 
 
 def check_session_output(out: str | Path, session: str | Path, table: str) -> None:

@@ -36,6 +36,7 @@ from brakethermo.pipelines.batch.tasks import (
     SessionTask,
     file_sha256,
 )
+from brakethermo.pipelines.output_dir import check_same_session
 from brakethermo.pipelines.preflight import preflight
 from brakethermo.report.index import is_batch_index
 
@@ -115,8 +116,13 @@ def _plan(files: list[Path], names: list[str], options: BatchOptions, out: Path
         try:
             sha = file_sha256(path)
             sizes[path] = path.stat().st_size
+            check_same_session(out / name, path, fix="give the batch another --out (or"
+                               " rename one of the files); the other sessions were run")
         except OSError as exc:
             done[path] = SessionOutcome(path, name, "failed", reason=f"{path}: cannot read ({exc})")
+            continue
+        except ConfigError as exc:
+            done[path] = SessionOutcome(path, name, "failed", reason=str(exc))
             continue
         manifest = None if options.force else read_manifest(out / name)
         if up_to_date(manifest, sha, key, out / name, options.reports):
