@@ -58,6 +58,26 @@ def test_near_tie_gives_a_ranked_set_with_what_separates_them() -> None:
     assert any("second pyrometer" in s for s in d.next_steps)
 
 
+def test_an_effect_fitted_at_a_bound_of_its_range_is_never_named() -> None:
+    """An independent generator's baseline session: a wrong emissivity closed 33 % of the
+    gap only at the end of its range (a setting of 1.42) and was named alone, then
+    carried, putting a race 100 °C off. Such a candidate is neither named nor undecided;
+    the next steps say why."""
+    rng = np.random.default_rng(5)
+    before = _units(40, rng, 100.0)
+    edge = CandidateEvidence("a", before * 0.45, at_bound="ratio = 0.6, at the end of its"
+                             " range 0.6-1.5")
+    weak = CandidateEvidence("b", before * 0.95)
+    d = decide(before, [edge, weak], RULE)
+    assert d.verdict == "none" and d.verdict_set == [] and d.undecided == []
+    row = next(r for r in d.rows if r["name"] == "a")
+    assert row["significant"] is False and "0.6" in row["at_bound"]
+    assert any(s.startswith("a closes") and "not named" in s for s in d.next_steps)
+    # without the bound the same evidence is a clear single name
+    free = CandidateEvidence("a", before * 0.45)
+    assert decide(before, [free, weak], RULE).verdict == "a"
+
+
 def test_nothing_significant_is_none_and_straddlers_are_undecided() -> None:
     rng = np.random.default_rng(3)
     before = _units(6, rng, 100.0)

@@ -24,6 +24,11 @@ hands over the sum of squared errors per unit. Everything here resamples those u
   every other candidate that may be the cause clearly;
 - **undecided**: candidates whose interval straddles the threshold (the data can neither
   confirm nor rule them out) are listed with what would decide them;
+- **at a bound**: a candidate whose fitted parameters sit at a bound of the range the
+  caller allows them (not the effect's absent value) closes the gap only with a form
+  past what it physically allows: it is neither significant nor undecided (the gap is
+  more likely another effect's that looks like it) and is listed with that in the next
+  steps;
 - **untestable**: candidates the caller knows the data hardly contain the signature of
   (a model-specific check) are, when not significant, listed with why rather than left
   to read as absent.
@@ -97,6 +102,8 @@ class CandidateEvidence:
         comes out nil is the plain shift). 0: not known, no reordering.
     signature : Signature, optional — the held-out units where the effect's signature
         lives, scored before and after; a second way to significance (module docstring).
+    at_bound : str, optional — which fitted parameters sit at a bound of their range, in
+        words (``"ratio = 0.6, the end of its range"``); such a candidate is never named.
     """
 
     name: str
@@ -107,6 +114,7 @@ class CandidateEvidence:
     outputs: tuple[int, ...] | None = None
     n_params: int = 0
     signature: Signature | None = None
+    at_bound: str = ""
 
     def total(self, cols: tuple[int, ...] | None = None) -> np.ndarray:
         """(U,) SSE per unit over ``cols`` (default: its own outputs)."""
@@ -274,7 +282,8 @@ class Decision:
                 f" interval) and is no look-alike (corrections correlated above"
                 f" {r.correlated:g} with overlapping shrink intervals), else the verdict is"
                 f" the set of those it does not beat, significant ones first"
-                f" (at most {r.max_set}); none when no effect is significant"),
+                f" (at most {r.max_set}); none when no effect is significant; an effect"
+                f" whose fitted parameters end at a bound of their range is not named"),
         }
 
 
@@ -309,7 +318,7 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
     by_name = {c.name: c for c in candidates}
     rows = _ranked_rows(sse_before, candidates, rule)
     significant = [r["name"] for r in rows if r["significant"]]
-    undecided = [r["name"] for r in rows if not r["significant"]
+    undecided = [r["name"] for r in rows if not r["significant"] and not r.get("at_bound")
                  and np.isfinite(r["shrink_ci95_pct"][1])
                  and r["shrink_ci95_pct"][1] > rule.min_shrink_pct]
     reasons: list[str] = []
@@ -318,6 +327,11 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
         verdict_set, reasons = _verdict_set(sse_before, rows, significant, undecided, by_name,
                                             rule)
     next_steps = _next_steps(verdict_set, undecided, rows, by_name, untestable)
+    next_steps += [f"{r['name']} closes {r['shrink_pct']:.0f} % of the held-out gap only with"
+                   f" {r['at_bound']}, past what its form allows: not named (another"
+                   f" unmodelled effect that looks like it is more likely)"
+                   for r in rows if r.get("at_bound") and np.isfinite(r["shrink_ci95_pct"][1])
+                   and r["shrink_ci95_pct"][1] > rule.min_shrink_pct]
     unseen = {n: why for n, why in (untestable or {}).items()
               if n in by_name and n not in significant}
     next_steps += [f"{n} cannot be told on this data: {why}" for n, why in unseen.items()
@@ -344,6 +358,9 @@ def _ranked_rows(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence]
                "significant": bool(np.isfinite(lo) and lo > rule.min_shrink_pct)}
         if c.signature is not None:
             row.update(_signature_test(c.signature, lo, row["significant"], rule))
+        if c.at_bound:
+            row.update(at_bound=c.at_bound, significant=False)
+            row.pop("significant_by", None)
         rows.append(row)
     rows.sort(key=lambda r: -np.nan_to_num(r["shrink_pct"], nan=-1e9))
     for rank, row in enumerate(rows, start=1):

@@ -151,6 +151,28 @@ class ExtendedDisc:
         lo, hi = zip(*(s.param.bounds_fit for s in self.slots), strict=True)
         return np.array(lo), np.array(hi)
 
+    def at_bounds(self, p: np.ndarray) -> dict[str, float]:
+        """``"effect.param": value`` of the effects' own parameters that ``p`` leaves at a
+        bound of their range, unless that bound is the effect's absent value: the data
+        push them past what the effect's form allows."""
+        lo, hi = self.bounds()
+        p_neutral = self.neutral()
+        tol = 1e-4 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+        return {f"{sl.effect}.{sl.param.name}": float(sl.param.from_fit(p[sl.index]))
+                for sl in self.slots if sl.segment < 0 and sl.effect != "reference"
+                and abs(p[sl.index] - p_neutral[sl.index]) > tol[sl.index]
+                and (p[sl.index] <= lo[sl.index] + tol[sl.index]
+                     or p[sl.index] >= hi[sl.index] - tol[sl.index])}
+
+    def at_bounds_words(self, p: np.ndarray) -> str:
+        """:meth:`at_bounds` in words, ``""`` when none (``"ratio = 0.6, at the end of its
+        range 0.6-1.5"``)."""
+        ranges = {f"{s.effect}.{s.param.name}": (s.param.lower, s.param.upper)
+                  for s in self.slots}
+        return "; ".join(f"{key.split('.', 1)[1]} = {v:.3g}, at the end of its range"
+                         f" {ranges[key][0]:g}-{ranges[key][1]:g}"
+                         for key, v in self.at_bounds(p).items())
+
     def prior(self) -> tuple[np.ndarray, np.ndarray]:
         """Prior mean and standard deviation (inf = none) in the fitted space."""
         mu = np.array([float(s.param.to_fit(s.param.neutral)) for s in self.slots])

@@ -384,15 +384,7 @@ def fit_with_effects(
     kz = ext.values(p, "thickness_gradient")["kz_factor"]
     assert isinstance(kz, float)
     fitted = {name: ext.values(p, name) for name in effects}
-    lo, hi = ext.bounds()
-    p_neutral = ext.neutral()
-    tol = 1e-4 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
-    # an effect's parameter at a bound of its range, unless that bound is its "absent"
-    at_bounds = {f"{sl.effect}.{sl.param.name}": float(sl.param.from_fit(p[sl.index]))
-                 for sl in ext.slots if sl.segment < 0 and sl.effect != "reference"
-                 and abs(p[sl.index] - p_neutral[sl.index]) > tol[sl.index]
-                 and (p[sl.index] <= lo[sl.index] + tol[sl.index]
-                      or p[sl.index] >= hi[sl.index] - tol[sl.index])}
+    at_bounds = ext.at_bounds(p)
     return law, StructureFit(
         weights=ext.weights(p),
         kz_ratio=kz,

@@ -249,7 +249,8 @@ class _FourSpot:
                               outputs=tuple(s_ - 1 for s_ in c.scored_spots),
                               n_params=sum(s.effect != "reference"
                                            for s in self.make(c.effects).slots),
-                              signature=self.signature(c))
+                              signature=self.signature(c),
+                              at_bound=self.make(c.effects).at_bounds_words(c.p))
             for c in candidates]
         blind = disc_data_power(self.inputs.speed, y, self.inputs.t_amb, layout.braking,
                                 layout.train | layout.held, self.disc.v_ref, SENSOR_FLOOR_C)
@@ -290,6 +291,7 @@ class _FourSpot:
                 "separate_by": EFFECTS[c.name].separate_by,
                 "fit_s": c.fit_s,
                 **({"vs_first_pp": row["vs_first_pp"]} if "vs_first_pp" in row else {}),
+                **({"at_bound": row["at_bound"]} if "at_bound" in row else {}),
                 "rank": row["rank"],
             })
         return sorted(out, key=lambda e: e["rank"])
