@@ -556,3 +556,35 @@ def test_eq7_choice_scores_around_a_gap_in_the_force_sensor() -> None:
     F_gap = F.copy()
     F_gap[5000:5010] = np.nan
     assert eq7_choice(theta, current, F_gap, ts) == whole == (1, 0.2)
+
+
+def test_short_training_noise_only_sensor_and_no_negative_force(tmp_path: Path) -> None:
+    """An independent caliper's findings: a 3 s training left the fixed filter unchecked
+    without a word; a training sensor reading only noise around zero was called "sign
+    reversed"; estimates went down to -0.86 kN. Now a warning, the right cause, and every
+    reported force >= 0."""
+    from brakethermo.models.clamp_force import band_factor
+
+    short = write_emb_simulation(simulate_emb("nominal", seed=6311, duration_s=3),
+                                 tmp_path / "short.mcap")[0]
+    val = write_emb_simulation(simulate_emb("nominal", seed=6312, duration_s=4),
+                               tmp_path / "val.mcap")[0]
+    res = cfp.clamp_force(val, short)
+    summ = cfp.summary(res)
+    assert summ["fusion_check"] is None
+    assert any("too short to check the filter" in w for w in summ["warnings"]), summ["warnings"]
+    assert all(np.all(v >= 0.0) for v in cfp.estimator_series(res.reported).values())
+    sim = simulate_emb("nominal", seed=6313, duration_s=3)
+    ch = {c.name: c for c in sim.session.channels}
+    noise = np.random.default_rng(0).normal(0.0, 0.03, ch["clamp_force"].value.size)
+    zero = write_session(tmp_path / "zero.csv", SessionData(
+        (ch["motor_angle"], ch["motor_current"], replace(ch["clamp_force"], value=noise)), {}))
+    said = _run_bad(tmp_path, str(val), "--train", str(zero))
+    assert "noise around zero" in said and "reversed" not in said
+    # the band factor: the mean of z^2, or what covers 95 % of heavy-tailed errors
+    gauss = np.random.default_rng(1).normal(size=20000) ** 2
+    assert band_factor(gauss) == pytest.approx(1.0, abs=0.05)
+    rng = np.random.default_rng(2)  # quiet most of the time, 15 % of it 4x as loud
+    mixed = (rng.normal(size=20000) * np.where(rng.random(20000) < 0.15, 2.2, 0.5)) ** 2
+    assert np.mean(mixed) < 1.0 and np.mean(mixed <= 1.96**2) < 0.95
+    assert band_factor(mixed) > 1.1 and np.mean(mixed / band_factor(mixed) <= 1.96**2) >= 0.949

@@ -208,6 +208,39 @@ def test_training_recovers_pv_curve_and_disk(sessions):
     assert np.max(np.abs(gap)) < 0.1
 
 
+def test_pv_curve_follows_its_tangent_beyond_the_training_travel(sessions, tmp_path):
+    """An independent bench braking harder than its training session read 27.7 MPa for a
+    true 14.8 (the 8th-order polynomial past its data): the curve continues along its
+    tangent there, with a warning; within the travel it is the polynomial."""
+    fit = train(sessions["train"], SPEC)
+    top = fit.s2_max_mm
+    assert 5.0 < top < 40.0
+    coeffs = np.array(fit.pv_coeffs)
+    inside = np.linspace(0.0, top, 40)
+    np.testing.assert_allclose(fit.pressure(inside), pv_pressure(inside, coeffs, 30.0))
+    eps = 1e-4
+    slope = (pv_pressure(top, coeffs, 30.0) - pv_pressure(top - eps, coeffs, 30.0)) / eps
+    beyond = top + np.array([0.5, 2.0, 6.0])
+    np.testing.assert_allclose(fit.pressure(beyond),
+                               pv_pressure(top, coeffs, 30.0) + max(slope, 0.0) * (beyond - top),
+                               rtol=1e-3)
+    assert np.all(np.diff(fit.pressure(np.linspace(0.0, top + 10.0, 200))) >= -1e-9)
+    saved = tmp_path / "fit.toml"
+    saved.write_text(fit.toml_text())
+    assert load_fit(saved).s2_max_mm == top
+    # a fit saved before the travel was recorded: the polynomial everywhere, as it was
+    old = tmp_path / "old.toml"
+    old.write_text("\n".join(line for line in fit.toml_text().splitlines()
+                             if not line.startswith("s2_max_mm")))
+    assert load_fit(old).s2_max_mm == np.inf
+    assert 20.0 < FIT.s2_max_mm < 25.0  # the shipped fit's training travel
+    from brakethermo.pipelines.ebooster import _beyond_training
+
+    assert _beyond_training(inside, 0.002, fit) == []
+    said = _beyond_training(np.r_[inside, beyond], 0.002, fit)
+    assert len(said) == 1 and "tangent" in said[0] and f"{top:.2f} mm" in said[0]
+
+
 def test_training_chooses_the_process_noise_its_pressure_sensor_supports(sessions):
     """Trained on one half, observed on the other: a datasheet whose process noise is 8x
     too large comes back to a smaller factor (its held-out likelihood is worse at the
@@ -306,7 +339,15 @@ def test_bad_input_exits_1_with_one_clear_line(tmp_path):
     still_path, _ = write_ebooster_session(still, tmp_path / "still.parquet")
     res = runner.invoke(app, ["ebooster", str(no_delta), "--train", str(still_path),
                               "--out", str(tmp_path)])
-    assert res.exit_code == 1 and "'pushrod_displacement' does not move" in res.output
+    assert res.exit_code == 1 and "'pushrod_displacement': does not move" in res.output
+    # a training session without the pressure sensor: said as such (it read as a
+    # missing alias, "add the file's name for it to an alias table")
+    no_sensor, _ = write_ebooster_session(sim, tmp_path / "nosensor.csv", channels=(
+        "pushrod_displacement", "reaction_disk_delta", "pedal_force"))
+    res = runner.invoke(app, ["ebooster", str(no_delta), "--train", str(no_sensor),
+                              "--out", str(tmp_path)])
+    assert res.exit_code == 1 and "training session (--train) must carry the master-cylinder"\
+        " pressure sensor" in " ".join(res.output.split()), res.output
     # a unit we do not know
     good, _ = write_ebooster_session(sim, tmp_path / "units.csv")
     text = good.read_text().replace("reaction_disk_delta [mm]", "reaction_disk_delta [wibble]")

@@ -91,6 +91,8 @@ class BoosterFit:
         (1: the datasheet's, or no choice made).
     q_heldout_nats : tuple of float — that likelihood per reading for each factor tried
         (empty when no choice was made).
+    s2_max_mm : float — mm, the furthest screw travel of the training data; beyond it
+        the p-V curve follows its tangent (inf: a fit saved before this was recorded).
     """
 
     pv_coeffs: tuple[float, float, float, float]
@@ -105,6 +107,11 @@ class BoosterFit:
     disk_rmse_mm: float
     q_factor: float = 1.0
     q_heldout_nats: tuple[float, ...] = ()
+    s2_max_mm: float = math.inf
+
+    def pressure(self, s2_mm: Array | float) -> Array:
+        """MPa, the static pressure of the fitted p-V curve at screw travel ``s2_mm``."""
+        return pv_pressure(s2_mm, np.array(self.pv_coeffs), self.stroke_mm, self.s2_max_mm)
 
     def toml_text(self) -> str:
         """The fit as TOML (round-trips through :func:`load_fit`; io writes it)."""
@@ -136,6 +143,7 @@ def load_fit(path: str | Path) -> BoosterFit:
             disk_rmse_mm=float(raw["disk_rmse_mm"]),
             q_factor=float(raw.get("q_factor", 1.0)),
             q_heldout_nats=tuple(float(v) for v in raw.get("q_heldout_nats", ())),
+            s2_max_mm=float(raw.get("s2_max_mm", math.inf)),
         )
     except (KeyError, TypeError, ValueError) as exc:
         what = f"missing key {exc}" if isinstance(exc, KeyError) else str(exc)
@@ -233,7 +241,7 @@ class EboosterModel:
         self.chi = spec.pedal_state == "chi_square"
         self.N = spec.pedal_dof if self.chi else 1
         self.n = N_PHYS + self.N
-        self.pv = (pv_pressure(self.s2, np.array(fit.pv_coeffs), fit.stroke_mm) if pv is None
+        self.pv = (fit.pressure(self.s2) if pv is None
                    else np.ascontiguousarray(pv, dtype=np.float64))
         self.decay = float(np.exp(-self.dt / spec.pv_relax_s))
         self.k_port = tuple(

@@ -29,6 +29,7 @@ from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.clamp_force import (
     CV_BLOCK_S,
+    MIN_HALF_S,
     NIS_LIMIT,
     Q_MARGIN,
     SENSOR_LAGS_S,
@@ -313,15 +314,21 @@ def _check_sources(est: ClampForceEstimates, data: EmbData) -> None:
 
 
 def estimator_series(est: ClampForceEstimates) -> dict[str, np.ndarray]:
-    """Each estimator's clamp force by output column name, N."""
-    return {
-        "kf": est.kf,
-        "kf_paper": est.kf_paper,
-        "ml_fusion": est.ml_fusion,
-        "stiffness": est.stiffness,
-        "torque_balance": est.torque_balance,
-        "kf_adaptive": est.adaptive,
-    }
+    """Each estimator's clamp force by output column name, N, constrained to >= 0.
+
+    Pads only push: where an estimator's mean sits below zero (after a release, the
+    torque balance's friction, the filter's Gaussian) the reported force is the most
+    probable value of that Gaussian truncated at zero — zero; the band keeps its spread
+    (as the booster's gauge pressure).
+    """
+    return {name: np.maximum(v, 0.0) for name, v in (
+        ("kf", est.kf),
+        ("kf_paper", est.kf_paper),
+        ("ml_fusion", est.ml_fusion),
+        ("stiffness", est.stiffness),
+        ("torque_balance", est.torque_balance),
+        ("kf_adaptive", est.adaptive),
+    )}
 
 
 def _rmse_kn(est: ClampForceEstimates, force: np.ndarray | None) -> dict[str, float | None]:
@@ -451,7 +458,9 @@ def _kf_text(res: ClampForceResult) -> str:
                 f" {check.rmse_n['ml_fusion'] / 1e3:.3f} kN for the ML fusion; its band is the"
                 " model's smoothed variance times the held-out likelihood's factor"
                 f" {c.band_scale:.2g} (the fixed filter's mean NIS here"
-                f" {est.kf_paper_nis:.2f}: the pads are the trained ones)")
+                f" {est.kf_paper_nis:.2f}, at most {NIS_LIMIT:g}: its innovations show no"
+                " pads other than the trained ones, though the torque balance's wide noise"
+                " hides small changes)")
     elif est.kf_switched and est.kf_paper_nis > NIS_LIMIT:
         text = (f"the adaptive-stiffness filter: the fixed filter's mean NIS is"
                 f" {est.kf_paper_nis:.2f}, its stiffness model no longer holds for these pads")
@@ -464,7 +473,10 @@ def _kf_text(res: ClampForceResult) -> str:
         q = ("the paper's fixed Q" if check is None or check.q_scale == 1.0 else
              f"the fixed filter, Q the paper's x {check.q_scale:g} (chosen on held-out halves"
              " of the training session)")
-        text = f"{q} (its mean NIS {est.kf_paper_nis:.2f} is consistent)"
+        state = ("consistent" if est.kf_paper_nis <= NIS_LIMIT else "over-confident")
+        if est.kf_paper_nis < 1.0 / NIS_LIMIT:
+            state = "under-confident: its band is wider than its errors"
+        text = f"{q} (its mean NIS {est.kf_paper_nis:.2f}: {state})"
     if est.kf_noise_scale != 1.0:
         text += (f"; its band widened {np.sqrt(est.kf_noise_scale):.2f}x, its noise scaled to"
                  " what its innovations show (same gain, same estimate)")
@@ -501,6 +513,19 @@ def lag_text(res: ClampForceResult) -> str | None:
         return None
     text = "; ".join(parts)
     return text[0].upper() + text[1:] + "."
+
+
+def _unchecked(res: ClampForceResult) -> list[str]:
+    """The warning when the training session was too short to check the fusion against its
+    inputs on held-out halves (a 3 s training left the fixed filter unchecked, no word)."""
+    if res.reported_check is not None:
+        return []
+    tr = res.train.session
+    span = float(tr.time[-1] - tr.time[0]) if tr.time.size else 0.0
+    return [f"the training session {tr.path.name} lasts {span:.1f} s: too short to check the"
+            f" filter against its inputs on held-out halves (at least {2 * MIN_HALF_S:g} s),"
+            " so the paper's fixed filter is reported unchecked and may do worse than the"
+            " models it fuses; train on a longer session with the force sensor"]
 
 
 def summary(res: ClampForceResult) -> dict[str, Any]:
@@ -557,7 +582,8 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
             "text": lag_text(res),
         },
         "training_session": str(res.train.session.path),
-        "warnings": [*res.data.session.warnings, *res.train.session.warnings],
+        "warnings": [*res.data.session.warnings, *res.train.session.warnings,
+                     *_unchecked(res)],
     }
     if res.est_retrained is not None and res.models_retrained is not None and res.retrain:
         out["wear"] = {

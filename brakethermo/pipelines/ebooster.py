@@ -44,7 +44,6 @@ from brakethermo.rigs.booster import (
     disk_quasi_static,
     disk_transfer,
     leverage_force,
-    pv_pressure,
 )
 from brakethermo.rigs.booster_datasheet import BoosterSpec, load_booster
 from brakethermo.rigs.signals import SPEED_WINDOW_S, smoothed_rate
@@ -89,6 +88,15 @@ def load_booster_session(path: str | Path, aliases: str | Path | None = None, *,
     inputs refuse the run; a scoring channel gets a warning in ``session.warnings``)."""
     session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases)
     session.require(S2, DELTA)
+    lacking = [ch for ch in (PRESSURES["p_m"], PEDAL) if training and not session.has(ch)]
+    if lacking:
+        raise DataError(
+            f"has no {' or '.join(lacking)}: a training session (--train) must carry the"
+            " master-cylinder pressure sensor and the pedal force (the p-V curve is fitted to"
+            " the one, the reaction disk to the other); train on a bench run with both, or"
+            " give a saved fit with --fit (if the file logs them under other names, map"
+            f" them with --aliases FILE; it has: {', '.join(session.available)})",
+            path=session.path)
     if len(session.frame) < 10:
         raise DataError("holds fewer than 10 samples; record a longer session",
                         path=session.path)
@@ -213,6 +221,7 @@ def fit_training(session: Session, spec: BoosterSpec) -> BoosterFit:
         pedal_scale_n=float(np.mean(np.clip(f_in[ok], 0.0, None)) / dof),
         train_session=str(session.path),
         pv_rmse_mpa=rmse(pv_res),
+        s2_max_mm=float(np.max(s2[ok])),
         disk_rmse_mm=disk_rmse,
     )
 
@@ -268,10 +277,8 @@ def _fit_disk(
 def booster_context(session: Session, s2: Array, fit: BoosterFit) -> RigContext:
     """What the booster's candidate effects see of a session: s2 (mm), its speed (mm/s,
     a 20 ms moving average), time from the start (s) and the fit's p-V curve."""
-    coeffs = np.array(fit.pv_coeffs)
     return RigContext(s2, smoothed_rate(s2, session.dt, SPEED_WINDOW_S),
-                      session.time - session.time[0],
-                      lambda s: pv_pressure(s, coeffs, fit.stroke_mm))
+                      session.time - session.time[0], fit.pressure)
 
 
 def static_pressure_carried(text: str, session: Session, s2: Array, fit: BoosterFit,
@@ -298,10 +305,9 @@ def pv_position_var(model: EboosterModel) -> Array:
     against the pedal force), so it widens the pressure bands instead of being a state.
     """
     eps = 0.05  # mm
-    coeffs, stroke = np.array(model.fit.pv_coeffs), model.fit.stroke_mm
+    curve = model.fit.pressure
     s2 = np.clip(model.s2, 0.0, None)
-    slope = (pv_pressure(s2 + eps, coeffs, stroke)
-             - pv_pressure(np.clip(s2 - eps, 0.0, None), coeffs, stroke)) / (
+    slope = (curve(s2 + eps) - curve(np.clip(s2 - eps, 0.0, None))) / (
         s2 + eps - np.clip(s2 - eps, 0.0, None))
     return (slope * model.spec.pv_shift_sd_mm) ** 2
 
@@ -412,7 +418,7 @@ def observe(
         state: _series(session, ch, MPA, gaps=True)
         for state, ch in PRESSURES.items() if session.has(ch)
     }
-    summary = _summary(session, spec, fit, tracks, validation, smooth, t_train)
+    summary = _summary(session, spec, fit, tracks, validation, smooth, t_train, s2)
     summary["with_effect"] = carried_fact
     return EboosterResult(session, spec, fit, session.time, s2, delta, validation, tracks,
                           summary)
@@ -420,7 +426,7 @@ def observe(
 
 def _summary(
     session: Session, spec: BoosterSpec, fit: BoosterFit, tracks: dict[str, ObserverTrack],
-    validation: dict[str, Array], smooth: bool, t_train: float,
+    validation: dict[str, Array], smooth: bool, t_train: float, s2: Array,
 ) -> dict[str, Any]:
     res = {w: _rmse(tracks[w].residual) for w in OBSERVERS}
     improvement = None
@@ -431,7 +437,8 @@ def _summary(
     cov95 = {w: sc.coverage_95 for w, sc in scores.items()}
     cov95_braking = {w: sc.coverage_95_braking for w, sc in scores.items()}
     out1 = {w: sc.outside_1sigma for w, sc in scores.items()}
-    warnings = [*session.warnings, *_coverage_warnings(cov95_braking)]
+    warnings = [*session.warnings, *_coverage_warnings(cov95_braking),
+                *_beyond_training(s2, session.dt, fit)]
     return {
         "session": str(session.path),
         "samples": len(session.frame),
@@ -545,6 +552,19 @@ def _coverage_warnings(cov95_braking: dict[str, float | None]) -> list[str]:
         " shift, `--with-effect auto` carries it, or retrain on a session of the day"]
 
 
+def _beyond_training(s2: Array, dt: float, fit: BoosterFit) -> list[str]:
+    """The warning when the screw travels past the training data's furthest travel (by
+    more than 2 %): there the pressures follow the p-V curve's tangent, not a fit."""
+    beyond = s2 > 1.02 * fit.s2_max_mm
+    if not beyond.any():
+        return []
+    return [f"the screw travels to {float(np.max(s2)):.2f} mm, beyond the training"
+            f" session's {fit.s2_max_mm:.2f} mm for {beyond.sum() * dt:.1f} s: there the"
+            f" p-V curve is continued along its tangent from {fit.pressure(fit.s2_max_mm):.1f}"
+            " MPa, not fitted, and the pressures are extrapolated; train on a session that"
+            " reaches these pressures"]
+
+
 def _noise_choice(fit: BoosterFit) -> dict[str, Any]:
     """``noise_choice`` of summary.json: the process-noise factor and its evidence."""
     if not fit.q_heldout_nats:
@@ -557,7 +577,10 @@ def _noise_choice(fit: BoosterFit) -> dict[str, Any]:
                f" at {best:g}x the datasheet's process noise; "
                + (f"{fit.q_factor:g}x used" if fit.q_factor != 1.0 else
                   f"the datasheet's kept (another must gain {Q_MARGIN_NATS:g} nats per"
-                  " reading)"))
+                  " reading)")
+               + ("; the best is the end of the range tried, so the session may want"
+                  " more still: its innovations (consistency) say how far the band is off"
+                  if best in (Q_FACTORS[0], Q_FACTORS[-1]) else ""))
     return {"q_factor": fit.q_factor, "factors": list(Q_FACTORS) if fit.q_heldout_nats else [],
             "heldout_loglik_per_reading": list(fit.q_heldout_nats), "why": why}
 

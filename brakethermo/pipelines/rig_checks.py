@@ -56,8 +56,13 @@ def _fault(v: np.ndarray, e: Expect) -> str | None:
     if scale > e.most:
         return (f"reaches {scale:.4g} {e.unit}, beyond any such rig (at most about"
                 f" {e.most:g} {e.unit}): check the channel's unit")
-    if e.positive and float(np.percentile(v, 5)) < -0.2 * scale:
-        return (f"is mostly negative (5th percentile {float(np.percentile(v, 5)):.4g} {e.unit}"
+    low, high = (float(np.percentile(v, q)) for q in (5, 95))
+    if e.positive and low < -0.2 * scale:
+        if -low < 2.0 * high:  # as far below zero as above: noise, not a reversed sign
+            return (f"reads only noise around zero (5th to 95th percentile {low:.4g} to"
+                    f" {high:.4g} {e.unit}): nothing was applied in this session, or the"
+                    " sensor is zeroed or not connected")
+        return (f"is mostly negative (5th percentile {low:.4g} {e.unit}"
                 f" against a largest magnitude of {scale:.4g}): the sign is reversed")
     return None
 
@@ -91,8 +96,7 @@ def check_rig_channels(session: Session, expects: Sequence[Expect]) -> list[str]
                 warnings.extend(_frozen_stretches(session, e))
             continue
         if e.role == "input":
-            raise DataError(f"channel '{e.channel}' {fault}", path=session.path,
-                            channel=e.channel)
+            raise DataError(fault, path=session.path, channel=e.channel)
         warnings.append(f"channel '{e.channel}' {fault}; it only scores the estimate, whose"
                         " figures against it mean nothing")
     return warnings

@@ -27,7 +27,6 @@ from brakethermo.results.ebooster import (
     static_pressure,
 )
 from brakethermo.results.rig_diagnosis import carried_text
-from brakethermo.rigs.booster import pv_pressure
 
 COLOURS = {"ukf": "#1f77b4", "ekf": "#d62728"}
 MAX_POINTS = 4000  # plotted points per curve; the data keep every sample
@@ -78,8 +77,8 @@ def _residual_figure(r: EboosterResult) -> Figure:
 def _pv_figure(r: EboosterResult) -> Figure:
     fig, ax = plt.subplots(figsize=(6, 4))
     s = np.linspace(0.0, max(float(np.max(r.s2)), 1.0), 200)
-    ax.plot(s, pv_pressure(s, np.array(r.fit.pv_coeffs), r.fit.stroke_mm), color="k",
-            label="RLS p–V fit")
+    ax.plot(s, r.fit.pressure(s), color="k", label="RLS p–V fit (tangent beyond the training"
+            " travel)" if s[-1] > r.fit.s2_max_mm else "RLS p–V fit")
     if "p_m" in r.validation:
         sl = _every(r.time.size)
         ax.plot(r.s2[sl], r.validation["p_m"][sl], ".", ms=1.5, alpha=0.4,

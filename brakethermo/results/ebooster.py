@@ -11,7 +11,6 @@ from numpy.typing import NDArray
 from brakethermo.estimation.results import FilterResult
 from brakethermo.io.session import Session
 from brakethermo.models.ebooster import BoosterFit
-from brakethermo.rigs.booster import pv_pressure
 from brakethermo.rigs.booster_datasheet import BoosterSpec
 
 Array = NDArray[np.float64]
@@ -66,4 +65,4 @@ class EboosterResult:
 
 def static_pressure(result: EboosterResult) -> Array:
     """MPa, the p-V curve at the session's s2 (what the model predicts without delta)."""
-    return pv_pressure(result.s2, np.array(result.fit.pv_coeffs), result.fit.stroke_mm)
+    return result.fit.pressure(result.s2)

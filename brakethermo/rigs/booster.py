@@ -15,23 +15,37 @@ Array = NDArray[np.float64]
 PV_POWERS = (2, 4, 6, 8)
 
 
-def pv_pressure(s2_mm: Array | float, coeffs: Array, stroke_mm: float) -> Array:
-    """Hydraulic p-V characteristic: even polynomial through the origin (eq. 12, 13).
+def pv_pressure(s2_mm: Array | float, coeffs: Array, stroke_mm: float,
+                s_max_mm: float = np.inf) -> Array:
+    """Hydraulic p-V characteristic: even polynomial through the origin (eq. 12, 13),
+    continued along its tangent beyond the travel it was fitted on.
+
+    An 8th-order polynomial past its data turns wherever its last terms take over (a
+    session braking harder than its training read 28 MPa for 15); the tangent keeps the
+    curve's last known stiffness.
 
     Parameters
     ----------
     s2_mm : ndarray — mm, screw displacement (stands in for the piston travel s_1).
     coeffs : ndarray (4,) — MPa, weights of (s/stroke)^2, ^4, ^6, ^8.
     stroke_mm : float — mm, regressor scale.
+    s_max_mm : float — mm, the furthest travel of the fit's data (inf: the polynomial
+        everywhere).
 
     Returns
     -------
     ndarray — MPa, static pressure.
     """
-    u = np.asarray(s2_mm, dtype=np.float64) / stroke_mm
-    u2 = u * u
+    s = np.asarray(s2_mm, dtype=np.float64)
     c = np.asarray(coeffs, dtype=np.float64)
-    return u2 * (c[0] + u2 * (c[1] + u2 * (c[2] + u2 * c[3])))
+    u = np.minimum(s, s_max_mm) / stroke_mm
+    u2 = u * u
+    p = u2 * (c[0] + u2 * (c[1] + u2 * (c[2] + u2 * c[3])))
+    if not np.isfinite(s_max_mm):
+        return p
+    # dp/ds of the polynomial at the end of the data, never negative
+    slope = u * (2 * c[0] + u2 * (4 * c[1] + u2 * (6 * c[2] + u2 * 8 * c[3]))) / stroke_mm
+    return p + np.maximum(slope, 0.0) * np.maximum(s - s_max_mm, 0.0)
 
 
 def orifice_coefficient(
