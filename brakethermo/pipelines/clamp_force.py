@@ -456,7 +456,8 @@ def _kf_text(res: ClampForceResult) -> str:
                 f" {check.rmse_n['kf'] / 1e3:.3f} kN for the"
                 f" {'adaptive' if check.adaptive else 'fixed'} filter and"
                 f" {check.rmse_n['ml_fusion'] / 1e3:.3f} kN for the ML fusion; its band is the"
-                " model's smoothed variance times the held-out likelihood's factor"
+                " model's smoothed variance, at least the held-out error at the force's rate"
+                " of change, times the held-out factor"
                 f" {c.band_scale:.2g} (the fixed filter's mean NIS here"
                 f" {est.kf_paper_nis:.2f}, at most {NIS_LIMIT:g}: its innovations show no"
                 " pads other than the trained ones, though the torque balance's wide noise"
@@ -559,7 +560,10 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
                 f"{q:g}": v / 1e3 for q, v in (check.adaptive_rmse_by_q or {}).items()},
             "coloured": None if (c := check.coloured) is None else {
                 "tau_s": c.tau_s, "gain": c.gain, "heldout_rmse_kn": c.rmse_n / 1e3,
-                "band_scale": c.band_scale, "adopted": c.adopted, "holds": c.holds},
+                "band_scale": c.band_scale, "adopted": c.adopted, "holds": c.holds,
+                "band_by_rate": {"rate_kn_s": [k / 1e3 for k in c.rate_knots],
+                                 "heldout_rmse_kn": [float(np.sqrt(v)) / 1e3
+                                                     for v in c.rate_vars]}},
             "what": "trained on one half of the training session, estimated on the other,"
                     " both ways, scored against the sensor with its lag taken out; the filter's"
                     " Q is the paper's times the factor with the smallest held-out RMSE (the"
