@@ -15,9 +15,12 @@ EMB caliper (the trained dynamic stiffness, eq. 6, against the clamp-force senso
    fitting cycles, scored on the held-out ones (RMSE shrink, bootstrap over cycles).
 4. **Verdict**: :func:`brakethermo.diagnosis.verdict.decide` — a single name only when it
    beats every other clearly and is no look-alike, else the set, or ``"none"``. A
-   candidate whose correction is smaller than the output sensor's accuracy (or twice the
-   trained relation's own residual) is reported but never named: between two sessions
-   the sensor's own offset could do as much.
+   candidate whose correction is smaller than the output sensor's accuracy (or the
+   trained relation's own residual: twice the booster's p-V residual, once the caliper's
+   stiffness residual, whose hysteresis makes it large on a real caliper — at twice it
+   worn pads an independent caliper showed plainly, 28-33 % held-out shrink, were set
+   aside) is reported but never named: between two sessions the sensor's own offset
+   could do as much.
 
 Needs the output's sensor (a bench or validation session): a production session without
 it cannot be compared with anything and is refused with one line.
@@ -199,7 +202,7 @@ def diagnose_emb(
                    data.session.time - data.session.time[0], lambda x: ds.simulate(x) / 1e3),
         force / 1e3, rest=rest,
         # a load cell's accuracy (0.5 % of a 40 kN range), or the model's own residual
-        floor=max(0.2, 2.0 * models.sigma_ds / 1e3), unit="kN", input_name="motor angle",
+        floor=max(0.2, models.sigma_ds / 1e3), unit="kN", input_name="motor angle",
         input_unit="rad",
         reference_text=f"the dynamic stiffness (eq. 6) of the training session"
                        f" {tr.session.path}, as the clamp-force filter uses it (not refitted"
