@@ -151,3 +151,20 @@ def test_crown_balance_conserves_power_and_tilts_the_heat(b: float) -> None:
     inner, outer = model.spot_matrix([disc.spot_radii[0], disc.spot_radii[-1]]) @ (out[1] - out[0])
     if abs(b) > 1e-3:
         assert np.sign(inner) == np.sign(b) and np.sign(outer) == -np.sign(b)
+
+
+def test_at_bounds_catches_a_fit_that_stops_near_its_bound_and_skips_shapes() -> None:
+    """A bounded least-squares fit stops near its bound, not on it: a wrong emissivity at
+    0.6002 on a bound of 0.6 was missed by a 1e-4 tolerance and named alone on an
+    independent generator's sessions. A shape parameter (μ(T)'s midpoint) at its bound is
+    no misfit; an effect at its absent value is not at a bound."""
+    ext, _ = _toy(("emissivity_error", "friction_temperature", "sensor_lag"))
+    p = ext.neutral()
+    idx = ext.index
+    p[idx["emissivity_error", "ratio"]] = np.log(0.6002)
+    p[idx["friction_temperature", "beta"]] = 0.3
+    p[idx["friction_temperature", "t_mid"]] = 700.0
+    assert set(ext.at_bounds(p)) == {"emissivity_error.ratio"}
+    assert "ratio = 0.6, at the edge of its range 0.6-1.5" in ext.at_bounds_words(p)
+    p[idx["emissivity_error", "ratio"]] = np.log(0.65)
+    assert ext.at_bounds(p) == {} and ext.at_bounds_words(p) == ""

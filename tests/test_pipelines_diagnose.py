@@ -223,3 +223,31 @@ def test_pooling_refuses_a_session_twice_or_two_of_one_name(tmp_path) -> None:
                             "DIR/<stem>/diagnosis.json": "o/s/diagnosis.json"})
     assert done["next_steps"] == ["brakethermo identify-h s.mcap --out 'my out'"]
     assert done["effects"][0]["next_step"].endswith("--with-effect o/s/diagnosis.json")
+
+
+def test_forward_selection_does_not_add_an_effect_its_combined_fit_leaves_at_a_bound():
+    """The combined model brought in a wrong emissivity at its bound behind the verdict
+    (independent generator, pyrometer-lag session) and identify-h carried it."""
+    import numpy as np
+
+    from brakethermo.pipelines.diagnose._common import Candidate
+    from brakethermo.pipelines.diagnose.four_spot import _forward_selection
+
+    def cand(*names):
+        c = Candidate(",".join(names), names, np.zeros(1), np.zeros((1, 4)), (1,), 0.0)
+        c.scores = {"rmse_after": 1.0, "shrink_pct": 30.0, "significant": True}
+        return c
+
+    first, edge, fine = cand("thickness_gradient"), cand("emissivity_error"), cand("sensor_lag")
+
+    def fit(effects, start):
+        return cand(*effects)
+
+    def describe(c, pred):
+        return {"rmse_after": 0.9, "shrink_pct": 12.0, "significant": True}
+
+    def at_bound(c):
+        return "ratio = 0.6" if "emissivity_error" in c.effects else ""
+
+    out = _forward_selection([first, edge, fine], fit, describe, at_bound)
+    assert out["effects"] == ["thickness_gradient", "sensor_lag"]

@@ -238,3 +238,37 @@ def test_a_thin_skin_disc_gets_finer_layers_and_estimate_follows_the_laws_mesh(t
     assert forced.summary["run"]["nodes"] == 12
     assert any("runs 12 radial nodes" in w and "fitted for 15" in w
                for w in forced.summary["run"]["warnings"])
+
+
+def test_a_selected_effect_whose_refit_ends_at_a_bound_is_dropped(monkeypatch):
+    """On an independent generator's pyrometer-lag session the diagnosis's combined model
+    brought in a wrong emissivity whose law refit ended at its bound (0.6); identify-h
+    warned and carried it, and the races came out 2.4x the single-spot baseline. A
+    selected (auto) effect at a bound is dropped and the law refitted without it; one the
+    user named is kept (warned about, as before)."""
+    from types import SimpleNamespace
+
+    from brakethermo.pipelines import identify_h as ih
+
+    calls = []
+
+    def fake_refit(session, inputs, y, disc, start, est_tuning, effects):
+        calls.append(effects)
+        edge = {"emissivity_error.ratio": 0.6001} if "emissivity_error" in effects else {}
+        return start, SimpleNamespace(at_bounds=edge), est_tuning
+
+    monkeypatch.setattr(ih, "_refit", fake_refit)
+    notes: list[str] = []
+    auto = {"mode": "auto", "selected": ["thickness_gradient", "emissivity_error"],
+            "why": "diagnosis"}
+    _, _, _, kept, sel = ih._refit_carried(None, None, None, None, "law", "tuning",
+                                           ("thickness_gradient", "emissivity_error"),
+                                           auto, notes)
+    assert kept == ("thickness_gradient",) and calls[-1] == ("thickness_gradient",)
+    assert sel["selected"] == ["thickness_gradient"] and "emissivity_error" in sel["at_bound"]
+    assert any("emissivity_error: not carried" in n and "bound" in n for n in notes)
+    given = {"mode": "given", "selected": ["emissivity_error"], "why": "--with-effect"}
+    calls.clear()
+    _, _, _, kept, _ = ih._refit_carried(None, None, None, None, "law", "tuning",
+                                         ("emissivity_error",), given, [])
+    assert kept == ("emissivity_error",) and len(calls) == 1

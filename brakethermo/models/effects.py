@@ -69,6 +69,9 @@ class EffectParam:
     online_step : float or None
         Random-walk standard deviation per 0.1 s step when ``estimate`` adapts the value
         online from one spot; ``None`` = fixed at the test-session value.
+    shape : bool
+        A shape parameter (where a ramp sits, not how strong the effect is): its bound is
+        no sign that the effect's form misfits the data (:meth:`ExtendedDisc.at_bounds`).
     """
 
     name: str
@@ -79,6 +82,7 @@ class EffectParam:
     prior_sigma: float | None = None
     unit: str = "-"
     online_step: float | None = None
+    shape: bool = False
 
     def to_fit(self, value: float | np.ndarray) -> np.ndarray:
         """Value (in ``unit``) to the fitted space."""
@@ -179,7 +183,8 @@ EFFECTS: dict[str, Effect] = {
         Effect(
             "friction_temperature", "power",
             (EffectParam("beta", 0.0, -0.6, 0.6, prior_sigma=0.3),
-             EffectParam("t_mid", 400.0, 150.0, 700.0, prior_sigma=150.0, unit="degC")),
+             EffectParam("t_mid", 400.0, 150.0, 700.0, prior_sigma=150.0, unit="degC",
+                         shape=True)),
             "braking power x mu(T)/mu_ref = 1 + beta clip((T - T_m)/250 degC, -1, 1), T the"
             " contact-band face temperature",
             "braking only, growing with disc temperature: too little heat in hot stops, too"

@@ -558,10 +558,12 @@ RACE_TESTED = ("friction_temperature",)  # a law's effects the race checks befor
 def _testable(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec,
               effects: tuple[str, ...], selection: dict[str, Any], notes: list[str]
               ) -> tuple[tuple[str, ...], dict[str, Any]]:
-    """The given effects less those whose signature the session does not hold: fitted
-    there, such an effect's parameter comes out of the noise and the other parameters'
-    trade-offs (a pyrometer emissivity ratio of 0.91 on a session read at the true
-    setting), and estimate would then apply it to every race unchecked."""
+    """The given or selected effects less those whose signature the session does not
+    hold: fitted there, such an effect's parameter comes out of the noise and the other
+    parameters' trade-offs (a pyrometer emissivity ratio of 0.91 on a session read at the
+    true setting; 0.6, the bound, on an independent generator's sessions where the
+    diagnosis found it significant), and estimate would then apply it to every race
+    unchecked."""
     from brakethermo.pipelines.diagnose.data_power import untestable_on
 
     blind = untestable_on(session, inputs, y, disc.v_ref)
@@ -574,10 +576,31 @@ def _testable(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpe
         return effects, selection
     kept = tuple(name for name in effects if name not in dropped)
     for name, why in dropped.items():
-        notes.append(f"--with-effect {name}: not carried, this session cannot test it —"
-                     f" {why}")
+        notes.append(f"{name}: not carried, this session cannot test it — {why}")
     return kept, {**selection, "selected": list(kept), "not_carried": dropped,
-                  "why": f"--with-effect, less {', '.join(dropped)} (untestable here)"}
+                  "why": f"{selection['why']}; less {', '.join(dropped)} (untestable here)"}
+
+
+def _refit_carried(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec,
+                   start: HLaw, est_tuning: EstimateTuning, effects: tuple[str, ...],
+                   selection: dict[str, Any], notes: list[str]
+                   ) -> tuple[HLaw, StructureFit, EstimateTuning, tuple[str, ...],
+                              dict[str, Any]]:
+    """The law refitted with ``effects``; an effect the diagnosis selected (``auto``)
+    whose refit ends at a bound of its range is dropped and the law refitted without it
+    (it stands in for something else); one the user named is kept, and warned about."""
+    law, structure, est_tuning = _refit(session, inputs, y, disc, start, est_tuning, effects)
+    edge = {key.split(".", 1)[0]: f"{key.split('.', 1)[1]} = {value:.4g}"
+            for key, value in structure.at_bounds.items()
+            if selection["mode"] == "auto" and key.split(".", 1)[0] in effects}
+    if not edge:
+        return law, structure, est_tuning, effects, selection
+    effects = tuple(e for e in effects if e not in edge)
+    notes.extend(f"{name}: not carried, its refit ended at a bound of its range"
+                 f" ({edge[name]}), so it stands in for something else" for name in edge)
+    selection = {**selection, "selected": list(effects), "at_bound": edge,
+                 "why": f"{selection['why']}; less {', '.join(edge)} (at a bound)"}
+    return (*_refit(session, inputs, y, disc, start, est_tuning, effects), effects, selection)
 
 
 def _sample_law(inputs: DiscInputs, h_mean: np.ndarray, h_std: np.ndarray,
@@ -690,15 +713,15 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
     fit_mask = off_brake_mask(braking) & np.isfinite(y).all(axis=1) & (inputs.speed > 1.0)
     effects, selection, diagnosis = _effect_choice(session, options)
     notes: list[str] = []
-    if selection["mode"] == "given":
+    if selection["mode"] in ("given", "auto"):
         effects, selection = _testable(session, inputs, y, disc, effects, selection, notes)
     law_ukf, start = _sample_law(inputs, h_mean, h_std, fit_mask, disc, tuning,
                                  options.fit_structure or bool(effects), notes)
     t_law = time.perf_counter()
     law, structure = start, None
     if options.fit_structure or effects:
-        law, structure, est_tuning = _refit(session, inputs, y, disc, start, est_tuning,
-                                            effects)
+        law, structure, est_tuning, effects, selection = _refit_carried(
+            session, inputs, y, disc, start, est_tuning, effects, selection, notes)
     t_struct = time.perf_counter()
     notes.extend(f"{name} = {value:.4g} sits at the bound the fit allows: the data push it"
                  " further than the model's range, so the effect's form does not fit them"

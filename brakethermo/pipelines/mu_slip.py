@@ -9,6 +9,7 @@ fit a real tyre, the best chosen by held-out error.
 from __future__ import annotations
 
 import io
+import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -296,11 +297,16 @@ def free_rolling_check(session: Session, slip: np.ndarray, mu: np.ndarray, start
     else:
         V, w = session.values("vehicle_speed"), session.values("wheel_speed")
         ok = rolling & np.isfinite(V) & np.isfinite(w) & (V >= 1.0) & (np.abs(w) > 1e-6)
-        speeds = (f"; the free-rolling speeds give {float(np.median(V[ok] / w[ok])):.3f} m"
-                  if ok.any() else "")
+        r_free = float(np.median(V[ok] / w[ok])) if ok.any() else math.nan
+        speeds = f"; the free-rolling speeds give {r_free:.3f} m" if ok.any() else ""
         said = (f" with the wheel radius {radius_m:g} m"
                 f" ({'--radius' if given else 'the session fact'}){speeds}")
         fix = "fix the radius"
+        kmh = 3.6  # km/h per m/s: a speed logged in km/h, labelled m/s (or the reverse)
+        if any(abs(r_free / radius_m / f - 1.0) < 0.05 for f in (kmh, 1.0 / kmh)):
+            fix = (f"the ratio is {r_free / radius_m:.2f}, near 3.6 or 1/3.6: one of"
+                   " vehicle_speed and wheel_speed is likely logged in km/h but labelled"
+                   " m/s (or the reverse); fix its unit in the export, or the radius")
     text = (f"in free rolling before the ramp (μ about 0) the slip is {s0:+.3f}, not about"
             f" 0{said}: every slip of the ramp moves with it")
     if abs(s0) > FREE_SLIP[1]:

@@ -93,7 +93,8 @@ def diagnose_session(
     decision, evidence, ranked = d.decide(candidates)
     significant = [c for c in ranked if c.scores["significant"]]
     t0 = time.perf_counter()
-    selection = _forward_selection(significant, d.fit_candidate, d.describe, d.y, d.layout)
+    selection = _forward_selection(significant, d.fit_candidate, d.describe,
+                                   lambda c: d.make(c.effects).at_bounds_words(c.p))
     d.timings["forward_selection_s"] = time.perf_counter() - t0
     d.tick("forward selection")
     summary = d.summary(decision, ranked, significant, selection, t_start)
@@ -387,10 +388,12 @@ def _forward_selection(
     significant: list[Candidate],
     fit_candidate: Callable[[tuple[str, ...], Candidate | None], Candidate],
     describe: Callable[[Candidate, np.ndarray], dict[str, Any]],
-    y: np.ndarray,
-    layout: Layout,
+    at_bound: Callable[[Candidate], str],
 ) -> dict[str, Any]:
-    """Greedy forward selection over the significant effects, on held-out laps."""
+    """Greedy forward selection over the significant effects, on held-out laps; an
+    effect is not added where the combined fit leaves a parameter at a bound of its range
+    (it then stands in for something else: a look-alike came in through the combined
+    model and identify-h carried it)."""
     if not significant:
         return {"effects": [], "steps": []}
     current = significant[0]
@@ -399,7 +402,7 @@ def _forward_selection(
     for cand in significant[1:]:
         trial = fit_candidate((*current.effects, *cand.effects), current)
         gain = describe(trial, current.pred)
-        if gain["significant"]:
+        if gain["significant"] and not at_bound(trial):
             trial.scores = gain
             steps.append({"added": cand.name, "rmse_after": gain["rmse_after"],
                           "shrink_pct": gain["shrink_pct"]})
