@@ -135,3 +135,27 @@ def test_a_toml_that_is_no_h_law_is_said_so(tmp_path) -> None:
     path.write_text("[estimate]\nnodes = 10\n")
     with pytest.raises(ConfigError, match=r"not an h law: .*it sets: estimate.*identify-h"):
         read_h_law(path)
+
+
+def test_the_law_never_falls_with_speed_beyond_the_cubics_first_maximum() -> None:
+    """A knee gain fitted at its negative bound gave a cubic that fell from 308 W/(m² K)
+    at 300 km/h to 157 at 360 (an independent generator's session): the law is held at
+    the cubic's first maximum; a rising cubic and the power branch are untouched."""
+    import numpy as np
+
+    from brakethermo.thermal.hlaw import HLaw
+
+    v = np.linspace(0.0, 400.0, 401) / 3.6
+    falling = HLaw(v_ref=350 / 3.6, a=306.0 / 0.8**0.5, b=0.5, c=(162.2, -3267.6, -1313.97))
+    h = falling(v)
+    assert np.all(np.diff(h) >= -1e-9)
+    u = np.linspace(0.0, falling.u_peak, 50)
+    c1, c2, c3 = falling.c
+    assert h.max() == pytest.approx(np.max(falling.c0 + u * (c1 + u * (c2 + u * c3))))
+    rising = HLaw(v_ref=350 / 3.6, a=300.0, b=0.5, c=(40.0, 10.0, 0.0))
+    assert rising.u_peak == np.inf
+    x = v / rising.v_ref
+    uu = np.maximum(x - 0.8, 0.0)
+    expect = np.where(x < 0.8, 300.0 * x**0.5,
+                      rising.c0 + uu * (40.0 + uu * 10.0))
+    np.testing.assert_allclose(rising(v), expect)
