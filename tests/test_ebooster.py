@@ -365,6 +365,8 @@ def test_bad_input_exits_1_with_one_clear_line(tmp_path):
     (("tau_z", "nan"), "'tau_z' is not finite"),
     (("disk", "[-93.0, 234.0, 0.0056, 0.0038, 0.0015]"), "is no reaction-disk curve"),
     (("stroke_mm", None), "missing key 'stroke_mm'"),
+    (("s2_max_mm", "nan"), "'s2_max_mm' = nan is no screw travel"),
+    (("s2_max_mm", "0.0"), "'s2_max_mm' = 0 is no screw travel"),
 ])
 def test_a_malformed_training_result_is_refused_before_the_run(tmp_path, edit, said):
     """--fit files with wrong counts or impossible values: one line, exit 1 (were

@@ -164,7 +164,7 @@ def test_at_bounds_catches_a_fit_that_stops_near_its_bound_and_skips_shapes() ->
     p[idx["emissivity_error", "ratio"]] = np.log(0.6002)
     p[idx["friction_temperature", "beta"]] = 0.3
     p[idx["friction_temperature", "t_mid"]] = 700.0
-    assert set(ext.at_bounds(p)) == {"emissivity_error.ratio"}
-    assert "ratio = 0.6, at the edge of its range 0.6-1.5" in ext.at_bounds_words(p)
+    assert set(ext.at_bounds(p)) == {("emissivity_error", "ratio")}
+    assert "ratio = 0.6, at the edge of its range 0.6 to 1.5" in ext.at_bounds_words(p)
     p[idx["emissivity_error", "ratio"]] = np.log(0.65)
     assert ext.at_bounds(p) == {} and ext.at_bounds_words(p) == ""

@@ -461,3 +461,20 @@ def test_a_point_table_in_per_cent_is_named_and_its_label_honoured(tmp_path: Pat
         assert res.exit_code == 0, res.output
         peaks.append(json.loads(res.stdout)["ekf"]["mu_peak"])
     assert peaks[0] == pytest.approx(peaks[1], rel=1e-6)  # x100 then x0.01: rounding only
+
+
+def test_a_vehicle_speed_in_kmh_labelled_ms_is_named(tmp_path: Path) -> None:
+    """The free-rolling check blamed wheel_speed and asked for another radius when the
+    vehicle speed was logged in km/h under an m/s label; it names that channel and unit."""
+    import dataclasses
+
+    from brakethermo.errors import DataError
+    from brakethermo.io.writers import write_session
+
+    sim = simulate_tyre_rig("dry", seed=8107)
+    chs = tuple(dataclasses.replace(c, value=c.value * 3.6) if c.name == "vehicle_speed"
+                else c for c in sim.session.channels)
+    path = write_session(tmp_path / "kmh.mcap", dataclasses.replace(sim.session, channels=chs))
+    with pytest.raises(DataError, match="vehicle_speed looks like km/h labelled m/s") as err:
+        mu_slip(path)
+    assert err.value.channel == "vehicle_speed"

@@ -244,8 +244,9 @@ def test_a_selected_effect_whose_refit_ends_at_a_bound_is_dropped(monkeypatch):
     """On an independent generator's pyrometer-lag session the diagnosis's combined model
     brought in a wrong emissivity whose law refit ended at its bound (0.6); identify-h
     warned and carried it, and the races came out 2.4x the single-spot baseline. A
-    selected (auto) effect at a bound is dropped and the law refitted without it; one the
-    user named is kept (warned about, as before)."""
+    selected (auto) effect at a bound is dropped and the law refitted without it, from the
+    caller's layering, until none is; the structure's own k_z stays; one the user named is
+    kept (warned about, as before)."""
     from types import SimpleNamespace
 
     from brakethermo.pipelines import identify_h as ih
@@ -253,22 +254,28 @@ def test_a_selected_effect_whose_refit_ends_at_a_bound_is_dropped(monkeypatch):
     calls = []
 
     def fake_refit(session, inputs, y, disc, start, est_tuning, effects):
-        calls.append(effects)
-        edge = {"emissivity_error.ratio": 0.6001} if "emissivity_error" in effects else {}
-        return start, SimpleNamespace(at_bounds=edge), est_tuning
+        calls.append((effects, est_tuning))
+        edge = {("thickness_gradient", "kz_factor"): 0.1}
+        if "emissivity_error" in effects:
+            edge[("emissivity_error", "ratio")] = 0.6001
+        elif "sensor_lag" in effects:  # at a bound only once the other is gone
+            edge[("sensor_lag", "tau_s")] = 3.0
+        return start, SimpleNamespace(at_bounds=edge), "thin-skin"
 
     monkeypatch.setattr(ih, "_refit", fake_refit)
     notes: list[str] = []
-    auto = {"mode": "auto", "selected": ["thickness_gradient", "emissivity_error"],
-            "why": "diagnosis"}
-    _, _, _, kept, sel = ih._refit_carried(None, None, None, None, "law", "tuning",
-                                           ("thickness_gradient", "emissivity_error"),
-                                           auto, notes)
-    assert kept == ("thickness_gradient",) and calls[-1] == ("thickness_gradient",)
-    assert sel["selected"] == ["thickness_gradient"] and "emissivity_error" in sel["at_bound"]
+    auto = {"mode": "auto", "why": "diagnosis",
+            "selected": ["thickness_gradient", "emissivity_error", "sensor_lag"]}
+    _, _, tuning, kept, sel = ih._refit_carried(
+        None, None, None, None, "law", "caller's", ("thickness_gradient", "emissivity_error",
+                                                     "sensor_lag"), auto, notes)
+    assert kept == ("thickness_gradient",) and calls[-1][0] == ("thickness_gradient",)
+    assert [t for _, t in calls] == ["caller's"] * 3 and tuning == "thin-skin"
+    assert sel["selected"] == ["thickness_gradient"]
+    assert set(sel["at_bound"]) == {"emissivity_error", "sensor_lag"}
     assert any("emissivity_error: not carried" in n and "bound" in n for n in notes)
     given = {"mode": "given", "selected": ["emissivity_error"], "why": "--with-effect"}
     calls.clear()
-    _, _, _, kept, _ = ih._refit_carried(None, None, None, None, "law", "tuning",
+    _, _, _, kept, _ = ih._refit_carried(None, None, None, None, "law", "caller's",
                                          ("emissivity_error",), given, [])
     assert kept == ("emissivity_error",) and len(calls) == 1

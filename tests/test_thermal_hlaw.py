@@ -152,6 +152,9 @@ def test_the_law_never_falls_with_speed_beyond_the_cubics_first_maximum() -> Non
     u = np.linspace(0.0, falling.u_peak, 50)
     c1, c2, c3 = falling.c
     assert h.max() == pytest.approx(np.max(falling.c0 + u * (c1 + u * (c2 + u * c3))))
+    for c in ((0.0, -100.0, 0.0), (0.0, 0.0, -50.0), (-5.0, 1.5, 0.0)):  # down from the knee
+        flat = HLaw(v_ref=350 / 3.6, a=300.0, b=0.5, c=c)
+        assert flat.u_peak == 0.0 and np.all(np.diff(flat(v)) >= -1e-9)
     rising = HLaw(v_ref=350 / 3.6, a=300.0, b=0.5, c=(40.0, 10.0, 0.0))
     assert rising.u_peak == np.inf
     x = v / rising.v_ref

@@ -103,7 +103,8 @@ class CandidateEvidence:
     signature : Signature, optional — the held-out units where the effect's signature
         lives, scored before and after; a second way to significance (module docstring).
     at_bound : str, optional — which fitted parameters sit at a bound of their range, in
-        words (``"ratio = 0.6, the end of its range"``); such a candidate is never named.
+        words (``"ratio = 0.6, at the edge of its range 0.6 to 1.5"``); such a candidate
+        is never named.
     """
 
     name: str
@@ -319,25 +320,31 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
     rows = _ranked_rows(sse_before, candidates, rule)
     significant = [r["name"] for r in rows if r["significant"]]
     undecided = [r["name"] for r in rows if not r["significant"] and not r.get("at_bound")
-                 and np.isfinite(r["shrink_ci95_pct"][1])
-                 and r["shrink_ci95_pct"][1] > rule.min_shrink_pct]
+                 and _may_matter(r, rule)]
     reasons: list[str] = []
     verdict_set: list[str] = []
     if significant:
         verdict_set, reasons = _verdict_set(sse_before, rows, significant, undecided, by_name,
                                             rule)
     next_steps = _next_steps(verdict_set, undecided, rows, by_name, untestable)
+    edge = [r for r in rows if r.get("at_bound") and _may_matter(r, rule)]
     next_steps += [f"{r['name']} closes {r['shrink_pct']:.0f} % of the held-out gap only with"
                    f" {r['at_bound']}, past what its form allows: not named (another"
-                   f" unmodelled effect that looks like it is more likely)"
-                   for r in rows if r.get("at_bound") and np.isfinite(r["shrink_ci95_pct"][1])
-                   and r["shrink_ci95_pct"][1] > rule.min_shrink_pct]
+                   f" unmodelled effect that looks like it is more likely)" for r in edge]
+    reasons += [f"{r['name']} set aside: its fit ends at a bound ({r['at_bound']})"
+                for r in edge]
     unseen = {n: why for n, why in (untestable or {}).items()
               if n in by_name and n not in significant}
     next_steps += [f"{n} cannot be told on this data: {why}" for n, why in unseen.items()
                    if n not in undecided]
     return Decision(verdict_set[0] if verdict_set else "none", verdict_set, rows, undecided,
                     next_steps, reasons, rule, unseen)
+
+
+def _may_matter(row: dict[str, Any], rule: VerdictRule) -> bool:
+    """Whether a candidate's shrink interval reaches above the rule's threshold."""
+    hi = row["shrink_ci95_pct"][1]
+    return bool(np.isfinite(hi) and hi > rule.min_shrink_pct)
 
 
 def _ranked_rows(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],

@@ -37,21 +37,27 @@ def _finite(values: np.ndarray) -> np.ndarray:
     return values[np.isfinite(values)]
 
 
-def _ratio_cause(ratio: float) -> str:
-    """Name the unit confusion a wheel-speed / vehicle-speed ratio points to."""
+def ratio_cause(ratio: float, speed: str = "speed", wheel: str = "wheel_speed_front",
+                radius: str = "the tyre rolling radius of the datasheet") -> str:
+    """Name the unit confusion a (wheel speed x radius) / vehicle speed ratio points to.
+
+    Parameters
+    ----------
+    ratio : float — wheel speed (rad/s) times the radius (m), over the vehicle speed (m/s)
+    speed, wheel : str — the two channels' names, for the message
+    radius : str — where the radius comes from, for the message
+    """
     known = (
-        (RPM_PER_RAD_S, "wheel_speed_front looks like rpm labelled rad/s: set its unit to rpm"),
-        (1.0 / RPM_PER_RAD_S, "wheel_speed_front looks like rad/s labelled rpm: set its unit "
-                              "to rad/s"),
-        (KMH_PER_M_S, "speed looks like m/s labelled km/h: set its unit to m/s"),
-        (1.0 / KMH_PER_M_S, "speed looks like km/h labelled m/s: set its unit to km/h"),
+        (RPM_PER_RAD_S, f"{wheel} looks like rpm labelled rad/s: set its unit to rpm"),
+        (1.0 / RPM_PER_RAD_S, f"{wheel} looks like rad/s labelled rpm: set its unit to rad/s"),
+        (KMH_PER_M_S, f"{speed} looks like m/s labelled km/h: set its unit to m/s"),
+        (1.0 / KMH_PER_M_S, f"{speed} looks like km/h labelled m/s: set its unit to km/h"),
         (-1.0, "one of the two is logged with the other sign"),
     )
     for value, cause in known:
         if abs(ratio / value - 1.0) < 0.2:
             return cause
-    return ("check the units of speed and wheel_speed_front and the tyre rolling radius "
-            "of the datasheet")
+    return f"check the units of {speed} and {wheel} and {radius}"
 
 
 def check_speeds(speed: np.ndarray, omega: np.ndarray | None, tyre_radius: float,
@@ -93,7 +99,7 @@ def check_speeds(speed: np.ndarray, omega: np.ndarray | None, tyre_radius: float
     if not 0.8 <= ratio <= 1.25:
         raise DataError(
             f"wheel speed × tyre radius ({tyre_radius:.3f} m) is {ratio:.3g}× the vehicle "
-            f"speed, expected ≈1: {_ratio_cause(ratio)}", path=path, channel=name)
+            f"speed, expected ≈1: {ratio_cause(ratio)}", path=path, channel=name)
 
 
 def check_pressure(pressure: np.ndarray, path: Path | None = None,

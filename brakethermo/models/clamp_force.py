@@ -605,8 +605,8 @@ def _coloured(col: ColouredError, F_ds: Array, F_tb: Array, ts: float
     consistency = nis_consistency(error_filter(m, phi, col.gain)[1] ** 2 / col.innovation_var)
     scale = variance_scale(consistency)
     kf = F_ds - error_smoother(m, phi, col.gain)
-    return (kf, np.sqrt(col.variance(ts, smoothed_rate(kf, ts)) * scale), float(scale),
-            consistency)
+    var = np.broadcast_to(col.variance(ts, smoothed_rate(kf, ts)), kf.shape)
+    return kf, np.sqrt(var * scale), float(scale), consistency
 
 
 def _paper_filter(alpha0: float, u: Array, F0: float, y: Array, Q: float, R: float

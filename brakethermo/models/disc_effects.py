@@ -151,8 +151,8 @@ class ExtendedDisc:
         lo, hi = zip(*(s.param.bounds_fit for s in self.slots), strict=True)
         return np.array(lo), np.array(hi)
 
-    def at_bounds(self, p: np.ndarray) -> dict[str, float]:
-        """``"effect.param": value`` of the effects' own strength parameters that ``p``
+    def at_bounds(self, p: np.ndarray) -> dict[tuple[str, str], float]:
+        """``(effect, param): value`` of the effects' own strength parameters that ``p``
         leaves at a bound of their range (within 1 % of the range, in the fitted space: a
         bounded least-squares fit stops near its bound, not on it — 0.6002 on a bound of
         0.6), unless that bound is the effect's absent value: the data push them past what
@@ -161,7 +161,7 @@ class ExtendedDisc:
         lo, hi = self.bounds()
         p_neutral = self.neutral()
         tol = 1e-2 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
-        return {f"{sl.effect}.{sl.param.name}": float(sl.param.from_fit(p[sl.index]))
+        return {(sl.effect, sl.param.name): float(sl.param.from_fit(p[sl.index]))
                 for sl in self.slots if sl.segment < 0 and sl.effect != "reference"
                 and not sl.param.shape
                 and abs(p[sl.index] - p_neutral[sl.index]) > tol[sl.index]
@@ -169,12 +169,11 @@ class ExtendedDisc:
                      or p[sl.index] >= hi[sl.index] - tol[sl.index])}
 
     def at_bounds_words(self, p: np.ndarray) -> str:
-        """:meth:`at_bounds` in words, ``""`` when none (``"ratio = 0.6, at the end of its
-        range 0.6-1.5"``)."""
-        ranges = {f"{s.effect}.{s.param.name}": (s.param.lower, s.param.upper)
-                  for s in self.slots}
-        return "; ".join(f"{key.split('.', 1)[1]} = {v:.3g}, at the edge of its range"
-                         f" {ranges[key][0]:g}-{ranges[key][1]:g}"
+        """:meth:`at_bounds` in words, ``""`` when none (``"ratio = 0.6, at the edge of its
+        range 0.6 to 1.5"``)."""
+        ranges = {(s.effect, s.param.name): (s.param.lower, s.param.upper) for s in self.slots}
+        return "; ".join(f"{key[1]} = {v:.3g}, at the edge of its range"
+                         f" {ranges[key][0]:g} to {ranges[key][1]:g}"
                          for key, v in self.at_bounds(p).items())
 
     def prior(self) -> tuple[np.ndarray, np.ndarray]:

@@ -177,6 +177,9 @@ def _fit_problem(fit: BoosterFit) -> str | None:
             return f"'{key}' = {value:g} is not > 0"
         if count is None and value < 0:
             return f"'{key}' = {value:g} is negative"
+    if not fit.s2_max_mm > 0.0:  # inf (not recorded) is fine; nan, 0 and below are not
+        return (f"'s2_max_mm' = {fit.s2_max_mm:g} is no screw travel (the training data's"
+                " furthest, mm > 0; leave it out of an older fit)")
     p1, p2, *slopes = fit.disk  # eq. 14: breakpoints 0 <= p1 <= p2 (N), slopes >= 0 (mm/N)
     if not (0.0 <= p1 <= p2 and all(k >= 0.0 for k in slopes)):
         return (f"'disk' = {list(fit.disk)} is no reaction-disk curve (breakpoints"

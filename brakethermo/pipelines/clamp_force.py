@@ -474,9 +474,8 @@ def _kf_text(res: ClampForceResult) -> str:
         q = ("the paper's fixed Q" if check is None or check.q_scale == 1.0 else
              f"the fixed filter, Q the paper's x {check.q_scale:g} (chosen on held-out halves"
              " of the training session)")
-        state = ("consistent" if est.kf_paper_nis <= NIS_LIMIT else "over-confident")
-        if est.kf_paper_nis < 1.0 / NIS_LIMIT:
-            state = "under-confident: its band is wider than its errors"
+        state = ("under-confident: its band is wider than its errors"
+                 if est.kf_paper_nis < 1.0 / NIS_LIMIT else "consistent")
         text = f"{q} (its mean NIS {est.kf_paper_nis:.2f}: {state})"
     if est.kf_noise_scale != 1.0:
         text += (f"; its band widened {np.sqrt(est.kf_noise_scale):.2f}x, its noise scaled to"

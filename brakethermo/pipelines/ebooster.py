@@ -468,6 +468,8 @@ def _summary(
             "stroke_mm": fit.stroke_mm,
             "training_session": fit.train_session,
             "rmse_mpa": fit.pv_rmse_mpa,
+            "s2_max_mm": fit.s2_max_mm if np.isfinite(fit.s2_max_mm) else None,
+            "beyond": "the curve's tangent beyond s2_max_mm (null: the polynomial everywhere)",
         },
         "disk_fit": {
             "three_slope": list(fit.disk),
@@ -578,8 +580,10 @@ def _noise_choice(fit: BoosterFit) -> dict[str, Any]:
                + (f"{fit.q_factor:g}x used" if fit.q_factor != 1.0 else
                   f"the datasheet's kept (another must gain {Q_MARGIN_NATS:g} nats per"
                   " reading)")
-               + ("; the best is the end of the range tried, so the session may want"
-                  " more still: its innovations (consistency) say how far the band is off"
+               + (f"; the best is the {'smallest' if best == Q_FACTORS[0] else 'largest'}"
+                  " factor tried, so the session may want "
+                  + ("less" if best == Q_FACTORS[0] else "more") + " still: its innovations"
+                  " (consistency) say how far the band is off"
                   if best in (Q_FACTORS[0], Q_FACTORS[-1]) else ""))
     return {"q_factor": fit.q_factor, "factors": list(Q_FACTORS) if fit.q_heldout_nats else [],
             "heldout_loglik_per_reading": list(fit.q_heldout_nats), "why": why}

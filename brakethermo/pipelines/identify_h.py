@@ -101,7 +101,7 @@ class StructureFit:
     rmse_c: dict[str, float]
     rmse_uniform_c: dict[str, float]
     effects: dict[str, dict[str, Any]] = field(default_factory=dict)
-    at_bounds: dict[str, float] = field(default_factory=dict)  # "effect.param": value
+    at_bounds: dict[tuple[str, str], float] = field(default_factory=dict)  # (effect, param)
 
     def facts(self) -> dict[str, Any]:
         """``structure`` of identify.json."""
@@ -114,7 +114,7 @@ class StructureFit:
             "open_loop_rmse_c": self.rmse_c,
             "open_loop_rmse_uniform_c": self.rmse_uniform_c,
             "effects": self.effects,
-            "at_bounds": self.at_bounds,
+            "at_bounds": {f"{e}.{p}": v for (e, p), v in self.at_bounds.items()},
         }
 
 
@@ -572,13 +572,26 @@ def _testable(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpe
     # there, significant, and so does not call it untestable)
     dropped = {name: blind[name] for name in effects
                if name in blind and name not in RACE_TESTED}
+    return _without(effects, selection, dropped, "not_carried", "untestable here",
+                    "this session cannot test it — {}", notes)
+
+
+def _without(effects: tuple[str, ...], selection: dict[str, Any], dropped: dict[str, str],
+             key: str, short: str, note: str, notes: list[str]
+             ) -> tuple[tuple[str, ...], dict[str, Any]]:
+    """``effects`` less ``dropped`` (name -> why), each said in ``notes`` (``note`` takes
+    the why) and recorded in the selection under ``key``."""
     if not dropped:
         return effects, selection
     kept = tuple(name for name in effects if name not in dropped)
-    for name, why in dropped.items():
-        notes.append(f"{name}: not carried, this session cannot test it — {why}")
-    return kept, {**selection, "selected": list(kept), "not_carried": dropped,
-                  "why": f"{selection['why']}; less {', '.join(dropped)} (untestable here)"}
+    notes.extend(f"{name}: not carried, {note.format(why)}" for name, why in dropped.items())
+    return kept, {**selection, "selected": list(kept), key: dropped,
+                  "why": f"{selection['why']}; less {', '.join(dropped)} ({short})"}
+
+
+# Effects the structure fit always fits (the k_z ratio; the knee gain where the session
+# runs above the knee): whether selected or not, they stay in the law.
+STRUCTURE_EFFECTS = ("thickness_gradient", "h_speed_knee")
 
 
 def _refit_carried(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec,
@@ -588,19 +601,26 @@ def _refit_carried(session: Session, inputs: DiscInputs, y: np.ndarray, disc: Di
                               dict[str, Any]]:
     """The law refitted with ``effects``; an effect the diagnosis selected (``auto``)
     whose refit ends at a bound of its range is dropped and the law refitted without it
-    (it stands in for something else); one the user named is kept, and warned about."""
-    law, structure, est_tuning = _refit(session, inputs, y, disc, start, est_tuning, effects)
-    edge = {key.split(".", 1)[0]: f"{key.split('.', 1)[1]} = {value:.4g}"
-            for key, value in structure.at_bounds.items()
-            if selection["mode"] == "auto" and key.split(".", 1)[0] in effects}
-    if not edge:
-        return law, structure, est_tuning, effects, selection
-    effects = tuple(e for e in effects if e not in edge)
-    notes.extend(f"{name}: not carried, its refit ended at a bound of its range"
-                 f" ({edge[name]}), so it stands in for something else" for name in edge)
-    selection = {**selection, "selected": list(effects), "at_bound": edge,
-                 "why": f"{selection['why']}; less {', '.join(edge)} (at a bound)"}
-    return (*_refit(session, inputs, y, disc, start, est_tuning, effects), effects, selection)
+    (it stands in for something else), until none is; one the user named is kept, and
+    warned about. Each refit starts from the caller's layering (a refit that went
+    thin-skin with the dropped effect may not without it)."""
+    law, structure, tuning = _refit(session, inputs, y, disc, start, est_tuning, effects)
+    dropped: dict[str, str] = {}
+    while selection["mode"] == "auto":
+        edge: dict[str, list[str]] = {}
+        for (name, param), value in structure.at_bounds.items():
+            if name in effects and name not in STRUCTURE_EFFECTS:
+                edge.setdefault(name, []).append(f"{param} = {value:.4g}")
+        if not edge:
+            break
+        dropped |= {name: ", ".join(params) for name, params in edge.items()}
+        effects = tuple(e for e in effects if e not in edge)
+        law, structure, tuning = _refit(session, inputs, y, disc, start, est_tuning, effects)
+    effects_before = (*effects, *dropped)
+    kept, selection = _without(effects_before, selection, dropped, "at_bound", "at a bound",
+                               "its refit ended at a bound of its range ({}), so it stands"
+                               " in for something else", notes)
+    return law, structure, tuning, kept, selection
 
 
 def _sample_law(inputs: DiscInputs, h_mean: np.ndarray, h_std: np.ndarray,
@@ -723,10 +743,10 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         law, structure, est_tuning, effects, selection = _refit_carried(
             session, inputs, y, disc, start, est_tuning, effects, selection, notes)
     t_struct = time.perf_counter()
-    notes.extend(f"{name} = {value:.4g} sits at the bound the fit allows: the data push it"
-                 " further than the model's range, so the effect's form does not fit them"
-                 " (check the carried effects against `brakethermo diagnose`)"
-                 for name, value in (structure.at_bounds if structure else {}).items())
+    notes.extend(f"{name}.{param} = {value:.4g} sits at the bound the fit allows: the data"
+                 " push it further than the model's range, so the effect's form does not fit"
+                 " them (check the carried effects against `brakethermo diagnose`)"
+                 for (name, param), value in (structure.at_bounds if structure else {}).items())
     calibration = _calibration(session, law, structure, est_tuning)
     sigma_crown, sigma_temp, adapt_power, band_scale, validation = validate_filter(
         session, calibration, options

@@ -28,6 +28,7 @@ from brakethermo.errors import ConfigError, DataError
 from brakethermo.estimation.consistency import nis_consistency, variance_scale
 from brakethermo.estimation.results import FilterResult
 from brakethermo.io.load import load_session
+from brakethermo.io.plausibility import ratio_cause
 from brakethermo.io.session import Session
 from brakethermo.models.mu_slip import (
     FAMILIES,
@@ -292,6 +293,7 @@ def free_rolling_check(session: Session, slip: np.ndarray, mu: np.ndarray, start
     s0 = float(np.median(slip[rolling]))
     if abs(s0) <= FREE_SLIP[0]:
         return []
+    channel = "slip_ratio" if radius_m is None else "wheel_speed"
     if radius_m is None:
         said, fix = " in the slip_ratio channel", "check the slip channel's zero and unit"
     else:
@@ -301,17 +303,13 @@ def free_rolling_check(session: Session, slip: np.ndarray, mu: np.ndarray, start
         speeds = f"; the free-rolling speeds give {r_free:.3f} m" if ok.any() else ""
         said = (f" with the wheel radius {radius_m:g} m"
                 f" ({'--radius' if given else 'the session fact'}){speeds}")
-        fix = "fix the radius"
-        kmh = 3.6  # km/h per m/s: a speed logged in km/h, labelled m/s (or the reverse)
-        if any(abs(r_free / radius_m / f - 1.0) < 0.05 for f in (kmh, 1.0 / kmh)):
-            fix = (f"the ratio is {r_free / radius_m:.2f}, near 3.6 or 1/3.6: one of"
-                   " vehicle_speed and wheel_speed is likely logged in km/h but labelled"
-                   " m/s (or the reverse); fix its unit in the export, or the radius")
+        cause = ratio_cause(radius_m / r_free, "vehicle_speed", "wheel_speed", "the radius")
+        fix = "fix the radius" if cause.startswith("check the units") else cause
+        channel = "vehicle_speed" if cause.startswith("vehicle_speed") else channel
     text = (f"in free rolling before the ramp (μ about 0) the slip is {s0:+.3f}, not about"
             f" 0{said}: every slip of the ramp moves with it")
     if abs(s0) > FREE_SLIP[1]:
-        raise DataError(f"{text}; {fix}", path=session.path,
-                        channel="slip_ratio" if radius_m is None else "wheel_speed")
+        raise DataError(f"{text}; {fix}", path=session.path, channel=channel)
     return [text]
 
 

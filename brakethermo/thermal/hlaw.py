@@ -87,8 +87,8 @@ class HLaw:
         """The cubic's first maximum at or beyond the knee, in ``u = x - knee`` (inf when
         it never turns down): the law is held there (module docstring)."""
         c1, c2, c3 = self.c
-        if c1 < 0.0:
-            return 0.0
+        if c1 < 0.0 or (c1 == 0.0 and (c2 < 0.0 or (c2 == 0.0 and c3 < 0.0))):
+            return 0.0  # falling from the knee on
         # dh/du = c1 + 2 c2 u + 3 c3 u^2: its first sign change from + to - at u > 0
         roots = np.roots([3.0 * c3, 2.0 * c2, c1]) if (c3 or c2) else np.array([])
         turns = sorted(float(r.real) for r in np.atleast_1d(roots)
