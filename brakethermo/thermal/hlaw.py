@@ -90,10 +90,17 @@ class HLaw:
         if c1 < 0.0 or (c1 == 0.0 and (c2 < 0.0 or (c2 == 0.0 and c3 < 0.0))):
             return 0.0  # falling from the knee on
         # dh/du = c1 + 2 c2 u + 3 c3 u^2: its first sign change from + to - at u > 0
-        roots = np.roots([3.0 * c3, 2.0 * c2, c1]) if (c3 or c2) else np.array([])
-        turns = sorted(float(r.real) for r in np.atleast_1d(roots)
-                       if abs(r.imag) < 1e-12 and r.real > 0.0
-                       and c2 + 3.0 * c3 * r.real < 0.0)  # h'' < 0 there: a maximum
+        A, B, C = 3.0 * c3, 2.0 * c2, c1
+        if abs(A) <= 1e-12 * max(abs(B), abs(C), 1.0):  # (nearly) a quadratic law
+            roots = [-C / B] if B else []
+        else:
+            disc = B * B - 4.0 * A * C
+            if disc < 0.0:
+                roots = []
+            else:  # the stable pair of roots
+                q = -0.5 * (B + math.copysign(math.sqrt(disc), B))
+                roots = [q / A] + ([C / q] if q else [])
+        turns = sorted(u for u in roots if u > 0.0 and B + 2.0 * A * u < 0.0)  # h'' < 0
         return turns[0] if turns else math.inf
 
     def __call__(self, v_mps: float | np.ndarray) -> np.ndarray:
