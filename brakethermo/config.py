@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -96,6 +96,31 @@ def resolve_named(kind: str, name_or_path: str | Path) -> Path:
         f"unknown {kind[:-1]} '{name_or_path}'; shipped ones are: {', '.join(available) or 'none'},"
         " or give a path to a TOML file"
     )
+
+
+# The tables that mark each rig's datasheet (configs/rigs/), to name a datasheet given to
+# the wrong command instead of reporting its first missing key.
+RIG_DATASHEET_TABLES = {"ebooster": ("master_cylinder", "reaction_disk"),
+                        "roller-rig": ("wheel", "roller")}
+
+
+def require_rig_datasheet(raw: Mapping[str, Any], rig: str, path: Path) -> None:
+    """Refuse a datasheet that is another rig's (or none), naming whose it is.
+
+    Raises
+    ------
+    ConfigError
+        ``raw`` lacks the tables of ``rig``'s datasheet (:data:`RIG_DATASHEET_TABLES`).
+    """
+    if all(t in raw for t in RIG_DATASHEET_TABLES[rig]):
+        return
+    other = next((r for r, tables in RIG_DATASHEET_TABLES.items()
+                  if r != rig and all(t in raw for t in tables)), None)
+    names = {"ebooster": "an E-Booster bench", "roller-rig": "a roller rig"}
+    whose = f"{names[other]}'s datasheet" if other else "no rig datasheet we know"
+    raise ConfigError(f"is {whose}, not {names[rig]}'s (it lacks the tables"
+                      f" {', '.join(f'[{t}]' for t in RIG_DATASHEET_TABLES[rig])}); give"
+                      f" {names[rig]}'s datasheet, e.g. the shipped '{rig}'", path=path)
 
 
 def describe(value: Any) -> str:

@@ -130,6 +130,13 @@ def test_datasheet_validation_names_file_key_expected_found(tmp_path):
     assert dataclasses.is_dataclass(SPEC)
     with pytest.raises(dataclasses.FrozenInstanceError):
         SPEC.area_mm2 = 1.0  # type: ignore[misc]
+    # another rig's datasheet is named as such (it read "missing key 'observer.pedal_dof'")
+    with pytest.raises(ConfigError, match="roller rig's datasheet, not an E-Booster bench's"):
+        load_booster("roller-rig")
+    from brakethermo.rigs.roller_rig import load_roller_rig
+
+    with pytest.raises(ConfigError, match="E-Booster bench's datasheet, not a roller rig's"):
+        load_roller_rig("ebooster")
 
 
 def _problem(K: int = 400):

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from brakethermo.config import load_toml, resolve_named
+from brakethermo.config import load_toml, require_rig_datasheet, resolve_named
 from brakethermo.errors import ConfigError
 
 DEFAULT_BENCH = "ebooster"
@@ -135,6 +135,7 @@ def load_booster(name_or_path: str | Path = DEFAULT_BENCH) -> BoosterSpec:
     """
     path = resolve_named("rigs", name_or_path)
     raw = load_toml(path)
+    require_rig_datasheet(raw, "ebooster", path)
     mc, ci, rd, se, ob, tr = (
         "master_cylinder", "circuits", "reaction_disk", "sensors", "observer", "training",
     )

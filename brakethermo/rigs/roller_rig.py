@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from brakethermo.config import load_toml, resolve_named
+from brakethermo.config import load_toml, require_rig_datasheet, resolve_named
 from brakethermo.errors import ConfigError
 from brakethermo.rigs.hertz import HertzContact, curvature_sums, hertz_contact
 from brakethermo.rigs.kalker import KalkerCoefficients, kalker_coefficients
@@ -166,6 +166,7 @@ def load_roller_rig(name_or_path: str | Path = "roller-rig") -> RollerRigSpec:
     """
     path = resolve_named("rigs", name_or_path)
     raw = load_toml(path)
+    require_rig_datasheet(raw, "roller-rig", path)
     w, r = _section(raw, "wheel", path), _section(raw, "roller", path)
     c, fr = _section(raw, "contact", path), _section(raw, "friction", path)
     m, b = _section(raw, "roller_motor", path), _section(raw, "bearings", path)
