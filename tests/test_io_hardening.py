@@ -193,6 +193,29 @@ def test_beacon_garbage_value_and_bounce(tmp_path: Path) -> None:
     assert any("1e+20 -> 3" in w for w in warnings)
 
 
+def test_laps_from_a_lap_distance_that_resets_at_the_line(tmp_path: Path) -> None:
+    """A race logged without its beacon but with the lap distance became one 13-minute
+    out-lap (an independent generator's race: 0.144 -> 0.261x of the single-spot baseline,
+    the race unable to decide its online effects, no word). The distance's resets give
+    the laps, with a warning; a cumulative odometer gives none."""
+    from brakethermo.io.laps import beacons_from_distance
+
+    t = np.arange(0.0, 590.0, 0.1)
+    lap_s = 115.0
+    d = np.where(t < 100.0, 40.0 * t, 40.0 * ((t - 100.0) % lap_s))  # the line at 100 s
+    d += np.random.default_rng(0).normal(0.0, 0.5, t.size)
+    np.testing.assert_allclose(beacons_from_distance(t, d), [100.0, 215.0, 330.0, 445.0,
+                                                             560.0], atol=0.11)
+    assert beacons_from_distance(t, 40.0 * t).size == 0  # an odometer never resets
+    rows = "\n".join(f"{x:.1f},100.0,{v:.2f}" for x, v in zip(t, d, strict=True))
+    path = tmp_path / "nobeacon.csv"
+    path.write_text("time,vFront [km/h],distance [m]\n" + rows)
+    session = load_session(path)
+    assert [lap.lap for lap in session.laps] == [0, 1, 2, 3, 4, 5]
+    assert session.laps[1].start_s == pytest.approx(100.0, abs=0.11)
+    assert any("no lap_beacon channel: 5 line crossing(s)" in w for w in session.warnings)
+
+
 def test_beacon_checks_directly() -> None:
     t = np.array([0.0, 100.0, 200.0, 300.0, 400.0])
     _, vb, notes = validate_beacons(t, np.array([0.0, 1.0, 2.0, 3.0, 4.0]))

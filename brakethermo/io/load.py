@@ -25,7 +25,12 @@ from brakethermo.errors import DataError
 from brakethermo.io import csv_reader
 from brakethermo.io.aliases import AliasTable, load_aliases, resolve
 from brakethermo.io.formats import BY_SUFFIX, FORMATS
-from brakethermo.io.laps import lap_length_warnings, laps_from_beacons, validate_beacons
+from brakethermo.io.laps import (
+    beacons_from_distance,
+    lap_length_warnings,
+    laps_from_beacons,
+    validate_beacons,
+)
 from brakethermo.io.raw import RawChannel, RawSession
 from brakethermo.io.resample import grid, hampel, resample, sort_checked
 from brakethermo.io.session import GRID_DT, ChannelInfo, Lap, Session
@@ -209,7 +214,20 @@ def _laps(raw: RawSession, found: dict[str, str], t_grid: np.ndarray, warnings: 
     maps one (its notes appended to ``warnings``), else the whole session as lap 0."""
     path = raw.path
     if "lap_beacon" not in found:
-        return laps_from_beacons(np.empty(0), np.empty(0), t_grid, raw.end_s, path=path)
+        resets = np.empty(0)
+        if "distance" in found:
+            dist = {c.name: c for c in raw.channels}[found["distance"]]
+            td, vd, _ = _finite(dist)
+            resets = beacons_from_distance(*sort_checked(
+                td, vd, path=path, channel=dist.name, time_ordered=time_ordered(raw)))
+        if resets.size == 0:
+            return laps_from_beacons(np.empty(0), np.empty(0), t_grid, raw.end_s, path=path)
+        warnings.append(f"no lap_beacon channel: {resets.size} line crossing(s) taken where"
+                        f" {dist.name} goes back to 0; log the beacon to be sure of the laps")
+        laps, lap = laps_from_beacons(resets, np.arange(1.0, resets.size + 1.0), t_grid,
+                                      raw.end_s, path=path, channel=dist.name)
+        warnings.extend(lap_length_warnings(laps, dist.name))
+        return laps, lap
     src = {c.name: c for c in raw.channels}[found["lap_beacon"]]
     tb, vb, _ = _finite(src)
     tb, vb = sort_checked(tb, vb, path=path, channel=src.name,

@@ -269,6 +269,12 @@ def estimate_from_session(
     frame = estimate_frame(inputs, model, run.states, out, band, tuning, h, online)
     if "power_scale" in frame:
         warnings.extend(check_power_scale(frame["power_scale"].to_numpy(), inputs.q_brk > 0))
+    if choice is not None and str(choice.facts.get("rule", "")).startswith(
+            "not decided: fewer than two flying laps"):
+        warnings.append("fewer than two flying laps: the race could not decide its online"
+                        " effects (k_z, slipstream) on its own laps and left them off; a"
+                        " lap_beacon channel (or a distance channel back to 0 at the line)"
+                        " gives the laps")
     open_loop = scores = None
     if options.score and len(inputs.measured) > 1:
         open_loop, scores = self_scores(session, inputs, model, cal, x0, h, frame, std,
