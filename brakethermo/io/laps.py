@@ -83,13 +83,13 @@ def laps_from_beacons(
     return laps, numbers[np.clip(idx, 0, None)]
 
 
-MIN_LAP_S = 20.0  # s: resets of a lap-distance channel closer than this are noise
+MIN_RESET_GAP_S = 20.0  # s: resets of a lap-distance channel closer than this are noise
 
 
 def beacons_from_distance(t: np.ndarray, d: np.ndarray) -> np.ndarray:
     """Times where a lap-distance channel goes back to the line (s), for a log without a
     beacon: a step down by more than half the largest distance, to under a tenth of it,
-    at least :data:`MIN_LAP_S` after the previous one; none for a distance that never
+    at least :data:`MIN_RESET_GAP_S` after the previous one; none for a distance that never
     resets (a cumulative odometer).
 
     Parameters
@@ -105,7 +105,7 @@ def beacons_from_distance(t: np.ndarray, d: np.ndarray) -> np.ndarray:
     steps = np.flatnonzero((np.diff(d) < -0.5 * top) & (d[1:] < 0.1 * top)) + 1
     times: list[float] = []
     for i in steps:
-        if not times or t[i] - times[-1] >= MIN_LAP_S:
+        if not times or t[i] - times[-1] >= MIN_RESET_GAP_S:
             times.append(float(t[i]))
     return np.array(times)
 
