@@ -135,6 +135,17 @@ def test_single_spot_race_gives_what_one_spot_can(tmp_path: Path) -> None:
     assert list(summary["consistency"]["per_spot"]) == ["spot3"]
     assert summary["verdict"] in ("none", *online)
     assert (tmp_path / "o" / "race" / "diagnosis" / "index.html").is_file()
+    # judged against the shipped law, it says so (an independent generator's race was
+    # called "slipstream" from the shipped law's mismatch, its next step without a law)
+    assert any("no --h-law" in w for w in summary["warnings"])
+    from brakethermo.io import load_session
+    from brakethermo.pipelines.diagnose import DiagnoseOptions, diagnose_session
+
+    law = Path(__file__).resolve().parents[1] / "configs" / "hlaw" / "cc-340-8.toml"
+    given = diagnose_session(load_session(race), DiagnoseOptions(h_law=law))
+    assert given.summary["warnings"] == []
+    assert len(given.evidence) == 3
+    assert all(f"--h-law {law} --adapt-" in e.next_step for e in given.evidence)
 
 
 def test_verdict_keys_sizes_zone_names_and_next_steps(diagnosed: tuple[dict, Path]) -> None:

@@ -76,8 +76,9 @@ def diagnose_single_spot(
     spots = (RACE_SPOT,)
     units = np.where(layout.held, layout.cycles, -1)
     ref_sse = unit_sse(ref_pred - y, units, per_output=True)[0]
-    evidence = [_online_evidence(label, session, y, runs, ref_pred, units, layout.held)
-                for label in online]
+    law_opt = f" --h-law {options.h_law}" if options.h_law is not None else ""
+    evidence = [_online_evidence(label, session, y, runs, ref_pred, units, layout.held,
+                                 law_opt) for label in online]
     decision = decide(ref_sse, evidence, RULE)
     rows = {r["name"]: r for r in decision.rows}
     best_pred = None
@@ -111,7 +112,10 @@ def diagnose_single_spot(
             for n in names if n not in SINGLE_SPOT_ONLINE],
         **decision.summary(),
         "combined": {"effects": [verdict] if verdict != "none" else [], "steps": []},
-        "warnings": [],
+        "warnings": [] if options.h_law is not None else [
+            "no --h-law: the race is judged against the law shipped for the disc, not this"
+            " bike's; a gap it shows may be that law's (an online effect then stands in for"
+            " it) — give the h_law.toml of a test session of this disc"],
         "run": {"brakethermo": __version__, "disc": disc.id, "effects_tried": list(names),
                 "timings_s": {}, "wall_time_s": time.perf_counter() - t_start,
                 "input_warnings": list(session.warnings) + list(inputs.warnings)},
@@ -149,14 +153,15 @@ def _flying_layout(session: Session, inputs: DiscInputs, flying: tuple[int, ...]
 
 
 def _online_evidence(label: str, session: Session, y: np.ndarray, runs: dict[str, Any],
-                     ref_pred: np.ndarray, units: np.ndarray, held: np.ndarray
-                     ) -> CandidateEvidence:
-    """One online effect's held-out errors per braking cycle at the race spot."""
+                     ref_pred: np.ndarray, units: np.ndarray, held: np.ndarray,
+                     law_opt: str) -> CandidateEvidence:
+    """One online effect's held-out errors per braking cycle at the race spot; its next
+    step carries the h law the race was judged with (``law_opt``, the option or "")."""
     pred = _prediction(y, runs, label)
     return CandidateEvidence(label, unit_sse(pred - y, units, per_output=True)[0],
                              correction=(pred - ref_pred)[held],
                              separate_by=EFFECTS[label].separate_by,
-                             next_step=(f"brakethermo estimate {session.path} --"
+                             next_step=(f"brakethermo estimate {session.path}{law_opt} --"
                                         f"{SINGLE_SPOT_ONLINE[label][0].replace('_', '-')}"),
                              outputs=(RACE_SPOT - 1,))
 
