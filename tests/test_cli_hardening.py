@@ -213,6 +213,7 @@ def test_estimate_replaces_its_folder_keeps_identify_outputs_and_uses_own_law(
     assert res.exit_code == 0, res.output
     text = " ".join(res.output.split())
     assert "h law:" in text and "shipped default for disc cc-340-8" in text
+    assert "no h law of this bike" in text and "pass --h-law" in text  # said, not silent
     assert not (folder / "index.html").exists(), "--no-report (old spelling) still works"
 
 

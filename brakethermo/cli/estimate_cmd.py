@@ -274,6 +274,12 @@ def estimate_command(
     run["timings_s"]["read_s"] = read_s
     run["wall_time_s"] += read_s
     run["h_law_choice"] = law_reason
+    if law_reason.startswith("shipped default"):
+        run["warnings"].append(
+            "no h law of this bike: the law shipped for the disc was identified on a simulated"
+            " test session, and a bike's own can be far from it (an independent generator's"
+            " race: 0.79x of the single-spot baseline with it, 0.14x with its own) — run"
+            " identify-h on a four-spot test session of this disc and pass --h-law")
     folder = _write_outputs(result, out, mdf_out, reports, mcap_out)
     if as_json:
         print(to_json({**result.summary, "output": str(folder)}))
