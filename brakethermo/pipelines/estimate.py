@@ -18,7 +18,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -47,6 +47,9 @@ from brakethermo.pipelines.tuning import (
 )
 from brakethermo.results.laps import lap_summaries
 from brakethermo.thermal.disc import DiscSpec
+
+if TYPE_CHECKING:
+    from brakethermo.pipelines.online_choice import OnlineChoice
 
 
 @dataclass(frozen=True)
@@ -237,6 +240,16 @@ def calibrated_tuning(cal: DiscCalibration, options: EstimateOptions) -> Estimat
     return replace(tuning, **options.overrides())
 
 
+def undecided_warning(choice: OnlineChoice | None) -> list[str]:
+    """The warning when the race had too few flying laps to decide its online effects."""
+    if choice is None or not str(choice.facts.get("rule", "")).startswith(
+            "not decided: fewer than two flying laps"):
+        return []
+    return ["fewer than two flying laps: the race could not decide its online effects"
+            " (k_z, slipstream) on its own laps and left them off; a lap_beacon channel (or a"
+            " distance channel back to 0 at the line) gives the laps"]
+
+
 def estimate_from_session(
     session: Session, options: EstimateOptions, calibration: DiscCalibration | None = None
 ) -> EstimateResult:
@@ -269,12 +282,7 @@ def estimate_from_session(
     frame = estimate_frame(inputs, model, run.states, out, band, tuning, h, online)
     if "power_scale" in frame:
         warnings.extend(check_power_scale(frame["power_scale"].to_numpy(), inputs.q_brk > 0))
-    if choice is not None and str(choice.facts.get("rule", "")).startswith(
-            "not decided: fewer than two flying laps"):
-        warnings.append("fewer than two flying laps: the race could not decide its online"
-                        " effects (k_z, slipstream) on its own laps and left them off; a"
-                        " lap_beacon channel (or a distance channel back to 0 at the line)"
-                        " gives the laps")
+    warnings.extend(undecided_warning(choice))
     open_loop = scores = None
     if options.score and len(inputs.measured) > 1:
         open_loop, scores = self_scores(session, inputs, model, cal, x0, h, frame, std,
