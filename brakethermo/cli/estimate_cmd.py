@@ -250,7 +250,12 @@ def estimate_command(
         estimate_from_session,
     )
     from brakethermo.pipelines.inputs import load_timed
-    from brakethermo.pipelines.models import choose_h_law, disc_for
+    from brakethermo.pipelines.models import (
+        SHIPPED_DEFAULT,
+        SHIPPED_LAW_NOTE,
+        choose_h_law,
+        disc_for,
+    )
     from brakethermo.pipelines.output_dir import check_session_folder
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.preflight import preflight
@@ -274,12 +279,8 @@ def estimate_command(
     run["timings_s"]["read_s"] = read_s
     run["wall_time_s"] += read_s
     run["h_law_choice"] = law_reason
-    if law_reason.startswith("shipped default"):
-        run["warnings"].append(
-            "no h law of this bike: the law shipped for the disc was identified on a simulated"
-            " test session, and a bike's own can be far from it (an independent generator's"
-            " race: 0.79x of the single-spot baseline with it, 0.14x with its own) — run"
-            " identify-h on a four-spot test session of this disc and pass --h-law")
+    if law_reason.startswith(SHIPPED_DEFAULT):
+        run["warnings"].append(f"no h law of this bike: {SHIPPED_LAW_NOTE}")
     folder = _write_outputs(result, out, mdf_out, reports, mcap_out)
     if as_json:
         print(to_json({**result.summary, "output": str(folder)}))

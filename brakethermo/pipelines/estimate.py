@@ -242,8 +242,9 @@ def calibrated_tuning(cal: DiscCalibration, options: EstimateOptions) -> Estimat
 
 def undecided_warning(choice: OnlineChoice | None) -> list[str]:
     """The warning when the race had too few flying laps to decide its online effects."""
-    if choice is None or not str(choice.facts.get("rule", "")).startswith(
-            "not decided: fewer than two flying laps"):
+    from brakethermo.pipelines.online_choice import UNDECIDED
+
+    if choice is None or not str(choice.facts.get("rule", "")).startswith(UNDECIDED):
         return []
     return ["fewer than two flying laps: the race could not decide its online effects"
             " (k_z, slipstream) on its own laps and left them off; a lap_beacon channel (or a"

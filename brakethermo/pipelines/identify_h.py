@@ -348,6 +348,11 @@ def _law_with_knee(a: float, b: float, gain: float, v_ref: float, knee: float) -
     return HLaw(v_ref=v_ref, a=a, b=b, c=(float(c[0]), float(c[1]), float(c[2])), knee=knee)
 
 
+# Effects the structure fit always fits (the k_z ratio; the knee gain where the session
+# runs above the knee): whether selected or not, they stay in the law.
+STRUCTURE_EFFECTS = ("thickness_gradient", "h_speed_knee")
+
+
 def fit_with_effects(
     session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec, law0: HLaw,
     est: EstimateTuning, effects: tuple[str, ...], max_nfev: int = 30,
@@ -371,8 +376,8 @@ def fit_with_effects(
     _, _, segments = session_segments(session, inputs)
     v = inputs.speed[:-1]
     upper = np.count_nonzero(v >= law0.knee * law0.v_ref) * GRID_DT >= MIN_ABOVE_KNEE_S
-    names = tuple(dict.fromkeys(("thickness_gradient", *(("h_speed_knee",) if upper else ()),
-                                 *effects)))
+    structure = tuple(e for e in STRUCTURE_EFFECTS if upper or e != "h_speed_knee")
+    names = tuple(dict.fromkeys((*structure, *effects)))
     ext = ExtendedDisc(model, inputs.speed, inputs.q_brk, inputs.t_amb, T0, spot_radii,
                        disc.v_ref, names, segments)
     p0 = ext.neutral()
@@ -587,11 +592,6 @@ def _without(effects: tuple[str, ...], selection: dict[str, Any], dropped: dict[
     notes.extend(f"{name}: not carried, {note.format(why)}" for name, why in dropped.items())
     return kept, {**selection, "selected": list(kept), key: dropped,
                   "why": f"{selection['why']}; less {', '.join(dropped)} ({short})"}
-
-
-# Effects the structure fit always fits (the k_z ratio; the knee gain where the session
-# runs above the knee): whether selected or not, they stay in the law.
-STRUCTURE_EFFECTS = ("thickness_gradient", "h_speed_knee")
 
 
 def _refit_carried(session: Session, inputs: DiscInputs, y: np.ndarray, disc: DiscSpec,

@@ -186,6 +186,13 @@ def own_h_law(folder: str | Path, session: Session) -> DiscCalibration | None:
     return cal
 
 
+SHIPPED_DEFAULT = "shipped default"  # choose_h_law's reason for the disc's shipped law
+SHIPPED_LAW_NOTE = ("the law shipped for the disc was identified on a simulated test session,"
+                    " and a bike's own can be far from it (an independent generator's race:"
+                    " 0.79x of the single-spot baseline with it, 0.14x with its own) — run"
+                    " identify-h on a four-spot test session of this disc and pass --h-law")
+
+
 def choose_h_law(
     given: str | Path | None, folder: str | Path, session: Session, disc: DiscSpec
 ) -> tuple[Path | DiscCalibration | None, str]:
@@ -201,4 +208,4 @@ def choose_h_law(
     if own is not None:
         return own, "identified from this session by identify-h (beside it in --out)"
     shipped = shipped_h_law(disc)
-    return shipped, f"shipped default for disc {disc.id}"
+    return shipped, f"{SHIPPED_DEFAULT} for disc {disc.id}"

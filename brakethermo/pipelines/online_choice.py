@@ -166,6 +166,9 @@ def head(session: Session, laps: int) -> Session:
                    laps=tuple(lap for lap in session.laps if lap.lap <= laps))
 
 
+UNDECIDED = "not decided: fewer than two flying laps"  # the rule's opening words
+
+
 def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str, ...],
                   cal: DiscCalibration, parts: tuple[str, ...] = ()) -> OnlineChoice:
     """Run the decision (module docstring) for ``candidates`` (effect names).
@@ -182,8 +185,7 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
                                  "test": "not tested: fewer than two flying laps"}, p, True)
                     for p in unearned]
         return OnlineChoice({ONLINE_FLAGS[c]: False for c in candidates}, {
-            "rule": "not decided: fewer than two flying laps; online effects left off, the"
-                    " h law's effects kept"
+            "rule": f"{UNDECIDED}; online effects left off, the h law's effects kept"
                     + (f" but its {EARNED}, which a race must earn" if unearned else ""),
             "candidates": list(candidates), "law_effects_tested": untested,
             "law_effects_dropped": list(unearned)}, unearned)

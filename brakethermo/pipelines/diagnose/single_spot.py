@@ -34,6 +34,7 @@ from brakethermo.pipelines.diagnose.scores import score
 from brakethermo.pipelines.diagnose.where import _marginals, where_table
 from brakethermo.pipelines.estimate import SENSOR_FLOOR_C
 from brakethermo.pipelines.inputs import DiscInputs
+from brakethermo.pipelines.models import SHIPPED_LAW_NOTE
 from brakethermo.thermal.disc import DiscSpec
 
 # estimate.parquet's online columns are relative to the law's structure: their names here
@@ -113,9 +114,9 @@ def diagnose_single_spot(
         **decision.summary(),
         "combined": {"effects": [verdict] if verdict != "none" else [], "steps": []},
         "warnings": [] if options.h_law is not None else [
-            "no --h-law: the race is judged against the law shipped for the disc, not this"
-            " bike's; a gap it shows may be that law's (an online effect then stands in for"
-            " it) — give the h_law.toml of a test session of this disc"],
+            "no --h-law: the race is judged against the law shipped for the disc, and a gap"
+            " it shows may be that law's (an online effect then stands in for it); "
+            + SHIPPED_LAW_NOTE],
         "run": {"brakethermo": __version__, "disc": disc.id, "effects_tried": list(names),
                 "timings_s": {}, "wall_time_s": time.perf_counter() - t_start,
                 "input_warnings": list(session.warnings) + list(inputs.warnings)},
