@@ -78,6 +78,27 @@ def test_an_effect_fitted_at_a_bound_of_its_range_is_never_named() -> None:
     assert decide(before, [free, weak], RULE).verdict == "a"
 
 
+def test_an_undecided_candidate_past_a_full_set_is_not_called_significant() -> None:
+    """An independent caliper with three times the trained hysteresis: three look-alike
+    stiffness effects filled the set, and hysteresis (5 to 12 %, the rule 10 %) was
+    listed after them as "also significant" while the next steps called it undecided."""
+    rng = np.random.default_rng(7)
+    before = _units(40, rng, 100.0)
+    common = rng.uniform(0.4, 1.6, 40)
+    alike = [CandidateEvidence(n, before * 0.68 * common * rng.uniform(0.97, 1.03, 40))
+             for n in "abcd"]
+    maybe = CandidateEvidence("u", before * 0.82 * np.random.default_rng(8).uniform(0.4, 1.6, 40))
+    d = decide(before, [*alike[:3], maybe], RULE)
+    assert d.undecided == ["u"] and len(d.verdict_set) == 3 and "u" not in d.verdict_set
+    assert [r for r in d.reasons if r.startswith("also ")] == [
+        "also possible (undecided), not separated: u"]
+    d = decide(before, [*alike, maybe], RULE)
+    fourth = next(n for n in "abcd" if n not in d.verdict_set)
+    assert [r for r in d.reasons if r.startswith("also ")] == [
+        f"also significant, not separated: {fourth}",
+        "also possible (undecided), not separated: u"]
+
+
 def test_nothing_significant_is_none_and_straddlers_are_undecided() -> None:
     rng = np.random.default_rng(3)
     before = _units(6, rng, 100.0)

@@ -420,8 +420,13 @@ def _verdict_set(sse_before: np.ndarray, rows: list[dict[str, Any]], significant
             verdict_set.remove(simplest)
             verdict_set.insert(0, simplest)
     if len(verdict_set) > rule.max_set:
-        reasons.append("also significant, not separated: "
-                       + ", ".join(verdict_set[rule.max_set:]))
+        rest = verdict_set[rule.max_set:]
+        also = [n for n in rest if n in significant]
+        maybe = [n for n in rest if n not in significant]
+        if also:
+            reasons.append("also significant, not separated: " + ", ".join(also))
+        if maybe:
+            reasons.append("also possible (undecided), not separated: " + ", ".join(maybe))
         verdict_set = verdict_set[: rule.max_set]
     return verdict_set, reasons
 
