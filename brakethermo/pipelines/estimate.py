@@ -32,6 +32,7 @@ from brakethermo.models.reduced import MAX_MODES
 from brakethermo.pipelines.checks import check_estimate_result, check_power_scale
 from brakethermo.pipelines.estimate_scores import self_scores
 from brakethermo.pipelines.estimate_table import above_air, estimate_frame, reported_band
+from brakethermo.pipelines.h_factor_found import HFactorFound, h_factor_found, h_factor_warning
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
@@ -45,7 +46,7 @@ from brakethermo.pipelines.tuning import (
     read_tuning,
     user_tuning_keys,
 )
-from brakethermo.results.laps import lap_summaries
+from brakethermo.results.laps import lap_summaries, partial_laps
 from brakethermo.thermal.disc import DiscSpec
 
 if TYPE_CHECKING:
@@ -251,6 +252,31 @@ def undecided_warning(choice: OnlineChoice | None) -> list[str]:
             " distance channel back to 0 at the line) gives the laps"]
 
 
+def _frame_findings(frame: pd.DataFrame, session: Session, inputs: DiscInputs,
+                    choice: OnlineChoice | None, warnings: list[str]) -> HFactorFound | None:
+    """The result's own checks (power scale, undecided race) appended to ``warnings``, and
+    what the online h factor found, when it ran."""
+    if "power_scale" in frame:
+        warnings.extend(check_power_scale(frame["power_scale"].to_numpy(), inputs.q_brk > 0))
+    warnings.extend(undecided_warning(choice))
+    if "h_factor" not in frame:
+        return None
+    partial = partial_laps(session.laps)
+    whole = {lap.lap for lap in session.laps if lap.lap >= 1 and lap.lap not in partial}
+    found = h_factor_found(frame["h_factor"].to_numpy(), frame["braking_power"].to_numpy(),
+                           frame["lap"].to_numpy(), whole, float(session.dt))
+    warnings.extend(h_factor_warning(found))
+    return found
+
+
+def _with_found(facts: dict[str, dict[str, Any]], found: HFactorFound | None
+                ) -> dict[str, dict[str, Any]]:
+    """``run.effects`` with what the online h factor found under ``slipstream.found``."""
+    if found is None or "slipstream" not in facts:
+        return facts
+    return {**facts, "slipstream": {**facts["slipstream"], "found": found.facts()}}
+
+
 def estimate_from_session(
     session: Session, options: EstimateOptions, calibration: DiscCalibration | None = None
 ) -> EstimateResult:
@@ -281,9 +307,7 @@ def estimate_from_session(
                          inputs.q_brk * cal.power_scale, h, inputs.t_amb, spot_radii,
                          options.spot)
     frame = estimate_frame(inputs, model, run.states, out, band, tuning, h, online)
-    if "power_scale" in frame:
-        warnings.extend(check_power_scale(frame["power_scale"].to_numpy(), inputs.q_brk > 0))
-    warnings.extend(undecided_warning(choice))
+    found = _frame_findings(frame, session, inputs, choice, warnings)
     open_loop = scores = None
     if options.score and len(inputs.measured) > 1:
         open_loop, scores = self_scores(session, inputs, model, cal, x0, h, frame, std,
@@ -309,7 +333,7 @@ def estimate_from_session(
             "filter_order": run.order,
             "workers": options.workers,
             "measured_spot": options.spot,
-            "effects": run.plan.facts,
+            "effects": _with_found(run.plan.facts, found),
             "online_choice": choice.facts if choice is not None else {
                 "rule": ("every online effect set by the options or the tuning file"
                          if options.online_auto else

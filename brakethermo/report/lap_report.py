@@ -233,12 +233,16 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
         lines.append(f"the h law's {name}: {verdict} — {row.get('test', '')}"
                      + (f", error {side} it {-shrink:+.0f} % ({_interval(-hi, -lo, '{:+.0f}')})"
                         if np.isfinite(shrink) else ""))
+    run = (summary or {}).get("run") or {}
+    found = ((run.get("effects") or {}).get("slipstream") or {}).get("found")
+    if found and found.get("said"):
+        lines.append(str(found["said"]))
     if choice.get("layering"):
         lines.append(f"layering: {choice['layering']}")
     if choice.get("forced_or_from_law"):
         lines.append("forced by option or carried by the law: " + ", ".join(
             f"{k} {'on' if v else 'off'}" for k, v in choice["forced_or_from_law"].items()))
-    order = ((summary or {}).get("run") or {}).get("filter_order") or {}
+    order = run.get("filter_order") or {}
     if order.get("kind") == "reduced":
         lines.append(
             f"reduced-order filter: the {order['full_states']} filter states of this mesh on"
