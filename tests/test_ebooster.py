@@ -20,7 +20,7 @@ from brakethermo.cli import app
 from brakethermo.errors import ConfigError
 from brakethermo.estimation import ExtendedKalmanFilter, UnscentedKalmanFilter, urts_smooth
 from brakethermo.models.ebooster import EboosterModel, load_fit
-from brakethermo.pipelines.ebooster import default_fit_path, train
+from brakethermo.pipelines.ebooster import OBSERVERS, default_fit_path, train
 from brakethermo.rigs.booster import (
     discretise,
     disk_quasi_static,
@@ -400,3 +400,41 @@ def test_save_fit_onto_a_folder_is_refused_before_the_run(tmp_path):
                               "--out", str(tmp_path / "o")])
     assert res.exit_code == 1 and "is a folder, but --save-fit needs a file name" in res.output
     assert not (tmp_path / "o").exists()  # refused before any work
+
+
+def test_an_observer_that_loses_its_track_is_withdrawn_not_published(sessions, tmp_path,
+                                                                     monkeypatch):
+    """An independent bench, retrained on a session with air in the fluid as diagnose
+    advised: the UKF ran off to 6.6e16 MPa (79 covariance repairs) with a 0.04 MPa band,
+    and the console printed its RMSE, exit 0. Now its estimates are withdrawn with a
+    warning and the EKF's stand; when both are lost the run is refused."""
+    from brakethermo.pipelines import ebooster as eb
+
+    real = eb._run
+
+    def diverging(model, which, y, smooth, lose=("ukf",)):
+        track = real(model, which, y, smooth)
+        if which in lose:
+            x = track.x.copy()
+            x[len(x) // 2:, :3] = 3.0e14
+            track = dataclasses.replace(track, x=x)
+        return track
+
+    monkeypatch.setattr(eb, "_run", diverging)
+    res = runner.invoke(app, ["ebooster", str(sessions["closed"]), "--train",
+                              str(sessions["train"]), "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    s = json.loads((tmp_path / "closed" / "summary.json").read_text())
+    assert set(s["lost_track"]) == {"ukf"} and "3e+14 MPa" in s["lost_track"]["ukf"]
+    assert s["pressure_rmse_mpa"]["ukf"]["p_m"] is None and s["improvement_pct"] is None
+    assert s["pressure_rmse_mpa"]["ekf"]["p_m"] < 1.0
+    assert any("UKF lost its track" in w and "EKF's stand" in w for w in s["warnings"])
+    frame = pd.read_parquet(tmp_path / "closed" / "ebooster.parquet")
+    assert frame["ukf_p_m"].isna().all() and frame["ekf_p_m"].notna().any()
+    assert "UKF improvement" not in res.output and "Traceback" not in res.output
+
+    monkeypatch.setattr(eb, "_run", lambda m, w, y, s: diverging(m, w, y, s, OBSERVERS))
+    res = runner.invoke(app, ["ebooster", str(sessions["closed"]), "--train",
+                              str(sessions["train"]), "--out", str(tmp_path / "both")])
+    assert res.exit_code == 1 and "both observers lost their track" in res.output
+    assert "Traceback" not in res.output

@@ -78,7 +78,8 @@ def ebooster_command(
         print(to_json({**s, "output": str(folder)}))
         return
     console.print(_observers_table(result.session.path.name, s))
-    console.print(f"UKF improvement over EKF (residual RMSE): {s['improvement_pct']:.1f} %")
+    if s["improvement_pct"] is not None:
+        console.print(f"UKF improvement over EKF (residual RMSE): {s['improvement_pct']:.1f} %")
     if s["with_effect"] is not None:
         from brakethermo.results.rig_diagnosis import carried_text
 
@@ -109,7 +110,8 @@ def _observers_table(name: str, s: dict[str, Any]) -> Table:
     for w in OBSERVERS:
         pr = s["pressure_rmse_mpa"][w]
         cov, cov_b = s["coverage_95"][w], s["coverage_95_braking"][w]
-        tab.add_row(w.upper(), f"{s['residual_rmse_mm'][w]:.4f}",
+        res = s["residual_rmse_mm"][w]
+        tab.add_row(w.upper(), "–" if res is None else f"{res:.4f}",
                     *("–" if pr[k] is None else f"{pr[k]:.3f}" for k in PRESSURES),
                     *("–" if c is None else f"{100 * c:.1f} %" for c in (cov, cov_b)))
     return tab

@@ -356,6 +356,33 @@ def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTr
     )
 
 
+# No brake circuit holds this (hoses burst near 70 MPa; circuits run to about 20)
+MAX_PRESSURE_MPA = 50.0
+
+
+def lost_track(track: ObserverTrack, delta: Array, time_s: Array) -> str:
+    """Why an observer's estimate cannot be a booster's, in words ('' when it can): a
+    pressure beyond :data:`MAX_PRESSURE_MPA` or not finite, or a disk travel zeta1 ten
+    times the measured delta's range away from it."""
+    x = track.x
+    span = float(np.nanmax(np.abs(delta))) if np.isfinite(delta).any() else 1.0
+    bad = (~np.isfinite(x).all(axis=1) | (np.abs(x[:, :3]).max(axis=1) > MAX_PRESSURE_MPA)
+           | (np.abs(x[:, 3]) > 10.0 * span + 1.0))
+    if not bad.any():
+        return ""
+    k = int(np.argmax(bad))
+    worst = float(np.nanmax(np.abs(np.where(np.isfinite(x[:, :3]), x[:, :3], 0.0))))
+    return (f"from t = {time_s[k] - time_s[0]:.2f} s, pressures up to {worst:.3g} MPa,"
+            f" {track.filt.n_repairs} covariance repairs")
+
+
+def _withdrawn(track: ObserverTrack) -> ObserverTrack:
+    """The track with its estimates and bands empty (NaN): the page shows none of them."""
+    empty = np.full_like(track.x, np.nan)
+    return replace(track, x=empty, std=empty.copy(),
+                   residual=np.full_like(track.residual, np.nan))
+
+
 def _rmse(a: Array) -> float | None:
     """RMS of the finite samples, None when there is none (a figure the page leaves out)."""
     value = rmse(a)
@@ -414,12 +441,26 @@ def observe(
     pv, carried_fact = static_pressure_carried(with_effect, session, s2, fit, diagnose)
     model = EboosterModel(spec, fit, s2, session.dt, pv=pv)
     tracks = {which: _run(model, which, delta, smooth) for which in OBSERVERS}
+    lost = {w: why for w in OBSERVERS if (why := lost_track(tracks[w], delta, session.time))}
+    if len(lost) == len(OBSERVERS):
+        raise DataError(
+            "both observers lost their track (" + "; ".join(f"{w.upper()} {why}" for w, why
+                                                          in lost.items())
+            + "): the training result does not hold for this session — retrain on a"
+            " session of this booster that sweeps its pressures, or check the units of s2"
+            " and delta", path=session.path, channel=DELTA)
+    tracks = {w: _withdrawn(t) if w in lost else t for w, t in tracks.items()}
     validation = {
         state: _series(session, ch, MPA, gaps=True)
         for state, ch in PRESSURES.items() if session.has(ch)
     }
     summary = _summary(session, spec, fit, tracks, validation, smooth, t_train, s2)
     summary["with_effect"] = carried_fact
+    summary["lost_track"] = lost
+    summary["warnings"] += [
+        f"IMPLAUSIBLE RESULT: the {w.upper()} lost its track ({why}); its estimates are"
+        f" withdrawn (empty) and the {other.upper()}'s stand" for w, why in lost.items()
+        for other in OBSERVERS if other != w]
     return EboosterResult(session, spec, fit, session.time, s2, delta, validation, tracks,
                           summary)
 
