@@ -25,17 +25,20 @@ from scipy.ndimage import median_filter
 
 from brakethermo.diagnosis.verdict import VerdictRule, shrink_interval
 from brakethermo.errors import DataError
+from brakethermo.estimation.consistency import variance_scale
 from brakethermo.io.load import load_session
 from brakethermo.io.session import Session
 from brakethermo.models.clamp_force import (
     CV_BLOCK_S,
     MIN_HALF_S,
+    MOTOR_SPAN,
     NIS_LIMIT,
     Q_MARGIN,
     SENSOR_LAGS_S,
     ClampForceEstimates,
     ClampForceModels,
     FusionCheck,
+    applied_factor,
     eq7_choice,
     estimate,
     fusion_check,
@@ -74,9 +77,10 @@ class EmbData:
 
 
 def load_emb(
-    path: str | Path, *, need_sensor: bool, role: str, aliases: Path | None = None
+    path: str | Path, *, need_sensor: bool, role: str, aliases: Path | None = None,
+    rate_hz: float | None = None,
 ) -> EmbData:
-    """Load a caliper session at its own rate and check it can be used.
+    """Load a caliper session at its own rate (or ``rate_hz``) and check it can be used.
 
     Raises
     ------
@@ -84,7 +88,7 @@ def load_emb(
         Missing channels, gaps, a motor that never moves (no braking), or no sensor
         where one is needed (``role`` names the session in the message).
     """
-    session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases)
+    session = load_session(path, rate_hz=rate_hz, channels=CHANNELS, aliases=aliases)
     session.require("motor_angle", "motor_current")
     if need_sensor and not session.has("clamp_force"):
         raise DataError(
@@ -126,6 +130,30 @@ def load_emb(
     if force is not None and np.isfinite(force).mean() < MIN_SCORED_SHARE:
         force = None  # a few gaps are scored around (rmse skips them); a dead sensor is not
     return EmbData(session, theta, session.values("motor_current"), force, session.dt)
+
+
+def load_emb_at_one_rate(
+    specs: list[tuple[str | Path, bool, str]], aliases: Path | None = None
+) -> list[EmbData]:
+    """:func:`load_emb` of each ``(path, need_sensor, role)``, all on the coarsest of their
+    rates: the models are trained per sample, so a session logged at another rate than
+    the training session's runs with it on one grid (the finer ones averaged into the
+    coarser bins, with a note), instead of being refused."""
+    loaded = [load_emb(p, need_sensor=n, role=r, aliases=aliases) for p, n, r in specs]
+    rate = min(d.session.rate_hz for d in loaded)
+    out = []
+    for (p, n, r), native in zip(specs, loaded, strict=True):
+        if np.isclose(native.session.rate_hz, rate, rtol=1e-3):
+            out.append(native)
+            continue
+        d = load_emb(p, need_sensor=n, role=r, aliases=aliases, rate_hz=rate)
+        note = (f"{d.session.path.name}: logged at {native.session.rate_hz:.6g} Hz, the"
+                f" {'training' if r != 'training' else 'other'} session at {rate:.6g} Hz: run"
+                f" at {rate:.6g} Hz (its samples averaged into the coarser grid; the models"
+                " are trained per sample)")
+        out.append(replace(d, session=replace(d.session,
+                                              warnings=(*d.session.warnings, note))))
+    return out
 
 
 LAG_MIN_SHRINK_PCT = 1.0  # % — lower bootstrap bound of the current RMSE shrink
@@ -240,8 +268,11 @@ def clamp_force(
     aliases: Path | None = None,
 ) -> ClampForceResult:
     """Train on ``train_path`` (and ``retrain_path``), estimate on ``path``."""
-    tr = load_emb(train_path, need_sensor=True, role="training", aliases=aliases)
-    data = load_emb(path, need_sensor=False, role="estimation", aliases=aliases)
+    specs: list[tuple[str | Path, bool, str]] = [(train_path, True, "training"),
+                                                 (path, False, "estimation")]
+    if retrain_path is not None:
+        specs.append((retrain_path, True, "re-training"))
+    tr, data, *rest = load_emb_at_one_rate(specs, aliases)
     _check_like(tr, data, "estimation")
     lag = choose_sensor_lag(tr.theta, tr.current, tr.force, tr.ts)
     assert lag is not None  # load_emb(need_sensor=True) refused a session without it
@@ -253,7 +284,7 @@ def clamp_force(
     _check_sources(est, data)
     rt = mr = er = cr = None
     if retrain_path is not None:
-        rt = load_emb(retrain_path, need_sensor=True, role="re-training", aliases=aliases)
+        rt = rest[0]
         _check_like(tr, rt, "re-training")
         mr = train(rt.theta, rt.current, rt.force, rt.ts, structure=models)
         cr = fusion_check(rt.theta, rt.current, rt.force, rt.ts, factor_walk=factor_walk,
@@ -462,9 +493,24 @@ def _kf_text(res: ClampForceResult) -> str:
                 f" {est.kf_paper_nis:.2f}, at most {NIS_LIMIT:g}: its innovations show no"
                 " pads other than the trained ones, though the torque balance's wide noise"
                 " hides small changes)")
-    elif est.kf_switched and est.kf_paper_nis > NIS_LIMIT:
+    elif est.kf_switched and est.kf_paper_nis > NIS_LIMIT and est.motor_alike is not None:
         text = (f"the adaptive-stiffness filter: the fixed filter's mean NIS is"
-                f" {est.kf_paper_nis:.2f}, its stiffness model no longer holds for these pads")
+                f" {est.kf_paper_nis:.2f}, the stiffness model and the torque balance no"
+                " longer agree as in training, by a factor"
+                f" {est.motor_alike:.2f} — pads other than the trained ones (heat, wear) or the"
+                " motor side (a hotter winding's lower torque constant, the gear's"
+                " efficiency), which these data cannot tell apart; the filter follows the"
+                " torque balance (right if the pads changed) and its band reaches past the"
+                " stiffness model's estimate (right if the motor side did)")
+    elif est.kf_switched and est.kf_paper_nis > NIS_LIMIT:
+        f = applied_factor(est.stiffness_factor, est.stiffness)
+        why = ("its stiffness model no longer holds for these pads (a stiffness factor"
+               f" {f:.2f}, more than a motor's torque constant or a gear's efficiency moves)"
+               if f is not None and abs(f - 1.0) > MOTOR_SPAN else
+               "the stiffness model and the torque balance disagree more than in training,"
+               " though not as a scale" + ("" if f is None else f" (stiffness factor {f:.2f})"))
+        text = (f"the adaptive-stiffness filter: the fixed filter's mean NIS is"
+                f" {est.kf_paper_nis:.2f}, {why}")
     elif est.kf_switched and check is not None:
         text = ("the adaptive-stiffness filter: on held-out halves of the training session"
                 f" it did {Q_MARGIN * 100:g} % better than the fixed one"
@@ -478,8 +524,12 @@ def _kf_text(res: ClampForceResult) -> str:
                  if est.kf_paper_nis < 1.0 / NIS_LIMIT else "consistent")
         text = f"{q} (its mean NIS {est.kf_paper_nis:.2f}: {state})"
     if est.kf_noise_scale != 1.0:
-        text += (f"; its band widened {np.sqrt(est.kf_noise_scale):.2f}x, its noise scaled to"
-                 " what its innovations show (same gain, same estimate)")
+        own = float(variance_scale(est.kf_consistency)) if est.kf_consistency else 1.0
+        why = ("its noise scaled to what its innovations show" if own >= est.kf_noise_scale
+               else "by the training session's held-out factor (its innovations here ask for"
+               f" {np.sqrt(own):.2f}x)")
+        text += (f"; its band widened {np.sqrt(est.kf_noise_scale):.2f}x, {why} (same gain,"
+                 " same estimate)")
     return text
 
 
@@ -526,6 +576,27 @@ def _unchecked(res: ClampForceResult) -> list[str]:
             f" filter against its inputs on held-out halves (at least {2 * MIN_HALF_S:g} s),"
             " so the paper's fixed filter is reported unchecked and may do worse than the"
             " models it fuses; train on a longer session with the force sensor"]
+
+
+def _fusion_warnings(res: ClampForceResult, r: dict[str, float | None]) -> list[str]:
+    """When the pads and the motor side cannot be told apart, and when this session's own
+    sensor shows the reported estimate worse than an input it fuses."""
+    est, out = res.reported, []
+    if est.motor_alike is not None:
+        out.append(f"the stiffness model and the torque balance disagree by a factor"
+                   f" {est.motor_alike:.2f} here: pads other than the trained ones, or the"
+                   " motor side (torque constant, gear), which these data cannot tell apart;"
+                   " kf follows the pads' reading and its band spans the other (a session of"
+                   " these pads with the force sensor, or the winding temperature, decides)")
+    inputs = {k: r[k] for k in ("stiffness", "torque_balance") if r[k] is not None}
+    if r["kf"] is not None and inputs and r["kf"] > 1.1 * min(inputs.values()):
+        best = min(inputs, key=lambda k: inputs[k])
+        out.append(f"against this session's own force sensor the reported kf ({r['kf']:.3f}"
+                   f" kN RMS) is worse than the {SOURCE_NAMES[best]} it fuses"
+                   f" ({inputs[best]:.3f} kN): the caliper departs from the training"
+                   " session in a way the fusion misreads — re-train on a session of the"
+                   " day (--retrain)")
+    return out
 
 
 def summary(res: ClampForceResult) -> dict[str, Any]:
@@ -586,7 +657,7 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         },
         "training_session": str(res.train.session.path),
         "warnings": [*res.data.session.warnings, *res.train.session.warnings,
-                     *_unchecked(res)],
+                     *_unchecked(res), *_fusion_warnings(res, r)],
     }
     if res.est_retrained is not None and res.models_retrained is not None and res.retrain:
         out["wear"] = {

@@ -167,13 +167,17 @@ def diagnose_emb(
     """Diagnose an EMB caliper session with the clamp-force sensor (module docstring)."""
     from brakethermo.models.clamp_force import CV_BLOCK_S
     from brakethermo.models.clamp_force import train as train_emb
-    from brakethermo.pipelines.clamp_force import MIN_TRAIN_S, choose_sensor_lag, load_emb
+    from brakethermo.pipelines.clamp_force import (
+        MIN_TRAIN_S,
+        choose_sensor_lag,
+        load_emb_at_one_rate,
+    )
     from brakethermo.rigs.emb import sensor_delagged
 
     t_start = time.perf_counter()
     names = effect_names(effects, EMB_EFFECTS, "EMB")
-    tr = load_emb(train_path, need_sensor=True, role="training", aliases=aliases)
-    data = load_emb(path, need_sensor=False, role="diagnosed", aliases=aliases)
+    tr, data = load_emb_at_one_rate([(train_path, True, "training"),
+                                     (path, False, "diagnosed")], aliases)
     if data.force is None:
         raise DataError(
             "has no clamp-force sensor: diagnose compares the trained stiffness model with"
