@@ -438,3 +438,36 @@ def test_an_observer_that_loses_its_track_is_withdrawn_not_published(sessions, t
                               str(sessions["train"]), "--out", str(tmp_path / "both")])
     assert res.exit_code == 1 and "both observers lost their track" in res.output
     assert "Traceback" not in res.output
+
+
+def test_a_training_result_says_what_it_cannot_support():
+    """A second independent bench: trained on its bench session the disk's dynamics sat at
+    the edge of their range (damping 5, zero at 1 s), trained on a session with air the
+    disk curve's last slope was 2e-40 mm/N and the filter lost its track on held-out
+    halves at five of six noise factors, and nothing said so."""
+    from brakethermo.pipelines.ebooster import fit_warnings
+
+    assert fit_warnings(FIT) == []  # the shipped result
+    edge = dataclasses.replace(FIT, damping=5.0, tau_z=1.0)
+    (w,) = fit_warnings(edge)
+    assert "edge of their range (damping = 5, tau_z = 1)" in w
+    assert fit_warnings(dataclasses.replace(FIT, tau_z=0.0)) == []  # no zero: an answer
+    flat = dataclasses.replace(FIT, disk=(*FIT.disk[:4], 2e-40))
+    (w,) = fit_warnings(flat)
+    assert f"no slope above {FIT.disk[1]:.0f} N (segment 3)" in w
+    lost = dataclasses.replace(FIT, q_factor=0.25, q_heldout_nats=(-90.0, -6.7e14, 1.2, -3e12))
+    (w,) = fit_warnings(lost)
+    assert "lost its track with the process noise times 0.5, 2 (it runs with 0.25)" in w
+
+
+def test_the_shipped_training_result_is_said_to_be_no_boosters_own(sessions, tmp_path):
+    """An independent bench's vehicle session without --train: 1.6 MPa RMS on the shipped
+    result, and a headline UKF improvement of 21 %, no word that the fit was not its own."""
+    res = runner.invoke(app, ["ebooster", str(sessions["closed"]), "--out", str(tmp_path),
+                              "--json"])
+    assert res.exit_code == 0, res.output
+    said = " ".join(json.loads(res.stdout)["warnings"])
+    assert "no training of this booster" in said
+    res = runner.invoke(app, ["ebooster", str(sessions["closed"]), "--train",
+                              str(sessions["train"]), "--out", str(tmp_path), "--json"])
+    assert "no training of this booster" not in " ".join(json.loads(res.stdout)["warnings"])

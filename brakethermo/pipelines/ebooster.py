@@ -226,6 +226,48 @@ def fit_training(session: Session, spec: BoosterSpec) -> BoosterFit:
     )
 
 
+SHIPPED_FIT_NOTE = (
+    "no training of this booster: the training result shipped for the bench datasheet"
+    " (fitted on a simulated session) was used, and a booster's own can be far from it (an"
+    " independent bench's vehicle session: 1.6 MPa RMS with it, 0.14 with its own"
+    " training) — train on a session of this booster (--train, or --fit with a saved"
+    " result)")
+SLOPE_MAX = 0.1  # mm/N, the disk curve's slopes fitted within [0, SLOPE_MAX]
+DYNAMICS_RANGE = {"omega_n": (1.0, 2000.0), "damping": (0.05, 5.0), "tau_z": (0.0, 1.0)}
+LOST_NATS = -1e6  # held-out log-likelihood of a training half no filter that kept its track gives
+
+
+def fit_warnings(fit: BoosterFit) -> list[str]:
+    """What a training result cannot support, in words: disk parameters fitted at the edge
+    of their range (the training never moved them), a rigid stretch of the disk curve
+    (no slope: delta says nothing of the force there), and process-noise factors whose
+    filter lost its track on held-out halves of the training session."""
+    out = []
+    # within 1 % of a bound (a zero bound is an absent term, a fit's own answer)
+    edge = [f"{k} = {getattr(fit, k):.3g}" for k, bounds in DYNAMICS_RANGE.items()
+            if any(b != 0.0 and abs(getattr(fit, k) - b) <= 0.01 * abs(b) for b in bounds)]
+    if edge:
+        out.append("the reaction disk's dynamics were fitted at the edge of their range ("
+                   + ", ".join(edge) + "): the training session did not move them")
+    flat = [i + 1 for i, slope in enumerate(fit.disk[2:]) if slope <= 1e-6 * SLOPE_MAX]
+    if flat:
+        where = (f"below {fit.disk[0]:.0f} N" if flat[0] == 1 else
+                 f"above {fit.disk[flat[0] - 2]:.0f} N")
+        out.append(f"the reaction disk's curve has no slope {where} (segment {flat[0]}): delta"
+                   " says nothing of the force there, and the observers' pressures rest on"
+                   " the p-V curve alone")
+    lost = [f"{q:g}" for q, n in zip(Q_FACTORS, fit.q_heldout_nats, strict=False)
+            if np.isfinite(n) and n < LOST_NATS]
+    if lost:
+        out.append("on held-out halves of the training session the filter lost its track"
+                   " with the process noise times " + ", ".join(lost) + f" (it runs with"
+                   f" {fit.q_factor:g}): this training result makes a fragile observer;"
+                   " train on a longer session that sweeps the pressures at constant speed")
+    if out:
+        out = [f"training {Path(fit.train_session).name}: {w}" for w in out]
+    return out
+
+
 def _disk_response(u: Array, omega_n: float, damping: float, tau_z: float, dt: float) -> Array:
     """delta from the quasi-static compression u through the discretised disk dynamics."""
     A, B = disk_transfer(omega_n, damping, tau_z)
@@ -255,7 +297,7 @@ def _fit_disk(
     theta0 = np.array([0.2 * fmax, 0.3 * fmax, 0.005, 0.003, 0.0015])
     qs = least_squares(
         lambda th: curve(th, fabs[slow]) - dsign[slow], theta0, method="trf",
-        bounds=([0.0, 1.0, 0.0, 0.0, 0.0], [fmax, fmax, 0.1, 0.1, 0.1]),
+        bounds=([0.0, 1.0, 0.0, 0.0, 0.0], [fmax, fmax, *(3 * (SLOPE_MAX,))]),
     )
     p1, gap, p3, p4, p5 = (float(v) for v in qs.x)
     disk = (p1, p1 + gap, p3, p4, p5)
@@ -270,7 +312,8 @@ def _fit_disk(
         return (y - target)[skip:][ok[skip:]]
 
     dyn = least_squares(resid, np.array([60.0, 0.8, 0.01]), method="trf",
-                        bounds=([1.0, 0.05, 0.0], [2000.0, 5.0, 1.0]), x_scale=[60, 1, 0.01])
+                        bounds=tuple(zip(*DYNAMICS_RANGE.values(), strict=True)),
+                        x_scale=[60, 1, 0.01])
     return disk, float(dyn.x[0]), float(dyn.x[1]), float(dyn.x[2]), rmse(dyn.fun)
 
 
@@ -422,6 +465,7 @@ def observe(
                           " fit; give the training session or a saved fit, not both")
     spec = load_booster(bench)
     t_start = time.perf_counter()
+    shipped = train_path is None and fit_path is None
     if train_path is not None:
         fit = train(train_path, spec, aliases)
     else:
@@ -457,6 +501,7 @@ def observe(
     summary = _summary(session, spec, fit, tracks, validation, smooth, t_train, s2)
     summary["with_effect"] = carried_fact
     summary["lost_track"] = lost
+    summary["warnings"] += fit_warnings(fit) + ([SHIPPED_FIT_NOTE] if shipped else [])
     summary["warnings"] += [
         f"IMPLAUSIBLE RESULT: the {w.upper()} lost its track ({why}); its estimates are"
         f" withdrawn (empty) and the {other.upper()}'s stand" for w, why in lost.items()
@@ -589,7 +634,7 @@ def _coverage_warnings(cov95_braking: dict[str, float | None]) -> list[str]:
         "scored against this session's own pressure sensor, the 95 % band covers "
         + ", ".join(f"{100 * c:.0f} % ({w.upper()})" for w, c in low.items())
         + f" while the brake is applied (above {APPLIED_MPA:g} MPa): the booster does"
-        " not follow the training session's relation here beyond what the band admits —"
+        " not follow the training result's relation here beyond what the band admits —"
         " its p–V curve shifted or scaled since (seals, fluid), or the pressure sensor or"
         " its unit is off; `diagnose --rig ebooster` on this session names and sizes a"
         " shift, `--with-effect auto` carries it, or retrain on a session of the day"]
