@@ -93,8 +93,8 @@ def diagnose_command(
             ("--holdout-laps", holdout_laps), ("--h-law", h_law), ("--disc", disc),
             ("--tuning", tuning), ("--ambient", ambient)) if given is not None]
         if disc_only:  # taken silently, they would seem to have been used
-            raise ConfigError(f"{', '.join(disc_only)}: options of a disc diagnosis; this is"
-                              f" a {rig} session — leave them out")
+            raise ConfigError(f"{', '.join(disc_only)}: options of a disc diagnosis; this"
+                              f" session is from the {rig} rig — leave them out")
         _diagnose_rig(RIG_NAMES.get(rig, rig), sessions, out, effects, train, fit, radius,
                       aliases, as_json)
         return

@@ -482,7 +482,8 @@ class ClampForceEstimates:
     ml_fusion : ndarray — eq. 8.
     stiffness : ndarray — eq. 6 open loop.
     torque_balance : ndarray — eq. 7.
-    adaptive, adaptive_std : ndarray — KF with the random-walk stiffness factor.
+    adaptive, adaptive_std : ndarray — KF with the random-walk stiffness factor (its
+        filter's own std: the held-out check scores against it).
     stiffness_factor, stiffness_factor_std : ndarray — its factor s.
     kf_source : str — what ``kf`` is: ``"kf"`` (the filter), or what the training
         session's held-out check fell back to (``stiffness``, ``torque_balance`` or
@@ -498,10 +499,12 @@ class ClampForceEstimates:
         what the held-out check found worse than ``kf_source``.
     motor_alike : float or None — where the reported adaptive filter's median stiffness
         factor lies :data:`SCALE_SEEN` to :data:`MOTOR_SPAN` from 1, that factor: the motor
-        side (torque
-        constant, gear efficiency) would read the same as the pads, the data cannot tell
-        which moved, and ``kf_std`` reaches past the stiffness model's estimate (right if
-        the motor side moved: it does not use the current).
+        side (torque constant, gear efficiency) would read the same as the pads, the data
+        cannot tell which moved, and ``kf_std`` reaches past the stiffness model's estimate
+        (right if the motor side moved: it does not use the current).
+    adaptive_band : ndarray, optional — the adaptive filter's std as published: scaled as
+        the reported filter's would be (its innovations, the held-out factor), and
+        ``kf_std`` itself where it is the reported one.
     """
 
     kf: Array
@@ -520,6 +523,7 @@ class ClampForceEstimates:
     kf_consistency: dict[str, Any] | None = None
     kf_filter: str = "fixed"
     motor_alike: float | None = None
+    adaptive_band: Array | None = None
 
     @property
     def kf_switched(self) -> bool:
@@ -554,10 +558,8 @@ def estimate(
     q_scale : float, optional — factor on the paper's Q, overriding the check's.
     """
     if not np.isclose(ts, models.ts, rtol=1e-3):
-        raise ConfigError(
-            f"the session is logged every {ts * 1e3:g} ms but the models were trained at"
-            f" {models.ts * 1e3:g} ms; train on a session logged at the same rate"
-        )
+        raise ConfigError(f"the session is logged every {ts * 1e3:g} ms but the models were"
+                          f" trained at {models.ts * 1e3:g} ms (load_emb_at_one_rate)")
     ds = models.stiffness
     F_ds = ds.simulate(theta)
     F_tb = torque_balance_force(current, theta, ts, models.torque, models.window)
@@ -574,9 +576,9 @@ def estimate(
     nu = F_tb - res.x_pred[:, 0]
     nis = float(np.nanmean(nu**2 / (res.P_pred[:, 0, 0] + R)))
     switched = nis > NIS_LIMIT or (check is not None and check.adaptive)
-
     ra = _adaptive_filter(ds.alpha0, u, F_ds[0], y, Q, R, factor_walk**2 * ts)
-    kf, kf_std, scale, consistency = _band(ra if switched else res, F_tb, R, check)
+    adaptive = _band(ra, F_tb, R, check)  # its own band, reported or not
+    kf, kf_std, scale, consistency = adaptive if switched else _band(res, F_tb, R, check)
     kind = "adaptive" if switched else "fixed"
     # the coloured-error smoother where the pads are the trained ones (else the adaptive
     # filter follows them)
@@ -607,6 +609,7 @@ def estimate(
         kf_consistency=consistency,
         kf_filter=kind,
         motor_alike=motor,
+        adaptive_band=kf_std if motor is not None else adaptive[1],
     )
 
 

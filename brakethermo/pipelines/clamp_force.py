@@ -377,7 +377,8 @@ def result_frame(res: ClampForceResult) -> pd.DataFrame:
     cols: dict[str, np.ndarray] = {"time": res.data.session.time}
     cols |= {k: v / 1e3 for k, v in estimator_series(e).items()}
     cols["kf_std"] = e.kf_std / 1e3
-    cols["kf_adaptive_std"] = e.adaptive_std / 1e3
+    cols["kf_adaptive_std"] = (e.adaptive_std if e.adaptive_band is None else
+                               e.adaptive_band) / 1e3
     cols["stiffness_factor"] = e.stiffness_factor
     cols["stiffness_factor_std"] = e.stiffness_factor_std
     if res.est_retrained is not None:

@@ -67,7 +67,7 @@ def _read_diagnosis(path: Path, rig: str) -> dict[str, Any]:
         summary = json.loads(path.read_text())
     except FileNotFoundError:
         raise ConfigError(f"--with-effect {path}: no such file (a diagnosis.json of"
-                          f" brakethermo diagnose on a {rig} session)") from None
+                          f" brakethermo diagnose on a session of the {rig} rig)") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ConfigError(f"--with-effect {path}: not a readable diagnosis.json ({exc})"
                           ) from None

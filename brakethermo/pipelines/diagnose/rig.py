@@ -317,7 +317,7 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
             "negligible": name in negligible,
             "units": dict(zip(e.params, e.units, strict=True)),
             "extension": e.extension, "separate_by": e.separate_by,
-            "evidence": _evidence(name, ref - y, held, ctx, case.unit),
+            "evidence": _evidence(name, ref - y, held, ctx, case.unit, split.kind),
             **({"vs_first_pp": r["vs_first_pp"]} if "vs_first_pp" in r else {}),
         })
     summary: dict[str, Any] = {
@@ -392,8 +392,8 @@ def _where(err: np.ndarray, held: np.ndarray, ctx: RigContext, rest: float
     return {"by_input": bands}
 
 
-def _evidence(name: str, res: np.ndarray, held: np.ndarray, ctx: RigContext, unit: str
-              ) -> str:
+def _evidence(name: str, res: np.ndarray, held: np.ndarray, ctx: RigContext, unit: str,
+              kind: str = "apply cycle") -> str:
     """A sentence computed from the reference's held-out residual (model minus sensor)."""
     r, x, v = res[held], ctx.x[held], ctx.v[held]
     ok = np.isfinite(r)
@@ -403,7 +403,7 @@ def _evidence(name: str, res: np.ndarray, held: np.ndarray, ctx: RigContext, uni
     if "drift" in name:
         half = r.size // 2
         return (f"model minus sensor {np.mean(r[:half]):+.3f} {unit} in the first half of the"
-                f" held-out cycles, {np.mean(r[half:]):+.3f} {unit} in the second")
+                f" held-out {kind}s, {np.mean(r[half:]):+.3f} {unit} in the second")
     if name in ("rate_dependent", "hysteresis"):
         moving = 0.05 * float(np.percentile(np.abs(v), 95))
         up, down = v > moving, v < -moving
