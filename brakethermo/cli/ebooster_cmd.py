@@ -39,8 +39,9 @@ def ebooster_command(
         str,
         typer.Option(help="p-V departure carried from a diagnosis: 'none', 'auto' (diagnose"
                           " this session first: needs the pressure sensor), a diagnosis.json"
-                          " of a booster session of the day, or NAME=VALUE (pv_shift,"
-                          " pv_scale, rate_dependent)."),
+                          " of a booster session of the day (any effect it names,"
+                          " pv_drift included), or NAME=VALUE (pv_shift, pv_scale,"
+                          " rate_dependent, hysteresis)."),
     ] = "none",
     out: OutDir = Path("out"),
     aliases: AliasesOpt = None,
