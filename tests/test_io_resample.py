@@ -225,3 +225,23 @@ def test_a_csv_cut_inside_its_last_row_drops_that_row_and_says_so(tmp_path) -> N
     assert any("ends inside its last row" in w for w in raw.warnings)
     path.write_text("time [s],wheel_speed [rad/s]\n0.0,185.0\n0.1,185.1\n")
     assert read_csv(path).warnings == ()
+
+
+def test_a_log_ended_inside_its_last_lap_marks_that_lap_cut() -> None:
+    """No beacon closes a session's last lap. An independent generator's session ended in
+    the pits 55 % round it, slowly enough to last a lap's time: it was given a lap time
+    and used as a flying lap. The distance ridden in it (speed integrated) tells."""
+    from brakethermo.io.laps import mark_cut_end
+    from brakethermo.results.laps import partial_laps
+
+    t = grid(400.0, 0.1)
+    laps, lap = laps_from_beacons(np.array([0.0, 100.0, 200.0, 300.0]),
+                                  np.array([0.0, 1.0, 2.0, 3.0]), t, 400.0)
+    speed = np.full(t.size, 40.0)  # 4 km laps
+    speed[lap == 3] = 22.0  # the last "lap": 2.2 km in as long as a lap, to the pits
+    cut = mark_cut_end(laps, lap, speed, 0.1)
+    assert [x.cut_end for x in cut] == [False, False, False, True]
+    assert partial_laps(cut) == {3} and partial_laps(laps) == set()
+    speed[lap == 3] = 39.0  # a whole lap that ended at the line: kept
+    assert not mark_cut_end(laps, lap, speed, 0.1)[-1].cut_end
+    assert mark_cut_end(laps, lap, None, 0.1) == laps  # no speed: nothing to tell

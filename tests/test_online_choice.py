@@ -122,7 +122,7 @@ def test_a_gated_kz_still_lets_the_laws_mu_t_be_judged_beside_it(races, tmp_path
     assert row["test"].startswith("k_z online against off, on the law without")
     assert choice["law_effects_dropped"] == ["friction_temperature"]
     (tested,) = choice["law_effects_tested"]
-    assert tested["significant"] and tested["earned"]
+    assert tested["significant"] and tested["must_earn"]
     assert "the law with its friction_temperature against without it" in tested["test"]
     assert "k_z online in both" not in tested["test"]
     assert "kz_factor" not in auto.frame
@@ -253,7 +253,7 @@ def test_the_laws_mu_t_is_kept_only_where_the_race_earns_it(monkeypatch, written
 
     trial, runs = _earned_trial(monkeypatch, written, without)
     (row,) = online_choice._later_tests(trial, runs, None, [])
-    assert row["name"] == f"without {online_choice.EARNED}" and row["earned"]
+    assert row["name"] == f"without {online_choice.EARNED}" and row["must_earn"]
     assert row["significant"] is dropped
     assert (row["shrink_ci95_pct"][0] > online_choice.MIN_SHRINK_PCT) is not dropped
     assert row["test"].startswith("kept only where the race earns it")
@@ -412,7 +412,7 @@ def test_decision_lines_read_a_summary_that_has_been_through_json() -> None:
         "chosen": [], "law_effects_dropped": ["friction_temperature"],
         "scores": [{"name": "slipstream", "test": "one-step innovations", "shrink_pct": 12.0,
                     "shrink_ci95_pct": [None, None]}],
-        "law_effects_tested": [{"name": "without friction_temperature", "earned": True,
+        "law_effects_tested": [{"name": "without friction_temperature", "must_earn": True,
                                 "test": "not tested: fewer than two flying laps",
                                 "shrink_pct": None, "shrink_ci95_pct": [None, None]}]}}}))
     online, law = _decisions(summary)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from brakethermo.errors import DataError
@@ -81,6 +83,35 @@ def laps_from_beacons(
     )
     idx = np.searchsorted(starts, t_grid + _ON_GRID, side="right") - 1
     return laps, numbers[np.clip(idx, 0, None)]
+
+
+SHORT_DISTANCE = 0.9  # of the typical flying lap's distance: a last lap under it is cut
+
+
+def mark_cut_end(laps: tuple[Lap, ...], lap: np.ndarray, speed: np.ndarray | None,
+                 dt: float) -> tuple[Lap, ...]:
+    """``laps`` with the last one marked :attr:`Lap.cut_end` when the distance ridden in it
+    (speed integrated, m) is under :data:`SHORT_DISTANCE` of the median of the flying laps
+    before it. No beacon ever closes the last lap, so its duration alone cannot tell a
+    whole lap ended at the line from an in-lap: an independent generator's session ended
+    in the pits 55 % round its last lap, slowly enough to last a lap's time, and that
+    lap was given a lap time and used as a flying lap.
+
+    Parameters
+    ----------
+    laps : tuple of Lap
+    lap : ndarray (K,) of int — lap of each grid point.
+    speed : ndarray (K,) or None — m/s on the grid (None: no speed channel, laps as given).
+    dt : float — s, grid step.
+    """
+    if speed is None or len(laps) < 2 or laps[-1].lap < 1:
+        return laps
+    v = np.nan_to_num(np.abs(np.asarray(speed, float)))
+    dist = {n: float(v[lap == n].sum() * dt) for n in {x.lap for x in laps}}
+    before = [dist[x.lap] for x in laps[:-1] if x.lap >= 1 and not x.cut_start]
+    if not before or dist[laps[-1].lap] >= SHORT_DISTANCE * float(np.median(before)):
+        return laps
+    return (*laps[:-1], replace(laps[-1], cut_end=True))
 
 
 MIN_RESET_GAP_S = 20.0  # s: resets of a lap-distance channel closer than this are noise

@@ -29,6 +29,7 @@ from brakethermo.io.laps import (
     beacons_from_distance,
     lap_length_warnings,
     laps_from_beacons,
+    mark_cut_end,
     validate_beacons,
 )
 from brakethermo.io.raw import RawChannel, RawSession
@@ -301,6 +302,7 @@ def load_session(
 
     columns, infos = _on_grid(series, t_grid, gap_limit_s, warnings)
     laps, lap = _laps(raw, found, t_grid, warnings)
+    laps = mark_cut_end(laps, lap, columns.get("speed"), dt)
     frame = pd.DataFrame({"time": t_grid, "lap": lap, **columns})
     return Session(
         path=path,

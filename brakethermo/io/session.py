@@ -63,12 +63,15 @@ class ChannelInfo:
 class Lap:
     """One lap: number (0 = out-lap), start time and duration on the session grid, s;
     ``cut_start``: the log began inside a lap (its first beacon numbers lap 2 or later),
-    so lap 0 is the fragment of a flying lap, not an out-lap from the pits."""
+    so lap 0 is the fragment of a flying lap, not an out-lap from the pits; ``cut_end``:
+    the log ended inside this last lap (no beacon closes it and the bike rode well short
+    of a lap's distance in it: an in-lap to the pits)."""
 
     lap: int
     start_s: float
     duration_s: float
     cut_start: bool = False
+    cut_end: bool = False
 
 
 @dataclass(frozen=True)

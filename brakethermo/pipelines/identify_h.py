@@ -745,7 +745,10 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
     t_struct = time.perf_counter()
     notes.extend(f"{name}.{param} = {value:.4g} sits at the bound the fit allows: the data"
                  " push it further than the model's range, so the effect's form does not fit"
-                 " them (check the carried effects against `brakethermo diagnose`)"
+                 " them " + ("(part of every law's structure, kept: read the law's h(V) above"
+                             " the knee and its k_z with care; `brakethermo diagnose` tests"
+                             " the effect)" if name in STRUCTURE_EFFECTS else
+                             "(check the carried effects against `brakethermo diagnose`)")
                  for (name, param), value in (structure.at_bounds if structure else {}).items())
     calibration = _calibration(session, law, structure, est_tuning)
     sigma_crown, sigma_temp, adapt_power, band_scale, validation = validate_filter(

@@ -338,8 +338,9 @@ def _later_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration, chosen: 
 def _earned_row(row: dict[str, Any], name: str, dropped: bool) -> dict[str, Any]:
     """The :data:`EARNED` effect's row in ``law_effects_tested``: ``row`` is the law with
     the effect against the law without it (k_z as the race runs it), so its shrink is
-    what keeping the effect gains (the page says "with it")."""
-    return {**row, "name": f"without {name}", "significant": dropped, "earned": True,
+    what keeping the effect gains (the page says "with it"); ``must_earn`` marks such a
+    row and ``significant`` that the race did not earn it (dropped)."""
+    return {**row, "name": f"without {name}", "significant": dropped, "must_earn": True,
             "test": f"kept only where the race earns it ({row['test']})"}
 
 

@@ -192,6 +192,7 @@ def filter_space(ssm: DiscStateSpace, model: DiscFEModel, inputs: DiscInputs, h:
     span = min(inputs.q_brk.size - 1, SNAPSHOT_SPAN)
     # and the directions the crown-split process noise pushes the field in: the filter's
     # corrections live there, the open loop never goes
+    n_pod = Phi.shape[1]
     Phi = with_directions(Phi, ssm.crown_directions())
     reduced = ReducedStateSpace(ssm, Phi)
     return reduced, {
@@ -200,7 +201,9 @@ def filter_space(ssm: DiscStateSpace, model: DiscFEModel, inputs: DiscInputs, h:
         "approximation": "node temperatures on the leading POD modes of the model's own open"
                          f" loop over the session's first {span} steps (power scale 0.7-1.3,"
                          " h x 0.7-1.4, k_z x 0.5-2, crown tilt +-0.5), at most"
-                         f" {MAX_MODES}; what the modes cannot hold is dropped each step"}
+                         f" {MAX_MODES}, and the directions the crown-split noise pushes"
+                         f" the field in ({reduced.r - n_pod} here); what the modes cannot"
+                         " hold is dropped each step"}
 
 
 # Modes computed, or being computed, per (model, session, law): the race's decision runs

@@ -65,10 +65,12 @@ SHORT_LAP = 0.8  # a flying lap under this share of the typical one is partial (
 def partial_laps(laps: tuple[Lap, ...]) -> set[int]:
     """Flying laps shorter than :data:`SHORT_LAP` of the typical flying lap: the session
     ended in them, or the rider came in — their times and peaks are not a lap's — and a
-    lap the log began inside (:attr:`Lap.cut_start`). The
+    lap the log began inside (:attr:`Lap.cut_start`) or ended inside short of a lap's
+    distance (:attr:`Lap.cut_end`). The
     typical lap is the median of three or more; of two, the longer one, and only the last
     lap can then be the short one (a log cut short); one lap alone cannot be judged."""
-    cut = {lap.lap for lap in laps if lap.cut_start}  # the log began inside it (lap 0)
+    # the log began inside it (lap 0), or ended inside it short of a lap's distance
+    cut = {lap.lap for lap in laps if lap.cut_start or lap.cut_end}
     flying = {lap.lap: lap.duration_s for lap in laps
               if lap.lap >= 1 and lap.duration_s > 0 and lap.lap not in cut}
     if len(flying) < 2:

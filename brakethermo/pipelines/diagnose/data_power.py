@@ -75,8 +75,9 @@ def disc_data_power(
             out["emissivity_error"] = (
                 f"98 % of the readings lie within {lo:.0f}–{hi:.0f} °C (1st to 99th"
                 f" percentile), never within"
-                f" {MAX_COLD_GAP_C:.0f} °C of the air ({air:.0f} °C; the pyrometer reads"
-                f" nothing below {floor_c:.0f} °C): there a wrong emissivity is mostly a power"
+                f" {MAX_COLD_GAP_C:.0f} °C of the air ({air:.0f} °C; readings below"
+                f" {floor_c:.0f} °C are not used, where many pyrometers read nothing): there"
+                " a wrong emissivity is mostly a power"
                 " scale and an offset the h law absorbs, so a weak one cannot show — a"
                 " contact thermocouple on a cold and a hot disc, or a pyrometer of known"
                 " emissivity, would test it")
