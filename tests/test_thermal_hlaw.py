@@ -162,3 +162,49 @@ def test_the_law_never_falls_with_speed_beyond_the_cubics_first_maximum() -> Non
     expect = np.where(x < 0.8, 300.0 * x**0.5,
                       rising.c0 + uu * (40.0 + uu * 10.0))
     np.testing.assert_allclose(rising(v), expect)
+
+
+def test_beyond_its_data_the_law_grows_as_its_power_branch(tmp_path: Path) -> None:
+    """An independent generator's session to 303 km/h: the cubic above the knee, fitted on
+    its few fastest straights, gave 551 W/(m² K) at 330 km/h and 909 at 350 against a true
+    290 and 327. Beyond the fastest speed it was identified on the law now grows as its
+    power branch does, and the file says where that is."""
+    cubic = HLaw(v_ref=V_REF, a=227.2, b=0.729, c=(163.2, 14673.4, 12013.1), knee=0.8)
+    law = HLaw(v_ref=V_REF, a=227.2, b=0.729, c=(163.2, 14673.4, 12013.1), knee=0.8,
+               x_data=302.5 * KMH / V_REF)
+    v = np.array([250.0, 300.0, 302.5, 330.0, 350.0]) * KMH
+    np.testing.assert_allclose(law(v[:3]), cubic(v[:3]))  # the data's range: as fitted
+    h_data = float(cubic(302.5 * KMH))
+    np.testing.assert_allclose(law(v[3:]), h_data * (v[3:] / (302.5 * KMH)) ** 0.729)
+    assert float(cubic(330.0 * KMH)) > 500.0 and 270.0 < float(law(330.0 * KMH)) < 300.0
+    (tmp_path / "h.toml").write_text(law.toml_text())
+    raw = tomllib.loads((tmp_path / "h.toml").read_text())
+    assert raw["v_data_kmh"] == pytest.approx(302.5)
+    back = read_h_law(tmp_path / "h.toml").law
+    assert back.x_data == pytest.approx(law.x_data)
+    np.testing.assert_allclose(back(v), law(v))
+    np.testing.assert_allclose(raw["tabulated"]["h"], law(np.asarray(
+        raw["tabulated"]["speed_kmh"]) * KMH))
+    # a law written before (no v_data_kmh) reads as it always did
+    (tmp_path / "old.toml").write_text(cubic.toml_text())
+    assert "v_data_kmh" not in (tmp_path / "old.toml").read_text()
+    assert read_h_law(tmp_path / "old.toml").law.x_data == np.inf
+
+
+def test_a_race_faster_than_the_laws_data_is_warned(tmp_path: Path) -> None:
+    """An independent generator's race to 324 km/h on a law identified to 303: no word."""
+    from brakethermo.pipelines.estimate import EstimateOptions, calibrated_tuning
+    from brakethermo.pipelines.models import calibration_for
+    from brakethermo.pipelines.run_facts import law_warnings
+    from brakethermo.thermal.disc import load_disc
+
+    law = HLaw(v_ref=V_REF, a=160.0, b=0.5, c=(130.0, 0.0, 0.0), x_data=300.0 * KMH / V_REF)
+    (tmp_path / "h.toml").write_text(law.toml_text(extra={"disc": "cc-340-8"}))
+    disc = load_disc()
+    cal = calibration_for(disc, tmp_path / "h.toml")
+    tuning = calibrated_tuning(cal, EstimateOptions())
+    fast = np.r_[np.linspace(10.0, 322.0, 500), 322.0] * KMH
+    (said,) = [w for w in law_warnings(cal, disc, tuning, fast) if "runs to" in w]
+    assert "runs to 322 km/h" in said and "(300 km/h)" in said
+    assert not [w for w in law_warnings(cal, disc, tuning, fast * 300.0 / 322.0)
+                if "runs to" in w]

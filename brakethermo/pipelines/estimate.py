@@ -292,7 +292,8 @@ def estimate_from_session(
     y = _measurement(inputs, options.spot, session.path)
     cal = calibration or calibration_for(disc, options.h_law)
     tuning = calibrated_tuning(cal, options)
-    warnings = [*session.warnings, *inputs.warnings, *law_warnings(cal, disc, tuning)]
+    warnings = [*session.warnings, *inputs.warnings,
+                *law_warnings(cal, disc, tuning, inputs.speed)]
     choice, run, t_choice = decided_run(session, options, disc, inputs, y, cal, tuning,
                                         calibration)
     cal, tuning, model, x0, forward = run.cal, run.tuning, run.model, run.x0, run.forward

@@ -718,6 +718,17 @@ def _evidence_facts(level: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def _bound_notes(structure: StructureFit | None) -> list[str]:
+    """A note per fitted parameter that sits at a bound of its range."""
+    return [f"{name}.{param} = {value:.4g} sits at the bound the fit allows: the data push it"
+            " further than the model's range, so the effect's form does not fit them "
+            + ("(part of every law's structure, kept: read the law's h(V) above the knee and"
+               " its k_z with care; `brakethermo diagnose` tests the effect)"
+               if name in STRUCTURE_EFFECTS else
+               "(check the carried effects against `brakethermo diagnose`)")
+            for (name, param), value in (structure.at_bounds if structure else {}).items()]
+
+
 def identify_from_session(session: Session, options: IdentifyOptions) -> IdentifyResult:
     """Run identify-h on a loaded session (see :func:`identify_h`)."""
     t0 = time.perf_counter()
@@ -743,13 +754,9 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         law, structure, est_tuning, effects, selection = _refit_carried(
             session, inputs, y, disc, start, est_tuning, effects, selection, notes)
     t_struct = time.perf_counter()
-    notes.extend(f"{name}.{param} = {value:.4g} sits at the bound the fit allows: the data"
-                 " push it further than the model's range, so the effect's form does not fit"
-                 " them " + ("(part of every law's structure, kept: read the law's h(V) above"
-                             " the knee and its k_z with care; `brakethermo diagnose` tests"
-                             " the effect)" if name in STRUCTURE_EFFECTS else
-                             "(check the carried effects against `brakethermo diagnose`)")
-                 for (name, param), value in (structure.at_bounds if structure else {}).items())
+    notes.extend(_bound_notes(structure))
+    # what the session's h samples reach: beyond it the law only grows as its power branch
+    law = replace(law, x_data=float(np.max(inputs.speed[fit_mask])) / law.v_ref)
     calibration = _calibration(session, law, structure, est_tuning)
     sigma_crown, sigma_temp, adapt_power, band_scale, validation = validate_filter(
         session, calibration, options

@@ -115,7 +115,7 @@ def read_calibration(path: str | Path) -> DiscCalibration:
                 values[key] = extra.integer(key, lo=lo, hi=hi)
             else:
                 values[key] = extra.number(key, lo=lo, hi=hi)
-    adapt = extra.boolean("adapt_power", None)
+    adapt = extra.boolean("adapt_power") if extra.has("adapt_power") else None
     disc_id = record.extra.get("disc")
     return DiscCalibration(law=record.law, weights=record.weights, adapt_power=adapt,
                            effects=_checked_effects(record.effects, path), source=str(path),

@@ -1,11 +1,13 @@
 """What an estimate's ``summary.json`` says of the h law and the model it ran: the law,
 the mesh and the filter settings, and the warnings where the run is not what the law was
-made for (another disc, another layering).
+made for (another disc, another layering, speeds beyond its data).
 """
 
 from __future__ import annotations
 
 from typing import Any
+
+import numpy as np
 
 from brakethermo.pipelines.models import DiscCalibration, other_disc
 from brakethermo.pipelines.tuning import EstimateTuning
@@ -36,10 +38,24 @@ def model_facts(cal: DiscCalibration, tuning: EstimateTuning, model: DiscFEModel
     }
 
 
-def law_warnings(cal: DiscCalibration, disc: DiscSpec, tuning: EstimateTuning) -> list[str]:
+# faster than the law's data by this factor (a metre per second at 300 km/h) is said
+BEYOND_DATA = 1.02
+
+
+def law_warnings(cal: DiscCalibration, disc: DiscSpec, tuning: EstimateTuning,
+                 speed: np.ndarray | None = None) -> list[str]:
     """What the h law was made for that this run is not: another disc, another mesh
-    (before the race's own decision, which may refine the mesh for a thinner skin)."""
+    (before the race's own decision, which may refine the mesh for a thinner skin), speeds
+    beyond those it was identified on (``speed``, m/s)."""
     warnings = [w for w in (other_disc(cal, disc),) if w]
+    v_data = cal.law.x_data * cal.law.v_ref
+    top = float(np.nanpercentile(np.abs(speed), 99.9)) if speed is not None and np.isfinite(
+        speed).any() else 0.0
+    if np.isfinite(v_data) and top > BEYOND_DATA * v_data:
+        warnings.append(f"this session runs to {top * 3.6:.0f} km/h, beyond the fastest"
+                        f" speed the h law was identified on ({v_data * 3.6:.0f} km/h):"
+                        " above it h only grows as the law's power branch does, not as data"
+                        " showed; a test session as fast as the race would identify it")
     for what, runs, fitted in (("layers", tuning.layers, cal.layers),
                                ("radial nodes", tuning.nodes, cal.nodes)):
         if fitted is not None and runs != fitted:

@@ -53,6 +53,12 @@ class HLaw:
         Cubic coefficients c1, c2, c3 in ``u = V/V_ref - knee``; c0 follows from continuity.
     knee : float — dimensionless
         Knee ``x_k`` as a fraction of V_ref.
+    x_data : float — dimensionless
+        The fastest speed, as a fraction of V_ref, of the samples the law was identified
+        on (inf: not recorded). Beyond it the law grows as its power branch does, ``h(x) =
+        h(x_data) (x / x_data)^b``: a cubic fitted on the few fastest straights of a
+        session is no evidence of what h does faster still (an independent generator's
+        session to 303 km/h gave a law of 909 W/(m² K) at 350 km/h against a true 327).
     """
 
     v_ref: float
@@ -60,17 +66,20 @@ class HLaw:
     b: float
     c: tuple[float, float, float] = (0.0, 0.0, 0.0)
     knee: float = 0.8
+    x_data: float = math.inf
 
     def __post_init__(self) -> None:
         if len(self.c) != 3:
             raise ValueError("HLaw needs three cubic coefficients c1, c2, c3")
-        for name in ("v_ref", "a", "b", "knee"):  # plain floats, also from numpy scalars
+        for name in ("v_ref", "a", "b", "knee", "x_data"):  # plain floats, also from numpy
             object.__setattr__(self, name, float(getattr(self, name)))
         object.__setattr__(self, "c", tuple(float(v) for v in self.c))
         if not all(math.isfinite(v) for v in (self.v_ref, self.a, self.b, self.knee, *self.c)):
             raise ValueError("HLaw coefficients must be finite")
         if self.v_ref <= 0 or self.a < 0 or self.b < 0 or not 0 < self.knee:
             raise ValueError("HLaw needs v_ref > 0, a >= 0, b >= 0 and knee > 0")
+        if not self.x_data > 0:
+            raise ValueError("HLaw needs x_data > 0 (inf: not recorded)")
 
     @classmethod
     def constant(cls, h: float, v_ref: float = 350.0 * KMH) -> HLaw:
@@ -105,7 +114,13 @@ class HLaw:
 
     def __call__(self, v_mps: float | np.ndarray) -> np.ndarray:
         """h in W/(m^2 K) at forward speed ``v_mps`` (m/s; the sign is ignored)."""
-        return self._value(v_mps, self.u_peak)
+        h = self._value(v_mps, self.u_peak)
+        if not math.isfinite(self.x_data):
+            return h
+        x = np.abs(np.asarray(v_mps, dtype=float)) / self.v_ref
+        h_data = float(self._value(self.x_data * self.v_ref, self.u_peak))
+        return np.where(x > self.x_data, h_data * (np.maximum(x, self.x_data) / self.x_data)
+                        ** self.b, h)
 
     def _value(self, v_mps: float | np.ndarray, u_max: float) -> np.ndarray:
         """h with the cubic held beyond ``u_max`` (inf: the plain cubic, as fitted)."""
@@ -211,11 +226,16 @@ class HLaw:
             "#   h = a * x^b                                   for x < knee",
             "#   h = c[0] + c[1] u + c[2] u^2 + c[3] u^3, u = x - knee, for x >= knee",
             "#   c[0] = a * knee^b (continuous at the knee); h is clipped at 0 and held at",
-            "#   the cubic's first maximum (it never falls with speed).",
+            *(["#   the cubic's first maximum (it never falls with speed); beyond v_data_kmh,",
+               "#   the fastest speed it was identified on, h = h(v_data) (V / v_data)^b."]
+              if math.isfinite(self.x_data) else
+              ["#   the cubic's first maximum (it never falls with speed)."]),
             f'kind = "{KIND}"',
             f"v_ref_kmh = {_fmt(round(self.v_ref / KMH, 9))}",
             f"v_ref_mps = {_fmt(self.v_ref)}  # exact; v_ref_kmh is for people",
             f"knee = {_fmt(self.knee)}",
+            *([f"v_data_kmh = {_fmt(self.x_data * self.v_ref / KMH)}"]
+              if math.isfinite(self.x_data) else []),
             "",
             "[power]",
             f"a = {_fmt(self.a)}",
@@ -294,7 +314,10 @@ def read_h_law(path: str | Path) -> HLawRecord:
     weights = raw.table("weights", {})
     w = weights.numbers("w", [1.0, 1.0, 1.0], length=3, lo=0.0)
     weights.check(sum(w) > 0, "w", "three weights >= 0, not all 0", w)
-    law = HLaw(v_ref=v_ref, a=a, b=b, c=(c[1], c[2], c[3]), knee=knee)
+    v_data = (raw.number("v_data_kmh", positive=True, hi=1000.0) if "v_data_kmh" in raw.raw
+              else math.inf)
+    law = HLaw(v_ref=v_ref, a=a, b=b, c=(c[1], c[2], c[3]), knee=knee,
+               x_data=v_data * KMH / v_ref)
     cubic.check(
         math.isclose(c[0], law.c0, rel_tol=1e-6, abs_tol=1e-9), "c",
         f"c[0] = a * knee^b = {law.c0} (continuity at the knee)", c[0],
