@@ -383,9 +383,15 @@ def test_a_session_logged_at_another_rate_runs_on_the_coarser_grid(tmp_path: Pat
         s = json.loads(res.stdout)
         scores[hz] = s["rmse_kn"]["kf"]
         said = " ".join(s["warnings"])
-        assert ("tr.mcap: logged at 1000 Hz, the other session at 500 Hz" in said) == (hz == 500)
+        assert ("tr.mcap: logged at 1000 Hz, run at 500 Hz" in said) == (hz == 500)
         assert s["rate_hz"] == pytest.approx(500.0 if hz == 500 else 1000.0)
     assert scores[500.0] < 1.5 * scores[1000.0] + 0.05
+    # with --retrain the re-training session's note reaches the summary too
+    res = CliRunner().invoke(app, ["clamp-force", str(run), "--train", str(train), "--retrain",
+                                   str(train), "--out", str(tmp_path / "r"), "--json"])
+    assert res.exit_code == 0, res.output
+    said = json.loads(res.stdout)["warnings"]
+    assert sum("tr.mcap: logged at 1000 Hz, run at 500 Hz" in w for w in said) == 2
 
 
 def test_a_training_sensor_lagging_100_ms_is_found(tmp_path: Path) -> None:
@@ -649,3 +655,13 @@ def test_a_motor_side_change_is_not_blamed_on_the_pads_and_the_band_admits_it(
     assert "disagree by a factor 1.1" in said and "worse than the dynamic-stiffness" in said
     F = pd.read_parquet(truth)["clamp_force"].to_numpy() * 1e3
     assert np.mean(np.abs(est.kf - F) <= 1.96 * est.kf_std) > 0.85  # 0.51 spanning kf_paper
+    np.testing.assert_array_equal(est.adaptive_band, est.kf_std)  # kf_adaptive_std as kf's
+    # worn pads (a 12 % stiffer, 1.2 rad later contact): a factor no motor moves, the pads'
+    worn = write_emb_simulation(simulate_emb("worn", seed=933, duration_s=20),
+                                tmp_path / "worn.mcap")[0]
+    res = cfp.clamp_force(worn, train)
+    est, s = res.reported, cfp.summary(res)
+    assert est.kf_filter == "adaptive" and est.motor_alike is None
+    assert "more than a motor's torque constant" in s["kf_noise"]
+    assert not any("disagree by a factor" in w for w in s["warnings"])
+    assert np.all(est.adaptive_band >= est.adaptive_std)  # its band as published

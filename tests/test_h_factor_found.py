@@ -93,3 +93,14 @@ def test_the_race_reports_what_its_online_h_factor_found(sim_race_session) -> No
     assert found["said"] in _decisions(json.loads(json.dumps(res.summary)))
     off = estimate_session(sim_race_session[0], EstimateOptions(adapt_slipstream=False))
     assert "found" not in off.summary["run"]["effects"].get("slipstream", {})
+
+
+def test_a_lap_behind_another_bike_does_not_hide_a_law_off_on_the_others() -> None:
+    """One slow lap among laps 37 % off the law read "slipstream" alone, no warning."""
+    found = h_factor_found(*_race([0.63, 0.63, 0.56, 0.64]), {1, 2, 3, 4}, DT)
+    assert found is not None and found.kind == "by lap" and "lower on lap 3" in found.said
+    assert "on the others it sits at 0.63, 37 % below the law's h" in found.said
+    assert h_factor_warning(found) == [found.said]
+    plain = h_factor_found(*_race([1.04, 0.91, 1.06, 1.05]), {1, 2, 3, 4}, DT)
+    assert plain is not None and "on the others it sits" not in plain.said
+    assert h_factor_warning(plain) == []

@@ -64,6 +64,8 @@ def test_outputs_follow_the_contract(identified):
     raw = tomllib.loads(law_path.read_text())
     assert raw["tabulated"]["speed_kmh"][0] == 0 and raw["tabulated"]["speed_kmh"][-1] == 360
     assert len(raw["weights"]["w"]) == 3
+    # the fastest speed the law was identified on, beyond which it only grows as a power
+    assert 150.0 < raw["v_data_kmh"] <= max(samples.column("speed").to_numpy()) * 3.6 + 1e-6
     assert (folder / "h_law.png").stat().st_size > 10_000
     summary = json.loads((folder / "identify.json").read_text())
     assert summary["fit"]["samples_off_brake"] > 100

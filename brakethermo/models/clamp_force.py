@@ -559,7 +559,7 @@ def estimate(
     """
     if not np.isclose(ts, models.ts, rtol=1e-3):
         raise ConfigError(f"the session is logged every {ts * 1e3:g} ms but the models were"
-                          f" trained at {models.ts * 1e3:g} ms (load_emb_at_one_rate)")
+                          f" trained at {models.ts * 1e3:g} ms: resample it to that rate")
     ds = models.stiffness
     F_ds = ds.simulate(theta)
     F_tb = torque_balance_force(current, theta, ts, models.torque, models.window)
@@ -589,7 +589,8 @@ def estimate(
     if check is not None and source != "kf":
         kf = {"stiffness": F_ds, "torque_balance": F_tb, "ml_fusion": F_ml}[source]
         kf_std = np.full(theta.size, check.rmse_n[source])
-    motor = _motor_alike(ra.x_filt[:, 1], F_ds) if (kind, source) == ("adaptive", "kf") else None
+    motor = (_motor_alike(ra.x_filt[:, 1], F_ds)  # where the innovations switched it
+             if (kind, source) == ("adaptive", "kf") and nis > NIS_LIMIT else None)
     if motor is not None:  # the 95 % band reaches past the stiffness model's reading
         kf_std = kf_std + np.abs(kf - F_ds) / 1.96
     return ClampForceEstimates(

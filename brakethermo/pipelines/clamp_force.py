@@ -147,10 +147,9 @@ def load_emb_at_one_rate(
             out.append(native)
             continue
         d = load_emb(p, need_sensor=n, role=r, aliases=aliases, rate_hz=rate)
-        note = (f"{d.session.path.name}: logged at {native.session.rate_hz:.6g} Hz, the"
-                f" {'training' if r != 'training' else 'other'} session at {rate:.6g} Hz: run"
-                f" at {rate:.6g} Hz (its samples averaged into the coarser grid; the models"
-                " are trained per sample)")
+        note = (f"{d.session.path.name}: logged at {native.session.rate_hz:.6g} Hz, run at"
+                f" {rate:.6g} Hz, the coarsest of this run's sessions (its samples averaged"
+                " into the coarser grid; the models are trained per sample)")
         out.append(replace(d, session=replace(d.session,
                                               warnings=(*d.session.warnings, note))))
     return out
@@ -298,14 +297,8 @@ def clamp_force(
 def _check_like(train: EmbData, data: EmbData, role: str) -> None:
     """The inputs of ``data`` in the units of the training session's: their spreads
     within :data:`MAX_SPREAD_RATIO` of each other (which of the two is wrong, only the
-    user can tell, so both files are named), and logged at the training session's rate
-    (the models' derivatives are per sample)."""
-    if not np.isclose(train.ts, data.ts, rtol=1e-3):
-        raise DataError(
-            f"is logged every {data.ts * 1e3:g} ms and the training session"
-            f" {train.session.path.name} every {train.ts * 1e3:g} ms: the models are trained"
-            " per sample; train on a session logged at this one's rate (or resample one"
-            " file to the other's)", path=data.session.path)
+    user can tell, so both files are named). Both are on one grid already
+    (:func:`load_emb_at_one_rate`)."""
     for channel, a, b in (("motor_angle", train.theta, data.theta),
                           ("motor_current", train.current, data.current)):
         sa, sb = (float(np.subtract(*np.nanpercentile(v, [99, 1]))) for v in (a, b))
@@ -590,7 +583,8 @@ def _fusion_warnings(res: ClampForceResult, r: dict[str, float | None]) -> list[
                    " kf follows the pads' reading and its band spans the other (a session of"
                    " these pads with the force sensor, or the winding temperature, decides)")
     inputs = {k: r[k] for k in ("stiffness", "torque_balance") if r[k] is not None}
-    if r["kf"] is not None and inputs and r["kf"] > 1.1 * min(inputs.values()):
+    if (est.kf_source == "kf" and r["kf"] is not None and inputs
+            and r["kf"] > 1.1 * min(inputs.values())):
         best = min(inputs, key=lambda k: inputs[k])
         out.append(f"against this session's own force sensor the reported kf ({r['kf']:.3f}"
                    f" kN RMS) is worse than the {SOURCE_NAMES[best]} it fuses"
@@ -658,6 +652,7 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         },
         "training_session": str(res.train.session.path),
         "warnings": [*res.data.session.warnings, *res.train.session.warnings,
+                     *(res.retrain.session.warnings if res.retrain is not None else ()),
                      *_unchecked(res), *_fusion_warnings(res, r)],
     }
     if res.est_retrained is not None and res.models_retrained is not None and res.retrain:

@@ -177,12 +177,15 @@ def choose_q_factor(session: Session, spec: BoosterSpec) -> tuple[float, tuple[f
             err = p_m[read] - res.x_filt[read, 0]
             # every reading scored for every factor: one whose filter lost a step loses
             total[i] += float(np.sum(-0.5 * (np.log(2.0 * np.pi * var) + err**2 / var)))
-    one = Q_FACTORS.index(1.0)
-    if count == 0 or not np.isfinite(total[one]):
+    if count == 0:
         return 1.0, ()
     nats = np.where(np.isfinite(total), total / count, np.nan)
+    if not np.isfinite(nats).any():  # every factor lost its track: fit_warnings says so
+        return 1.0, tuple(float(v) for v in nats)
     best = int(np.nanargmax(nats))
-    chosen = Q_FACTORS[best] if nats[best] > nats[one] + Q_MARGIN_NATS else 1.0
+    one = nats[Q_FACTORS.index(1.0)]
+    base = one if np.isfinite(one) else -np.inf  # the datasheet's lost: any other is better
+    chosen = Q_FACTORS[best] if nats[best] > base + Q_MARGIN_NATS else 1.0
     return chosen, tuple(float(v) for v in nats)  # NaN: a factor whose filter lost a step
 
 
@@ -257,7 +260,7 @@ def fit_warnings(fit: BoosterFit) -> list[str]:
                    " says nothing of the force there, and the observers' pressures rest on"
                    " the p-V curve alone")
     lost = [f"{q:g}" for q, n in zip(Q_FACTORS, fit.q_heldout_nats, strict=False)
-            if np.isfinite(n) and n < LOST_NATS]
+            if not np.isfinite(n) or n < LOST_NATS]
     if lost:
         out.append("on held-out halves of the training session the filter lost its track"
                    " with the process noise times " + ", ".join(lost) + f" (it runs with"
@@ -405,18 +408,23 @@ MAX_PRESSURE_MPA = 50.0
 
 def lost_track(track: ObserverTrack, delta: Array, time_s: Array) -> str:
     """Why an observer's estimate cannot be a booster's, in words ('' when it can): a
-    pressure beyond :data:`MAX_PRESSURE_MPA` or not finite, or a disk travel zeta1 ten
-    times the measured delta's range away from it."""
+    state not finite, a pressure beyond :data:`MAX_PRESSURE_MPA`, or a disk travel zeta1
+    beyond ten times the largest measured |delta| plus 1 mm."""
     x = track.x
     span = float(np.nanmax(np.abs(delta))) if np.isfinite(delta).any() else 1.0
-    bad = (~np.isfinite(x).all(axis=1) | (np.abs(x[:, :3]).max(axis=1) > MAX_PRESSURE_MPA)
-           | (np.abs(x[:, 3]) > 10.0 * span + 1.0))
-    if not bad.any():
+    tests = (("not finite", ~np.isfinite(x).all(axis=1)),
+             (f"pressures beyond {MAX_PRESSURE_MPA:g} MPa",
+              np.abs(np.nan_to_num(x[:, :3])).max(axis=1) > MAX_PRESSURE_MPA),
+             (f"disk travel beyond {10.0 * span + 1.0:.3g} mm",
+              np.abs(np.nan_to_num(x[:, 3])) > 10.0 * span + 1.0))
+    failed = [(what, bad) for what, bad in tests if bad.any()]
+    if not failed:
         return ""
-    k = int(np.argmax(bad))
-    worst = float(np.nanmax(np.abs(np.where(np.isfinite(x[:, :3]), x[:, :3], 0.0))))
-    return (f"from t = {time_s[k] - time_s[0]:.2f} s, pressures up to {worst:.3g} MPa,"
-            f" {track.filt.n_repairs} covariance repairs")
+    k = min(int(np.argmax(bad)) for _, bad in failed)
+    worst = float(np.max(np.abs(np.nan_to_num(x[:, :3], posinf=0.0, neginf=0.0))))
+    return (f"from t = {time_s[k] - time_s[0]:.2f} s: " + ", ".join(w for w, _ in failed)
+            + f" (pressures up to {worst:.3g} MPa), {track.filt.n_repairs} covariance"
+            " repairs")
 
 
 def _withdrawn(track: ObserverTrack) -> ObserverTrack:

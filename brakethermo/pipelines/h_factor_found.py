@@ -38,7 +38,8 @@ class HFactorFound:
     Attributes
     ----------
     per_lap : dict of int to float — mean factor over the lap's off-brake stretches.
-    median : float — median of ``per_lap``.
+    median : float — median of ``per_lap`` (of the laps not lower than the others, for
+        ``"by lap"``: the law's departure where no slipstream is).
     kind : str — ``"steady"`` (off the law by the same factor on every lap), ``"by lap"``
         (lower on some laps: slipstream-like), ``"near the law"`` or ``"varies"`` (off the
         law, higher on some laps).
@@ -104,14 +105,19 @@ def h_factor_found(h_factor: np.ndarray, braking_power: np.ndarray, lap: np.ndar
         return HFactorFound(per_lap, m, "steady", said)
     low = [n for n, v in per_lap.items() if v < m * (1.0 - LAP_SPREAD)]
     if low:
+        rest = float(np.median([v for n, v in per_lap.items() if n not in low]))
         said = (f"the online h factor per lap {laps_text} (median {m:.2f}): lower on "
                 + ", ".join(lap_name(n) for n in low)
                 + " than on the others, as when following another bike (slipstream)")
-        return HFactorFound(per_lap, m, "by lap", said)
+        if abs(rest - 1.0) >= STEADY:  # and a law off for the race on the other laps
+            said += (f"; on the others it sits at {rest:.2f}, {100 * abs(rest - 1.0):.0f} %"
+                     f" {'below' if rest < 1.0 else 'above'} the law's h, which no"
+                     " slipstream does: the law may be another day's, duct's or disc's")
+        return HFactorFound(per_lap, rest, "by lap", said)
     off = float(np.max(np.abs(f - 1.0)))
     if same or off <= STEADY:
-        said = (f"the online h factor per lap {laps_text}: within {math.ceil(100 * off)} % of"
-                " the law's h on every lap")
+        said = (f"the online h factor per lap {laps_text}: within"
+                f" {math.ceil(100 * off - 1e-9)} % of the law's h on every lap")
         return HFactorFound(per_lap, m, "near the law", said)
     said = (f"the online h factor per lap {laps_text} (median {m:.2f}): not the same on"
             f" every lap, and off the law's h by up to {100 * off:.0f} %")
@@ -119,7 +125,9 @@ def h_factor_found(h_factor: np.ndarray, braking_power: np.ndarray, lap: np.ndar
 
 
 def h_factor_warning(found: HFactorFound | None) -> list[str]:
-    """A run warning when the factor holds far off the law on every lap."""
-    if found is None or found.kind != "steady" or abs(found.median - 1.0) < WARN:
+    """A run warning when the factor holds far off the law on every lap (those lower
+    than the others aside)."""
+    if found is None or found.kind not in ("steady", "by lap") or abs(
+            found.median - 1.0) < WARN:
         return []
     return [found.said]

@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from collections.abc import Callable
@@ -542,7 +543,9 @@ def _filter_facts(forward: Any) -> dict[str, Any]:
 
 def _law_dict(law: HLaw) -> dict[str, Any]:
     return {"v_ref_kmh": law.v_ref * 3.6, "knee": law.knee, "a": law.a, "b": law.b,
-            "c": [law.c0, *law.c]}
+            "c": [law.c0, *law.c],
+            **({"v_data_kmh": law.x_data * law.v_ref * 3.6} if math.isfinite(law.x_data)
+               else {})}
 
 
 def _effect_choice(session: Session, options: IdentifyOptions
@@ -755,8 +758,8 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             session, inputs, y, disc, start, est_tuning, effects, selection, notes)
     t_struct = time.perf_counter()
     notes.extend(_bound_notes(structure))
-    # what the session's h samples reach: beyond it the law only grows as its power branch
-    law = replace(law, x_data=float(np.max(inputs.speed[fit_mask])) / law.v_ref)
+    if fit_mask.any():  # what its h samples reach: beyond, the law grows as its power branch
+        law = replace(law, x_data=float(np.nanmax(np.abs(inputs.speed[fit_mask]))) / law.v_ref)
     calibration = _calibration(session, law, structure, est_tuning)
     sigma_crown, sigma_temp, adapt_power, band_scale, validation = validate_filter(
         session, calibration, options

@@ -38,7 +38,7 @@ def model_facts(cal: DiscCalibration, tuning: EstimateTuning, model: DiscFEModel
     }
 
 
-# faster than the law's data by this factor (a metre per second at 300 km/h) is said
+# faster than the law's data by this factor (6 km/h at 300 km/h) is said
 BEYOND_DATA = 1.02
 
 

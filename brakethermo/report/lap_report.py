@@ -228,7 +228,7 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
         if "law" in row:  # the pad crown: say which weights were tested against uniform
             name = "pad-crown weights w = " + ", ".join(f"{w:.2f}" for w in row["law"])
         # an earned effect's row is the law with it against without it
-        side = "with" if row.get("must_earn") else "without"
+        side = "with" if row.get("must_earn", row.get("earned")) else "without"  # earlier
         shrink = as_number(row.get("shrink_pct"))
         lines.append(f"the h law's {name}: {verdict} — {row.get('test', '')}"
                      + (f", error {side} it {-shrink:+.0f} % ({_interval(-hi, -lo, '{:+.0f}')})"

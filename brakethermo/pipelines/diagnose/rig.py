@@ -92,6 +92,7 @@ class RigCase:
     reference_fit: dict[str, Any]
     next_step: Any  # callable(name, fitted parameters) -> str
     block_s: float = BLOCK_S  # s, unit length when the session holds too few apply cycles
+    notes: tuple[str, ...] = ()  # the training session's warnings (e.g. resampled)
 
 
 def apply_units(x: np.ndarray, t: np.ndarray, rest: float, block_s: float = BLOCK_S
@@ -214,7 +215,8 @@ def diagnose_emb(
         reference_fit={"alpha0": ds.alpha0, "beta": list(ds.beta)},
         next_step=lambda n, _: (f"re-train on a session of these pads: brakethermo clamp-force"
                              f" SESSION --train {train_path} --retrain {path}  (the adaptive"
-                             " filter follows a stiffness scale on its own)"))
+                             " filter follows a stiffness scale on its own)"),
+        notes=tr.session.warnings)
     return run_case(case, t_start)
 
 
@@ -340,7 +342,7 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
                             *_negligible_reasons(case, rows, size, negligible)],
         "negligible": sorted(negligible),
         "combined": {"effects": [best] if best else []},
-        "warnings": list(session.warnings),
+        "warnings": [*session.warnings, *case.notes],
         "run": {"brakethermo": __version__, "effects_tried": list(names),
                 "wall_time_s": time.perf_counter() - t_start},
     }
