@@ -104,3 +104,28 @@ def test_a_lap_behind_another_bike_does_not_hide_a_law_off_on_the_others() -> No
     plain = h_factor_found(*_race([1.04, 0.91, 1.06, 1.05]), {1, 2, 3, 4}, DT)
     assert plain is not None and "on the others it sits" not in plain.said
     assert h_factor_warning(plain) == []
+
+
+def test_a_race_that_leaves_slipstream_off_still_says_where_its_cooling_dropped() -> None:
+    """The third independent generator's race behind another bike on laps 2, 3 and 5: one
+    spot's innovations gained 1 % and the state was left off, while it read 0.87-0.89 on
+    exactly those laps. The decision's row carries that reading, and the page says it."""
+    from types import SimpleNamespace
+
+    from brakethermo.pipelines.online_choice import _by_lap
+    from brakethermo.report.lap_report import _decisions
+
+    found = h_factor_found(*_race([0.98, 0.87, 0.89, 0.98, 0.89, 1.0, 0.99]), set(range(1, 8)),
+                           DT)
+    assert found is not None and found.kind == "by lap"
+    run = SimpleNamespace(summary={"run": {"effects": {"slipstream": {"found": found.facts()}}}})
+    row = {"name": "slipstream", "test": "one-step-ahead innovations", "shrink_pct": -0.9,
+           "shrink_ci95_pct": [-2.2, 0.3], **_by_lap(run)}
+    assert "lower on lap 2, lap 3, lap 5" in row["by_lap"]
+    (line,) = _decisions({"run": {"online_choice": {"chosen": [], "scores": [row]}}})
+    assert "left off" in line and "on the laps it decided on, the online h factor" in line
+    (line,) = _decisions({"run": {"online_choice": {"chosen": ["slipstream"], "scores": [row]}}})
+    assert "on the laps it decided on" not in line  # switched on: the run's own reading says it
+    steady = h_factor_found(*_race([0.63] * 5), set(range(1, 6)), DT)
+    quiet = SimpleNamespace(summary={"run": {"effects": {"slipstream": {"found": steady.facts()}}}})
+    assert _by_lap(quiet) == {}

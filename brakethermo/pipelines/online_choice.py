@@ -355,6 +355,7 @@ def _online_rows(runs: dict[str, Any], candidates: tuple[str, ...], lap: np.ndar
             row = _structural_test(runs[c], STRUCTURAL[c], lap, cycles, rule)
         else:
             row = _one_step_test(ref, runs[c], lap, cycles, rule, loglik[c] - loglik["reference"])
+            row.update(_by_lap(runs[c]))
         row["name"] = c
         rows.append(row)
     rows.sort(key=lambda r: -np.nan_to_num(r["shrink_pct"], nan=-1e9))
@@ -452,6 +453,17 @@ def _likelihood_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
     return {**d.rows[0], "test": "one-step predictive likelihood, every flying lap",
             "loglik_gain_per_reading": gain, "loglik_gain_ci95": [lo, hi],
             "significant": bool(np.isfinite(lo) and lo > MIN_LOGLIK_GAIN)}
+
+
+def _by_lap(run: Any) -> dict[str, str]:
+    """What a slipstream variant's (filtered) h factor read lap by lap, when some laps
+    were lower than the others (:mod:`~brakethermo.pipelines.h_factor_found`): one spot's
+    innovations gain little from following it (the filter corrects that spot anyway), but
+    the engineer should know where the cooling dropped — the third independent generator's
+    race behind another bike on three laps gained 1 % and was left off, while the state
+    read 0.88-0.90 on exactly those laps."""
+    found = ((run.summary["run"].get("effects") or {}).get("slipstream") or {}).get("found")
+    return {"by_lap": found["said"]} if found and found.get("kind") == "by lap" else {}
 
 
 def _one_step_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,

@@ -219,7 +219,9 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
         verdict = "switched on" if row.get("name") in choice.get("chosen", []) else "left off"
         lines.append(f"online {row.get('name')}: {verdict} — {row.get('test', '')}, shrink"
                      f" {as_number(row.get('shrink_pct')):.0f} % ({_interval(lo, hi)})"
-                     + (f"; {row['like_law']}" if row.get("like_law") else ""))
+                     + (f"; {row['like_law']}" if row.get("like_law") else "")
+                     + (f"; on the laps it decided on, {row['by_lap']}"
+                        if row.get("by_lap") and verdict == "left off" else ""))
     for row in choice.get("law_effects_tested", []):
         name = str(row.get("name", "")).removeprefix("without ")
         lo, hi = (as_number(v) for v in row.get("shrink_ci95_pct", [None] * 2))
