@@ -16,8 +16,9 @@ DT = 0.1
 
 def _race(per_lap: list[float], laps_from: int = 1, noise: float = 0.005, seed: int = 0
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Laps of 60 s: four brakings of 4 s, the factor per lap off the brakes; under braking
-    the state holds a value that must not count (the filter does not move it there)."""
+    """(factor, braking, lap): laps of 60 s, four brakings of 4 s, the factor per lap off
+    the brakes; under braking the state holds a value that must not count (the filter
+    does not move it there)."""
     rng = np.random.default_rng(seed)
     f, q, lap = [], [], []
     for i, level in enumerate(per_lap):
@@ -25,7 +26,7 @@ def _race(per_lap: list[float], laps_from: int = 1, noise: float = 0.005, seed: 
             f += [9.0] * 40 + list(level + noise * rng.standard_normal(110))
             q += [50e3] * 40 + [0.0] * 110
             lap += [laps_from + i] * 150
-    return np.array(f), np.array(q), np.array(lap)
+    return np.array(f), np.array(q) > 0.0, np.array(lap)
 
 
 def test_a_factor_off_the_law_on_every_lap_is_a_steady_departure_not_slipstream() -> None:

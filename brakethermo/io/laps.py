@@ -107,7 +107,7 @@ def mark_cut_end(laps: tuple[Lap, ...], lap: np.ndarray, speed: np.ndarray | Non
     if speed is None or len(laps) < 2 or laps[-1].lap < 1:
         return laps
     v = np.nan_to_num(np.abs(np.asarray(speed, float)))
-    dist = {n: float(v[lap == n].sum() * dt) for n in {x.lap for x in laps}}
+    dist = np.bincount(np.asarray(lap, np.int64), weights=v * dt)  # m ridden per lap
     before = [dist[x.lap] for x in laps[:-1] if x.lap >= 1 and not x.cut_start]
     if not before or dist[laps[-1].lap] >= SHORT_DISTANCE * float(np.median(before)):
         return laps

@@ -263,7 +263,7 @@ def _frame_findings(frame: pd.DataFrame, session: Session, inputs: DiscInputs,
         return None
     partial = partial_laps(session.laps)
     whole = {lap.lap for lap in session.laps if lap.lap >= 1 and lap.lap not in partial}
-    found = h_factor_found(frame["h_factor"].to_numpy(), frame["braking_power"].to_numpy(),
+    found = h_factor_found(frame["h_factor"].to_numpy(), inputs.braking,
                            frame["lap"].to_numpy(), whole, float(session.dt))
     warnings.extend(h_factor_warning(found))
     return found

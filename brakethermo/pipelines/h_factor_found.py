@@ -22,13 +22,13 @@ from typing import Any
 
 import numpy as np
 
+from brakethermo.numeric import true_runs
 from brakethermo.results.laps import lap_name
 
 MIN_STRAIGHT_S = 3.0  # s off the brakes for a stretch to count
 STEADY = 0.10  # |median - 1| from which a factor that holds on every lap is reported
 WARN = 0.20  # ... and warned about: a fifth of the law's cooling
 LAP_SPREAD = 0.05  # every lap's mean within this (relative) of the median: it holds
-OFF_BRAKE = 0.01  # of the peak braking power: off the brakes
 
 
 @dataclass(frozen=True)
@@ -59,22 +59,21 @@ class HFactorFound:
 
 def _stretch_means(h_factor: np.ndarray, off: np.ndarray, lap: np.ndarray,
                    min_steps: int) -> dict[int, list[float]]:
-    edges = np.flatnonzero(np.diff(np.r_[0, off.astype(np.int8), 0]))
     out: dict[int, list[float]] = {}
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    for a, b in true_runs(off):
         if b - a >= min_steps:
             out.setdefault(int(lap[a]), []).append(float(np.mean(h_factor[a:b])))
     return out
 
 
-def h_factor_found(h_factor: np.ndarray, braking_power: np.ndarray, lap: np.ndarray,
+def h_factor_found(h_factor: np.ndarray, braking: np.ndarray, lap: np.ndarray,
                    whole_laps: Collection[int], dt: float) -> HFactorFound | None:
     """What the smoothed online h factor shows (module docstring).
 
     Parameters
     ----------
     h_factor : ndarray (K,) — the smoothed state, dimensionless (1 = the law's h).
-    braking_power : ndarray (K,) — W.
+    braking : ndarray (K,) of bool — the brake applied (``DiscInputs.braking``).
     lap : ndarray (K,) of int — lap of each step.
     whole_laps : collection of int — the whole flying laps (out-lap and partial laps
         excluded: an in-lap's slow cooling is no lap's).
@@ -84,8 +83,7 @@ def h_factor_found(h_factor: np.ndarray, braking_power: np.ndarray, lap: np.ndar
     -------
     HFactorFound, or None with fewer than two whole laps of off-brake stretches.
     """
-    q = np.nan_to_num(np.asarray(braking_power, float))
-    off = q <= OFF_BRAKE * max(float(q.max(initial=0.0)), 1e-9)
+    off = ~np.asarray(braking, bool)
     means = _stretch_means(np.asarray(h_factor, float), off, np.asarray(lap),
                            max(1, round(MIN_STRAIGHT_S / dt)))
     per_lap = {n: float(np.mean(v)) for n, v in sorted(means.items()) if n in whole_laps}
