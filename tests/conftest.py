@@ -2,15 +2,20 @@
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
 import pytest
 
 # pint's unit answers are cached per user (io/units.py): tests keep their own, so that a
-# run starts from no cache and leaves the user's alone
-os.environ.setdefault("BRAKETHERMO_CACHE_DIR", tempfile.mkdtemp(prefix="brakethermo-cache-"))
+# run starts from no cache and leaves the user's alone (nor a directory per run in /tmp)
+if "BRAKETHERMO_CACHE_DIR" not in os.environ:
+    _cache = tempfile.mkdtemp(prefix="brakethermo-cache-")
+    os.environ["BRAKETHERMO_CACHE_DIR"] = _cache
+    atexit.register(shutil.rmtree, _cache, ignore_errors=True)
 
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
 

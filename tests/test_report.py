@@ -118,7 +118,15 @@ def test_lap_stats_brute_force(race) -> None:
         assert s["above_s"] == pytest.approx(np.sum(c > 850) * 0.1)
         assert s["below_s"] == pytest.approx(np.sum(c < 250) * 0.1)
         assert s["inside_pct"] == pytest.approx(100 * np.mean((c >= 250) & (c <= 850)))
+        band = 1.96 * g["contact_avg_std"].to_numpy()
+        assert s["above_band_lo_s"] == pytest.approx(np.sum(c - band > 850) * 0.1)
+        assert s["above_band_hi_s"] == pytest.approx(np.sum(c + band > 850) * 0.1)
+        assert s["below_band_lo_s"] == pytest.approx(np.sum(c + band < 250) * 0.1)
+        assert s["below_band_hi_s"] == pytest.approx(np.sum(c - band < 250) * 0.1)
+        assert s["above_band_lo_s"] <= s["above_s"] <= s["above_band_hi_s"]
+        assert s["below_band_lo_s"] <= s["below_s"] <= s["below_band_hi_s"]
     assert stats.loc[0, "above_s"] == pytest.approx(5.0)
+    assert "above_band_lo_s" not in lap_stats(est.drop(columns="contact_avg_std"), WINDOW)
 
 
 def test_report_files_and_self_contained_html(report) -> None:

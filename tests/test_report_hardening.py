@@ -75,6 +75,10 @@ def test_hottest_radius_reveals_what_the_contact_band_hides():
     assert stats.loc[1, "peak_hot_radius_mm"] == pytest.approx(170.0)
     assert stats.loc[1, "above_spot4_s"] == pytest.approx(
         lap1["time_above_window_by_spot_s"]["spot4"], abs=0.05)
+    # the contact band 4 degC wide (1 sigma) never nears 850 degC: sure it stays below
+    assert lap1["time_above_window_band_s"] == [0.0, 0.0]
+    lo, hi = lap1["time_below_window_band_s"]
+    assert lo <= lap1["time_below_window_s"] <= hi
 
 
 @pytest.fixture(scope="module")

@@ -131,7 +131,9 @@ def lap_stats(
         samples, s), ``peak_spot1..4`` (degC), ``peak_spot1..4_t`` (lap time of the peak,
         s), ``above_spot1..4_s`` (each spot above the window, s), ``peak_contact``,
         ``mean_contact`` (degC), ``below_s``, ``inside_s``, ``above_s`` (contact band vs
-        the window, s), ``inside_pct`` (% of the lap), ``finite_spot1..4`` (the lap has
+        the window, s), ``below_band_lo_s`` .. ``above_band_hi_s`` (the least and most time
+        below / above the window within the contact band's 95 % band, s; with
+        ``contact_avg_std`` only), ``inside_pct`` (% of the lap), ``finite_spot1..4`` (the lap has
         a finite value of that spot), ``peak_hot`` (hottest radius,
         degC), ``peak_hot_t`` (lap time of it, s), ``peak_hot_radius_mm`` (where, NaN
         without radii) and ``above_hot_s`` (hottest radius above the window, s).
@@ -140,6 +142,8 @@ def lap_stats(
     dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
     lo, hi = window_c
     contact = estimate["contact_avg"].to_numpy(dtype=float)
+    band = (1.96 * estimate["contact_avg_std"].to_numpy(dtype=float)
+            if "contact_avg_std" in estimate else None)
     hot, hot_idx = hottest_radius(estimate)
     radii_mm = (
         np.asarray(node_radii, dtype=float) * 1e3 if node_radii is not None
@@ -163,6 +167,12 @@ def lap_stats(
             **{f"finite_{s}": np.isfinite(estimate[s].to_numpy(dtype=float)) for s in SPOTS},
         }
     )
+    if band is not None:
+        # the estimate's time outside the window is one draw of it: the band says how sure
+        work["below_band_lo"] = (contact + band < lo) * dt
+        work["below_band_hi"] = (contact - band < lo) * dt
+        work["above_band_lo"] = (contact - band > hi) * dt
+        work["above_band_hi"] = (contact + band > hi) * dt
     g = work.groupby("lap", sort=True)
     out = pd.DataFrame({"start_s": g["start"].first(), "lap_time_s": g["t"].max() + dt})
     for s in SPOTS:
@@ -181,6 +191,9 @@ def lap_stats(
     out["below_s"] = g["below"].sum()
     out["above_s"] = g["above"].sum()
     out["inside_s"] = g["inside"].sum()
+    if band is not None:
+        for c in ("below_band_lo", "below_band_hi", "above_band_lo", "above_band_hi"):
+            out[f"{c}_s"] = g[c].sum()
     out["inside_pct"] = 100.0 * out["inside_s"] / out["lap_time_s"]
     out.index.name = "lap"
     return out
@@ -232,6 +245,11 @@ def lap_summaries(
                                             for s in peaks},
             "mean_contact_c": _finite_or_none(row["mean_contact"]),
         }
+        if "above_band_lo_s" in row:
+            for side in ("below", "above"):
+                record[f"time_{side}_window_band_s"] = [
+                    round(float(row[f"{side}_band_lo_s"]), 1),
+                    round(float(row[f"{side}_band_hi_s"]), 1)]
         if np.isfinite(row["peak_hot"]):
             r_mm = row["peak_hot_radius_mm"]
             record["hottest"] = {
