@@ -41,6 +41,17 @@ def test_outputs_follow_the_contract(estimated, tmp_path):
     lap = summary["laps"][-1]
     assert {"lap_time_s", "peak", "time_in_window_s", "mean_contact_c"} <= set(lap)
     assert summary["run"]["smoother"] is True and summary["run"]["wall_time_s"] > 0
+    # the hottest radius with its band, from the smoother's node variances
+    frame = estimated.frame
+    face = frame[nodes].to_numpy()
+    np.testing.assert_array_equal(frame["hottest_radius"], face.max(axis=1))
+    std = frame["hottest_radius_std"].to_numpy()
+    assert np.all(std > 0) and np.all(np.isfinite(std))
+    # no narrower than the nearest spot's filter spread would allow: the face nodes'
+    # variances carry the calibration and the crown terms the spots do
+    assert np.median(std) >= 0.5 * np.median(frame["spot3_std"])
+    lo, hi = lap["hottest"]["time_above_window_band_s"]
+    assert lo <= lap["hottest"]["time_above_window_s"] <= hi
 
 
 def test_beats_single_spot_baseline_against_truth(estimated, sim_race_session):

@@ -357,6 +357,7 @@ def urts_smooth_windowed(
     y: Array,
     *,
     readout: Array | None = None,
+    smooth_readout: Array | None = None,
     max_store_bytes: int | None = None,
     window: int | None = None,
     workers: int = 1,
@@ -369,6 +370,8 @@ def urts_smooth_windowed(
     ----------
     ukf : UnscentedKalmanFilter — the filter (its model steps are the session's).
     x0, P0, y, readout, store_dtype : as :meth:`UnscentedKalmanFilter.run`.
+    smooth_readout : ndarray (q, n), optional — rows the smoothed readout has after
+        ``readout``'s and the forward pass's has not (their variances cost q n^2 a step).
     max_store_bytes : int, optional — bytes of gains held at one time, all workers
         together; default :data:`DEFAULT_MAX_STORE_BYTES`.
     window : int, optional — steps per window; default: the whole session if its gains
@@ -400,6 +403,8 @@ def urts_smooth_windowed(
     M = readout_matrix(readout, n)
     p = M.shape[0]
     ro_arg = None if readout is None else M
+    back = ro_arg if smooth_readout is None else np.vstack(
+        [M, readout_matrix(smooth_readout, n)])
     run_window = _window_runner(ukf, y, spans, dtype, ro_arg)
     trace = _Trace(K, m, p)
 
@@ -415,7 +420,7 @@ def urts_smooth_windowed(
 
         held_last = [last]
         del last  # the list is the only reference: the pass frees it once smoothed
-        smoothed, peak_back = _backward_pass(spans, held_last, rerun, workers, held, ro_arg,
+        smoothed, peak_back = _backward_pass(spans, held_last, rerun, workers, held, back,
                                              backend, n)
         peak = max(peak, peak_back)
 

@@ -301,13 +301,15 @@ def estimate_from_session(
     t_done = time.perf_counter()
 
     std = np.sqrt(np.maximum(run.out_var, 0.0))
+    nodes = out.shape[1] - model.radii.size  # the face nodes' readouts, last
     # judged as published (a smoother's transient below a -40 degC air is no unit error)
     warnings.extend(check_estimate_result(above_air(out, inputs.t_amb)[:, :5], forward.nis))
     online = {p.name: run.ssm.index[p.name] for p in run.plan.online}
     band = reported_band(out, std, tuning, model, x0[: model.n_state],
                          inputs.q_brk * cal.power_scale, h, inputs.t_amb, spot_radii,
-                         options.spot)
-    frame = estimate_frame(inputs, model, run.states, out, band, tuning, h, online)
+                         options.spot, nodes)
+    frame = estimate_frame(inputs, model, run.states, out, band, tuning, h, online,
+                           band[:, nodes:])
     found = _frame_findings(frame, session, inputs, choice, warnings)
     open_loop = scores = None
     if options.score and len(inputs.measured) > 1:

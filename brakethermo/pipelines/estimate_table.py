@@ -16,14 +16,15 @@ from brakethermo.pipelines.tuning import EstimateTuning
 from brakethermo.thermal.model import DiscFEModel
 
 
-def band_std(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning) -> np.ndarray:
+def band_std(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning,
+             temps: list[int] | None = None) -> np.ndarray:
     """1-sigma of the true disc temperature: the filter's spread and the pyrometer's calibration.
 
     Every reading shares one calibration error (the carbon face's emissivity is known to a
     few hundredths and drifts with glazing and oxidation), so the filter, fed by that one
-    sensor, cannot see it; the reported band adds it in quadrature to the spot and
-    contact-band readouts, in % of the absolute temperature because an emissivity error
-    scales the radiance temperature.
+    sensor, cannot see it; the reported band adds it in quadrature to the temperature
+    readouts, in % of the absolute temperature because an emissivity error scales the
+    radiance temperature.
 
     Parameters
     ----------
@@ -33,24 +34,33 @@ def band_std(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning) -> np.nda
         The filter's (or smoother's) 1-sigma of each readout.
     tuning : EstimateTuning
         ``ir_calibration_pct``, 1-sigma in % of the absolute temperature.
+    temps : list of int, optional
+        The readouts that are temperatures (default the first five).
     """
+    cols = list(range(5)) if temps is None else temps
     band = std.copy()
-    calib = 0.01 * tuning.ir_calibration_pct * (out[:, :5] + 273.15)
-    band[:, :5] = np.hypot(std[:, :5], calib)
+    calib = 0.01 * tuning.ir_calibration_pct * (out[:, cols] + 273.15)
+    band[:, cols] = np.hypot(std[:, cols], calib)
     return band
 
 
 def reported_band(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning,
                   model: DiscFEModel, T0: np.ndarray, q: np.ndarray, h: np.ndarray,
-                  t_amb: np.ndarray, spot_radii: np.ndarray, spot: int) -> np.ndarray:
+                  t_amb: np.ndarray, spot_radii: np.ndarray, spot: int,
+                  node_start: int | None = None) -> np.ndarray:
     """The 1-sigma the outputs carry: the filter's, the pyrometer's calibration
     (:func:`band_std`) and what a crown balance unlike the law's would do at the spots
-    the filter does not measure (:mod:`brakethermo.pipelines.crown_band`)."""
-    band = band_std(out, std, tuning)
+    the filter does not measure (:mod:`brakethermo.pipelines.crown_band`); with
+    ``node_start``, the face nodes' readouts from that column on get the same."""
     H_spots = model.spot_matrix(spot_radii)
-    H = np.vstack([H_spots, H_spots[1:4].mean(axis=0)])
-    crown = crown_balance_std(model, T0, q, h, t_amb, H, spot, tuning.crown_balance_sd)
-    band[:, :5] = np.hypot(band[:, :5], crown)
+    rows, cols = [H_spots, H_spots[1:4].mean(axis=0, keepdims=True)], list(range(5))
+    if node_start is not None:
+        rows.append(model.spot_matrix(model.radii))
+        cols += range(node_start, node_start + model.radii.size)
+    band = band_std(out, std, tuning, cols)
+    crown = crown_balance_std(model, T0, q, h, t_amb, np.vstack(rows), spot,
+                              tuning.crown_balance_sd)
+    band[:, cols] = np.hypot(band[:, cols], crown)
     return band
 
 
@@ -74,9 +84,12 @@ def estimate_frame(
     tuning: EstimateTuning,
     h: np.ndarray,
     online: dict[str, int],
+    node_std: np.ndarray | None = None,
 ) -> pd.DataFrame:
     """The ``estimate.parquet`` table: time and lap, spot1..4 and the contact-band average
-    with their bands ``std``, the face nodes (``node_<k>``) and deepest-layer nodes
+    with their bands ``std``, the face nodes (``node_<k>``; with ``node_std`` (K, N),
+    degC, the hottest of them ``hottest_radius`` and its ``hottest_radius_std``) and
+    deepest-layer nodes
     (``mid_<k>``), the power scale and online effect factors the filter learned, the
     braking power and h."""
     cols: dict[str, np.ndarray] = {"time": inputs.time, "lap": inputs.lap.astype(np.int64)}
@@ -89,6 +102,11 @@ def estimate_frame(
     cols["contact_avg_std"] = std[:, 4]
     for k, j in enumerate(model.face_index):
         cols[f"node_{k}"] = np.fmax(states[:, j], floor)
+    if node_std is not None:  # the window is judged on the hottest radius too: its band
+        face = np.fmax(states[:, model.face_index], floor[:, None])
+        hot = np.argmax(face, axis=1)
+        cols["hottest_radius"] = face[np.arange(face.shape[0]), hot]
+        cols["hottest_radius_std"] = node_std[np.arange(face.shape[0]), hot]
     if model.layers > 1:
         mid = model.face_index + model.layers - 1
         for k, j in enumerate(mid):

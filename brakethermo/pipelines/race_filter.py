@@ -306,17 +306,21 @@ def readout_rows(ssm: DiscStateSpace | ReducedStateSpace, spot_radii: np.ndarray
 
 
 def run_filter(ukf: UnscentedKalmanFilter, x0: np.ndarray, P0: np.ndarray, y: np.ndarray,
-                readout: np.ndarray, smoother: bool, workers: int) -> tuple[Any, ...]:
+                readout: np.ndarray, smoother: bool, workers: int,
+                more: np.ndarray | None = None) -> tuple[Any, ...]:
     """Forward filter (and the smoother): the forward result, the states, the readout and
-    its variance, the smoother's windows and the forward pass's seconds."""
+    its variance (with the rows of ``more`` last, computed in the smoother's pass only),
+    the smoother's windows and the forward pass's seconds."""
     t0 = time.perf_counter()
     if smoother:
         # windows bound the gains' memory whatever the mesh and session length; the
         # answer is the whole-session smoother's (estimation.urts)
-        run = urts_smooth_windowed(ukf, x0, P0, y[:, None], readout=readout, workers=workers)
+        run = urts_smooth_windowed(ukf, x0, P0, y[:, None], readout=readout,
+                                   smooth_readout=more, workers=workers)
         s = run.smoothed
         return (run.forward, s.x_smooth, s.readout, s.readout_var, len(run.windows),
                 run.forward_s)
-    forward = ukf.run(x0, P0, y[:, None], store="diag", readout=readout)
+    rows = readout if more is None else np.vstack([readout, more])
+    forward = ukf.run(x0, P0, y[:, None], store="diag", readout=rows)
     return (forward, forward.x_filt, forward.readout, forward.readout_var, 1,
             time.perf_counter() - t0)

@@ -136,7 +136,9 @@ def lap_stats(
         ``contact_avg_std`` only), ``inside_pct`` (% of the lap), ``finite_spot1..4`` (the lap has
         a finite value of that spot), ``peak_hot`` (hottest radius,
         degC), ``peak_hot_t`` (lap time of it, s), ``peak_hot_radius_mm`` (where, NaN
-        without radii) and ``above_hot_s`` (hottest radius above the window, s).
+        without radii), ``above_hot_s`` (hottest radius above the window, s) and, with
+        ``hottest_radius_std``, ``above_hot_band_lo_s`` / ``above_hot_band_hi_s`` (the
+        hottest radius above the window at the low / high end of its 95 % band, s).
     """
     time = estimate["time"].to_numpy(dtype=float)
     dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
@@ -167,6 +169,10 @@ def lap_stats(
             **{f"finite_{s}": np.isfinite(estimate[s].to_numpy(dtype=float)) for s in SPOTS},
         }
     )
+    if "hottest_radius_std" in estimate:
+        spread = 1.96 * estimate["hottest_radius_std"].to_numpy(dtype=float)
+        work["above_hot_band_lo"] = (hot - spread > hi) * dt
+        work["above_hot_band_hi"] = (hot + spread > hi) * dt
     if band is not None:
         # the estimate's time outside the window is one draw of it: the band says how sure
         work["below_band_lo"] = (contact + band < lo) * dt
@@ -186,6 +192,9 @@ def lap_stats(
     out["peak_hot_t"] = work.loc[hot_at.to_numpy(), "t"].to_numpy()
     out["peak_hot_radius_mm"] = work.loc[hot_at.to_numpy(), "hot_r"].to_numpy()
     out["above_hot_s"] = g["above_hot"].sum()
+    if "above_hot_band_lo" in work:
+        out["above_hot_band_lo_s"] = g["above_hot_band_lo"].sum()
+        out["above_hot_band_hi_s"] = g["above_hot_band_hi"].sum()
     out["peak_contact"] = g["contact"].max()
     out["mean_contact"] = g["contact"].mean()
     out["below_s"] = g["below"].sum()
@@ -258,5 +267,9 @@ def lap_summaries(
                 "radius_mm": round(float(r_mm), 1) if np.isfinite(r_mm) else None,
                 "time_above_window_s": round(float(row["above_hot_s"]), 1),
             }
+            if "above_hot_band_lo_s" in row:
+                record["hottest"]["time_above_window_band_s"] = [
+                    round(float(row["above_hot_band_lo_s"]), 1),
+                    round(float(row["above_hot_band_hi_s"]), 1)]
         records.append(record)
     return records
