@@ -292,3 +292,14 @@ def test_a_reversed_torque_sign_is_said(sessions: dict[str, Path], tmp_path: Pat
     assert any("IMPLAUSIBLE RESULT" in w and "wheel_torque's sign" in w for w in said)
     clean = run_roller_rig(sessions["30"], opts).summary["warnings"]
     assert not any("IMPLAUSIBLE" in w or "holds one value" in w for w in clean)
+
+
+def test_naive_comparison_says_larger_when_the_filter_is_further_off():
+    from brakethermo.report.roller_rig_page import _naive_text
+
+    cmp = {"naive_traction_drop_mm": 0.2, "naive_traction_error_mm": -0.196,
+           "ukf_traction_error_mm": 1.121}
+    text = _naive_text(cmp, 320.0)
+    assert "5.7x larger error" in text and "smaller" not in text
+    cmp["ukf_traction_error_mm"] = 0.049
+    assert "4.0x smaller error" in _naive_text(cmp, 320.0)

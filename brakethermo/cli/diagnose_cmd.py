@@ -84,7 +84,8 @@ def diagnose_command(
     shrinks."""
     if radius is not None and not 0.05 <= radius <= 2.0:
         raise ConfigError(f"--radius {radius} m is not a wheel radius; give metres, 0.05 to 2")
-    if rig is None and len(sessions) == 1 and not sessions[0].suffix.lower() == ".toml":
+    # the first session says which: several rig sessions are refused one clear line on
+    if rig is None and sessions and not sessions[0].suffix.lower() == ".toml":
         from brakethermo.io.kinds import detect_rig
 
         rig = detect_rig(sessions[0], aliases)
@@ -206,7 +207,8 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
         raise ConfigError("--fit is a saved E-Booster training result, the reference instead"
                           " of --train: give one of the two, and only for a booster session")
     if len(sessions) != 1:
-        raise ConfigError("a rig diagnosis takes one session at a time")
+        raise ConfigError(f"a {rig} diagnosis takes one session at a time (pooling several is"
+                          " for four-spot disc sessions): run diagnose on each")
     from brakethermo.io.kinds import rig_kind
     from brakethermo.pipelines.output_dir import check_output_dir, check_session_folder
 

@@ -22,8 +22,9 @@ hands over the sum of squared errors per unit. Everything here resamples those u
   intervals overlap (look-alikes). Undecided candidates (below) are held to the same test
   and join the set after the significant ones: a single name is given only when it beats
   every other candidate that may be the cause clearly;
-- **undecided**: candidates whose interval straddles the threshold (the data can neither
-  confirm nor rule them out) are listed with what would decide them;
+- **undecided**: candidates that shrink the held-out gap at their best estimate and
+  whose interval straddles the threshold (the data can neither confirm nor rule them
+  out) are listed with what would decide them;
 - **at a bound**: a candidate whose fitted parameters sit at a bound of the range the
   caller allows them (not the effect's absent value) closes the gap only with a form
   past what it physically allows: it is neither significant nor undecided (the gap is
@@ -319,15 +320,18 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
     by_name = {c.name: c for c in candidates}
     rows = _ranked_rows(sse_before, candidates, rule)
     significant = [r["name"] for r in rows if r["significant"]]
+    # a fit that widens the held-out gap at its best estimate is no candidate for the
+    # cause, however wide its interval (a roller-rig creep slope: -272 % [-281, 75])
     undecided = [r["name"] for r in rows if not r["significant"] and not r.get("at_bound")
-                 and _may_matter(r, rule)]
+                 and _may_matter(r, rule) and r["shrink_pct"] > 0.0]
     reasons: list[str] = []
     verdict_set: list[str] = []
     if significant:
         verdict_set, reasons = _verdict_set(sse_before, rows, significant, undecided, by_name,
                                             rule)
     next_steps = _next_steps(verdict_set, undecided, rows, by_name, untestable)
-    edge = [r for r in rows if r.get("at_bound") and _may_matter(r, rule)]
+    edge = [r for r in rows if r.get("at_bound") and _may_matter(r, rule)
+            and r["shrink_pct"] > 0.0]
     next_steps += [f"{r['name']} closes {r['shrink_pct']:.0f} % of the held-out gap only with"
                    f" {r['at_bound']}, past what its form allows: not named (another"
                    f" unmodelled effect that looks like it is more likely)" for r in edge]

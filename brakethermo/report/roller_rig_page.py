@@ -258,9 +258,17 @@ def _naive_text(cmp: dict[str, Any], ref: float | None) -> str:
         naive_text += f" Here it drops by {drop:.3f} mm from free rolling to traction."
     if ref is not None and cmp.get("naive_traction_error_mm") is not None:
         n_err, u_err = abs(cmp["naive_traction_error_mm"]), abs(cmp["ukf_traction_error_mm"])
-        better = n_err / u_err if u_err > 0 else float("inf")
+        if u_err < n_err:
+            than = f"{n_err / u_err:.1f}x smaller error" if u_err > 0 else "no error"
+        elif u_err > n_err:
+            # the filter's creep (law, roller motor) is further off than the creep it adds
+            than = (f"{u_err / n_err:.1f}x larger error: the filter's creep law or roller"
+                    " motor departs from this rig's; see diagnose" if n_err > 0 else
+                    "the naive ratio is exact here")
+        else:
+            than = "the same error"
         naive_text += (
             f" Under traction the naive ratio is {n_err:.3f} mm off the reference, the UKF "
-            f"{u_err:.3f} mm ({better:.1f}x smaller error)."
+            f"{u_err:.3f} mm ({than})."
         )
     return naive_text

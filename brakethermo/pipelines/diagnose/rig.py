@@ -71,6 +71,7 @@ from brakethermo.rigs.signals import SPEED_WINDOW_S, smoothed_rate
 MIN_CYCLES = 12  # apply cycles for a cycle-wise split (6 held out); fewer: time blocks
 BLOCK_S = 1.0  # s, unit length when the session holds too few cycles
 RULE = VerdictRule(min_shrink_pct=10.0)
+UNEXPLAINED_FLOORS = 3.0  # a held-out gap this many sensor floors wide is said unexplained
 RIG_FILES = ("diagnosis.json", "diagnosis.parquet", "diagnosis")
 
 
@@ -93,18 +94,21 @@ class RigCase:
     next_step: Any  # callable(name, fitted parameters) -> str
     block_s: float = BLOCK_S  # s, unit length when the session holds too few apply cycles
     notes: tuple[str, ...] = ()  # the training session's warnings (e.g. resampled)
+    cycle: str = "apply cycle"  # what a stretch off rest is on this rig
+    phases: tuple[str, str, str] = ("applying", "releasing", "holding")  # input up/down/still
 
 
-def apply_units(x: np.ndarray, t: np.ndarray, rest: float, block_s: float = BLOCK_S
-                ) -> tuple[np.ndarray, str]:
-    """Unit id per sample (-1 at rest) and what a unit is."""
+def apply_units(x: np.ndarray, t: np.ndarray, rest: float, block_s: float = BLOCK_S,
+                cycle: str = "apply cycle") -> tuple[np.ndarray, str]:
+    """Unit id per sample (-1 at rest) and what a unit is (``cycle``, a stretch off rest,
+    or a time block)."""
     active = x > rest
     starts = np.flatnonzero(np.diff(active.astype(np.int8)) == 1) + 1
     if active[0]:
         starts = np.r_[0, starts]
     if starts.size >= MIN_CYCLES:
         ids = np.searchsorted(starts, np.arange(x.size), side="right") - 1
-        return np.where(active & (ids >= 0), ids, -1), "apply cycle"
+        return np.where(active & (ids >= 0), ids, -1), cycle
     blocks = np.floor((t - t[0]) / block_s).astype(int)
     return np.where(active, blocks, -1), f"{block_s:g} s block"
 
@@ -244,7 +248,7 @@ def _split(case: RigCase) -> _Split:
     """The session's apply cycles (or blocks) with a sensor reading, alternately fitting
     and held out (module docstring, step 2); DataError when fewer than 4."""
     ctx, y = case.ctx, case.measured
-    units, unit_kind = apply_units(ctx.x, ctx.t, case.rest, case.block_s)
+    units, unit_kind = apply_units(ctx.x, ctx.t, case.rest, case.block_s, case.cycle)
     units = np.where(np.isfinite(y), units, -1)
     ids = np.unique(units[units >= 0])
     if ids.size < 4:
@@ -291,10 +295,11 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
     ref_sse = unit_sse(ref - y, scored)[0]
     preds, params = _fit_effects(case, split.fitting)
     names = tuple(case.effects)
+    edge = {name: at_bound_words(case.effects[name], params[name]) for name in names}
     evidence = [CandidateEvidence(
         name, unit_sse(preds[name] - y, scored)[0], correction=(preds[name] - ref)[held],
         separate_by=case.effects[name].separate_by, next_step=case.next_step(name, params[name]),
-        n_params=len(case.effects[name].params))
+        n_params=len(case.effects[name].params), at_bound=edge[name])
         for name in names]
     size = {name: rmse((preds[name] - ref)[held], 0.0) for name in names}
     negligible = {n for n in names if not size[n] >= case.floor}
@@ -306,6 +311,15 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
             rows[e.name] = {"name": e.name, "shrink_pct": point, "shrink_ci95_pct": [lo, hi],
                             "significant": False, "rank": len(rows) + 1}
     best = decision.verdict if decision.verdict != "none" else None
+    gap = rmse((ref - y)[held], 0.0)
+    unexplained = []
+    if best is None and not decision.undecided and gap > UNEXPLAINED_FLOORS * case.floor:
+        unexplained = [
+            f"the reference misses this session by {gap:.3g} {case.unit} RMS on the held-out"
+            f" {split.kind}s, {gap / case.floor:.0f}x the sensor floor {case.floor:g}"
+            f" {case.unit}, and none of the candidates ({', '.join(names)}) explains it: an"
+            " effect outside them is at work (or the session's inputs are off: check the"
+            " channels' units and signs)"]
     effects_out = []
     for name in sorted(names, key=lambda n: rows[n]["rank"]):
         e, r = case.effects[name], rows[name]
@@ -319,7 +333,9 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
             "negligible": name in negligible,
             "units": dict(zip(e.params, e.units, strict=True)),
             "extension": e.extension, "separate_by": e.separate_by,
-            "evidence": _evidence(name, ref - y, held, ctx, case.unit, split.kind),
+            "evidence": _evidence(name, ref - y, held, ctx, case.unit, split.kind,
+                                  case.phases),
+            "at_bound": edge[name] or None,
             **({"vs_first_pp": r["vs_first_pp"]} if "vs_first_pp" in r else {}),
         })
     summary: dict[str, Any] = {
@@ -331,12 +347,13 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
         "units": split.kind,
         "train_units": [int(v) for v in split.ids[0::2]],
         "heldout_units": [int(v) for v in split.held_ids],
-        "gap": {"rmse": rmse((ref - y)[held], 0.0), **_phases(ref - y, held, ctx)},
+        "gap": {"rmse": gap, **_phases(ref - y, held, ctx, case.phases)},
         "where": _where(ref - y, held, ctx, case.rest),
         "consistency": {"summary": "no filter runs here: the trained relation is compared"
                         " with the sensor directly"},
         "effects": effects_out,
         **decision.summary(),
+        "next_steps": [*decision.next_steps, *unexplained],
         "negligible_below": case.floor,
         "verdict_reasons": [*decision.summary()["verdict_reasons"],
                             *_negligible_reasons(case, rows, size, negligible)],
@@ -374,10 +391,25 @@ def _booster_step(name: str, path: str | Path) -> str:
             " use")
 
 
-def _phases(err: np.ndarray, held: np.ndarray, ctx: RigContext) -> dict[str, Any]:
+def at_bound_words(e: RigEffect, fit: dict[str, float]) -> str:
+    """The fitted parameters that end on a bound of their range (not on a bound that is
+    the effect's absence, 0), in words; "" when none does."""
+    words = []
+    for name, unit, lo, hi in zip(e.params, e.units, e.lower, e.upper, strict=True):
+        v, tol = fit[name], 1e-3 * (hi - lo)
+        for bound, side in ((lo, "lower"), (hi, "upper")):
+            if bound != 0.0 and abs(v - bound) <= tol:
+                u = "" if unit == "-" else f" {unit}"
+                words.append(f"{name} = {v:.3g}{u}, at the {side} edge of its range"
+                             f" {lo:g} to {hi:g}")
+    return "; ".join(words)
+
+
+def _phases(err: np.ndarray, held: np.ndarray, ctx: RigContext,
+            names: tuple[str, str, str]) -> dict[str, Any]:
     moving = 0.05 * float(np.nanpercentile(np.abs(ctx.v), 95))
-    phase = {"applying": ctx.v > moving, "releasing": ctx.v < -moving,
-             "holding": np.abs(ctx.v) <= moving}
+    up, down, still = names
+    phase = {up: ctx.v > moving, down: ctx.v < -moving, still: np.abs(ctx.v) <= moving}
     return {"per_phase": {k: rmse(err[held & m], 0.0) for k, m in phase.items()},
             "bias": float(np.nanmean(err[held]))}
 
@@ -395,7 +427,8 @@ def _where(err: np.ndarray, held: np.ndarray, ctx: RigContext, rest: float
 
 
 def _evidence(name: str, res: np.ndarray, held: np.ndarray, ctx: RigContext, unit: str,
-              kind: str = "apply cycle") -> str:
+              kind: str = "apply cycle",
+              phases: tuple[str, str, str] = ("applying", "releasing", "holding")) -> str:
     """A sentence computed from the reference's held-out residual (model minus sensor)."""
     r, x, v = res[held], ctx.x[held], ctx.v[held]
     ok = np.isfinite(r)
@@ -411,8 +444,8 @@ def _evidence(name: str, res: np.ndarray, held: np.ndarray, ctx: RigContext, uni
         up, down = v > moving, v < -moving
         corr = np.corrcoef(r, v)[0, 1] if np.std(v) > 0 else float("nan")
         return (f"model minus sensor {np.mean(r[up]) if up.any() else float('nan'):+.3f}"
-                f" {unit} applying, {np.mean(r[down]) if down.any() else float('nan'):+.3f}"
-                f" {unit} releasing; correlation with the input's speed {corr:+.2f}")
+                f" {unit} {phases[0]}, {np.mean(r[down]) if down.any() else float('nan'):+.3f}"
+                f" {unit} {phases[1]}; correlation with the input's speed {corr:+.2f}")
     lo, hi = np.percentile(x, [25, 75])
     return (f"model minus sensor {np.mean(r[x <= lo]):+.3f} {unit} at low input,"
             f" {np.mean(r[x >= hi]):+.3f} {unit} at high input")

@@ -105,7 +105,8 @@ def diagnose_roller_rig(
                        " rolling-radius filter uses it (not refitted here)",
         reference_fit={"radius_mm": radius * 1e3, "mu0": spec.friction.mu0,
                        "k_a": spec.friction.k_a, "creep_law": creep_law},
-        next_step=lambda n, fit: _next_step(n, fit, spec.friction))
+        next_step=lambda n, fit: _next_step(n, fit, spec.friction),
+        cycle="creep episode", phases=("creep rising", "creep falling", "creep steady"))
     return run_case(case, t_start)
 
 

@@ -62,7 +62,8 @@ def diagnose_tyre(
         reference_text=f"Rudd's two-parameter curve (paper 003) fitted on the ramp's fitting"
                        f" blocks: peak μ {mu_p:.3f} at slip {s_p:.3f}",
         reference_fit={"mu_p": float(mu_p), "s_p": float(s_p)},
-        next_step=_next_step, block_s=BLOCK_S)
+        next_step=_next_step, block_s=BLOCK_S, cycle="slip episode",
+        phases=("slip rising", "slip falling", "slip steady"))
     return run_case(case, t_start)
 
 
