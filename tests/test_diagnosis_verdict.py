@@ -107,8 +107,23 @@ def test_nothing_significant_is_none_and_straddlers_are_undecided() -> None:
     lo, hi = d.rows[0]["shrink_ci95_pct"]
     if lo <= RULE.min_shrink_pct:
         assert d.verdict == "none" and d.verdict_set == []
-        if hi > RULE.min_shrink_pct:
+        if hi > RULE.min_shrink_pct and d.rows[0]["shrink_pct"] > 0:
             assert d.undecided == ["c"] and "more laps" in d.next_steps[-1]
+
+
+def test_a_fit_that_widens_the_held_out_gap_is_not_undecided() -> None:
+    # four times worse on half the units, far better on the others: an interval reaching
+    # past the threshold around a negative best estimate (a roller rig's creep slope:
+    # -272 % [-281, 75])
+    before = np.full(6, 100.0)
+    after = np.array([400.0, 1.0, 420.0, 2.0, 410.0, 1.0])
+    d = decide(before, [CandidateEvidence("c", after, separate_by="more laps")], RULE)
+    row = d.rows[0]
+    assert row["shrink_pct"] < 0 and row["shrink_ci95_pct"][1] > RULE.min_shrink_pct
+    assert d.undecided == [] and d.verdict == "none"
+    assert not any("more laps" in s for s in d.next_steps)
+    edge = decide(before, [CandidateEvidence("c", after, at_bound="a = 2, at its edge")], RULE)
+    assert not any("closes" in s for s in edge.next_steps)
 
 
 def test_shrink_interval_contains_point_and_is_exact_for_uniform_scaling() -> None:

@@ -286,3 +286,37 @@ def test_a_roller_rig_log_shorter_than_three_averaging_windows_is_refused(tmp_pa
     r = runner.invoke(app, ["diagnose", str(path), "--out", str(tmp_path / "o")])
     assert r.exit_code == 1 and "needs at least 12 s" in r.output.replace("\n", " ")
     assert "Traceback" not in r.output
+
+
+def test_a_gap_no_candidate_explains_is_said_and_bound_fits_are_flagged():
+    """A session the reference misses by a pattern none of the candidates has (a
+    once-per-second ripple unrelated to the input): 'none' says that the gap is
+    unexplained; a fit that ends on a bound of its range is flagged, not named."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from brakethermo.models.rig_effects import ROLLER_EFFECTS, RigContext
+    from brakethermo.pipelines.diagnose.rig import RigCase, at_bound_words, run_case
+
+    t = np.arange(0.0, 60.0, 0.01)
+    x = 0.002 * (1.0 + np.sin(2 * np.pi * t / 4.0))  # 15 creep episodes off rest
+    curve = lambda xi: 4e5 * xi  # noqa: E731 - the reference, N
+    y = curve(x) + 300.0 * np.sin(2 * np.pi * t * 1.1)
+    session = SimpleNamespace(path=Path("ripple.parquet"), time=t, warnings=[])
+    case = RigCase("roller-rig", session, dict(ROLLER_EFFECTS),
+                   RigContext(x, np.gradient(x, t), t, curve), y, rest=1e-4, floor=25.0,
+                   unit="N", input_name="creepage", input_unit="-", reference_text="linear",
+                   reference_fit={}, next_step=lambda n, fit: "", cycle="creep episode",
+                   phases=("creep rising", "creep falling", "creep steady"))
+    s = run_case(case, 0.0).summary
+    assert s["verdict"] == "none" and s["units"] == "creep episode"
+    assert set(s["gap"]["per_phase"]) == {"creep rising", "creep falling", "creep steady"}
+    assert any("none of the candidates" in step and "x the sensor floor" in step
+               for step in s["next_steps"]), s["next_steps"]
+    slope = ROLLER_EFFECTS["creep_slope"]
+    assert "upper edge" in at_bound_words(slope, {"slope_change": 2.0})
+    assert "lower edge" in at_bound_words(slope, {"slope_change": -0.8 + 1e-12})
+    assert at_bound_words(slope, {"slope_change": 0.3}) == ""
+    lag = ROLLER_EFFECTS["creepage_offset"]  # a bound of 0 would be the effect's absence
+    assert at_bound_words(lag, {"offset": 0.0}) == ""
