@@ -49,7 +49,9 @@ def test_laps_behind_another_bike_read_as_slipstream() -> None:
     levels = [1.04, 0.91, 0.92, 0.92, 0.96, 1.07, 1.09, 1.08]
     found = h_factor_found(*_race(levels), set(range(1, 9)), DT)
     assert found is not None and found.kind == "by lap"
-    assert "lower on lap 2, lap 3, lap 4 than on the others" in found.said
+    assert "lower on lap 2, lap 3, lap 4 (median 0.92) than on the others" in found.said
+    # the figure beside the sentence is the one the sentence gives for the others
+    assert f"the others (median {found.median:.2f})" in found.said
     assert h_factor_warning(found) == []
 
 

@@ -143,9 +143,11 @@ def _print_structure(s: StructureFit, session: Session, disc: str | None) -> Non
     )
     for name, values in s.effects.items():
         units = {p.name: p.unit for p in EFFECTS[name].params} if name in EFFECTS else {}
+        # in h_law.toml kz_factor is a share of the in-plane k(T), as the law's k_z ratio
         console.print(f"effect {name}: " + ", ".join(
-            f"{k} = {v:.3g}{_unit_text(units.get(k, ''))}" for k, v in values.items()
-            if isinstance(v, float)))
+            f"{k} = {v:.3g}{_unit_text(units.get(k, ''))}"
+            + (f" ({_kz_text(v, session, disc)})" if k == "kz_factor" else "")
+            for k, v in values.items() if isinstance(v, float)), highlight=False)
     console.print(
         "open-loop RMSE per spot °C: "
         + ", ".join(f"{k} {v:.1f} (uniform {s.rmse_uniform_c[k]:.1f})"

@@ -337,10 +337,10 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
                    f" unmodelled effect that looks like it is more likely)" for r in edge]
     reasons += [f"{r['name']} set aside: its fit ends at a bound ({r['at_bound']})"
                 for r in edge]
+    # an undecided one is listed once, with what would decide it
     unseen = {n: why for n, why in (untestable or {}).items()
-              if n in by_name and n not in significant}
-    next_steps += [f"{n} cannot be told on this data: {why}" for n, why in unseen.items()
-                   if n not in undecided]
+              if n in by_name and n not in significant and n not in undecided}
+    next_steps += [f"{n} cannot be told on this data: {why}" for n, why in unseen.items()]
     return Decision(verdict_set[0] if verdict_set else "none", verdict_set, rows, undecided,
                     next_steps, reasons, rule, unseen)
 

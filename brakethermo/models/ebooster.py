@@ -62,6 +62,7 @@ from brakethermo.rigs.booster import (
     pv_pressure,
 )
 from brakethermo.rigs.booster_datasheet import BoosterSpec
+from brakethermo.rigs.pv_curve import knots_pressure
 from brakethermo.rigs.signals import SPEED_WINDOW_S, smoothed_rate
 
 Array = NDArray[np.float64]
@@ -93,6 +94,13 @@ class BoosterFit:
         (empty when no choice was made).
     s2_max_mm : float — mm, the furthest screw travel of the training data; beyond it
         the p-V curve follows its tangent (inf: a fit saved before this was recorded).
+    pv_knots_mm, pv_knot_mpa : tuple of float — mm, MPa; when given, the p-V curve is
+        these pressures at these travels joined by straight lines
+        (:mod:`brakethermo.rigs.pv_curve`) and ``pv_coeffs`` is the polynomial it beat;
+        empty: the polynomial.
+    pv_heldout_mpa : tuple of float — MPa, each p-V candidate's held-out RMSE on the
+        training session, the polynomial first, then
+        :data:`~brakethermo.rigs.pv_curve.KNOT_COUNTS` (empty: no choice made).
     """
 
     pv_coeffs: tuple[float, float, float, float]
@@ -108,10 +116,23 @@ class BoosterFit:
     q_factor: float = 1.0
     q_heldout_nats: tuple[float, ...] = ()
     s2_max_mm: float = math.inf
+    pv_knots_mm: tuple[float, ...] = ()
+    pv_knot_mpa: tuple[float, ...] = ()
+    pv_heldout_mpa: tuple[float, ...] = ()
 
     def pressure(self, s2_mm: Array | float) -> Array:
         """MPa, the static pressure of the fitted p-V curve at screw travel ``s2_mm``."""
+        if self.pv_knots_mm:
+            return knots_pressure(s2_mm, np.array(self.pv_knots_mm), np.array(self.pv_knot_mpa))
         return pv_pressure(s2_mm, np.array(self.pv_coeffs), self.stroke_mm, self.s2_max_mm)
+
+    @property
+    def pv_curve(self) -> str:
+        """The p-V curve in words."""
+        if self.pv_knots_mm:
+            return (f"pressures at {len(self.pv_knots_mm)} travels joined by straight lines,"
+                    " never falling (NNLS)")
+        return "the paper's even polynomial of the travel (eq. 12, RLS)"
 
     def toml_text(self) -> str:
         """The fit as TOML (round-trips through :func:`load_fit`; io writes it)."""
@@ -144,6 +165,9 @@ def load_fit(path: str | Path) -> BoosterFit:
             q_factor=float(raw.get("q_factor", 1.0)),
             q_heldout_nats=tuple(float(v) for v in raw.get("q_heldout_nats", ())),
             s2_max_mm=float(raw.get("s2_max_mm", math.inf)),
+            pv_knots_mm=tuple(float(v) for v in raw.get("pv_knots_mm", ())),
+            pv_knot_mpa=tuple(float(v) for v in raw.get("pv_knot_mpa", ())),
+            pv_heldout_mpa=tuple(float(v) for v in raw.get("pv_heldout_mpa", ())),
         )
     except (KeyError, TypeError, ValueError) as exc:
         what = f"missing key {exc}" if isinstance(exc, KeyError) else str(exc)
@@ -180,6 +204,13 @@ def _fit_problem(fit: BoosterFit) -> str | None:
     if not fit.s2_max_mm > 0.0:  # inf (not recorded) is fine; nan, 0 and below are not
         return (f"'s2_max_mm' = {fit.s2_max_mm:g} is no screw travel (the training data's"
                 " furthest, mm > 0; leave it out of an older fit)")
+    knots, values = np.array(fit.pv_knots_mm), np.array(fit.pv_knot_mpa)
+    if knots.size or values.size:
+        if not (knots.size == values.size >= 2 and np.all(np.isfinite(knots))
+                and np.all(np.isfinite(values)) and np.all(np.diff(knots) > 0.0)
+                and np.all(np.diff(values) >= 0.0)):
+            return ("'pv_knots_mm' and 'pv_knot_mpa' are no p-V curve (as many pressures as"
+                    " travels, at least 2, travels increasing and pressures never falling)")
     p1, p2, *slopes = fit.disk  # eq. 14: breakpoints 0 <= p1 <= p2 (N), slopes >= 0 (mm/N)
     if not (0.0 <= p1 <= p2 and all(k >= 0.0 for k in slopes)):
         return (f"'disk' = {list(fit.disk)} is no reaction-disk curve (breakpoints"

@@ -11,6 +11,7 @@ followed by the RTS smoother (offline). Pressure channels, when present, only sc
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -44,8 +45,16 @@ from brakethermo.rigs.booster import (
     disk_quasi_static,
     disk_transfer,
     leverage_force,
+    pv_pressure,
 )
 from brakethermo.rigs.booster_datasheet import BoosterSpec, load_booster
+from brakethermo.rigs.pv_curve import (
+    KNOT_COUNTS,
+    choose_curve,
+    fit_knots,
+    knots_for,
+    knots_pressure,
+)
 from brakethermo.rigs.signals import SPEED_WINDOW_S, smoothed_rate
 
 Array = NDArray[np.float64]
@@ -182,9 +191,14 @@ def choose_q_factor(session: Session, spec: BoosterSpec) -> tuple[float, tuple[f
     nats = np.where(np.isfinite(total), total / count, np.nan)
     if not np.isfinite(nats).any():  # every factor lost its track: fit_warnings says so
         return 1.0, tuple(float(v) for v in nats)
-    best = int(np.nanargmax(nats))
     one = nats[Q_FACTORS.index(1.0)]
     base = one if np.isfinite(one) else -np.inf  # the datasheet's lost: any other is better
+    # a slow training sweep can show that the model needs more noise, not that the
+    # datasheet's is too much: it holds none of the fast applies where the model errs
+    # (an independent bench's p-V curve fitted closely chose 0.25, and the UKF lost its
+    # track on a vehicle session)
+    allowed = np.array([c >= 1.0 for c in Q_FACTORS])
+    best = int(np.nanargmax(np.where(allowed, nats, np.nan)))
     chosen = Q_FACTORS[best] if nats[best] > base + Q_MARGIN_NATS else 1.0
     return chosen, tuple(float(v) for v in nats)  # NaN: a factor whose filter lost a step
 
@@ -205,10 +219,12 @@ def fit_training(session: Session, spec: BoosterSpec) -> BoosterFit:
     f_in = _series(session, PEDAL, 1.0, gaps=True)
     delta = _series(session, DELTA, MM, gaps=True)
     ok = np.isfinite(p_m) & np.isfinite(f_in) & np.isfinite(delta)
-    # p-V: RLS on [u^2, u^4, u^6, u^8], u = s2 / stroke (eq. 12)
+    # p-V: RLS on [u^2, u^4, u^6, u^8], u = s2 / stroke (eq. 12), or a piecewise-linear
+    # curve where that predicts held-out training data better (rigs.pv_curve)
     X = even_powers(s2[ok] / spec.stroke_mm, PV_POWERS)
     rls = rls_fit(X, p_m[ok], lam=spec.forgetting, delta=spec.rls_delta)
-    pv_res = p_m[ok] - X @ rls.w
+    knots, values, heldout = pv_candidates(s2[ok], p_m[ok], spec)
+    pv_res = p_m[ok] - (knots_pressure(s2[ok], knots, values) if knots.size else X @ rls.w)
     # disk: net force from the leverage (eq. 10) with the measured pedal force
     force = leverage_force(p_m, s2, f_in, spec.area_mm2, spec.return_spring_n_per_mm,
                            spec.area_ratio)
@@ -226,7 +242,34 @@ def fit_training(session: Session, spec: BoosterSpec) -> BoosterFit:
         pv_rmse_mpa=rmse(pv_res),
         s2_max_mm=float(np.max(s2[ok])),
         disk_rmse_mm=disk_rmse,
+        pv_knots_mm=tuple(float(v) for v in knots),
+        pv_knot_mpa=tuple(float(v) for v in values),
+        pv_heldout_mpa=heldout,
     )
+
+
+def _pv_choice(fit: BoosterFit) -> str:
+    """The p-V candidates' held-out RMSE in words."""
+    names = ("polynomial", *(f"{k} knots" for k in KNOT_COUNTS))
+    return ", ".join(f"{n} {v:.3f} MPa" for n, v in zip(names, fit.pv_heldout_mpa,
+                                                         strict=False))
+
+
+def pv_candidates(s2: np.ndarray, p_m: np.ndarray, spec: BoosterSpec
+                  ) -> tuple[np.ndarray, np.ndarray, tuple[float, ...]]:
+    """The p-V curve :func:`~brakethermo.rigs.pv_curve.choose_curve` picks on training
+    samples (mm, MPa, in time order): its knots (mm) and pressures (MPa), both empty for
+    the paper's polynomial, and every candidate's held-out RMSE (MPa)."""
+    def polynomial(s: np.ndarray, p: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+        w = rls_fit(even_powers(s / spec.stroke_mm, PV_POWERS), p, lam=spec.forgetting,
+                    delta=spec.rls_delta).w
+        return lambda x: pv_pressure(x, w, spec.stroke_mm, float(np.max(s)))
+
+    count, heldout = choose_curve(s2, p_m, polynomial)
+    if count == 0:
+        return np.zeros(0), np.zeros(0), heldout
+    knots = knots_for(s2, p_m, count)
+    return knots, fit_knots(s2, p_m, knots), heldout
 
 
 SHIPPED_FIT_NOTE = (
@@ -557,13 +600,21 @@ def _summary(
         "noise_choice": _noise_choice(fit),
         "smoothed": smooth,
         "pv_fit": {
+            "curve": fit.pv_curve + (
+                f", chosen on held-out blocks of the training session ({_pv_choice(fit)})"
+                if fit.pv_heldout_mpa else ""),
+            "knots_mm": list(fit.pv_knots_mm),
+            "knot_pressures_mpa": list(fit.pv_knot_mpa),
+            "heldout_rmse_mpa": dict(zip(("polynomial", *(f"{k} knots" for k in KNOT_COUNTS)),
+                                         fit.pv_heldout_mpa, strict=False)),
             "coefficients_mpa": list(fit.pv_coeffs),
             "powers": list(PV_POWERS),
             "stroke_mm": fit.stroke_mm,
             "training_session": fit.train_session,
             "rmse_mpa": fit.pv_rmse_mpa,
             "s2_max_mm": fit.s2_max_mm if np.isfinite(fit.s2_max_mm) else None,
-            "beyond": "the curve's tangent beyond s2_max_mm (null: the polynomial everywhere)",
+            "beyond": "the curve's tangent beyond s2_max_mm (null: the polynomial everywhere)"
+                      if not fit.pv_knots_mm else "the last segment's slope beyond the last knot",
         },
         "disk_fit": {
             "three_slope": list(fit.disk),

@@ -97,16 +97,18 @@ def h_factor_found(h_factor: np.ndarray, braking: np.ndarray, lap: np.ndarray,
         word = "below" if m < 1.0 else "above"
         said = (f"the online h factor sat at {m:.2f} on every lap ({laps_text}): this race"
                 f" cools as if h were {100 * abs(m - 1.0):.0f} % {word} the law's everywhere off"
-                " the brakes, which no slipstream does (it comes and goes); the law may be"
-                " another day's, duct's or disc's, or miss a heat path of this disc:"
-                " identify-h on a test session of this bike and disc")
+                " the brakes, which no slipstream does (it comes and goes): the law may be"
+                " another day's, duct's or disc's (then identify-h on a test session of this"
+                " bike and disc), or the disc gains or loses heat in a way the model lacks"
+                " (to its carrier, say), which a law of this very bike and disc leaves")
         return HFactorFound(per_lap, m, "steady", said)
     low = [n for n, v in per_lap.items() if v < m * (1.0 - LAP_SPREAD)]
     if low:
         rest = float(np.median([v for n, v in per_lap.items() if n not in low]))
-        said = (f"the online h factor per lap {laps_text} (median {m:.2f}): lower on "
+        said = (f"the online h factor per lap {laps_text}: lower on "
                 + ", ".join(lap_name(n) for n in low)
-                + " than on the others, as when following another bike (slipstream)")
+                + f" (median {np.median([per_lap[n] for n in low]):.2f}) than on the others"
+                f" (median {rest:.2f}), as when following another bike (slipstream)")
         if abs(rest - 1.0) >= STEADY:  # and a law off for the race on the other laps
             said += (f"; on the others it sits at {rest:.2f}, {100 * abs(rest - 1.0):.0f} %"
                      f" {'below' if rest < 1.0 else 'above'} the law's h, which no"

@@ -376,6 +376,7 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
         if (w := ratio_warning(run, ratio_mm, _settled(run, free & both, t))) is not None),
         *_implausible(runs)]
     s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2], normal)
+    warnings += force_warning(F, torque, runs[0].states[:, 2], traction & both)
     naive = w_r * spec.roller_radius / np.where(np.abs(w_w) > 1e-9, w_w, np.nan) * 1e3
     ref = session.constant("rolling_radius_ref")
     # a reference the checks found implausible (said in the warnings) scores nothing
@@ -401,6 +402,35 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
 
 
 MAX_MEAN_NIS = 20.0  # clean sessions give 1-5; a reversed torque sign gave 80
+FORCE_RATIO_RANGE = (0.5, 2.0)  # creep force / (wheel torque / radius) in steady traction:
+# our own rig at 15-30 km/h 0.72-1.24, an independent rig's stiffer roller motor 2.1-3.6
+
+
+def force_warning(force: np.ndarray, torque: np.ndarray, radius_m: np.ndarray,
+                  traction: np.ndarray) -> list[str]:
+    """A warning when, under traction, the creep force the filter infers (N) is not what
+    the wheel's torque (N m) can pass through the contact at its radius (m): the wheel's
+    own balance F r = T holds to its bearing loss and inertia (a few per cent), so a
+    factor means the model's other side — the roller motor's torque from the datasheet
+    and the supply, the creep law — is not this rig's (an independent rig's stiffer
+    motor: 4320 N inferred against 1560 N possible), or the torque's sign is reversed."""
+    pull = torque / radius_m
+    ok = traction & np.isfinite(force) & np.isfinite(pull) & (np.abs(pull) > 0)
+    if ok.sum() < 10:
+        return []
+    ratio = float(np.median(force[ok] / pull[ok]))
+    lo, hi = FORCE_RATIO_RANGE
+    if lo <= ratio <= hi:
+        return []
+    why = ("the opposite sign: check wheel_torque's sign (traction +, CHANNELS.md)"
+           if ratio < 0 else
+           "so the model's roller side (the roller motor's torque at this supply, from the"
+           " rig datasheet and --supply-hz) or its creep law is not this rig's, or"
+           " wheel_torque's sign or unit is off (traction +, CHANNELS.md)")
+    return [f"IMPLAUSIBLE RESULT: under traction the filter's creep force is {ratio:.2f}x"
+            f" what the wheel's torque can pass through the contact (T/r, median), {why};"
+            " the radius under traction follows that model (the free-rolling radius and"
+            " the speed ratio do not)"]
 
 
 def _implausible(runs: Sequence[GuessRun]) -> list[str]:
@@ -412,7 +442,8 @@ def _implausible(runs: Sequence[GuessRun]) -> list[str]:
     return [f"IMPLAUSIBLE RESULT: the filter's innovations are {nis:.0f}x its noise (mean NIS)"
             " on every guess, the band widened to match: the model does not describe this"
             " session — check wheel_torque's sign (traction +, CHANNELS.md) and the units of"
-            " the speeds, the torque and normal_force"]
+            " the speeds, the torque and normal_force; with those right, the roller's drive"
+            " is not the datasheet's (a speed controller on the roller, another motor)"]
 
 
 def _guess_run(r0: float, res: Any, smoother: bool, t: np.ndarray, dt: float) -> GuessRun:
@@ -592,8 +623,8 @@ def ratio_warning(run: GuessRun, ratio_mm: float, free: np.ndarray) -> str | Non
             " own spread): the model's free-rolling forces (the roller motor's torque at this"
             " supply frequency, bearing drag) do not hold on this session, and the same model"
             f" carries the traction phases; the bands admit it (±{run.ratio_error_mm:.2f} mm,"
-            " 1σ). Check --supply-hz and the rig datasheet; the speed-ratio radius is the"
-            " free-rolling answer")
+            " 1σ). Check --supply-hz, the rig datasheet and the speeds' units; the"
+            " speed-ratio radius is the free-rolling answer")
 
 
 def _supply(

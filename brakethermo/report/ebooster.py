@@ -77,8 +77,9 @@ def _residual_figure(r: EboosterResult) -> Figure:
 def _pv_figure(r: EboosterResult) -> Figure:
     fig, ax = plt.subplots(figsize=(6, 4))
     s = np.linspace(0.0, max(float(np.max(r.s2)), 1.0), 200)
-    ax.plot(s, r.fit.pressure(s), color="k", label="RLS p–V fit (tangent beyond the training"
-            " travel)" if s[-1] > r.fit.s2_max_mm else "RLS p–V fit")
+    name = "p–V fit, knots" if r.fit.pv_knots_mm else "RLS p–V fit"
+    ax.plot(s, r.fit.pressure(s), color="k", label=f"{name} (tangent beyond the training"
+            " travel)" if s[-1] > r.fit.s2_max_mm else name)
     if "p_m" in r.validation:
         sl = _every(r.time.size)
         ax.plot(r.s2[sl], r.validation["p_m"][sl], ".", ms=1.5, alpha=0.4,
@@ -131,7 +132,7 @@ def booster_page(r: EboosterResult) -> Page:
         err = static_pressure(r) - r.validation["p_m"]
         pv_only = rmse(err)
     notes = [
-        f"p–V fit from {s['pv_fit']['training_session']} (RLS, λ = {r.spec.forgetting:g}); "
+        f"p–V fit from {s['pv_fit']['training_session']}: {s['pv_fit']['curve']}; "
         f"training RMSE {s['pv_fit']['rmse_mpa']:.4f} MPa"
         + (f"; the p–V curve alone on this session: {pv_only:.3f} MPa RMSE" if pv_only else ""),
         "The EKF linearises the chi-square pedal force F = F_scale w² at the mean of w; the "

@@ -616,6 +616,8 @@ def _write_index(
         laps=rows,
         flying_laps=flying_laps(int(v) for v in laps),
         has_out_lap=bool((laps == 0).any()),
+        partial_labels=[f"lap {r['label']}" for r in rows
+                        if r.get("partial") and r["label"] != "out-lap"],
         hottest=hottest,
         **(extras or {}),
         session_inside_pct=session_inside,

@@ -72,9 +72,11 @@ def disc_data_power(
         air = float(np.nanmedian(t_amb[flying]))
         lo, hi = float(np.percentile(read, 1)), float(np.percentile(read, 99))
         if lo - air > MAX_COLD_GAP_C:
+            near = float(np.mean(read - air <= MAX_COLD_GAP_C))
+            seldom = (f"only {100 * near:.1f} % of them" if near > 0 else "none of them")
             out["emissivity_error"] = (
                 f"98 % of the readings lie within {lo:.0f}–{hi:.0f} °C (1st to 99th"
-                f" percentile), never within"
+                f" percentile), {seldom} within"
                 f" {MAX_COLD_GAP_C:.0f} °C of the air ({air:.0f} °C; readings below"
                 f" {floor_c:.0f} °C are not used, where many pyrometers read nothing): there"
                 " a wrong emissivity is mostly a power"

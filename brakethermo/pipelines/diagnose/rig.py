@@ -163,8 +163,11 @@ def diagnose_booster(
         train_rmse=fit.pv_rmse_mpa,
         input_unit="mm",
         reference_text=f"the p-V curve of the training session {fit.train_session},"
-                       " p_m = f(s2), as the observer uses it (not refitted here)",
-        reference_fit={"pv_coeffs_mpa": list(fit.pv_coeffs), "stroke_mm": fit.stroke_mm},
+                       f" p_m = f(s2) ({fit.pv_curve}), as the observer uses it (not refitted"
+                       " here)",
+        reference_fit={"pv_coeffs_mpa": list(fit.pv_coeffs), "stroke_mm": fit.stroke_mm,
+                       "pv_knots_mm": list(fit.pv_knots_mm),
+                       "pv_knot_mpa": list(fit.pv_knot_mpa)},
         next_step=lambda n, _: _booster_step(n, path))
     return run_case(case, t_start)
 
