@@ -303,3 +303,18 @@ def test_naive_comparison_says_larger_when_the_filter_is_further_off():
     assert "5.7x larger error" in text and "smaller" not in text
     cmp["ukf_traction_error_mm"] = 0.049
     assert "4.0x smaller error" in _naive_text(cmp, 320.0)
+
+
+def test_a_creep_force_the_wheel_torque_cannot_pass_is_implausible():
+    from brakethermo.pipelines.roller_rig import force_warning
+
+    torque = np.full(200, 500.0)
+    radius = np.full(200, 0.32)
+    traction = np.ones(200, bool)
+    pull = torque / radius
+    assert force_warning(0.9 * pull, torque, radius, traction) == []
+    (said,) = force_warning(2.8 * pull, torque, radius, traction)
+    assert "2.80x" in said and "roller motor" in said
+    (said,) = force_warning(-pull, torque, radius, traction)
+    assert "opposite sign" in said and "wheel_torque" in said
+    assert force_warning(3 * pull, torque, radius, np.zeros(200, bool)) == []
