@@ -572,6 +572,28 @@ def _unchecked(res: ClampForceResult) -> list[str]:
             " models it fuses; train on a longer session with the force sensor"]
 
 
+RETRAIN_GAIN = 0.95  # re-trained stiffness held out must beat the old by this share
+
+
+def _retrain_warning(res: ClampForceResult) -> list[str]:
+    """When re-training gained nothing on its own session: the training session's
+    stiffness model misses the re-training session's force by no more than the re-trained
+    one does on held-out halves of it (an independent caliper whose contact point moves
+    from apply to apply: 4.69 -> 4.87 kN, said nowhere)."""
+    rt, cr = res.retrain, res.check_retrained
+    if rt is None or rt.force is None or cr is None or "stiffness" not in cr.rmse_n:
+        return []
+    old = rmse(res.models.stiffness.simulate(rt.theta) - rt.force) / 1e3
+    new = cr.rmse_n["stiffness"] / 1e3
+    if not (np.isfinite(old) and np.isfinite(new)) or new < RETRAIN_GAIN * old:
+        return []
+    return [f"re-training on {rt.session.path.name} gained nothing there: the training"
+            f" session's stiffness model misses its clamp force by {old:.2f} kN RMS, the"
+            f" re-trained one, on held-out halves of it, by {new:.2f} kN — the pads differ"
+            " less than this caliper's force does from apply to apply; the estimate without"
+            " re-training is in the file (*_not_retrained) and the page"]
+
+
 def _fusion_warnings(res: ClampForceResult, r: dict[str, float | None]) -> list[str]:
     """When the pads and the motor side cannot be told apart, and when this session's own
     sensor shows the reported estimate worse than an input it fuses."""
@@ -653,7 +675,7 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         "training_session": str(res.train.session.path),
         "warnings": [*res.data.session.warnings, *res.train.session.warnings,
                      *(res.retrain.session.warnings if res.retrain is not None else ()),
-                     *_unchecked(res), *_fusion_warnings(res, r)],
+                     *_unchecked(res), *_fusion_warnings(res, r), *_retrain_warning(res)],
     }
     if res.est_retrained is not None and res.models_retrained is not None and res.retrain:
         out["wear"] = {
