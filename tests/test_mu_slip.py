@@ -163,6 +163,26 @@ def test_a_second_ramp_in_the_log_is_said(tmp_path: Path) -> None:
                    for w in summary(mu_slip(path, MuSlipOptions()))["warnings"])
 
 
+def test_a_wheel_let_go_from_lock_swings_without_braking_again() -> None:
+    """An independent rig's wheel, released from lock, swung to slip -0.73 and back to
+    +0.45 within 60 ms before it rolled free: no second ramp; a real one after free
+    rolling still is."""
+    from types import SimpleNamespace
+
+    from brakethermo.pipelines.mu_slip import later_ramp_s
+
+    dt = 0.002
+    t = np.arange(0.0, 4.0, dt)
+    slip = np.where(t < 1.0, 1.0, 0.0)  # locked, then let go at 1 s
+    swing = (t >= 1.0) & (t < 1.1)
+    slip[swing] = 0.8 * np.exp(-(t[swing] - 1.0) / 0.03) * np.sin(2 * np.pi * 12 * (t[swing] - 1.0))
+    session = SimpleNamespace(time=t, dt=dt)
+    assert later_ramp_s(session, slip, int(0.99 / dt)) is None
+    again = slip.copy()
+    again[t >= 2.5] = np.minimum(1.0, (t[t >= 2.5] - 2.5) * 2.0)  # braking again at 2.5 s
+    assert later_ramp_s(session, again, int(0.99 / dt)) == pytest.approx(2.55, abs=0.01)
+
+
 def test_cli_writes_all_outputs(tmp_path: Path) -> None:
     path, _ = write_tyre_simulation(
         simulate_tyre_rig("dry", seed=8102), tmp_path / "rig.mcap"
@@ -428,6 +448,7 @@ def test_a_plain_slip_mu_table_is_a_point_set(tmp_path: Path) -> None:
     # without --points a table with no time is refused in one line
     res = CliRunner().invoke(app, ["mu-slip", str(plain), "--out", str(tmp_path / "x")])
     assert res.exit_code == 1 and "Traceback" not in res.output
+    assert "pass --points" in res.output  # it said 'the file has: mu' (slip read as time)
 
 
 def test_a_point_table_in_per_cent_is_named_and_its_label_honoured(tmp_path: Path) -> None:

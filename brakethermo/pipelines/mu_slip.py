@@ -37,7 +37,7 @@ from brakethermo.models.mu_slip import (
     rudd_ekf,
     rudd_lm,
 )
-from brakethermo.numeric import noise_std, rmse
+from brakethermo.numeric import noise_std, rmse, true_runs
 from brakethermo.pipelines.rig_checks import frozen_stretches
 from brakethermo.report.page import Card, Page, Section, TableBlock, consistency_text
 from brakethermo.rigs.tyre import rudd_mu
@@ -196,17 +196,24 @@ def find_ramp(session: Session, slip: np.ndarray) -> tuple[int, int]:
 
 
 def later_ramp_s(session: Session, slip: np.ndarray, lock: int) -> float | None:
-    """Time of a second braking ramp after the first one's lock (slip back to free rolling,
-    then past :data:`SECOND_RAMP_SLIP` again), s; None when the log holds one."""
+    """Time of a second braking ramp after the first one's lock (slip back to free rolling
+    and held there :data:`SETTLED_S`, then past :data:`SECOND_RAMP_SLIP` again), s; None
+    when the log holds one. A wheel let go from lock spins up with a swing of its own (an
+    independent rig's: slip -0.73, then +0.45 within 60 ms), no braking."""
     smooth = _smoothed(session, slip)
-    released = np.flatnonzero(smooth[lock:] <= 0.02)
-    if released.size == 0:
+    after = np.abs(smooth[lock:]) <= FREE_ROLLING_SLIP
+    hold = max(1, round(SETTLED_S / session.dt))
+    runs = [a for a, b in true_runs(after) if b - a >= hold]
+    if not runs:
         return None
-    again = np.flatnonzero(smooth[lock + released[0]:] > SECOND_RAMP_SLIP)
-    return None if again.size == 0 else float(session.time[lock + released[0] + again[0]])
+    settled = lock + runs[0]
+    again = np.flatnonzero(smooth[settled:] > SECOND_RAMP_SLIP)
+    return None if again.size == 0 else float(session.time[settled + again[0]])
 
 
 SECOND_RAMP_SLIP = 0.1  # –, slip a later braking must pass to count as another ramp
+FREE_ROLLING_SLIP = 0.02  # –, |slip| of a wheel rolling free
+SETTLED_S = 0.3  # s, free rolling held this long ends the first ramp's release
 MU_PLAUSIBLE = (0.05, 3.0)  # peak friction of any tyre on any surface, –
 
 
@@ -316,13 +323,31 @@ def free_rolling_check(session: Session, slip: np.ndarray, mu: np.ndarray, start
 MAX_FROZEN_SHARE = 0.2  # of a ramp's samples lost to a frozen force: the curve is not there
 
 
+def _point_table(path: str | Path, aliases: Path | None) -> bool:
+    """Whether the file reads as a (slip, μ) point table (every column a channel)."""
+    try:
+        table = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases,
+                             indexed=True)
+        slip_and_mu(table, None)
+    except (DataError, ConfigError):
+        return False
+    return True
+
+
 def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | None = None
                 ) -> RampPoints:
     """Read a session and keep the points ``mu-slip`` fits: the first braking ramp to lock
     (or every point of a point set), 0 < slip <= 1, μ plausible (DataError otherwise)."""
-    session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases,
-                           indexed=options.points)
-    slip, mu, radius = slip_and_mu(session, options.radius_m)
+    try:
+        session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=aliases,
+                               indexed=options.points)
+        slip, mu, radius = slip_and_mu(session, options.radius_m)
+    except DataError:
+        if not options.points and _point_table(path, aliases):
+            raise DataError("holds slip and μ columns and no time series: a (slip, μ) point"
+                            " table, as the paper's 40 points; pass --points",
+                            path=Path(path)) from None
+        raise
     warnings = _radius_warning(session, options.radius_m)
     frozen, where = np.zeros(mu.size, bool), []
     for channel in ("drag_force", "normal_force"):
