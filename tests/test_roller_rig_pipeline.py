@@ -218,6 +218,32 @@ def test_supply_frequency_inferred_without_the_fact(tmp_path: Path) -> None:
     assert abs(res.summary["runs"][0]["radius_mm"] - 348.2) < 0.5
 
 
+def test_the_sessions_own_supply_and_roller_radius_facts_are_read(tmp_path: Path) -> None:
+    """An independent rig's session said supply_hz and roller_radius_m; both were ignored
+    (the supply inferred, the datasheet's roller). A roller 1 % larger than the datasheet's
+    moves the wheel's radius 1 % (the speed ratio); a fact that is no radius is refused."""
+    from brakethermo.errors import DataError
+
+    sim = simulate_roller_rig(RollerRigSimConfig(speed_kmh=30.0, seed=207, duration_s=10.0,
+                                                 free_s=2.0))  # fmt: skip
+    spec_r = run_roller_rig(write_session(tmp_path / "plain.parquet", SessionData(
+        sim.session.channels, {})), RollerRigOptions(r0_mm=(350.0,), smoother=False))
+    r_data = spec_r.summary["filter"]["roller_radius_m"]
+    facts = {"supply_hz": "15", "roller_radius_m": repr(1.01 * r_data)}
+    res = run_roller_rig(write_session(tmp_path / "facts.parquet", SessionData(
+        sim.session.channels, facts)), RollerRigOptions(r0_mm=(350.0,), smoother=False))
+    assert res.supply_source == "session fact supply_hz" and res.supply_hz == 15.0
+    f = res.summary["filter"]
+    assert f["roller_radius_m"] == pytest.approx(1.01 * r_data)
+    assert f["roller_radius_source"].startswith("session fact roller_radius_m")
+    assert (res.summary["runs"][0]["radius_mm"]
+            == pytest.approx(1.01 * spec_r.summary["runs"][0]["radius_mm"], rel=2e-3))
+    bad = write_session(tmp_path / "bad.parquet", SessionData(sim.session.channels,
+                                                              {"roller_radius_m": "452"}))
+    with pytest.raises(DataError, match="roller_radius_m.*not a roller radius in metres"):
+        run_roller_rig(bad, RollerRigOptions(r0_mm=(350.0,), smoother=False))
+
+
 def test_any_accepted_guess_gives_the_same_radius_or_says_why(sessions: dict[str, Path]):
     """From 100 to 1000 mm: the same answer as from 320 mm (a guess outside the filter's
     basin is re-started from the free-rolling ratio, and the summary says so); never a

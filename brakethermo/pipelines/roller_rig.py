@@ -48,6 +48,31 @@ MIN_TRACTION_NM = 20.0  # a session whose request never exceeds this has no trac
 CONVERGED_MM = 1.0  # the estimate has converged once it stays this close to its end value
 CONVERGENCE_WINDOW_S = 0.25  # moving average of the filter track judged for convergence
 SUPPLY_FACT = "roller_supply_hz"
+SUPPLY_FACTS = (SUPPLY_FACT, "supply_hz")  # session facts naming the roller's supply, Hz
+ROLLER_RADIUS_FACTS = ("roller_radius_m",)  # ... and a roller radius unlike the datasheet's
+ROLLER_RADIUS_RANGE_M = (0.1, 2.5)
+
+
+def session_spec(session: Session, spec: RollerRigSpec) -> tuple[RollerRigSpec, str]:
+    """The datasheet with the session's own roller radius where it states one (a
+    re-profiled roller: the speed ratio's radius moves with it), and where the roller
+    radius came from."""
+    for key in ROLLER_RADIUS_FACTS:
+        fact = session.metadata.get(key)
+        if fact is None:
+            continue
+        try:
+            value = float(fact)
+        except ValueError:
+            value = math.nan
+        lo, hi = ROLLER_RADIUS_RANGE_M
+        if not lo <= value <= hi:
+            raise DataError(f"session fact {key}={fact!r} is not a roller radius in metres"
+                            f" ({lo:g}-{hi:g}); fix it, or leave it out for the datasheet's"
+                            f" {spec.roller_radius:g} m", path=session.path)
+        return replace(spec, roller_radius=value), (
+            f"session fact {key} (the datasheet {spec.id} says {spec.roller_radius:g} m)")
+    return spec, f"datasheet {spec.id}"
 REF_EXPECT = Expect("rolling_radius_ref", "m", 2.0, positive=True, role="score")
 
 RADIUS_RANGE_MM = (100.0, 1000.0)  # a tram wheel's rolling radius, and the accepted guesses
@@ -351,6 +376,7 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     spec = load_roller_rig(opts.rig)
     t_start = time.perf_counter()
     session = load_session(path, rate_hz=None, channels=CHANNELS, aliases=opts.aliases)
+    spec, roller_source = session_spec(session, spec)
     w_w, w_r, torque, normal, warnings, free, traction, both = rig_inputs(session, spec)
     supply, source = _supply(session, opts, spec, w_w, w_r, free & both)
     dt = session.dt
@@ -394,6 +420,8 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
             "tuning": opts.tuning,
             "creep_law": opts.creep_law,
             "with_effect": carried,
+            "roller_radius_m": spec.roller_radius,
+            "roller_radius_source": roller_source,
             "q_used": Q.tolist(),
             "r_used": R.tolist(),
         }
@@ -637,7 +665,8 @@ def _supply(
 ) -> tuple[float, str]:
     if opts.supply_hz is not None:
         return float(opts.supply_hz), "option --supply-hz"
-    fact = session.metadata.get(SUPPLY_FACT)
+    key = next((k for k in SUPPLY_FACTS if k in session.metadata), SUPPLY_FACT)
+    fact = session.metadata.get(key)
     if fact is not None:
         try:
             value = float(fact)
@@ -645,11 +674,11 @@ def _supply(
             value = math.nan
         if not (math.isfinite(value) and value > 0):
             raise DataError(
-                f"session fact {SUPPLY_FACT}={fact!r} is not a frequency in Hz;"
+                f"session fact {key}={fact!r} is not a frequency in Hz;"
                 " fix it or pass --supply-hz",
                 path=session.path,
             )
-        return value, f"session fact {SUPPLY_FACT}"
+        return value, f"session fact {key}"
     return infer_supply_hz(spec, w_w, w_r, free), "inferred from free rolling"
 
 

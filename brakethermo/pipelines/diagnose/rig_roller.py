@@ -32,6 +32,7 @@ from brakethermo.pipelines.roller_rig import (
     free_rolling_radius_mm,
     rig_inputs,
     rolling_sign,
+    session_spec,
 )
 from brakethermo.results.rig_diagnosis import RigDiagnosis
 from brakethermo.rigs.roller_rig import Friction, load_roller_rig
@@ -64,6 +65,7 @@ def diagnose_roller_rig(
     spec = load_roller_rig(rig)
     session = path if isinstance(path, Session) else load_session(
         path, rate_hz=None, channels=CHANNELS, aliases=aliases)
+    spec = session_spec(session, spec)[0]
     if not session.has("roller_torque"):
         raise DataError(
             "has no roller torque transducer: diagnose compares the creep law with the"
