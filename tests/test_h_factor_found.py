@@ -132,3 +132,26 @@ def test_a_race_that_leaves_slipstream_off_still_says_where_its_cooling_dropped(
     steady = h_factor_found(*_race([0.63] * 5), set(range(1, 6)), DT)
     quiet = SimpleNamespace(summary={"run": {"effects": {"slipstream": {"found": steady.facts()}}}})
     assert _by_lap(quiet) == {}
+
+
+def test_the_race_diagnosis_reads_the_h_factor_as_estimate_does() -> None:
+    """A race diagnosed as the set [slipstream, power_distribution] while estimate said
+    the factor sat at 0.87 on every lap: the diagnosis says it is no slipstream's."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from brakethermo.io.session import Lap
+    from brakethermo.pipelines.diagnose.single_spot import _not_slipstream
+
+    def reading(levels: list[float]) -> str:
+        f, braking, lap = _race(levels)
+        laps = [Lap(n, 60.0 * (n - 1), 60.0) for n in sorted(set(lap.tolist()))]
+        session = SimpleNamespace(laps=laps, dt=DT)
+        return _not_slipstream(session, SimpleNamespace(braking=braking),
+                               pd.DataFrame({"h_factor": f, "lap": lap}))
+
+    assert "0.87 on every lap alike" in reading([0.87, 0.86, 0.88, 0.87])
+    assert reading([1.04, 0.91, 0.92, 0.92, 0.96, 1.07, 1.09, 1.08]) == ""  # laps behind a bike
+    assert reading([1.01, 1.02, 0.99]) == ""  # near the law: may be a mild slipstream
+    assert "unevenly" in reading([0.60, 0.75, 0.60, 0.62])

@@ -240,7 +240,7 @@ def test_the_sessions_own_supply_and_roller_radius_facts_are_read(tmp_path: Path
             == pytest.approx(1.01 * spec_r.summary["runs"][0]["radius_mm"], rel=2e-3))
     bad = write_session(tmp_path / "bad.parquet", SessionData(sim.session.channels,
                                                               {"roller_radius_m": "452"}))
-    with pytest.raises(DataError, match="roller_radius_m.*not a roller radius in metres"):
+    with pytest.raises(DataError, match=r"roller_radius_m.*not a roller radius in metres"):
         run_roller_rig(bad, RollerRigOptions(r0_mm=(350.0,), smoother=False))
 
 

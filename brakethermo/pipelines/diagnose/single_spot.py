@@ -33,8 +33,10 @@ from brakethermo.pipelines.diagnose.layout import Layout, session_segments, zone
 from brakethermo.pipelines.diagnose.scores import score
 from brakethermo.pipelines.diagnose.where import _marginals, where_table
 from brakethermo.pipelines.estimate import SENSOR_FLOOR_C
+from brakethermo.pipelines.h_factor_found import h_factor_found
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.pipelines.models import SHIPPED_LAW_NOTE
+from brakethermo.results.laps import partial_laps
 from brakethermo.thermal.disc import DiscSpec
 
 # estimate.parquet's online columns are relative to the law's structure: their names here
@@ -81,6 +83,13 @@ def diagnose_single_spot(
     evidence = [_online_evidence(label, session, y, runs, ref_pred, units, layout.held,
                                  law_opt) for label in online]
     decision = decide(ref_sse, evidence, RULE)
+    if "slipstream" in decision.verdict_set:  # the same reading of the h factor as estimate's
+        form = _not_slipstream(session, inputs, runs["slipstream"].frame)
+        if form:
+            said = (f"slipstream's online h factor reads as no slipstream: {form}; carried"
+                    " online it still corrects the law for this race")
+            decision = replace(decision, next_steps=[said, *decision.next_steps],
+                               reasons=[*decision.reasons, said])
     rows = {r["name"]: r for r in decision.rows}
     best_pred = None
     effects_out = sorted(
@@ -123,6 +132,27 @@ def diagnose_single_spot(
     }
     return DiagnoseResult(session, summary, inputs.time, inputs.lap, y, ref_pred, best_pred,
                           dist, nis, {}, ref_sse, evidence)
+
+
+def _not_slipstream(session: Session, inputs: DiscInputs, frame: Any) -> str:
+    """Why the online h factor is no slipstream's ("" when it may be one): a slipstream
+    lowers h on some laps only, so a factor off the law on every lap alike, or off it
+    unevenly without laps below the others, is the law's departure or a heat path the
+    model lacks (a race diagnosed with a set [slipstream, ...] while estimate said the
+    factor sat at 0.87 on every lap; another named slipstream on a median of 1.45)."""
+    if "h_factor" not in frame:
+        return ""
+    partial = partial_laps(session.laps)
+    whole = {lap.lap for lap in session.laps if lap.lap >= 1 and lap.lap not in partial}
+    found = h_factor_found(frame["h_factor"].to_numpy(), inputs.braking,
+                           frame["lap"].to_numpy(), whole, float(session.dt))
+    if found is None or found.kind in ("by lap", "near the law"):
+        return ""
+    if found.kind == "steady":
+        return (f"{found.median:.2f} on every lap alike, where a slipstream comes and goes:"
+                " the law is off for this race, or the disc has a heat path the model lacks")
+    return (f"off the law's unevenly (median {found.median:.2f}) with no laps below the"
+            " others, as a slipstream would give")
 
 
 def _race_readings(inputs: DiscInputs) -> np.ndarray:
