@@ -418,3 +418,23 @@ def test_decision_lines_read_a_summary_that_has_been_through_json() -> None:
     online, law = _decisions(summary)
     assert "left off" in online and "no interval: fewer than two units" in online
     assert "dropped" in law and "not tested" in law and "nan" not in law
+
+
+def test_an_h_factor_left_off_alone_is_judged_again_on_top_of_kz(tmp_path) -> None:
+    """A low-k_z disc that also cools 40 % less than the law says: alone, the online h
+    factor tries to stand in for the k_z change and loses (-4 %); on top of k_z it
+    corrects the law (an independent generator's low-k_z races: 0.78x the single-spot
+    baseline with the h factor left off, 0.24x with it)."""
+    path, truth_path = write_simulation(simulate(SimConfig(
+        laps=4, sensor="single", seed=4711, effects={"thickness_gradient": 1.0},
+        cooling=0.6)), tmp_path / "low_kz_warm.parquet")
+    auto = estimate_session(path, EstimateOptions(smoother=False))
+    choice = auto.summary["run"]["online_choice"]
+    assert choice["chosen"] == ["thickness_gradient", "slipstream"], choice["scores"]
+    row = next(r for r in choice["scores"] if r["name"] == "slipstream")
+    assert row["on_top_of"] == ["thickness_gradient"] and row["shrink_ci95_pct"][0] > 5.0
+    assert row["alone"] < 0.0
+    kz_only = estimate_session(path, EstimateOptions(smoother=False, adapt_kz=True,
+                                                     adapt_slipstream=False))
+    truth = read_truth(truth_path)
+    assert _contact_rmse(auto.frame, truth) < _contact_rmse(kz_only.frame, truth)

@@ -220,6 +220,9 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
         lines.append(f"online {row.get('name')}: {verdict} — {row.get('test', '')}, shrink"
                      f" {as_number(row.get('shrink_pct')):.0f} % ({_interval(lo, hi)})"
                      + (f"; {row['like_law']}" if row.get("like_law") else "")
+                     + (f"; judged on top of {', '.join(row['on_top_of'])} (alone"
+                        f" {as_number(row.get('alone')):.0f} %)" if row.get("on_top_of")
+                        else "")
                      + (f"; on the laps it decided on, {row['by_lap']}"
                         if row.get("by_lap") and verdict == "left off" else ""))
     for row in choice.get("law_effects_tested", []):
