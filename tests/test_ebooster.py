@@ -506,6 +506,10 @@ def test_the_pv_curve_is_the_candidate_that_predicts_held_out_training_data(sess
     (tmp_path / "bad.toml").write_text(bad)
     with pytest.raises(ConfigError, match="no p-V curve"):
         load_fit(tmp_path / "bad.toml")
+    short = saved.read_text().replace("pv_heldout_mpa = [", "pv_heldout_mpa = [0.1, 0.2] #")
+    (tmp_path / "short.toml").write_text(short)
+    with pytest.raises(ConfigError, match="one per p-V candidate"):
+        load_fit(tmp_path / "short.toml")
     # a knee: flat to 4 mm, then steep; sampled up and down with noise, in time order
     rng = np.random.default_rng(0)
     s2 = np.tile(np.r_[np.linspace(0.0, 12.0, 3000), np.linspace(12.0, 0.0, 3000)], 3)

@@ -432,8 +432,9 @@ def test_an_h_factor_left_off_alone_is_judged_again_on_top_of_kz(tmp_path) -> No
     choice = auto.summary["run"]["online_choice"]
     assert choice["chosen"] == ["thickness_gradient", "slipstream"], choice["scores"]
     row = next(r for r in choice["scores"] if r["name"] == "slipstream")
-    assert row["on_top_of"] == ["thickness_gradient"] and row["shrink_ci95_pct"][0] > 5.0
-    assert row["alone"] < 0.0
+    top = row["on_top"]
+    assert top["of"] == ["thickness_gradient"] and top["significant"]
+    assert top["shrink_ci95_pct"][0] > 5.0 and row["shrink_pct"] < 0.0  # the test alone
     kz_only = estimate_session(path, EstimateOptions(smoother=False, adapt_kz=True,
                                                      adapt_slipstream=False))
     truth = read_truth(truth_path)

@@ -73,6 +73,16 @@ def test_a_booster_like_its_training_day_gets_none(tmp_path):
     # what the candidates would correct is below a pressure sensor's accuracy: said, not named
     assert set(s["negligible"]) >= {"pv_shift", "hysteresis"}
     assert all(e["correction_rms"] < s["negligible_below"] for e in s["effects"])
+    # a gap under the floor is no unexplained one: nothing to check on a clean session
+    assert not any("none of the candidates" in step for step in s["next_steps"])
+
+
+def test_a_floor_is_no_knife_edge():
+    from brakethermo.pipelines.diagnose.rig import TIE_SHARE, negligible_cut
+
+    assert negligible_cut({"a": 0.20, "b": 0.30}, 0.344) == 0.344  # none passes: the floor
+    cut = negligible_cut({"a": 0.3443, "b": 0.325}, 0.3441)  # one passes: the near one too
+    assert cut == pytest.approx(TIE_SHARE * 0.3441) and 0.325 >= cut
 
 
 def test_the_cli_finds_the_rig_and_keeps_the_rig_commands_results(tmp_path):
@@ -318,5 +328,9 @@ def test_a_gap_no_candidate_explains_is_said_and_bound_fits_are_flagged():
     assert "upper edge" in at_bound_words(slope, {"slope_change": 2.0})
     assert "lower edge" in at_bound_words(slope, {"slope_change": -0.8 + 1e-12})
     assert at_bound_words(slope, {"slope_change": 0.3}) == ""
-    lag = ROLLER_EFFECTS["creepage_offset"]  # a bound of 0 would be the effect's absence
-    assert at_bound_words(lag, {"offset": 0.0}) == ""
+    from brakethermo.models.rig_effects import TYRE_EFFECTS
+
+    lag = TYRE_EFFECTS["relaxation"]  # its bound of 0 is the effect's absence, no edge
+    (name,) = lag.params
+    assert lag.lower[0] == 0.0 and at_bound_words(lag, {name: 0.0}) == ""
+    assert "upper edge" in at_bound_words(lag, {name: lag.upper[0]})

@@ -62,7 +62,7 @@ from brakethermo.rigs.booster import (
     pv_pressure,
 )
 from brakethermo.rigs.booster_datasheet import BoosterSpec
-from brakethermo.rigs.pv_curve import knots_pressure
+from brakethermo.rigs.pv_curve import candidate_names, knots_pressure
 from brakethermo.rigs.signals import SPEED_WINDOW_S, smoothed_rate
 
 Array = NDArray[np.float64]
@@ -130,8 +130,9 @@ class BoosterFit:
     def pv_curve(self) -> str:
         """The p-V curve in words."""
         if self.pv_knots_mm:
-            return (f"pressures at {len(self.pv_knots_mm)} travels joined by straight lines,"
-                    " never falling (NNLS)")
+            return (f"pressures at {len(self.pv_knots_mm)} travels (knots merged where"
+                    " closer than a thousandth of the travel) joined by straight lines, never"
+                    " falling (NNLS)")
         return "the paper's even polynomial of the travel (eq. 12, RLS)"
 
     def toml_text(self) -> str:
@@ -204,6 +205,9 @@ def _fit_problem(fit: BoosterFit) -> str | None:
     if not fit.s2_max_mm > 0.0:  # inf (not recorded) is fine; nan, 0 and below are not
         return (f"'s2_max_mm' = {fit.s2_max_mm:g} is no screw travel (the training data's"
                 " furthest, mm > 0; leave it out of an older fit)")
+    if fit.pv_heldout_mpa and len(fit.pv_heldout_mpa) != len(candidate_names()):
+        return (f"'pv_heldout_mpa' holds {len(fit.pv_heldout_mpa)} values, one per p-V"
+                f" candidate ({', '.join(candidate_names())}) or none")
     knots, values = np.array(fit.pv_knots_mm), np.array(fit.pv_knot_mpa)
     if knots.size or values.size:
         if not (knots.size == values.size >= 2 and np.all(np.isfinite(knots))

@@ -49,7 +49,7 @@ from brakethermo.rigs.booster import (
 )
 from brakethermo.rigs.booster_datasheet import BoosterSpec, load_booster
 from brakethermo.rigs.pv_curve import (
-    KNOT_COUNTS,
+    candidate_names,
     choose_curve,
     fit_knots,
     knots_for,
@@ -158,7 +158,8 @@ def choose_q_factor(session: Session, spec: BoosterSpec) -> tuple[float, tuple[f
     :data:`Q_FACTORS` on the datasheet's noise of the physical states, the UKF's filtered
     p_m is scored by the Gaussian log-likelihood of the measured pressure (its variance
     plus the sensor's own noise from its first differences). The datasheet's Q (factor
-    1) stays unless another beats it by :data:`Q_MARGIN_NATS` per reading. Returns the
+    1) stays unless a larger one beats it by :data:`Q_MARGIN_NATS` per reading — never a
+    smaller one: a slow sweep cannot show that the datasheet's is too much. Returns the
     factor and the mean log-likelihood per reading of each factor (``()``: the session
     cannot be cut into two halves a fit can be trained on; the factor is then 1).
     """
@@ -197,8 +198,10 @@ def choose_q_factor(session: Session, spec: BoosterSpec) -> tuple[float, tuple[f
     # datasheet's is too much: it holds none of the fast applies where the model errs
     # (an independent bench's p-V curve fitted closely chose 0.25, and the UKF lost its
     # track on a vehicle session)
-    allowed = np.array([c >= 1.0 for c in Q_FACTORS])
-    best = int(np.nanargmax(np.where(allowed, nats, np.nan)))
+    allowed = np.where([c >= 1.0 for c in Q_FACTORS], nats, np.nan)
+    if not np.isfinite(allowed).any():  # only factors below the datasheet's kept track
+        return 1.0, tuple(float(v) for v in nats)
+    best = int(np.nanargmax(allowed))
     chosen = Q_FACTORS[best] if nats[best] > base + Q_MARGIN_NATS else 1.0
     return chosen, tuple(float(v) for v in nats)  # NaN: a factor whose filter lost a step
 
@@ -250,9 +253,8 @@ def fit_training(session: Session, spec: BoosterSpec) -> BoosterFit:
 
 def _pv_choice(fit: BoosterFit) -> str:
     """The p-V candidates' held-out RMSE in words."""
-    names = ("polynomial", *(f"{k} knots" for k in KNOT_COUNTS))
-    return ", ".join(f"{n} {v:.3f} MPa" for n, v in zip(names, fit.pv_heldout_mpa,
-                                                         strict=False))
+    return ", ".join(f"{n} {v:.3f} MPa" for n, v in zip(candidate_names(), fit.pv_heldout_mpa,
+                                                         strict=True))
 
 
 def pv_candidates(s2: np.ndarray, p_m: np.ndarray, spec: BoosterSpec
@@ -605,9 +607,10 @@ def _summary(
                 if fit.pv_heldout_mpa else ""),
             "knots_mm": list(fit.pv_knots_mm),
             "knot_pressures_mpa": list(fit.pv_knot_mpa),
-            "heldout_rmse_mpa": dict(zip(("polynomial", *(f"{k} knots" for k in KNOT_COUNTS)),
-                                         fit.pv_heldout_mpa, strict=False)),
+            "heldout_rmse_mpa": dict(zip(candidate_names() if fit.pv_heldout_mpa else (),
+                                         fit.pv_heldout_mpa, strict=True)),
             "coefficients_mpa": list(fit.pv_coeffs),
+            "coefficients_used": not fit.pv_knots_mm,
             "powers": list(PV_POWERS),
             "stroke_mm": fit.stroke_mm,
             "training_session": fit.train_session,
@@ -719,17 +722,19 @@ def _noise_choice(fit: BoosterFit) -> dict[str, Any]:
                " file without a choice, or a training session too short to cut in two)")
     else:
         best = Q_FACTORS[int(np.nanargmax(fit.q_heldout_nats))]
+        if fit.q_factor != 1.0:
+            kept = f"{fit.q_factor:g}x used"
+        elif best < 1.0:
+            kept = ("the datasheet's kept: never less, since a slow training sweep holds"
+                    " none of the fast applies where the model errs")
+        else:
+            kept = f"the datasheet's kept (another must gain {Q_MARGIN_NATS:g} nats per reading)"
         why = (f"trained on one half of {Path(fit.train_session).name}, observed on the other"
                f" (both ways): the held-out log-likelihood of its pressure sensor is highest"
-               f" at {best:g}x the datasheet's process noise; "
-               + (f"{fit.q_factor:g}x used" if fit.q_factor != 1.0 else
-                  f"the datasheet's kept (another must gain {Q_MARGIN_NATS:g} nats per"
-                  " reading)")
-               + (f"; the best is the {'smallest' if best == Q_FACTORS[0] else 'largest'}"
-                  " factor tried, so the session may want "
-                  + ("less" if best == Q_FACTORS[0] else "more") + " still: its innovations"
-                  " (consistency) say how far the band is off"
-                  if best in (Q_FACTORS[0], Q_FACTORS[-1]) else ""))
+               f" at {best:g}x the datasheet's process noise; {kept}"
+               + ("; the best is the largest factor tried, so the session may want more"
+                  " still: its innovations (consistency) say how far the band is off"
+                  if best == Q_FACTORS[-1] else ""))
     return {"q_factor": fit.q_factor, "factors": list(Q_FACTORS) if fit.q_heldout_nats else [],
             "heldout_loglik_per_reading": list(fit.q_heldout_nats), "why": why}
 

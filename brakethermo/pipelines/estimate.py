@@ -301,7 +301,9 @@ def estimate_from_session(
     t_done = time.perf_counter()
 
     std = np.sqrt(np.maximum(run.out_var, 0.0))
-    nodes = out.shape[1] - model.radii.size  # the face nodes' readouts, last
+    # the face nodes' readouts come last, when the smoother gave them
+    nodes = 5 + int(tuning.adapt_power)
+    nodes = nodes if out.shape[1] == nodes + model.radii.size else None
     # judged as published (a smoother's transient below a -40 degC air is no unit error)
     warnings.extend(check_estimate_result(above_air(out, inputs.t_amb)[:, :5], forward.nis))
     online = {p.name: run.ssm.index[p.name] for p in run.plan.online}
@@ -309,7 +311,7 @@ def estimate_from_session(
                          inputs.q_brk * cal.power_scale, h, inputs.t_amb, spot_radii,
                          options.spot, nodes)
     frame = estimate_frame(inputs, model, run.states, out, band, tuning, h, online,
-                           band[:, nodes:])
+                           None if nodes is None else band[:, nodes:])
     found = _frame_findings(frame, session, inputs, choice, warnings)
     open_loop = scores = None
     if options.score and len(inputs.measured) > 1:

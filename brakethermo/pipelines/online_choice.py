@@ -206,7 +206,7 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     chosen = [r["name"] for r in rows if r["significant"]]
     alike = [c for c in chosen if c in CONFOUNDED]
     chosen = [c for c in chosen if c not in alike[1:]]
-    chosen += _on_top(t, runs, rows, cal, chosen)
+    chosen += _on_top(t, runs, rows, cal, chosen, tested)
     flags = {ONLINE_FLAGS[c]: c in chosen for c in candidates}
     tested.extend(_later_tests(t, runs, cal, chosen))
     dropped = tuple(r["name"].removeprefix("without ") for r in tested if r["significant"])
@@ -316,28 +316,40 @@ def _judge_jointly(t: _Trial, joint: str, runs: dict[str, Any], rows: list[dict[
 
 
 def _on_top(t: _Trial, runs: dict[str, Any], rows: list[dict[str, Any]],
-            cal: DiscCalibration, chosen: list[str]) -> list[str]:
+            cal: DiscCalibration, chosen: list[str], tested: list[dict[str, Any]]
+            ) -> list[str]:
     """The one-step candidates left off, judged again on top of the states the race
-    chose: alone, an online h factor tries to stand in for a k_z change and loses, while on
-    a low-k_z disc with k_z online it still corrects the law (an independent generator's
-    low-k_z races: left off at -35 %, they ran 0.78x the single-spot baseline; with it
-    0.24x). Each row of ``rows`` it changes says so (``on_top_of``)."""
+    chose, on the law as the race will run it (without a law effect the joint test
+    dropped): alone, an online h factor tries to stand in for a k_z change and loses,
+    while on a low-k_z disc with k_z online it still corrects the law (an independent
+    generator's low-k_z races: left off at -35 %, they ran 0.78x the single-spot
+    baseline; with it 0.24x). Each such row gets its test on top (``on_top``); its own
+    figures stay the test alone."""
     rest = [r for r in rows if not r["significant"] and r["name"] not in STRUCTURAL]
     if not chosen or not rest:
         return []
+    dropped = [r["name"].removeprefix("without ") for r in tested
+               if r.get("must_earn") and r["significant"]]
+    law = cal
+    for name in dropped:
+        law = law_without(law, name)
     on = {**t.off, **{ONLINE_FLAGS[c]: True for c in chosen}}
-    variants = {} if len(chosen) == 1 else {"chosen": (replace(t.quick, **on), cal)}
+    # the run of what was chosen, when the decision has it already
+    have = {(): chosen[0]} if len(chosen) == 1 else {}
+    if t.joint is not None and chosen == [t.joint]:
+        have[tuple(t.later)] = f"without {t.later[0]} + {t.joint}"
+    base_key = have.get(tuple(dropped), "chosen")
+    variants = {} if base_key in runs else {"chosen": (replace(t.quick, **on), law)}
     variants.update({f"chosen + {r['name']}": (
-        replace(t.quick, **{**on, ONLINE_FLAGS[r["name"]]: True}), cal) for r in rest})
+        replace(t.quick, **{**on, ONLINE_FLAGS[r["name"]]: True}), law) for r in rest})
     runs.update(_run_variants(t.part, variants))
-    base = runs[chosen[0]] if len(chosen) == 1 else runs["chosen"]
     added = []
     for r in rest:
-        top = _one_step_test(base, runs[f"chosen + {r['name']}"], t.lap, t.cycles, t.rule)
+        top = _one_step_test(runs[base_key], runs[f"chosen + {r['name']}"], t.lap, t.cycles,
+                             t.rule)
+        r["on_top"] = {"of": list(chosen), **{k: top[k] for k in (
+            "shrink_pct", "shrink_ci95_pct", "significant", "test", "loglik_gain_per_reading")}}
         if top["significant"]:
-            r.update({k: top[k] for k in ("shrink_pct", "shrink_ci95_pct", "test",
-                                          "loglik_gain_per_reading")},
-                     significant=True, on_top_of=list(chosen), alone=r["shrink_pct"])
             added.append(r["name"])
     return added
 

@@ -309,8 +309,9 @@ def run_filter(ukf: UnscentedKalmanFilter, x0: np.ndarray, P0: np.ndarray, y: np
                 readout: np.ndarray, smoother: bool, workers: int,
                 more: np.ndarray | None = None) -> tuple[Any, ...]:
     """Forward filter (and the smoother): the forward result, the states, the readout and
-    its variance (with the rows of ``more`` last, computed in the smoother's pass only),
-    the smoother's windows and the forward pass's seconds."""
+    its variance (with the rows of ``more`` last: computed in the smoother's pass only
+    when it runs, else by the filter), the smoother's windows and the forward pass's
+    seconds."""
     t0 = time.perf_counter()
     if smoother:
         # windows bound the gains' memory whatever the mesh and session length; the

@@ -194,9 +194,11 @@ def _filtered(disc: DiscSpec, inputs: DiscInputs, y: np.ndarray, cal: DiscCalibr
                         tuning.init_sigma_temp)
     ukf = ukf_for(filt, tuning, spot_radius, cancel)
     t0 = time.perf_counter()
-    # the face nodes' bands (the hottest radius's), in the smoother's pass only
+    # the face nodes' bands (the hottest radius's) where a smoother runs, in its pass
+    # only: the decision's filter-only variants do without them
+    nodes = filt.H(model.radii) if tuning.smoother else None
     forward, states, out, out_var, windows, forward_s = run_filter(
-        ukf, x0, P0, y, readout, tuning.smoother, options.workers, filt.H(model.radii))
+        ukf, x0, P0, y, readout, tuning.smoother, options.workers, nodes)
     if isinstance(filt, ReducedStateSpace):
         states, x0 = filt.lift(states), filt.lift(x0)  # the full model's nodes, everywhere
     return RaceRun(cal, tuning, y, h, model, plan, ssm, order, sigma_meas_source, x0,

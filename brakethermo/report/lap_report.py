@@ -210,6 +210,15 @@ def _interval(lo: float, hi: float, fmt: str = "{:.0f}") -> str:
     return f"95 % {fmt.format(lo)} to {fmt.format(hi)} %"
 
 
+def _on_top_text(top: dict[str, Any] | None) -> str:
+    """A state's test on top of those switched on, in words ("" when it had none)."""
+    if not top:
+        return ""
+    lo, hi = (as_number(v) for v in top.get("shrink_ci95_pct", [None] * 2))
+    return (f"; on top of {', '.join(top.get('of', []))}, shrink"
+            f" {as_number(top.get('shrink_pct')):.0f} % ({_interval(lo, hi)})")
+
+
 def _decisions(summary: dict[str, Any] | None) -> list[str]:
     """The race's own choices (online states, the law's effects kept or dropped), in words."""
     choice = ((summary or {}).get("run") or {}).get("online_choice") or {}
@@ -220,9 +229,7 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
         lines.append(f"online {row.get('name')}: {verdict} — {row.get('test', '')}, shrink"
                      f" {as_number(row.get('shrink_pct')):.0f} % ({_interval(lo, hi)})"
                      + (f"; {row['like_law']}" if row.get("like_law") else "")
-                     + (f"; judged on top of {', '.join(row['on_top_of'])} (alone"
-                        f" {as_number(row.get('alone')):.0f} %)" if row.get("on_top_of")
-                        else "")
+                     + _on_top_text(row.get("on_top"))
                      + (f"; on the laps it decided on, {row['by_lap']}"
                         if row.get("by_lap") and verdict == "left off" else ""))
     for row in choice.get("law_effects_tested", []):

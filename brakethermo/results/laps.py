@@ -144,8 +144,6 @@ def lap_stats(
     dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.1
     lo, hi = window_c
     contact = estimate["contact_avg"].to_numpy(dtype=float)
-    band = (1.96 * estimate["contact_avg_std"].to_numpy(dtype=float)
-            if "contact_avg_std" in estimate else None)
     hot, hot_idx = hottest_radius(estimate)
     radii_mm = (
         np.asarray(node_radii, dtype=float) * 1e3 if node_radii is not None
@@ -169,16 +167,7 @@ def lap_stats(
             **{f"finite_{s}": np.isfinite(estimate[s].to_numpy(dtype=float)) for s in SPOTS},
         }
     )
-    if "hottest_radius_std" in estimate:
-        spread = 1.96 * estimate["hottest_radius_std"].to_numpy(dtype=float)
-        work["above_hot_band_lo"] = (hot - spread > hi) * dt
-        work["above_hot_band_hi"] = (hot + spread > hi) * dt
-    if band is not None:
-        # the estimate's time outside the window is one draw of it: the band says how sure
-        work["below_band_lo"] = (contact + band < lo) * dt
-        work["below_band_hi"] = (contact - band < lo) * dt
-        work["above_band_lo"] = (contact - band > hi) * dt
-        work["above_band_hi"] = (contact + band > hi) * dt
+    _band_times(work, estimate, window_c, dt)
     g = work.groupby("lap", sort=True)
     out = pd.DataFrame({"start_s": g["start"].first(), "lap_time_s": g["t"].max() + dt})
     for s in SPOTS:
@@ -192,20 +181,38 @@ def lap_stats(
     out["peak_hot_t"] = work.loc[hot_at.to_numpy(), "t"].to_numpy()
     out["peak_hot_radius_mm"] = work.loc[hot_at.to_numpy(), "hot_r"].to_numpy()
     out["above_hot_s"] = g["above_hot"].sum()
-    if "above_hot_band_lo" in work:
-        out["above_hot_band_lo_s"] = g["above_hot_band_lo"].sum()
-        out["above_hot_band_hi_s"] = g["above_hot_band_hi"].sum()
     out["peak_contact"] = g["contact"].max()
     out["mean_contact"] = g["contact"].mean()
     out["below_s"] = g["below"].sum()
     out["above_s"] = g["above"].sum()
     out["inside_s"] = g["inside"].sum()
-    if band is not None:
-        for c in ("below_band_lo", "below_band_hi", "above_band_lo", "above_band_hi"):
+    for c in ("below_band_lo", "below_band_hi", "above_band_lo", "above_band_hi",
+              "above_hot_band_lo", "above_hot_band_hi"):
+        if c in work:
             out[f"{c}_s"] = g[c].sum()
     out["inside_pct"] = 100.0 * out["inside_s"] / out["lap_time_s"]
     out.index.name = "lap"
     return out
+
+
+def _band_times(work: pd.DataFrame, estimate: pd.DataFrame, window_c: tuple[float, float],
+                dt: float) -> None:
+    """Time per step (s) below / above the window at the low and high ends of the contact
+    band's and the hottest radius's 95 % bands, into ``work``: the estimate's own time
+    outside the window is one draw of it, the band says how sure."""
+    lo, hi = window_c
+    if "contact_avg_std" in estimate:
+        band = 1.96 * estimate["contact_avg_std"].to_numpy(dtype=float)
+        contact = work["contact"].to_numpy()
+        work["below_band_lo"] = (contact + band < lo) * dt
+        work["below_band_hi"] = (contact - band < lo) * dt
+        work["above_band_lo"] = (contact - band > hi) * dt
+        work["above_band_hi"] = (contact + band > hi) * dt
+    if "hottest_radius_std" in estimate:
+        spread = 1.96 * estimate["hottest_radius_std"].to_numpy(dtype=float)
+        hot = work["hot"].to_numpy()
+        work["above_hot_band_lo"] = (hot - spread > hi) * dt
+        work["above_hot_band_hi"] = (hot + spread > hi) * dt
 
 
 def lap_summaries(

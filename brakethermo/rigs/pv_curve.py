@@ -30,12 +30,18 @@ CV_BLOCKS = 10  # time blocks of the training session, alternately fitted and sc
 PARSIMONY = 0.02  # a simpler candidate within this share of the best held-out RMSE wins
 
 
+def candidate_names() -> tuple[str, ...]:
+    """The p-V candidates in the order :func:`choose_curve` scores them."""
+    return ("polynomial", *(f"{k} knots" for k in KNOT_COUNTS))
+
+
 def knots_for(s2_mm: Array, p_mpa: Array, count: int) -> Array:
     """About ``count`` + 1 knots (mm), increasing, spanning the travel of the data."""
     order = np.argsort(s2_mm)
     s, p = s2_mm[order], np.maximum.accumulate(p_mpa[order])
     rising = p + 1e-9 * np.arange(p.size)  # strictly increasing for the inverse lookup
-    by_pressure = np.interp(np.quantile(p, np.linspace(0.0, 1.0, count // 2 + 1)), rising, s)
+    # equal steps of pressure (quantiles of it would be the travel's again: p rises with s)
+    by_pressure = np.interp(np.linspace(rising[0], rising[-1], count // 2 + 1), rising, s)
     by_travel = np.linspace(s[0], s[-1], count // 2 + 1)
     knots = np.unique(np.round(np.concatenate([by_pressure, by_travel]), 6))
     # merge knots closer than a thousandth of the travel (an empty segment fits nothing)
@@ -87,7 +93,10 @@ def choose_curve(s2_mm: Array, p_mpa: Array,
             return lambda x: knots_pressure(x, knots, values)
         fitters.append(pl)
     rmse = []
-    for fit in fitters:
+    for i, fit in enumerate(fitters):
+        if i and knots_for(s2_mm, p_mpa, KNOT_COUNTS[i - 1]).size < 2:
+            rmse.append(np.inf)  # a travel that hardly moves: one knot, no curve
+            continue
         err = [p_mpa[~m] - fit(s2_mm[m], p_mpa[m])(s2_mm[~m]) for m in (first, ~first)]
         rmse.append(float(np.sqrt(np.mean(np.concatenate(err) ** 2))))
     best = min(rmse)

@@ -13,6 +13,7 @@ import numpy as np
 from brakethermo import __version__
 from brakethermo.diagnosis.verdict import (
     CandidateEvidence,
+    Decision,
     decide,
     unit_sse,
 )
@@ -82,14 +83,7 @@ def diagnose_single_spot(
     law_opt = f" --h-law {options.h_law}" if options.h_law is not None else ""
     evidence = [_online_evidence(label, session, y, runs, ref_pred, units, layout.held,
                                  law_opt) for label in online]
-    decision = decide(ref_sse, evidence, RULE)
-    if "slipstream" in decision.verdict_set:  # the same reading of the h factor as estimate's
-        form = _not_slipstream(session, inputs, runs["slipstream"].frame)
-        if form:
-            said = (f"slipstream's online h factor reads as no slipstream: {form}; carried"
-                    " online it still corrects the law for this race")
-            decision = replace(decision, next_steps=[said, *decision.next_steps],
-                               reasons=[*decision.reasons, said])
+    decision = _h_factor_read(decide(ref_sse, evidence, RULE), session, inputs, runs)
     rows = {r["name"]: r for r in decision.rows}
     best_pred = None
     effects_out = sorted(
@@ -132,6 +126,21 @@ def diagnose_single_spot(
     }
     return DiagnoseResult(session, summary, inputs.time, inputs.lap, y, ref_pred, best_pred,
                           dist, nis, {}, ref_sse, evidence)
+
+
+def _h_factor_read(decision: Decision, session: Session, inputs: DiscInputs,
+                   runs: dict[str, Any]) -> Decision:
+    """``decision`` with the slipstream run's h factor read as estimate reads it, where
+    slipstream is in the verdict and its factor is no slipstream's."""
+    if "slipstream" not in decision.verdict_set:
+        return decision
+    form = _not_slipstream(session, inputs, runs["slipstream"].frame)
+    if not form:
+        return decision
+    said = (f"slipstream's online h factor reads as no slipstream: {form}; carried online"
+            " it still corrects the law for this race")
+    return replace(decision, next_steps=[said, *decision.next_steps],
+                   reasons=[*decision.reasons, said])
 
 
 def _not_slipstream(session: Session, inputs: DiscInputs, frame: Any) -> str:
