@@ -152,7 +152,7 @@ def test_a_given_effect_the_session_cannot_test_is_not_carried(sim_test_session,
                         IdentifyOptions(with_effects="emissivity_error,sensor_lag"))
     sel = result.summary["effect_selection"]
     assert result.summary["with_effects"] == ["sensor_lag"] == sel["selected"]
-    assert "never within 100 °C of the air" in sel["not_carried"]["emissivity_error"]
+    assert "none of them within 100 °C of the air" in sel["not_carried"]["emissivity_error"]
     assert any("emissivity_error: not carried" in w for w in result.summary["run"]["warnings"])
     law = tomllib.loads((write_identify(result, tmp_path) / "h_law.toml").read_text())
     assert set(law["effects"]) == {"sensor_lag"}

@@ -31,7 +31,12 @@ from brakethermo.models.disc import DiscStateSpace
 from brakethermo.models.reduced import MAX_MODES
 from brakethermo.pipelines.checks import check_estimate_result, check_power_scale
 from brakethermo.pipelines.estimate_scores import self_scores
-from brakethermo.pipelines.estimate_table import above_air, estimate_frame, reported_band
+from brakethermo.pipelines.estimate_table import (
+    above_air,
+    estimate_frame,
+    node_rows_start,
+    reported_band,
+)
 from brakethermo.pipelines.h_factor_found import HFactorFound, h_factor_found, h_factor_warning
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
@@ -301,9 +306,7 @@ def estimate_from_session(
     t_done = time.perf_counter()
 
     std = np.sqrt(np.maximum(run.out_var, 0.0))
-    # the face nodes' readouts come last, when the smoother gave them
-    nodes = 5 + int(tuning.adapt_power)
-    nodes = nodes if out.shape[1] == nodes + model.radii.size else None
+    nodes = node_rows_start(out, tuning, model)
     # judged as published (a smoother's transient below a -40 degC air is no unit error)
     warnings.extend(check_estimate_result(above_air(out, inputs.t_amb)[:, :5], forward.nis))
     online = {p.name: run.ssm.index[p.name] for p in run.plan.online}

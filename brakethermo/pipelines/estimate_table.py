@@ -64,6 +64,14 @@ def reported_band(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning,
     return band
 
 
+def node_rows_start(out: np.ndarray, tuning: EstimateTuning, model: DiscFEModel
+                    ) -> int | None:
+    """The column of ``out`` where the face nodes' readouts start (they come last, when
+    the smoother gave them: ``race_filter.run_filter``), or None."""
+    start = 5 + int(tuning.adapt_power)
+    return start if out.shape[1] == start + model.radii.size else None
+
+
 def above_air(out: np.ndarray, t_amb: np.ndarray) -> np.ndarray:
     """The spots and the contact average (``out[:, :5]``, degC) as published: a disc is
     never colder than the air (degC) around it, so the estimate is projected onto
