@@ -34,6 +34,8 @@ class Expect:
     role : ``"input"`` (the estimate is made from it) or ``"score"`` (it only scores).
     measured : bool — a sensor's reading (False: a command, which may hold a value
         exactly, as a torque request of 0 in free rolling does).
+    setpoint : bool — a rig may log it as a set-point, one value throughout (an air
+        spring's load): taken, with a warning, where a measured channel would be refused.
     """
 
     channel: str
@@ -42,6 +44,7 @@ class Expect:
     positive: bool = False
     role: Literal["input", "score"] = "input"
     measured: bool = True
+    setpoint: bool = False
 
 
 def _fault(v: np.ndarray, e: Expect) -> str | None:
@@ -89,6 +92,11 @@ def check_rig_channels(session: Session, expects: Sequence[Expect]) -> list[str]
             if v.size < 2:
                 continue
         else:
+            continue
+        if e.setpoint and v.size > 1 and np.ptp(v) == 0.0 and 0.0 < v[0] <= e.most:
+            warnings.append(f"channel '{e.channel}' holds {float(v[0]):.4g} {e.unit}"
+                            " throughout: taken as the rig's set-point (a frozen sensor"
+                            " would read so too)")
             continue
         fault = _fault(v, e)
         if fault is None:

@@ -264,7 +264,8 @@ def rig_inputs(session: Session, spec: RollerRigSpec) -> tuple[Any, ...]:
     # the rig's own checks above name the common faults first; then every channel
     notes = check_rig_channels(session, (
         Expect("wheel_omega", "rad/s", 1e3), Expect("roller_omega", "rad/s", 1e3),
-        Expect("normal_force", "N", 5e5), Expect("wheel_torque", "N m", 1e5, measured=False),
+        Expect("normal_force", "N", 5e5, setpoint=True),
+        Expect("wheel_torque", "N m", 1e5, measured=False),
         Expect("roller_torque", "N m", 1e5, role="score"),
         REF_EXPECT))
     warnings = [*session.warnings, *notes]
