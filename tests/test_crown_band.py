@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from brakethermo.pipelines.crown_band import crown_balance_std
 from brakethermo.thermal.disc import load_disc
@@ -31,3 +32,12 @@ def test_the_term_is_zero_at_the_measured_spot_and_grows_with_the_prior():
     grow = large.mean(axis=0)[[0, 1, 3, 4]] / small.mean(axis=0)[[0, 1, 3, 4]]
     assert np.all(grow > 2.5), grow  # about linear in the prior's sigma
     np.testing.assert_array_equal(crown_balance_std(model, T0, q, h, ta, H, 3, 0.0), 0.0)
+
+
+def test_a_strongly_uneven_law_crown_widens_the_balance_it_admits() -> None:
+    from brakethermo.pipelines.crown_band import crown_sd
+
+    assert crown_sd(np.array([0.845, 1.025, 1.10]), 0.25) == 0.25  # a usual crown
+    wide = crown_sd(np.array([0.40, 0.97, 1.52]), 0.25)  # a test session's tilted pads
+    assert wide == pytest.approx(0.5 * np.log(1.52 / 0.40))
+    assert crown_sd(np.array([0.40, 0.97, 1.52]), 0.0) == 0.0  # off stays off

@@ -19,6 +19,19 @@ from brakethermo.thermal.model import DiscFEModel
 from brakethermo.thermal.power import crown_load
 
 
+def crown_sd(weights: np.ndarray, base_sd: float) -> float:
+    """1-sigma of the race's crown balance (log of the inner/outer weight ratio): the
+    tuning's ``base_sd``, or half the law's own tilt where that is larger — a crown as
+    uneven as a test session's pads made it may not be the race's, which may press
+    anywhere from it to an even crown (an independent generator's law of 0.40 / 0.97 /
+    1.52 on races with even pads: the unmeasured spots 46-102 degC off, their bands
+    covering 1-53 %). 0 stays off."""
+    w = np.asarray(weights, float)
+    if not base_sd > 0.0 or not (np.all(np.isfinite(w)) and w[0] > 0.0 and w[-1] > 0.0):
+        return base_sd
+    return max(base_sd, 0.5 * abs(float(np.log(w[0] / w[-1]))))
+
+
 def crown_balance_std(model: DiscFEModel, T0: np.ndarray, q: np.ndarray, h: np.ndarray,
                       t_amb: np.ndarray, H: np.ndarray, spot: int, sigma_b: float,
                       ) -> np.ndarray:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from brakethermo.pipelines.crown_band import crown_balance_std
+from brakethermo.pipelines.crown_band import crown_balance_std, crown_sd
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.pipelines.tuning import EstimateTuning
 from brakethermo.thermal.model import DiscFEModel
@@ -59,7 +59,7 @@ def reported_band(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning,
         cols += range(node_start, node_start + model.radii.size)
     band = band_std(out, std, tuning, cols)
     crown = crown_balance_std(model, T0, q, h, t_amb, np.vstack(rows), spot,
-                              tuning.crown_balance_sd)
+                              crown_sd(model.weights, tuning.crown_balance_sd))
     band[:, cols] = np.hypot(band[:, cols], crown)
     return band
 
