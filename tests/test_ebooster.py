@@ -466,6 +466,11 @@ def test_a_training_result_says_what_it_cannot_support():
     lost = dataclasses.replace(FIT, q_factor=0.25, q_heldout_nats=(-90.0, -6.7e14, 1.2, -3e12))
     (w,) = fit_warnings(lost)
     assert "lost its track with the process noise times 0.5, 2 (it runs with 0.25)" in w
+    # one sweep cut into its way up and its way down: no factor predicts the other half
+    one = dataclasses.replace(FIT, q_factor=8.0, q_heldout_nats=(
+        -20778.0, -15007.0, -9704.0, -5708.0, -3135.0, -1650.0))
+    (w,) = fit_warnings(one)
+    assert "predicts the pressure poorly (at best -1650 nats per reading)" in w
 
 
 def test_the_shipped_training_result_is_said_to_be_no_boosters_own(sessions, tmp_path):

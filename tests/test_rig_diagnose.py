@@ -85,6 +85,36 @@ def test_a_floor_is_no_knife_edge():
     assert cut == pytest.approx(TIE_SHARE * 0.3441) and 0.325 >= cut
 
 
+def test_several_booster_sessions_are_pooled_as_the_contract_says(tmp_path):
+    """OUTPUTS.md: diagnose S1 S2 writes each session's folder and DIR/pooled/diagnosis.json;
+    a rig session gets the same files (it was refused: 'one session at a time')."""
+    shifted = _session(tmp_path, 0.35)
+    clean = _session(tmp_path, 0.0)
+    out = tmp_path / "pool"
+    r = runner.invoke(app, ["diagnose", str(shifted), str(clean), "--out", str(out),
+                            "--json"])
+    assert r.exit_code == 0, r.output
+    pooled = json.loads(r.output)
+    assert pooled["output"] == str(out / "pooled" / "diagnosis.json")
+    assert (out / shifted.stem / "diagnosis.json").is_file()
+    assert (out / clean.stem / "diagnosis.json").is_file()
+    assert pooled["rig"] == "ebooster" and len(pooled["sessions"]) == 2
+    assert "pv_shift" in pooled["verdict_set"]
+    row = next(e for e in pooled["effects"] if e["name"] == "pv_shift")
+    assert row["significant_in"] == [shifted.stem]  # seen in one run only, and said
+    assert any("pv_shift is significant in" in n for n in pooled["notes"])
+    assert set(pooled["per_session"]) == {shifted.stem, clean.stem}
+    # sessions of two rigs in one call: one line, nothing written
+    from brakethermo.sim.emb import simulate_emb, write_emb_simulation
+
+    caliper = write_emb_simulation(simulate_emb("nominal", seed=3, duration_s=8),
+                                   tmp_path / "c.parquet")[0]
+    r = runner.invoke(app, ["diagnose", str(shifted), str(caliper), "--out",
+                            str(tmp_path / "mixed")])
+    assert r.exit_code == 1 and "one rig" in r.output and "Traceback" not in r.output
+    assert not (tmp_path / "mixed" / shifted.stem).exists()
+
+
 def test_the_cli_finds_the_rig_and_keeps_the_rig_commands_results(tmp_path):
     path = _session(tmp_path, 0.35)
     out = tmp_path / "out"

@@ -194,11 +194,8 @@ RIG_NAMES = {"mu-slip": "tyre"}  # the tyre rig by its command's name
 def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
                   train: Path | None, fit: Path | None, radius: float | None,
                   aliases: Path | None, as_json: bool) -> None:
-    from brakethermo.pipelines.diagnose.rig import (
-        diagnose_booster,
-        diagnose_emb,
-        write_rig_diagnosis,
-    )
+    """Diagnose rig sessions, each in its folder, pooled into ``OUT/pooled`` when several."""
+    from brakethermo.pipelines.diagnose.rig import write_rig_diagnosis
     from brakethermo.pipelines.outputs import to_json
 
     if rig not in RIGS:
@@ -206,35 +203,67 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
     if fit is not None and (train is not None or rig != "ebooster"):
         raise ConfigError("--fit is a saved E-Booster training result, the reference instead"
                           " of --train: give one of the two, and only for a booster session")
-    if len(sessions) != 1:
-        raise ConfigError(f"a {rig} diagnosis takes one session at a time (pooling several is"
-                          " for four-spot disc sessions): run diagnose on each")
-    from brakethermo.io.kinds import rig_kind
+    if rig == "emb" and train is None:
+        raise ConfigError("--rig emb needs --train SESSION: the caliper session the"
+                          " stiffness model is trained on (with the clamp-force sensor)")
+    from brakethermo.io.kinds import detect_rig, rig_kind
     from brakethermo.pipelines.output_dir import check_output_dir, check_session_folder
 
     check_output_dir(out)
-    check_session_folder(out, sessions[0], rig_kind(rig).table)
+    for path in sessions:
+        other = detect_rig(path, aliases) if len(sessions) > 1 else rig
+        if RIG_NAMES.get(other, other) != rig:  # None: a disc session, or no session
+            raise ConfigError(f"{path}: {f'a {other}' if other else 'no'} session of the"
+                              f" {rig} rig among the others; diagnose pools the sessions of"
+                              " one rig: give each rig its own call")
+        check_session_folder(out, path, rig_kind(rig).table)
+    results = [_one_rig(rig, path, effects, train, fit, radius, aliases) for path in sessions]
+    folders = [write_rig_diagnosis(r, out) for r in results]
+    pooled = pooled_path = None
+    if len(results) > 1:
+        from brakethermo.pipelines.diagnose.rig_pooled import pool_rig
+        from brakethermo.pipelines.outputs import write_json
+
+        pooled = pool_rig(results)
+        pooled_path = write_json(out / "pooled" / "diagnosis.json", pooled)
+    if as_json:
+        print(to_json({**pooled, "output": str(pooled_path)} if pooled is not None else
+                      {**results[0].summary, "output": str(folders[0])}))
+        return
+    for result, folder in zip(results, folders, strict=True):
+        _render_rig(result, folder, rig)
+    if pooled is not None:
+        console.print(f"[bold]pooled over {len(results)} sessions[/]: verdict "
+                      f"[bold]{escape(_verdict_text(pooled))}[/]")
+        _next_steps(pooled)
+        for note in pooled["notes"]:
+            console.print(f"  note: {escape(note)}", highlight=False)
+        console.print(f"wrote {escape(str(pooled_path))}")
+
+
+def _one_rig(rig: str, path: Path, effects: str, train: Path | None, fit: Path | None,
+             radius: float | None, aliases: Path | None) -> Any:
+    """One rig session's diagnosis (a RigDiagnosis)."""
     if rig == "roller-rig":
         from brakethermo.pipelines.diagnose.rig_roller import diagnose_roller_rig
 
-        result = diagnose_roller_rig(sessions[0], aliases=aliases, effects=effects)
-    elif rig == "tyre":
+        return diagnose_roller_rig(path, aliases=aliases, effects=effects)
+    if rig == "tyre":
         from brakethermo.pipelines.diagnose.rig_tyre import diagnose_tyre
 
-        result = diagnose_tyre(sessions[0], radius_m=radius, aliases=aliases, effects=effects)
-    elif rig == "emb":
-        if train is None:
-            raise ConfigError("--rig emb needs --train SESSION: the caliper session the"
-                              " stiffness model is trained on (with the clamp-force sensor)")
-        result = diagnose_emb(sessions[0], train_path=train, aliases=aliases, effects=effects)
-    else:
-        result = diagnose_booster(sessions[0], train_path=train, fit_path=fit,
-                                  aliases=aliases, effects=effects)
-    folder = write_rig_diagnosis(result, out)
+        return diagnose_tyre(path, radius_m=radius, aliases=aliases, effects=effects)
+    from brakethermo.pipelines.diagnose.rig import diagnose_booster, diagnose_emb
+
+    if rig == "emb":
+        assert train is not None  # refused before any session was read
+        return diagnose_emb(path, train_path=train, aliases=aliases, effects=effects)
+    return diagnose_booster(path, train_path=train, fit_path=fit, aliases=aliases,
+                            effects=effects)
+
+
+def _render_rig(result: Any, folder: Path, rig: str) -> None:
+    """A rig diagnosis on the console."""
     s = result.summary
-    if as_json:
-        print(to_json({**s, "output": str(folder)}))
-        return
     u = s["unit"]
     console.print(f"[bold]{escape(result.stem)}[/] ({rig}): the reference relation's held-out"
                   f" RMSE {s['gap']['rmse']:.3f} {u}, bias {s['gap']['bias']:+.3f} {u}"

@@ -282,6 +282,7 @@ SHIPPED_FIT_NOTE = (
     " result)")
 SLOPE_MAX = 0.1  # mm/N, the disk curve's slopes fitted within [0, SLOPE_MAX]
 DYNAMICS_RANGE = {"omega_n": (1.0, 2000.0), "damping": (0.05, 5.0), "tau_z": (0.0, 1.0)}
+POOR_NATS = -10.0  # nats per held-out reading: no factor predicts the other half (ours 1-3)
 LOST_NATS = -1e6  # held-out log-likelihood of a training half no filter that kept its track gives
 
 
@@ -311,6 +312,13 @@ def fit_warnings(fit: BoosterFit) -> list[str]:
                    " with the process noise times " + ", ".join(lost) + f" (it runs with"
                    f" {fit.q_factor:g}): this training result makes a fragile observer;"
                    " train on a longer session that sweeps the pressures at constant speed")
+    nats = np.array(fit.q_heldout_nats, float)
+    if nats.size and np.isfinite(nats).any() and np.nanmax(nats) < POOR_NATS:
+        out.append(f"on held-out halves of the training session every process noise tried"
+                   f" predicts the pressure poorly (at best {np.nanmax(nats):.0f} nats per"
+                   " reading): halves that differ — one sweep cut into its way up and its"
+                   " way down — teach little about each other; train on a session of"
+                   " several sweeps up and down")
     if out:
         out = [f"training {Path(fit.train_session).name}: {w}" for w in out]
     return out
@@ -732,8 +740,9 @@ def _noise_choice(fit: BoosterFit) -> dict[str, Any]:
         why = (f"trained on one half of {Path(fit.train_session).name}, observed on the other"
                f" (both ways): the held-out log-likelihood of its pressure sensor is highest"
                f" at {best:g}x the datasheet's process noise; {kept}"
-               + ("; the best is the largest factor tried, so the session may want more"
-                  " still: its innovations (consistency) say how far the band is off"
+               + ("; that is the largest factor tried: the training session's held-out"
+                  " pressures would take more still, while a session's own innovations"
+                  " (consistency) say whether its band is too wide or too narrow"
                   if best == Q_FACTORS[-1] else ""))
     return {"q_factor": fit.q_factor, "factors": list(Q_FACTORS) if fit.q_heldout_nats else [],
             "heldout_loglik_per_reading": list(fit.q_heldout_nats), "why": why}

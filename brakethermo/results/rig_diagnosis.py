@@ -21,6 +21,9 @@ class RigDiagnosis:
     measured: np.ndarray
     reference: np.ndarray
     best: np.ndarray | None
+    reference_sse: np.ndarray | None = None  # held-out SSE per unit of the reference
+    evidence: tuple[Any, ...] = ()  # each candidate's CandidateEvidence (pooling reads it)
+    negligible: frozenset[str] = frozenset()  # candidates under the floor here
 
     @property
     def stem(self) -> str:

@@ -375,7 +375,8 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
                 "wall_time_s": time.perf_counter() - t_start},
     }
     return RigDiagnosis(session, summary, session.time[0] + ctx.t, ctx.x, y, ref,
-                        preds[best] if best else None)
+                        preds[best] if best else None, ref_sse, tuple(evidence),
+                        frozenset(negligible))
 
 
 def effect_names(text: str | None, registry: dict[str, RigEffect], rig: str
@@ -394,9 +395,10 @@ def _booster_step(name: str, path: str | Path) -> str:
     if name in ("pv_shift", "pv_scale", "pv_drift"):
         return (f"carry it into sessions of this day without the pressure sensor:"
                 " brakethermo ebooster SESSION --with-effect DIR/<stem>/diagnosis.json; or"
-                f" retrain the p-V curve on this session: brakethermo ebooster SESSION"
-                f" --train {path}  (the observer's band admits a shift of the datasheet's"
-                " pv_shift_sd_mm, not more)")
+                f" retrain on this session, which logs the pressure: brakethermo ebooster"
+                f" SESSION --train {path}  (constant-speed sweeps up and down train best;"
+                " the observer's band admits a shift of the datasheet's pv_shift_sd_mm, not"
+                " more)")
     return ("the observer's p-V is static: this effect is in its band only through"
             " q_pm_speed; widen it in the bench file, or train on applies at the speeds of"
             " use")
