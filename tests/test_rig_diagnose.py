@@ -364,3 +364,14 @@ def test_a_gap_no_candidate_explains_is_said_and_bound_fits_are_flagged():
     (name,) = lag.params
     assert lag.lower[0] == 0.0 and at_bound_words(lag, {name: 0.0}) == ""
     assert "upper edge" in at_bound_words(lag, {name: lag.upper[0]})
+
+
+def test_two_clean_booster_sessions_pool_to_none_with_every_row_complete(tmp_path):
+    from brakethermo.pipelines.diagnose.rig_pooled import pool_rig
+
+    clean = diagnose_booster(_session(tmp_path, 0.0))
+    s = pool_rig([clean, clean])
+    assert s["verdict"] == "none" and s["notes"] == []
+    for row in s["effects"]:  # under the floor in both: said, with the keys of any row
+        assert row["negligible"] and not row["significant"]
+        assert {"shrink_pct", "shrink_ci95_pct", "rank", "rmse_before", "rmse_after"} <= set(row)

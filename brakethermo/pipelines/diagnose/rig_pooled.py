@@ -35,8 +35,11 @@ def pool_rig(results: Sequence[RigDiagnosis]) -> dict[str, Any]:
     rows = []
     for row in decision.rows:
         rows.append({**row, **_pooled_row(row["name"], row["shrink_pct"], results)})
-    rows += [{**_pooled_row(n, float("nan"), results), "name": n, "negligible": True}
-             for n in names if n in ignored]
+    nan = float("nan")
+    rows += [{"name": n, "shrink_pct": nan, "shrink_ci95_pct": [nan, nan],
+              "significant": False, "rank": len(rows) + i + 1, "negligible": True,
+              **_pooled_row(n, nan, results)}
+             for i, n in enumerate(n for n in names if n in ignored)]
     first = results[0].summary
     return {
         "sessions": [str(r.session.path) for r in results],
