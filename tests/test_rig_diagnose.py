@@ -104,6 +104,9 @@ def test_several_booster_sessions_are_pooled_as_the_contract_says(tmp_path):
     assert row["significant_in"] == [shifted.stem]  # seen in one run only, and said
     assert any("pv_shift is significant in" in n for n in pooled["notes"])
     assert set(pooled["per_session"]) == {shifted.stem, clean.stem}
+    # its carry command names the diagnosis of the run that shows the effect
+    carry = next(step for step in pooled["next_steps"] if "--with-effect" in step)
+    assert f"{out}/{shifted.stem}/diagnosis.json" in carry and "DIR/" not in carry
     # sessions of two rigs in one call: one line, nothing written
     from brakethermo.sim.emb import simulate_emb, write_emb_simulation
 

@@ -195,6 +195,9 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
                   train: Path | None, fit: Path | None, radius: float | None,
                   aliases: Path | None, as_json: bool) -> None:
     """Diagnose rig sessions, each in its folder, pooled into ``OUT/pooled`` when several."""
+    import shlex
+
+    from brakethermo.pipelines.diagnose._common import filled
     from brakethermo.pipelines.diagnose.rig import write_rig_diagnosis
     from brakethermo.pipelines.outputs import to_json
 
@@ -224,7 +227,7 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
         from brakethermo.pipelines.diagnose.rig_pooled import pool_rig
         from brakethermo.pipelines.outputs import write_json
 
-        pooled = pool_rig(results)
+        pooled = filled(pool_rig(results), {"DIR/": f"{shlex.quote(str(out))}/"})
         pooled_path = write_json(out / "pooled" / "diagnosis.json", pooled)
     if as_json:
         print(to_json({**pooled, "output": str(pooled_path)} if pooled is not None else

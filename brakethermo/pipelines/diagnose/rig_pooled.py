@@ -6,11 +6,13 @@ so (one set of pads, one fluid temperature, is not the rig)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from brakethermo.diagnosis.verdict import CandidateEvidence, decide
+from brakethermo.pipelines.diagnose._common import filled
 from brakethermo.pipelines.diagnose.pooled import rms
 from brakethermo.pipelines.diagnose.rig import RULE
 from brakethermo.results.rig_diagnosis import RigDiagnosis
@@ -41,6 +43,11 @@ def pool_rig(results: Sequence[RigDiagnosis]) -> dict[str, Any]:
               **_pooled_row(n, nan, results)}
              for i, n in enumerate(n for n in names if n in ignored)]
     first = results[0].summary
+    # a carried effect is read from a session's diagnosis: the first run that shows it
+    shows = next((r.stem for r in results if r.summary["verdict"] == decision.verdict),
+                 results[0].stem)
+    decision = replace(decision, next_steps=filled(
+        decision.next_steps, {"DIR/<stem>/": f"DIR/{shows}/"}))
     return {
         "sessions": [str(r.session.path) for r in results],
         "rig": first["rig"], "unit": first["unit"], "input": first["input"],
