@@ -224,17 +224,17 @@ def fit_training(session: Session, spec: BoosterSpec) -> BoosterFit:
     ok = np.isfinite(p_m) & np.isfinite(f_in) & np.isfinite(delta)
     # p-V: RLS on [u^2, u^4, u^6, u^8], u = s2 / stroke (eq. 12), or a piecewise-linear
     # curve where that predicts held-out training data better (rigs.pv_curve)
-    X = even_powers(s2[ok] / spec.stroke_mm, PV_POWERS)
-    rls = rls_fit(X, p_m[ok], lam=spec.forgetting, delta=spec.rls_delta)
+    w = rls_weights(s2[ok], p_m[ok], spec)
     knots, values, heldout = pv_candidates(s2[ok], p_m[ok], spec)
-    pv_res = p_m[ok] - (knots_pressure(s2[ok], knots, values) if knots.size else X @ rls.w)
+    pv_res = p_m[ok] - (knots_pressure(s2[ok], knots, values) if knots.size else
+                        even_powers(s2[ok] / spec.stroke_mm, PV_POWERS) @ w)
     # disk: net force from the leverage (eq. 10) with the measured pedal force
     force = leverage_force(p_m, s2, f_in, spec.area_mm2, spec.return_spring_n_per_mm,
                            spec.area_ratio)
     disk, omega_n, damping, tau_z, disk_rmse = _fit_disk(force, delta, ok, session.dt)
     dof = spec.pedal_dof
     return BoosterFit(
-        pv_coeffs=tuple(float(v) for v in rls.w),  # type: ignore[arg-type]
+        pv_coeffs=tuple(float(v) for v in w),  # type: ignore[arg-type]
         stroke_mm=spec.stroke_mm,
         disk=disk,
         omega_n=omega_n,
@@ -257,14 +257,20 @@ def _pv_choice(fit: BoosterFit) -> str:
                                                          strict=True))
 
 
+def rls_weights(s2: np.ndarray, p_m: np.ndarray, spec: BoosterSpec) -> np.ndarray:
+    """The paper's p-V polynomial (eq. 12): RLS weights (MPa) of [u^2, u^4, u^6, u^8],
+    u = s2 / stroke, on training samples (mm, MPa, in time order)."""
+    return rls_fit(even_powers(s2 / spec.stroke_mm, PV_POWERS), p_m, lam=spec.forgetting,
+                   delta=spec.rls_delta).w
+
+
 def pv_candidates(s2: np.ndarray, p_m: np.ndarray, spec: BoosterSpec
                   ) -> tuple[np.ndarray, np.ndarray, tuple[float, ...]]:
     """The p-V curve :func:`~brakethermo.rigs.pv_curve.choose_curve` picks on training
     samples (mm, MPa, in time order): its knots (mm) and pressures (MPa), both empty for
     the paper's polynomial, and every candidate's held-out RMSE (MPa)."""
     def polynomial(s: np.ndarray, p: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-        w = rls_fit(even_powers(s / spec.stroke_mm, PV_POWERS), p, lam=spec.forgetting,
-                    delta=spec.rls_delta).w
+        w = rls_weights(s, p, spec)
         return lambda x: pv_pressure(x, w, spec.stroke_mm, float(np.max(s)))
 
     count, heldout = choose_curve(s2, p_m, polynomial)

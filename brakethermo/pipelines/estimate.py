@@ -51,7 +51,7 @@ from brakethermo.pipelines.tuning import (
     read_tuning,
     user_tuning_keys,
 )
-from brakethermo.results.laps import lap_summaries, partial_laps
+from brakethermo.results.laps import lap_summaries, whole_flying_laps
 from brakethermo.thermal.disc import DiscSpec
 
 if TYPE_CHECKING:
@@ -266,10 +266,9 @@ def _frame_findings(frame: pd.DataFrame, session: Session, inputs: DiscInputs,
     warnings.extend(undecided_warning(choice))
     if "h_factor" not in frame:
         return None
-    partial = partial_laps(session.laps)
-    whole = {lap.lap for lap in session.laps if lap.lap >= 1 and lap.lap not in partial}
     found = h_factor_found(frame["h_factor"].to_numpy(), inputs.braking,
-                           frame["lap"].to_numpy(), whole, float(session.dt))
+                           frame["lap"].to_numpy(), whole_flying_laps(session.laps),
+                           float(session.dt))
     warnings.extend(h_factor_warning(found))
     return found
 

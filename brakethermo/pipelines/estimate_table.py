@@ -13,6 +13,7 @@ import pandas as pd
 from brakethermo.pipelines.crown_band import crown_balance_std, crown_sd
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.pipelines.tuning import EstimateTuning
+from brakethermo.results.laps import hottest_radius
 from brakethermo.thermal.model import DiscFEModel
 
 
@@ -111,10 +112,10 @@ def estimate_frame(
     for k, j in enumerate(model.face_index):
         cols[f"node_{k}"] = np.fmax(states[:, j], floor)
     if node_std is not None:  # the window is judged on the hottest radius too: its band
-        face = np.fmax(states[:, model.face_index], floor[:, None])
-        hot = np.argmax(face, axis=1)
-        cols["hottest_radius"] = face[np.arange(face.shape[0]), hot]
-        cols["hottest_radius_std"] = node_std[np.arange(face.shape[0]), hot]
+        hot, at = hottest_radius(pd.DataFrame({k: v for k, v in cols.items()
+                                               if k.startswith("node_")}))
+        cols["hottest_radius"] = hot
+        cols["hottest_radius_std"] = node_std[np.arange(hot.size), at]
     if model.layers > 1:
         mid = model.face_index + model.layers - 1
         for k, j in enumerate(mid):

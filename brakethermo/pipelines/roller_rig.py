@@ -431,8 +431,10 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
 
 
 MAX_MEAN_NIS = 20.0  # clean sessions give 1-5; a reversed torque sign gave 80
-FORCE_RATIO_RANGE = (0.5, 2.0)  # creep force / (wheel torque / radius) in steady traction:
-# our own rig at 15-30 km/h 0.72-1.24, an independent rig's stiffer roller motor 2.1-3.6
+# creep force / (wheel torque / radius) in steady traction that a rig can show, the
+# filter's here and the roller transducer's in diagnose: our own rig at 15-30 km/h
+# 0.72-1.24, an independent rig's stiffer roller motor 2.1-3.6
+FORCE_RATIO_RANGE = (0.5, 2.0)
 
 
 def force_warning(force: np.ndarray, torque: np.ndarray, radius_m: np.ndarray,

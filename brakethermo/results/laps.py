@@ -62,6 +62,12 @@ def temp_text(x: float | None) -> str:
 SHORT_LAP = 0.8  # a flying lap under this share of the typical one is partial (cut, in-lap)
 
 
+def whole_flying_laps(laps: tuple[Lap, ...]) -> set[int]:
+    """The flying laps that are whole (no out-lap, no :func:`partial_laps`)."""
+    partial = partial_laps(laps)
+    return {lap.lap for lap in laps if lap.lap >= 1 and lap.lap not in partial}
+
+
 def partial_laps(laps: tuple[Lap, ...]) -> set[int]:
     """Flying laps shorter than :data:`SHORT_LAP` of the typical flying lap: the session
     ended in them, or the rider came in — their times and peaks are not a lap's — and a

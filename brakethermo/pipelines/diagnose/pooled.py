@@ -12,10 +12,21 @@ it: a parameter that differs between runs is a finding in itself).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from scipy.special import chdtri
+
+from brakethermo.diagnosis.verdict import CandidateEvidence
+
+
+def end_to_end(evidence: Sequence[CandidateEvidence], **fields: Any) -> CandidateEvidence:
+    """One candidate's evidence over several sessions: its SSE per unit and its
+    corrections end to end, the rest the first session's unless ``fields`` says."""
+    return replace(evidence[0], sse=np.concatenate([e.sse for e in evidence]),
+                   correction=np.concatenate([np.ravel(e.correction) for e in evidence]),
+                   **fields)
 
 
 def rms(values: Sequence[float]) -> float:

@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from brakethermo.diagnosis.verdict import CandidateEvidence, decide
+from brakethermo.diagnosis.verdict import decide
 from brakethermo.pipelines.diagnose._common import filled
-from brakethermo.pipelines.diagnose.pooled import rms
+from brakethermo.pipelines.diagnose.pooled import end_to_end, rms
 from brakethermo.pipelines.diagnose.rig import RULE
 from brakethermo.results.rig_diagnosis import RigDiagnosis
 
@@ -26,12 +26,8 @@ def pool_rig(results: Sequence[RigDiagnosis]) -> dict[str, Any]:
     by_session = [{e.name: e for e in r.evidence} for r in results]
     names = [n for n in by_session[0] if all(n in b for b in by_session)]
     ignored = set.intersection(*(set(r.negligible) for r in results))
-    evidence = [CandidateEvidence(
-        n, np.concatenate([b[n].sse for b in by_session]),
-        correction=np.concatenate([np.ravel(b[n].correction) for b in by_session]),
-        separate_by=by_session[0][n].separate_by, next_step=by_session[0][n].next_step,
-        n_params=by_session[0][n].n_params,
-        at_bound="; ".join(dict.fromkeys(b[n].at_bound for b in by_session if b[n].at_bound)))
+    evidence = [end_to_end([b[n] for b in by_session], at_bound="; ".join(
+        dict.fromkeys(b[n].at_bound for b in by_session if b[n].at_bound)))
         for n in names if n not in ignored]
     decision = decide(np.concatenate([r.reference_sse for r in results]), evidence, RULE)
     rows = []

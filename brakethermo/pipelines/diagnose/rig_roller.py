@@ -29,6 +29,7 @@ from brakethermo.models.roller_rig import RollerRigModel
 from brakethermo.pipelines.diagnose.rig import RigCase, effect_names, run_case
 from brakethermo.pipelines.roller_rig import (
     CHANNELS,
+    FORCE_RATIO_RANGE,
     free_rolling_radius_mm,
     rig_inputs,
     rolling_sign,
@@ -38,7 +39,6 @@ from brakethermo.results.rig_diagnosis import RigDiagnosis
 from brakethermo.rigs.roller_rig import Friction, load_roller_rig
 
 FORCE_FLOOR_N = 25.0  # a shaft torque transducer's accuracy (0.5 % of 2 kN m) at the roller
-FORCE_RATIO = (0.5, 2.0)  # measured over requested creep force in traction: plausible
 REST_SHARE = 0.2  # creepage below this share of its 95th percentile: the rig is not pulling
 # s, moving average of speeds, load and force: several revolutions of wheel and roller, so
 # that the encoders' once-per-revolution errors and an out-of-round roller average out (a
@@ -117,7 +117,7 @@ def _check_force(session: Session, force: np.ndarray, pull: np.ndarray) -> None:
     force the transducer gives must be of the size the torque request asks for (bearing
     losses and inertia take a few per cent, not a factor)."""
     ratio = float(np.nanmedian(force) / np.nanmedian(pull))
-    if not FORCE_RATIO[0] <= ratio <= FORCE_RATIO[1]:
+    if not FORCE_RATIO_RANGE[0] <= ratio <= FORCE_RATIO_RANGE[1]:
         raise DataError(
             f"gives a creep force of {np.nanmedian(force):.0f} N in traction, {ratio:.3g}"
             f" times the {np.nanmedian(pull):.0f} N the wheel torque request asks for: check"

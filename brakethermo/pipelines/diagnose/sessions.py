@@ -11,7 +11,6 @@ import numpy as np
 
 from brakethermo import __version__
 from brakethermo.diagnosis.verdict import (
-    CandidateEvidence,
     decide,
 )
 from brakethermo.errors import ConfigError, DataError
@@ -22,7 +21,12 @@ from brakethermo.pipelines.diagnose._common import (
     with_out,
 )
 from brakethermo.pipelines.diagnose.four_spot import diagnose_session
-from brakethermo.pipelines.diagnose.pooled import pooled_consistency, pooled_effect, pooled_gap
+from brakethermo.pipelines.diagnose.pooled import (
+    end_to_end,
+    pooled_consistency,
+    pooled_effect,
+    pooled_gap,
+)
 from brakethermo.pipelines.inputs import load_timed
 from brakethermo.pipelines.models import disc_for
 
@@ -98,13 +102,9 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
     names = [e.name for e in results[0].evidence]
     by_session = [{e.name: e for e in r.evidence} for r in results]
     ref = np.concatenate([r.reference_sse for r in results if r.reference_sse is not None])
-    evidence = [
-        CandidateEvidence(n, np.concatenate([b[n].sse for b in by_session]),
-                          correction=np.concatenate([np.ravel(b[n].correction)
-                                                     for b in by_session]),
-                          separate_by=by_session[0][n].separate_by,
-                          next_step=by_session[0][n].next_step, outputs=by_session[0][n].outputs)
-        for n in names if all(n in b for b in by_session)]
+    evidence = [end_to_end([b[n] for b in by_session], n_params=0, signature=None,
+                           at_bound="")
+                for n in names if all(n in b for b in by_session)]
     blind_sets = [{u["name"]: u["why"] for u in r.summary.get("untestable", [])}
                   for r in results]
     blind = {n: f"in every session (in {results[0].stem}: {why})"

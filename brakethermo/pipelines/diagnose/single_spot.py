@@ -37,7 +37,7 @@ from brakethermo.pipelines.estimate import SENSOR_FLOOR_C
 from brakethermo.pipelines.h_factor_found import h_factor_found
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.pipelines.models import SHIPPED_LAW_NOTE
-from brakethermo.results.laps import partial_laps
+from brakethermo.results.laps import whole_flying_laps
 from brakethermo.thermal.disc import DiscSpec
 
 # estimate.parquet's online columns are relative to the law's structure: their names here
@@ -151,10 +151,9 @@ def _not_slipstream(session: Session, inputs: DiscInputs, frame: Any) -> str:
     factor sat at 0.87 on every lap; another named slipstream on a median of 1.45)."""
     if "h_factor" not in frame:
         return ""
-    partial = partial_laps(session.laps)
-    whole = {lap.lap for lap in session.laps if lap.lap >= 1 and lap.lap not in partial}
     found = h_factor_found(frame["h_factor"].to_numpy(), inputs.braking,
-                           frame["lap"].to_numpy(), whole, float(session.dt))
+                           frame["lap"].to_numpy(), whole_flying_laps(session.laps),
+                           float(session.dt))
     if found is None or found.kind in ("by lap", "near the law"):
         return ""
     if found.kind == "steady":
