@@ -53,6 +53,9 @@ def main() -> None:
     ap.add_argument("--pedal-state", choices=PEDAL_STATES, default="force")
     ap.add_argument("--pv-shift", type=float, nargs="+", default=[0.0],
                     help="p-V shift of the observed sessions, mm (one row block each)")
+    ap.add_argument("--with-effect", default=None,
+                    help="as ebooster's --with-effect ('none': as a session without the"
+                         " pressure sensor); default: the command's default")
     ap.add_argument("--train-offset", type=int, default=None,
                     help="train on each seed's bench (seed + N): chosen vs datasheet noise")
     args = ap.parse_args()
@@ -64,16 +67,19 @@ def main() -> None:
         print(f"pedal state: {args.pedal_state}")
         for scenario, shift in ((sc, sh) for sc in args.scenarios for sh in args.pv_shift):
             rows: dict[str, list[float]] = {}
+            carried: list[str] = []
             for seed in args.seeds:
                 cfg = EboosterSimConfig(scenario, seed=seed, pv_shift_mm=shift)
                 path, _ = write_ebooster_session(simulate_ebooster(cfg),
                                                  Path(tmp) / f"{scenario}{seed}.mcap")
                 if args.train_offset is None:
-                    s = observe(path, bench=bench).summary
+                    s = observe(path, bench=bench, with_effect=args.with_effect).summary
                 else:
                     fits = _fits(seed + args.train_offset, bench, Path(tmp))
-                    s = observe(path, bench=bench, fit_path=fits["chosen"]).summary
-                    d = observe(path, bench=bench, fit_path=fits["datasheet"]).summary
+                    s = observe(path, bench=bench, fit_path=fits["chosen"],
+                                with_effect=args.with_effect).summary
+                    d = observe(path, bench=bench, fit_path=fits["datasheet"],
+                                with_effect=args.with_effect).summary
                     rows.setdefault("q_factor chosen", []).append(s["noise_choice"]["q_factor"])
                     for w in ("ukf", "ekf"):
                         rows.setdefault(f"p_m RMSE {w} MPa, datasheet Q", []).append(
@@ -89,6 +95,7 @@ def main() -> None:
                     for state, v in s["outside_1sigma"][w].items():
                         rows.setdefault(f"{state} outside 1σ {w} %", []).append(100 * v)
                 rows.setdefault("UKF improvement over EKF %", []).append(s["improvement_pct"])
+                carried.append((s["with_effect"] or {}).get("verdict") or "none")
             print(f"\n{scenario}, p-V shift {shift:+.2f} mm: seeds {args.seeds}"
                   " (mean ± sd [min, max])")
             for name, values in rows.items():
@@ -98,6 +105,7 @@ def main() -> None:
             print("  per seed:")
             for name in ("UKF improvement over EKF %", "95% coverage ukf %", "95% coverage ekf %"):
                 print(f"    {name:32s} " + " ".join(f"{v:6.1f}" for v in rows[name]))
+            print(f"    {'p-V departure carried':32s} " + " ".join(carried))
 
 
 _FITS: dict[int, dict[str, Path]] = {}

@@ -420,8 +420,8 @@ def test_an_observer_that_loses_its_track_is_withdrawn_not_published(sessions, t
 
     real = eb._run
 
-    def diverging(model, which, y, smooth, lose=("ukf",)):
-        track = real(model, which, y, smooth)
+    def diverging(model, which, y, smooth, curve_var=None, lose=("ukf",)):
+        track = real(model, which, y, smooth, curve_var)
         if which in lose:
             x = track.x.copy()
             x[len(x) // 2:, :3] = 3.0e14
@@ -441,7 +441,7 @@ def test_an_observer_that_loses_its_track_is_withdrawn_not_published(sessions, t
     assert frame["ukf_p_m"].isna().all() and frame["ekf_p_m"].notna().any()
     assert "UKF improvement" not in res.output and "Traceback" not in res.output
 
-    monkeypatch.setattr(eb, "_run", lambda m, w, y, s: diverging(m, w, y, s, OBSERVERS))
+    monkeypatch.setattr(eb, "_run", lambda m, w, y, s, c=None: diverging(m, w, y, s, c, OBSERVERS))
     res = runner.invoke(app, ["ebooster", str(sessions["closed"]), "--train",
                               str(sessions["train"]), "--out", str(tmp_path / "both")])
     assert res.exit_code == 1 and "both observers lost their track" in res.output

@@ -51,7 +51,7 @@ def test_the_observer_carries_the_shift_to_a_session_without_the_sensor(tmp_path
     other = write_ebooster_session(simulate_ebooster(EboosterSimConfig(
         "vehicle", seed=78, rate_hz=500.0, duration_s=30.0, pv_shift_mm=0.35)),
         tmp_path / "other.mcap")[0]
-    plain = observe(other).summary
+    plain = observe(other, with_effect="none").summary
     carried = observe(other, with_effect=str(tmp_path / "diagnosis.json")).summary
     assert carried["with_effect"]["effects"] == {
         "pv_shift": next(e["params"] for e in day["effects"] if e["name"] == "pv_shift")}

@@ -36,13 +36,15 @@ def ebooster_command(
         bool, typer.Option("--smooth/--no-smooth", help="RTS smoothing after each filter.")
     ] = True,
     with_effect: Annotated[
-        str,
+        str | None,
         typer.Option(help="p-V departure carried from a diagnosis: 'none', 'auto' (diagnose"
                           " this session first: needs the pressure sensor), a diagnosis.json"
                           " of a booster session of the day (any effect it names,"
                           " pv_drift included), or NAME=VALUE (pv_shift, pv_scale,"
-                          " rate_dependent, hysteresis)."),
-    ] = "none",
+                          " rate_dependent, hysteresis).  [default: auto where the session"
+                          " logs the master-cylinder pressure, else none]",
+                     show_default=False),
+    ] = None,
     out: OutDir = Path("out"),
     aliases: AliasesOpt = None,
     as_json: JsonOpt = False,

@@ -397,6 +397,70 @@ def static_pressure_carried(text: str, session: Session, s2: Array, fit: Booster
     return np.clip(pv, 0.0, None), fact
 
 
+def carry(with_effect: str | None, session: Session, s2: Array, fit: BoosterFit,
+          bench: str | Path, aliases: str | Path | None
+          ) -> tuple[Array | None, dict[str, Any] | None, float | None]:
+    """What the observers carry: the static pressure under ``--with-effect`` (None: the
+    curve as trained), its fact, and the session's own held-out p-V residual (MPa) when a
+    diagnosis of this session measured it, else None.
+
+    By default (``with_effect`` None) a session that logs the master-cylinder pressure is
+    diagnosed first ('auto'): a real booster's curve sits 0.2-0.4 mm along the stroke from
+    the training day's, which delta cannot resolve and the pressure sensor can, on
+    held-out applies. Where that diagnosis cannot run (too few applies), the curve is
+    carried as trained and the fact says why.
+    """
+    found: dict[str, Any] = {}
+
+    def diagnose() -> dict[str, Any]:
+        from brakethermo.pipelines.diagnose.rig import diagnose_booster
+
+        found.update(diagnose_booster(session.path, bench=bench, aliases=aliases,
+                                      fit=fit).summary)
+        return found
+
+    default = with_effect is None
+    text = ("auto" if session.has(PRESSURES["p_m"]) else "none") if default else with_effect
+    try:
+        pv, fact = static_pressure_carried(str(text), session, s2, fit, diagnose)
+    except ConfigError as exc:
+        if not default:
+            raise
+        return None, {"source": "default", "verdict": None, "verdict_set": [],
+                      "effects": {}, "note": f"the curve as trained: {exc}"}, None
+    if default and fact is not None:
+        fact["source"] = ("default: this session logs the master-cylinder pressure, so it"
+                          " is diagnosed first (auto)")
+    return pv, fact, heldout_curve_sd(found)
+
+
+def heldout_curve_sd(diagnosis: dict[str, Any]) -> float | None:
+    """MPa: the held-out RMS of the session's pressures about the static curve the observers
+    carry — the carried effect's ``rmse_after``, or the gap's with nothing carried; None
+    without a diagnosis of this session."""
+    if not diagnosis:
+        return None
+    entry = next((e for e in diagnosis.get("effects") or []
+                  if e.get("name") == diagnosis.get("verdict")), None)
+    value = entry["rmse_after"] if entry is not None else (diagnosis.get("gap") or {}).get("rmse")
+    return float(value) if value is not None and np.isfinite(value) else None
+
+
+def _band(spec: BoosterSpec, curve_sd: float | None) -> dict[str, Any]:
+    """``summary.json`` ``band``: what the pressure bands hold."""
+    own = ("the filter's (smoother's) own spread, times noise_scale where its innovations"
+           " show it over-confident (their mean NIS), widened for the pressures by ")
+    if curve_sd is not None:
+        return {"pv_shift_sd_mm": None, "heldout_curve_sd_mpa": curve_sd,
+                "contains": own + "the session's own held-out RMS about the curve carried"
+                            " (its diagnosis on held-out applies): where its curve sits is"
+                            " measured, what the static curve still misses is admitted"}
+    return {"pv_shift_sd_mm": spec.pv_shift_sd_mm, "heldout_curve_sd_mpa": None,
+            "contains": own + "the p-V curve's slope times pv_shift_sd_mm: where this"
+                        " session's curve sits against the training session's, which delta"
+                        " cannot resolve (it trades against the pedal force)"}
+
+
 def default_fit_path() -> Path:
     """The shipped training result."""
     return config_dir() / "rigs" / f"{DEFAULT_FIT}.toml"
@@ -438,7 +502,10 @@ def _observer(model: EboosterModel, which: str) -> UnscentedKalmanFilter | Exten
     return ExtendedKalmanFilter(model.f, Q, R, H=model.H)
 
 
-def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTrack:
+def _run(model: EboosterModel, which: str, y: Array, smooth: bool,
+         curve_var: Array | None = None) -> ObserverTrack:
+    """One observer over the session; ``curve_var`` (MPa^2 per step) is what the place of
+    the session's p-V curve adds to the pressure bands (default :func:`pv_position_var`)."""
     x0, P0 = model.prior(float(y[0]))  # prior() starts a gap at delta = 0
     t0 = time.perf_counter()
     res = _observer(model, which).run(x0, P0, y[:, None], store="smoother" if smooth else "diag")
@@ -451,7 +518,7 @@ def _run(model: EboosterModel, which: str, y: Array, smooth: bool) -> ObserverTr
     consistency = nis_consistency(res.nis, res.n_obs, res.innovation)
     scale = variance_scale(consistency)  # its innovations larger than its noise admits
     var = np.clip(var[:, :5], 0.0, None) * scale
-    var[:, :3] += pv_position_var(model)[:, None]
+    var[:, :3] += (pv_position_var(model) if curve_var is None else curve_var)[:, None]
     x = x[:, :5].copy()
     x[:, :3], var[:, :3] = gauge_pressure(x[:, :3], var[:, :3])
     return ObserverTrack(
@@ -507,7 +574,7 @@ def observe(
     bench: str | Path = "ebooster",
     aliases: str | Path | None = None,
     smooth: bool = True,
-    with_effect: str = "none",
+    with_effect: str | None = None,
 ) -> EboosterResult:
     """Run both observers on a session and score them.
 
@@ -521,7 +588,9 @@ def observe(
     smooth : run the RTS smoother after each filter (offline use).
     with_effect : the p-V departure a diagnosis found, carried into both observers:
         'none', 'auto' (diagnose this session: needs the pressure sensor), a
-        diagnosis.json or NAME=VALUE (:mod:`brakethermo.pipelines.rig_carry`).
+        diagnosis.json or NAME=VALUE (:mod:`brakethermo.pipelines.rig_carry`); ``None``
+        (the default): 'auto' where the session logs the master-cylinder pressure, else
+        'none' (:func:`carry`).
 
     Returns
     -------
@@ -544,14 +613,10 @@ def observe(
     if not np.isfinite(delta).any():
         raise DataError("holds no finite sample", path=session.path, channel=DELTA)
 
-    def diagnose() -> dict[str, Any]:
-        from brakethermo.pipelines.diagnose.rig import diagnose_booster
-
-        return diagnose_booster(path, bench=bench, aliases=aliases, fit=fit).summary
-
-    pv, carried_fact = static_pressure_carried(with_effect, session, s2, fit, diagnose)
+    pv, carried_fact, curve_sd = carry(with_effect, session, s2, fit, bench, aliases)
     model = EboosterModel(spec, fit, s2, session.dt, pv=pv)
-    tracks = {which: _run(model, which, delta, smooth) for which in OBSERVERS}
+    curve_var = None if curve_sd is None else np.full(s2.size, curve_sd**2)
+    tracks = {which: _run(model, which, delta, smooth, curve_var) for which in OBSERVERS}
     lost = {w: why for w in OBSERVERS if (why := lost_track(tracks[w], delta, session.time))}
     if len(lost) == len(OBSERVERS):
         raise DataError(
@@ -566,6 +631,7 @@ def observe(
         for state, ch in PRESSURES.items() if session.has(ch)
     }
     summary = _summary(session, spec, fit, tracks, validation, smooth, t_train, s2)
+    summary["band"] = _band(spec, curve_sd)
     summary["with_effect"] = carried_fact
     summary["lost_track"] = lost
     summary["warnings"] += fit_warnings(fit) + ([SHIPPED_FIT_NOTE] if shipped else [])
@@ -604,15 +670,6 @@ def _summary(
         "consistency": {w: t.consistency for w, t in tracks.items()},
         "noise_scale": {w: t.noise_scale for w, t in tracks.items()},
         "outside_1sigma": out1,
-        "band": {
-            "pv_shift_sd_mm": spec.pv_shift_sd_mm,
-            "contains": "the filter's (smoother's) own spread, times noise_scale where its"
-                        " innovations show it over-confident (their mean NIS), widened for"
-                        " the pressures by"
-                        " the p-V curve's slope times pv_shift_sd_mm: where this session's"
-                        " curve sits against the training session's, which delta cannot"
-                        " resolve (it trades against the pedal force)",
-        },
         "noise_choice": _noise_choice(fit),
         "smoothed": smooth,
         "pv_fit": {
