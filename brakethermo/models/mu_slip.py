@@ -10,7 +10,11 @@ high end of the expected range with a covariance covering the range, and runs on
 
 Beyond the paper, :func:`fit_families` fits the two-parameter curve, Burckhardt's
 three parameters and the Magic Formula's B, C, D by least squares, scores each by
-cross-validated (held-out) RMSE, and reports the peak of the best one.
+cross-validated (held-out) RMSE, and reports the peak of the best one. On a braking ramp
+the force lags the slip (the tyre's relaxation length, the force sensors' response), so
+the measured (slip, μ) points trace the curve late, most where the slip runs away past
+the peak: :func:`choose_relaxation` aligns the slip with the force over the length the
+held-out points choose.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from brakethermo.rigs.tyre import (
     burckhardt_peak,
     magic_formula_mu,
     magic_formula_peak,
+    relaxation_lag,
     rudd_hessian,
     rudd_jacobian,
     rudd_mu,
@@ -226,3 +231,52 @@ def fit_families(s: Array, mu: Array, *, folds: int = 5, seed: int = 0) -> list[
             )
         )
     return out
+
+
+# Relaxation lengths tried, m: none, a racing slick's few centimetres, a road tyre's
+# 0.2-0.5 m, and what a lagging load cell adds at speed
+RELAXATION_M = (0.0, 0.03, 0.05, 0.08, 0.12, 0.18, 0.25, 0.35, 0.5, 0.7, 1.0, 1.4)
+SIMPLER_WITHIN = 0.02  # a shorter length within this fraction of the best held-out RMSE wins
+
+
+@dataclass(frozen=True)
+class RelaxationChoice:
+    """The relaxation length a ramp's held-out points choose.
+
+    Attributes
+    ----------
+    length_m : float — m, the chosen σ (0: the slip as logged).
+    candidates_m : tuple of float — the lengths tried, m.
+    heldout_rmse : tuple of float — the best family's held-out RMSE of μ at each, –.
+    as_logged : list of FamilyFit — the families fitted to the slip as logged (σ = 0):
+        the alignment is a model too, and the peak's band admits what they say.
+    """
+
+    length_m: float
+    candidates_m: tuple[float, ...]
+    heldout_rmse: tuple[float, ...]
+    as_logged: list[FamilyFit]
+
+
+def choose_relaxation(t: Array, s: Array, mu: Array, speed: Array
+                      ) -> tuple[RelaxationChoice, Array]:
+    """The slip aligned with the force, and the length that aligns it.
+
+    Each candidate σ lags the logged slip by σ / V (:func:`relaxation_lag`: the force
+    follows the slip it had σ of travel earlier); the families are fitted to the lagged
+    slip and scored on held-out points (:func:`fit_families`); the shortest σ within
+    :data:`SIMPLER_WITHIN` of the best score wins, so a ramp whose force keeps up with
+    its slip keeps the slip as logged.
+
+    Parameters
+    ----------
+    t : ndarray (K,) — s, the ramp's points in time order.
+    s, mu : ndarray (K,) — slip and friction coefficient, –.
+    speed : ndarray (K,) — carriage speed, m/s.
+    """
+    fits = [fit_families(relaxation_lag(s, t, speed, L), mu) for L in RELAXATION_M]
+    scores = [min(f.heldout_rmse for f in fam) for fam in fits]
+    best = min(scores)
+    i = next(i for i, v in enumerate(scores) if v <= best * (1.0 + SIMPLER_WITHIN))
+    choice = RelaxationChoice(RELAXATION_M[i], RELAXATION_M, tuple(scores), fits[0])
+    return choice, relaxation_lag(s, t, speed, choice.length_m)

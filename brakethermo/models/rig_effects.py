@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from brakethermo.rigs.tyre import magic_formula_mu
+from brakethermo.rigs.tyre import magic_formula_mu, relaxation_lag
 
 Array = NDArray[np.float64]
 HYSTERESIS_V0_MM_S = 0.5  # mm/s: below this screw speed the direction is not yet set
@@ -197,15 +197,7 @@ ROLLER_EFFECTS: dict[str, RigEffect] = {e.name: e for e in (
 
 def _relaxed(mu: Array, c: RigContext, length_m: float) -> Array:
     """``mu`` through the tyre's first-order lag over ``length_m`` of travel."""
-    if length_m <= 1e-6:
-        return mu
-    dt = np.diff(c.t, prepend=c.t[0])
-    gain = 1.0 - np.exp(-c.aux["speed"] * dt / length_m)
-    out = np.empty_like(mu)
-    out[0] = mu[0]
-    for k in range(1, mu.size):
-        out[k] = out[k - 1] + gain[k] * (mu[k] - out[k - 1])
-    return out
+    return relaxation_lag(mu, c.t, c.aux["speed"], length_m)
 
 
 # The tyre rig's two-parameter curve (Rudd), fitted on the session's own fitting blocks,

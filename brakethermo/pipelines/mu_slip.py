@@ -33,6 +33,8 @@ from brakethermo.io.session import Session
 from brakethermo.models.mu_slip import (
     FAMILIES,
     FamilyFit,
+    RelaxationChoice,
+    choose_relaxation,
     fit_families,
     rudd_ekf,
     rudd_lm,
@@ -102,6 +104,7 @@ class MuSlipResult:
     ekf_noise_scale: float = 1.0  # factor on the EKF's covariance: its mean NIS if over-confident
     ekf_consistency: dict[str, Any] = field(default_factory=dict)  # of its innovations
     warnings: tuple[str, ...] = ()  # plausibility of the inputs and the result, in words
+    relaxation: RelaxationChoice | None = None  # the slip's alignment with the force
 
 
 def slip_and_mu(
@@ -440,6 +443,11 @@ def mu_slip(
     options = options or MuSlipOptions()
     ramp = ramp_points(path, options, aliases=aliases)
     session, t, s, m = ramp.session, ramp.time, ramp.slip, ramp.mu
+    relax = None
+    if not options.points and session.has("vehicle_speed"):
+        # the force lags the slip on a ramp: every estimator sees the slip aligned with it
+        relax, s = choose_relaxation(t, s, m, np.interp(t, session.time,
+                                                        session.values("vehicle_speed")))
     sigma = noise_std(m)
     (m_lo, m_hi), (s_lo, s_hi) = options.mu_range, options.slip_range
     x0 = np.array([m_hi, s_hi])  # paper: start at the high end, covariance covering the range
@@ -471,6 +479,7 @@ def mu_slip(
         ekf_noise_scale=scale,
         ekf_consistency=consistency,
         points=options.points,
+        relaxation=relax,
         warnings=(*session.warnings, *ramp.warnings,
                   *result_warnings(options, ekf.x_filt[-1], best, scale)),
     )
@@ -518,23 +527,35 @@ def shape_mismatch(result: MuSlipResult) -> dict[str, object]:
 PLAUSIBLE_SHAPE = 2.0
 
 
+def _allowed(families: list[FamilyFit]) -> list[FamilyFit]:
+    """The families the held-out points still allow: held-out RMSE within
+    :data:`PLAUSIBLE_SHAPE` of the best's, with a peak a tyre can have (a curve still
+    rising at slip 1e13 is no shape the data allow, whatever its RMSE)."""
+    best = min(families, key=lambda f: f.heldout_rmse)
+    return [f for f in families
+            if f.heldout_rmse <= PLAUSIBLE_SHAPE * best.heldout_rmse
+            and 0.0 < f.slip_peak <= 1.0 and 0.0 < f.mu_peak <= MU_PLAUSIBLE[1]]
+
+
 def peak_band(result: MuSlipResult) -> dict[str, float]:
     """1σ of the reported peak that admits the curve's form: the RMS distance of the peaks
-    of the families the held-out points still allow (held-out RMSE within
-    :data:`PLAUSIBLE_SHAPE` of the best's) from the best's, and never below the EKF's own
-    (fit) standard deviation. One family's fit noise is far smaller than what another
-    plausible shape moves the peak by (on a brush tyre the EKF's 0.005 against 0.15 off)."""
+    of the families the held-out points still allow (:func:`_allowed`) — on the aligned
+    slip and on the slip as logged, when the two differ — from the best's, and never below
+    the EKF's own (fit) standard deviation. One family's fit noise is far smaller than
+    what another plausible shape moves the peak by (on a brush tyre the EKF's 0.005
+    against 0.15 off)."""
     best = result.best
-    # a family whose own peak no tyre has (a curve still rising at slip 1e13) is no shape
-    # the data allow, whatever its RMSE over the points
-    allowed = [f for f in result.families
-               if f.heldout_rmse <= PLAUSIBLE_SHAPE * best.heldout_rmse
-               and 0.0 < f.slip_peak <= 1.0 and 0.0 < f.mu_peak <= MU_PLAUSIBLE[1]] or [best]
+    relax = result.relaxation
+    named = [(f.name, f) for f in _allowed(result.families)] + (
+        [(f"{f.name} (slip as logged)", f) for f in _allowed(relax.as_logged)]
+        if relax is not None and relax.length_m > 0.0 else [])
+    names = [n for n, _ in named] or [best.name]
+    allowed = [f for _, f in named] or [best]
     sd_fit = np.sqrt(np.maximum(result.ekf.var_filt[-1], 0.0))
     mu_sd = rmse([f.mu_peak for f in allowed], best.mu_peak)
     slip_sd = rmse([f.slip_peak for f in allowed], best.slip_peak)
     return {"mu_std": max(mu_sd, float(sd_fit[0])), "slip_std": max(slip_sd, float(sd_fit[1])),
-            "families": [f.name for f in allowed]}
+            "families": names}
 
 
 def result_frame(res: MuSlipResult) -> pd.DataFrame:
@@ -601,7 +622,28 @@ def summary(res: MuSlipResult) -> dict[str, Any]:
         "peak": {"mu": res.best.mu_peak, "slip": res.best.slip_peak, "model": res.best.name,
                  **peak_band(res)},
         "shape_mismatch": shape_mismatch(res),
+        "relaxation": _relaxation(res.relaxation),
         "warnings": list(res.warnings),
+    }
+
+
+def _relaxation(choice: RelaxationChoice | None) -> dict[str, Any] | None:
+    """``summary.json`` ``relaxation``: the slip's alignment with the force (None for a
+    point set or a session without the carriage speed)."""
+    if choice is None:
+        return None
+    L = choice.length_m
+    return {
+        "length_m": L,
+        "candidates_m": list(choice.candidates_m),
+        "heldout_rmse": list(choice.heldout_rmse),
+        "words": ("the slip as logged: no lag of the force behind it improves the held-out fit"
+                  if L == 0.0 else
+                  f"the slip aligned with the force over {L:g} m of travel (the tyre's"
+                  " relaxation length and the force sensors' lag: held-out μ RMSE"
+                  f" {choice.heldout_rmse[0]:.4f} with the slip as logged,"
+                  f" {min(choice.heldout_rmse):.4f} aligned); every estimator here sees the"
+                  " aligned slip"),
     }
 
 
@@ -700,7 +742,8 @@ def page(res: MuSlipResult, summ: dict[str, Any]) -> Page:
             ),
             Section(
                 "Curve families",
-                paragraphs=[mm["words"] + "."],
+                paragraphs=[mm["words"] + "."] + ([summ["relaxation"]["words"] + "."]
+                                                  if summ.get("relaxation") else []),
                 tables=[
                     TableBlock(
                         ["family", "RMSE", "held-out RMSE", "μ peak", "slip peak"],

@@ -117,3 +117,28 @@ def magic_formula_peak(B: float, C: float, D: float, E: float = 0.0) -> tuple[fl
         hi *= 2.0
     x = brentq(g, 0.0, hi)
     return float(D), float(x / B)
+
+
+def relaxation_lag(x: ArrayLike, t: ArrayLike, speed: ArrayLike, length_m: float) -> Array:
+    """``x`` through a tyre's first-order lag over ``length_m`` of travel.
+
+    The longitudinal force builds up over the relaxation length σ: its time constant is
+    σ / V, so the force follows the slip (or the steady curve) with that lag.
+
+    Parameters
+    ----------
+    x : array_like — the series to lag (slip, –, or μ, –), in time order.
+    t : array_like — time, s.
+    speed : array_like — carriage speed V, m/s, per sample.
+    length_m : float — relaxation length σ, m; 0 (or below a micrometre) is no lag.
+    """
+    x = np.asarray(x, float)
+    if length_m <= 1e-6:
+        return x
+    t = np.asarray(t, float)
+    gain = 1.0 - np.exp(-np.asarray(speed, float) * np.diff(t, prepend=t[0]) / length_m)
+    out = np.empty_like(x)
+    out[0] = x[0]
+    for k in range(1, x.size):
+        out[k] = out[k - 1] + gain[k] * (x[k] - out[k - 1])
+    return out
