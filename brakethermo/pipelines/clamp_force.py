@@ -46,7 +46,7 @@ from brakethermo.models.clamp_force import (
     train,
 )
 from brakethermo.numeric import rmse
-from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
+from brakethermo.pipelines.rig_checks import LOW_COVERAGE, Expect, check_rig_channels
 from brakethermo.report.page import Card, Page, Section, TableBlock
 from brakethermo.rigs.emb import sensor_delagged
 
@@ -618,10 +618,40 @@ def _fusion_warnings(res: ClampForceResult, r: dict[str, float | None]) -> list[
     return out
 
 
+APPLIED_KN = 0.5  # kN: a clamp force above this is an apply, not a resting caliper
+
+
+def band_coverage(res: ClampForceResult, force: np.ndarray | None
+                  ) -> dict[str, float] | None:
+    """Share of this session's own force-sensor readings (lag taken out) inside the
+    reported kf's 95 % band, over the session and while applied; None without the sensor."""
+    if force is None:
+        return None
+    est = res.reported
+    ok = np.isfinite(force) & np.isfinite(est.kf) & np.isfinite(est.kf_std)
+    inside = np.abs(est.kf - force) <= 1.96 * est.kf_std
+    applied = ok & (force > APPLIED_KN * 1e3)
+    return {"all": float(inside[ok].mean()) if ok.any() else float("nan"),
+            "applied": float(inside[applied].mean()) if applied.any() else float("nan")}
+
+
+def _coverage_warnings(coverage: dict[str, float] | None) -> list[str]:
+    """The warning when the kf band covers too little of the applies on the session's sensor."""
+    if coverage is None or not coverage["applied"] < LOW_COVERAGE:
+        return []
+    return [f"scored against this session's own force sensor, the kf's 95 % band covers"
+            f" {100 * coverage['applied']:.0f} % of the applies (above {APPLIED_KN:g} kN):"
+            " this caliper departs from the trained one beyond what the band admits"
+            " (hysteresis, stiffness, the pads' gap), or the force sensor or its unit is"
+            " off; `diagnose --rig emb` on this session names and sizes a departure of the"
+            " caliper, or re-train on it (--retrain)"]
+
+
 def summary(res: ClampForceResult) -> dict[str, Any]:
     """The ``summary.json`` of OUTPUTS.md "clamp-force" (plus wear and adaptive figures)."""
     force = scored_force(res)
     r = _rmse_kn(res.reported, force)
+    coverage = band_coverage(res, force)
     out: dict[str, Any] = {
         "session": str(res.data.session.path),
         "rate_hz": round(res.data.session.rate_hz, 6),
@@ -631,6 +661,7 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         "rmse_kn_adaptive": r["kf_adaptive"],
         "estimate_kn": estimate_figures(res.reported, res.data.ts),
         "rmse_kn_kf_paper": r["kf_paper"],
+        "coverage_95_kf": coverage,
         "kf_noise": _kf_text(res),
         "kf_paper_mean_nis": res.reported.kf_paper_nis,
         "kf_noise_scale": res.reported.kf_noise_scale,
@@ -677,7 +708,8 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         "training_session": str(res.train.session.path),
         "warnings": [*res.data.session.warnings, *res.train.session.warnings,
                      *(res.retrain.session.warnings if res.retrain is not None else ()),
-                     *_unchecked(res), *_fusion_warnings(res, r), *_retrain_warning(res)],
+                     *_unchecked(res), *_fusion_warnings(res, r), *_retrain_warning(res),
+                     *_coverage_warnings(coverage)],
     }
     if res.est_retrained is not None and res.models_retrained is not None and res.retrain:
         out["wear"] = {

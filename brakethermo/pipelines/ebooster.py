@@ -32,7 +32,7 @@ from brakethermo.models.ebooster import STATE_NAMES, BoosterFit, EboosterModel, 
 from brakethermo.models.rig_effects import BOOSTER_EFFECTS, RigContext
 from brakethermo.numeric import noise_std, rmse
 from brakethermo.pipelines.rig_carry import carried, carried_prediction
-from brakethermo.pipelines.rig_checks import Expect, check_rig_channels
+from brakethermo.pipelines.rig_checks import LOW_COVERAGE, Expect, check_rig_channels
 from brakethermo.results.ebooster import (
     OBSERVERS,
     PRESSURES,
@@ -65,7 +65,6 @@ DEFAULT_FIT = "ebooster_fit"  # configs/rigs/ebooster_fit.toml, trained on a sim
 MM, MPA = 1e3, 1e-6  # SI -> model units
 Z95 = 1.959963984540054
 APPLIED_MPA = 0.2  # a pressure above this: the brake is applied (coverage while braking)
-LOW_COVERAGE = 0.8  # a 95 % band covering less than this on the session's own sensor is said
 MIN_APPLIED = 200  # applied samples (over the pressures) needed to score the band while braking
 
 

@@ -20,6 +20,10 @@ from brakethermo.errors import DataError
 from brakethermo.io.session import Session
 from brakethermo.numeric import true_runs
 
+# A 95 % band covering less than this of the applies on the session's own sensor is said
+# (an observer's band is checked wherever the session logs what it estimates)
+LOW_COVERAGE = 0.8
+
 
 @dataclass(frozen=True)
 class Expect:
