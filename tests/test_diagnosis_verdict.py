@@ -78,6 +78,27 @@ def test_an_effect_fitted_at_a_bound_of_its_range_is_never_named() -> None:
     assert decide(before, [free, weak], RULE).verdict == "a"
 
 
+def test_a_weaker_effect_is_not_named_alone_beside_a_larger_one_at_its_bound() -> None:
+    """A μ(T) steeper than its ramp allows closed 33 % of the gap at its bound, a knee 9 %
+    (significant where its signature lives): the knee was named alone, a confident wrong
+    name. The one at the bound is still not named for itself, but the first does not
+    beat it: the verdict is the set, the bound said; beaten clearly, it stays aside."""
+    rng = np.random.default_rng(11)
+    before = _units(40, rng, 100.0)
+    knee = CandidateEvidence("knee", before * 0.80)
+    mu = CandidateEvidence("mu", before * 0.45 * rng.uniform(0.8, 1.2, 40),
+                           at_bound="beta = 0.596, at the edge of its range -0.6 to 0.6")
+    d = decide(before, [knee, mu], RULE)
+    assert d.verdict == "knee" and d.verdict_set == ["knee", "mu"] and d.kind == "set"
+    assert any(s.startswith("mu closes") and "in the set only because knee" in s
+               for s in d.next_steps)
+    assert not any(r.startswith("mu set aside") for r in d.reasons)
+    small = CandidateEvidence("mu", before * 0.97 * rng.uniform(0.7, 1.3, 40),
+                              at_bound="beta = 0.596, at the edge of its range -0.6 to 0.6")
+    d = decide(before, [CandidateEvidence("knee", before * 0.5), small], RULE)
+    assert d.verdict_set == ["knee"]
+
+
 def test_an_undecided_candidate_past_a_full_set_is_not_called_significant() -> None:
     """An independent caliper with three times the trained hysteresis: three look-alike
     stiffness effects filled the set, and hysteresis (5 to 12 %, the rule 10 %) was

@@ -29,7 +29,10 @@ hands over the sum of squared errors per unit. Everything here resamples those u
   caller allows them (not the effect's absent value) closes the gap only with a form
   past what it physically allows: it is neither significant nor undecided (the gap is
   more likely another effect's that looks like it) and is listed with that in the next
-  steps;
+  steps — but the gap it closes is there: the first significant candidate stands alone
+  only when it beats it clearly too, else it joins the set behind the others (a μ(T)
+  steeper than its ramp allows, 33 % at its bound, beside a knee of 9 %, named the knee
+  alone);
 - **untestable**: candidates the caller knows the data hardly contain the signature of
   (a model-specific check) are, when not significant, listed with why rather than left
   to read as absent.
@@ -285,7 +288,8 @@ class Decision:
                 f" {r.correlated:g} with overlapping shrink intervals), else the verdict is"
                 f" the set of those it does not beat, significant ones first"
                 f" (at most {r.max_set}); none when no effect is significant; an effect"
-                f" whose fitted parameters end at a bound of their range is not named"),
+                f" whose fitted parameters end at a bound of their range is not named for"
+                f" itself, but joins the set when the first does not beat it clearly"),
         }
 
 
@@ -326,17 +330,24 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
                  and _may_matter(r, rule) and r["shrink_pct"] > 0.0]
     reasons: list[str] = []
     verdict_set: list[str] = []
-    if significant:
-        verdict_set, reasons = _verdict_set(sse_before, rows, significant, undecided, by_name,
-                                            rule)
-    next_steps = _next_steps(verdict_set, undecided, rows, by_name, untestable)
     edge = [r for r in rows if r.get("at_bound") and _may_matter(r, rule)
             and r["shrink_pct"] > 0.0]
+    if significant:
+        # one at a bound is not named for itself, but the first stands alone only when it
+        # beats that one clearly too: the gap it closes is there, whatever its cause
+        verdict_set, reasons = _verdict_set(sse_before, rows, significant,
+                                            undecided + [r["name"] for r in edge], by_name,
+                                            rule)
+    next_steps = _next_steps(verdict_set, undecided, rows, by_name, untestable)
     next_steps += [f"{r['name']} closes {r['shrink_pct']:.0f} % of the held-out gap only with"
-                   f" {r['at_bound']}, past what its form allows: not named (another"
-                   f" unmodelled effect that looks like it is more likely)" for r in edge]
+                   f" {r['at_bound']}, past what its form allows: "
+                   + (f"in the set only because {verdict_set[0]} does not beat it clearly (its"
+                      " form is stretched: the cause may be it, beyond its form, or another"
+                      " effect like it)" if r["name"] in verdict_set else
+                      "not named (another unmodelled effect that looks like it is more"
+                      " likely)") for r in edge]
     reasons += [f"{r['name']} set aside: its fit ends at a bound ({r['at_bound']})"
-                for r in edge]
+                for r in edge if r["name"] not in verdict_set]
     # an undecided one is listed once, with what would decide it
     unseen = {n: why for n, why in (untestable or {}).items()
               if n in by_name and n not in significant and n not in undecided}
