@@ -17,11 +17,13 @@ With ``--race`` it times instead the default model's whole race, file to estimat
 (read, filter, smoother, scores, ``estimate.parquet`` + ``summary.json``; no HTML
 report): a ``--laps``-lap race is simulated first (not timed), a 1-lap run warms the
 compiled kernels, then ``--repeat`` runs with ``--workers`` and ``--threads`` BLAS
-threads.
+threads. ``--race-file`` times that race instead of a simulated one, with ``--h-law``
+(the k_z race of the README's speed table: a low-k_z race disc on which the race's
+decision switches k_z on and the filter runs on the thin-skin 15 x 6 mesh).
 
 Run: ``python benchmarks/bench_filter.py [--steps 1000] [--fp-steps 200] [--repeat 3]
 [--threads 1] [--nodes 10,150]`` or ``python benchmarks/bench_filter.py --race [--laps 25]
-[--workers 2] [--threads 2]``
+[--workers 2] [--threads 2] [--race-file RACE --h-law h_law.toml]``
 """
 
 from __future__ import annotations
@@ -160,8 +162,10 @@ def row(
     )
 
 
-def race(laps: int, workers: int, threads: int, repeat: int) -> None:
-    """Time the default model's estimate of a simulated race, file to outputs."""
+def race(laps: int, workers: int, threads: int, repeat: int, race_file: str | None = None,
+         h_law: str | None = None) -> None:
+    """Time the default model's estimate of a simulated race (or of ``race_file`` with
+    the law ``h_law``), file to outputs."""
     from pathlib import Path
 
     from brakethermo.pipelines.estimate import EstimateOptions, estimate_session, write_estimate
@@ -170,11 +174,11 @@ def race(laps: int, workers: int, threads: int, repeat: int) -> None:
 
     with tempfile.TemporaryDirectory(prefix="bench-race-") as tmp:
         work = Path(tmp)
-        path = write_simulation(simulate(SimConfig(laps=laps - 1, sensor="single", seed=9100)),
-                                work / "race.mcap")[0]
+        path = Path(race_file) if race_file else write_simulation(
+            simulate(SimConfig(laps=laps - 1, sensor="single", seed=9100)), work / "race.mcap")[0]
         warm = write_simulation(simulate(SimConfig(laps=1, sensor="single", seed=9101)),
                                 work / "warm.mcap")[0]
-        options = EstimateOptions(workers=workers)
+        options = EstimateOptions(workers=workers, h_law=h_law)
         with threadpool_limits(threads):
             write_estimate(estimate_session(warm, options), work / "out")
             best, res = np.inf, None
@@ -185,8 +189,11 @@ def race(laps: int, workers: int, threads: int, repeat: int) -> None:
                 write_estimate(res, work / "out")
                 best = min(best, time.perf_counter() - t)
     run = res.summary["run"]
-    print(f"estimate, default model ({run['nodes']} nodes x {run['layers']} layers), {laps}-lap "
-          f"race ({run['steps']} steps), file to parquet + summary: {best:.2f} s best of "
+    what = f"{path.name} (law {h_law or 'shipped'})" if race_file else f"{laps}-lap race"
+    print(f"estimate, default model ({run['nodes']} nodes x {run['layers']} layers), {what} "
+          f"({run['steps']} steps, online effects switched on:"
+          f" {run.get('online_choice', {}).get('chosen') or 'none'}), file to parquet +"
+          f" summary: {best:.2f} s best of "
           f"{repeat} (workers {workers}, BLAS threads {threads}); stages of that run: "
           + ", ".join(f"{k} {v:.2f}" for k, v in run["timings_s"].items()))
 
@@ -202,9 +209,11 @@ def main() -> None:
     ap.add_argument("--race", action="store_true", help="time the whole-race estimate instead")
     ap.add_argument("--laps", type=int, default=25, help="--race: laps incl. the out-lap")
     ap.add_argument("--workers", type=int, default=1, help="--race: estimate --workers")
+    ap.add_argument("--race-file", help="--race: time this race instead of a simulated one")
+    ap.add_argument("--h-law", help="--race: the h law (h_law.toml) of --race-file")
     args = ap.parse_args()
     if args.race:
-        race(args.laps, args.workers, args.threads, args.repeat)
+        race(args.laps, args.workers, args.threads, args.repeat, args.race_file, args.h_law)
         return
     print(f"s/lap = seconds per 1000 steps; BLAS threads: {args.threads}; model = DiscFEModel,"
           " L = 1")

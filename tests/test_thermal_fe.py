@@ -219,7 +219,8 @@ def test_low_kz_face_runs_hotter_than_midplane(disc: DiscSpec) -> None:
     assert np.all(gap[:, 0] - gap[:, 2] < layers[contact, 0] - layers[contact, 2])
 
 
-@pytest.mark.parametrize(("n", "layers"), [(10, 1), (23, 2), (15, 3)])
+# (150, 4): 1201 members in blocks that keep a 600-node mesh's work arrays in cache
+@pytest.mark.parametrize(("n", "layers"), [(10, 1), (23, 2), (15, 3), (15, 6), (150, 4)])
 def test_numba_step_equals_numpy_step(disc: DiscSpec, n: int, layers: int) -> None:
     fast = DiscFEModel(disc, n, layers, use_numba=True)
     slow = DiscFEModel(disc, n, layers, use_numba=False)
@@ -278,8 +279,8 @@ def test_spot_matrix_interpolates_face_nodes(disc: DiscSpec) -> None:
 
 
 def test_shared_matrix_numba_equals_numpy(disc: DiscSpec) -> None:
-    fast = DiscFEModel(disc, 20, 2, use_numba=True)
-    slow = DiscFEModel(disc, 20, 2, use_numba=False)
+    fast = DiscFEModel(disc, 150, 4, use_numba=True)
+    slow = DiscFEModel(disc, 150, 4, use_numba=False)
     T = np.random.default_rng(6).uniform(50, 900, (70, fast.n_state))  # > one kernel block
     ref = T.mean(axis=0)
     kw = {"shared_matrix_from": ref, "kz_ratio": 0.5}

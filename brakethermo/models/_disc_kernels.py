@@ -130,18 +130,35 @@ def ukf_reduced_steps(k0, k1, offset, work, W, par, thr, H, R, y, M, st, cov, gs
     """:func:`ukf_disc_steps` on reduced coordinates, ``x_full = L x``
     (:class:`~brakethermo.models.reduced.ReducedStateSpace`): each sigma point lifted
     to the full model, stepped, and projected back, ``x' = L' f(L x)``; ``noise`` is
-    the reduced one. ``L`` (n_full, n) has orthonormal columns."""
+    the reduced one. ``L`` (n_full, n) has orthonormal columns.
+
+    The sigma set in ``work`` is the one the UKF kernel drew from the posterior mean
+    ``x`` and factor ``S`` that ``work`` holds with it (``x``, ``x +- c S_j``): lifted, it
+    is ``L x +- c (L S)_j``, one product with the n columns of ``S`` instead of the
+    2n + 1 sigma points (equal but for rounding)."""
     n = work.shape[1]
     B = 2 * n + 1
     n_full = L.shape[0]
-    LT = np.ascontiguousarray(L.T)
+    c = par[0]
+    S = work[B + n : B + 2 * n]
+    x = work[B + 2 * n]
+    x_full = np.empty(n_full)
+    LS = np.empty((n_full, n))
     X_full = np.empty((B, n_full))
     Xf_full = np.empty((B, n_full))
     Xf = np.empty((B, n))
     Q = np.empty((n, n))
     for k in range(k0, k1):
         j = k + offset
-        np.dot(work[:B], LT, X_full)
+        np.dot(L, x, x_full)
+        np.dot(L, S, LS)
+        for i in range(n_full):
+            X_full[0, i] = x_full[i]
+        for col in range(n):
+            for i in range(n_full):
+                d = c * LS[i, col]
+                X_full[1 + col, i] = x_full[i] + d
+                X_full[1 + n + col, i] = x_full[i] - d
         disc_transition(X_full, j, Xf_full, inputs, cols, lower, floats, contact, loads,
                         sensor_row, geometry)
         np.dot(Xf_full, L, Xf)
