@@ -278,15 +278,20 @@ def test_spot_matrix_interpolates_face_nodes(disc: DiscSpec) -> None:
         model.spot_matrix([0.05])
 
 
-def test_shared_matrix_numba_equals_numpy(disc: DiscSpec) -> None:
+@pytest.mark.parametrize("members", [70, 993])
+def test_shared_matrix_numba_equals_numpy(disc: DiscSpec, members: int) -> None:
+    """More than one kernel block; 993 members leave a last block of one, which took its
+    own temperature for the shared matrix (100 K off) until the block read Tm always."""
     fast = DiscFEModel(disc, 150, 4, use_numba=True)
     slow = DiscFEModel(disc, 150, 4, use_numba=False)
-    T = np.random.default_rng(6).uniform(50, 900, (70, fast.n_state))  # > one kernel block
+    T = np.random.default_rng(6).uniform(50, 900, (members, fast.n_state))
     ref = T.mean(axis=0)
     kw = {"shared_matrix_from": ref, "kz_ratio": 0.5}
-    a = fast.step(T, 4.0e4, 75.0, 18.0, np.linspace(0.9, 1.1, 70), **kw)
-    b = slow.step(T, 4.0e4, 75.0, 18.0, np.linspace(0.9, 1.1, 70), **kw)
+    scale = np.linspace(0.9, 1.1, members)
+    a = fast.step(T, 4.0e4, 75.0, 18.0, scale, **kw)
+    b = slow.step(T, 4.0e4, 75.0, 18.0, scale, **kw)
     np.testing.assert_allclose(a, b, rtol=1e-12)
+    assert fast.step(T[:0], 4.0e4, 75.0, 18.0).shape == (0, fast.n_state)
 
 
 @pytest.mark.parametrize("use_numba", [False, True])

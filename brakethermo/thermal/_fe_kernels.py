@@ -228,12 +228,12 @@ def _step_block(  # pragma: no cover - compiled; equal to system() + banded solv
     for b in range(B):
         for s in range(n):
             Tt[s, b] = T[b, s]
-    Tmt = Tt
-    if Bm != B:
-        Tmt = np.empty((n, Bm))
-        for b in range(Bm):
-            for s in range(n):
-                Tmt[s, b] = Tm[b, s]
+    # the matrices' temperatures always from Tm: a block of one member of a shared Tm
+    # (Bm == B == 1) must not take its own T instead
+    Tmt = np.empty((n, Bm))
+    for b in range(Bm):
+        for s in range(n):
+            Tmt[s, b] = Tm[b, s]
     D, E, Md = _matrices_nb(Tmt, h, kz, N, L, dt, cap_geo, cond_geo, z_geo, area, c_tab,
                             k_tab, z_tab)
     X = _rhs_nb(Tt, Md, h, ta, Qs, load, N, L, area, rad_geo)
@@ -258,6 +258,8 @@ def step_nb(  # pragma: no cover - compiled
     (at least :data:`_BLOCK` members a block)."""
     B, n = T.shape
     out = np.empty_like(T)
+    if B == 0:
+        return out
     shared = Tm.shape[0] != B
     shared_load = load.shape[0] != B
     fits = _CACHE_BYTES // (8 * n * (geometry[1] + _WORK_ROWS))
