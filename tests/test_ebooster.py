@@ -536,3 +536,17 @@ def test_the_pv_curve_is_the_candidate_that_predicts_held_out_training_data(sess
     w = np.linalg.lstsq(X, p_m, rcond=None)[0]
     assert (np.sqrt(np.mean((np.interp(s2, kn, vals) - truth) ** 2))
             < 0.3 * np.sqrt(np.mean((X @ w - truth) ** 2)))
+
+
+def test_a_session_spread_no_curve_shift_explains_keeps_the_datasheets_band():
+    """The default's band admits the session's own held-out RMS as a shift at the curve's
+    slopes; a spread several times what a curve's place does is a sensor's, not a curve's:
+    the datasheet's shift, said."""
+    from brakethermo.pipelines.ebooster import SHIFT_SD_PLAUSIBLE, band_shift_sd
+
+    model, _, _, _ = _problem(1500)
+    assert band_shift_sd(model, None) == (SPEC.pv_shift_sd_mm, "datasheet")
+    shift, source = band_shift_sd(model, 0.05)
+    assert source == "session" and 0.0 < shift < SHIFT_SD_PLAUSIBLE * SPEC.pv_shift_sd_mm
+    shift, source = band_shift_sd(model, 50.0)
+    assert shift == SPEC.pv_shift_sd_mm and "pressure sensor or its unit is suspect" in source

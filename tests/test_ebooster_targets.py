@@ -5,8 +5,7 @@ on seeds 1-2. Here: seeds 21-22, closed loop and vehicle-like, written with the 
 session writers and read back through the CLI's pipeline.
 
 Measured and asserted: pressures within 0.1 MPa RMS of the validation channels and a
-95 % band covering 85-99 % of the validation points (up to 99.8 %: the band holds the
-held-out residual the default's own diagnosis measures, below), for both observers, and the UKF's
+95 % band covering 85-99 % of the validation points, for both observers, and the UKF's
 residual no higher than the EKF's (the pedal force as one Gaussian state: with the
 literal chi-square w^2 state the UKF's residual was 2-8 times the EKF's). The issue's
 target of a UKF residual at least 10 % below the EKF's is NOT met and NOT asserted: on
@@ -19,9 +18,12 @@ sits deep below zero, see ``brakethermo/models/ebooster.py``).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from brakethermo.pipelines.ebooster import observe
+from brakethermo.results.ebooster import PRESSURES
 from brakethermo.sim.ebooster import (
     PRODUCTION_CHANNELS,
     EboosterSimConfig,
@@ -48,12 +50,8 @@ def test_pressures_within_0_1_mpa_rms(summary):
 
 
 def test_95_percent_band_is_honest(summary):
-    # the band holds the session's own held-out residual about its static curve (the
-    # default diagnoses a session that logs p_m), which delta partly corrects: the vehicle
-    # seed's band covers 99.5 %, past the issue's 99 % (before, with the datasheet's
-    # 0.25 mm, at most 99 %); a band wider than that is a regression
     for observer in ("ukf", "ekf"):
-        assert 0.85 <= summary["coverage_95"][observer] <= 0.998, summary["coverage_95"]
+        assert 0.85 <= summary["coverage_95"][observer] <= 0.99, summary["coverage_95"]
 
 
 def test_ukf_residual_is_not_above_the_ekfs(summary):
@@ -116,10 +114,31 @@ def test_by_default_a_session_with_its_sensor_measures_where_its_curve_sits(tmp_
     assert s["with_effect"]["source"].startswith("default")
     assert "pv_shift" in s["with_effect"]["verdict_set"]
     assert s["pressure_rmse_mpa"]["ukf"]["p_m"] < 0.5 * plain["pressure_rmse_mpa"]["ukf"]["p_m"]
-    assert s["band"]["pv_shift_sd_mm"] is None and 0.0 < s["band"]["heldout_curve_sd_mpa"] < 0.1
+    band = s["band"]
+    assert band["shift_sd_from"] == "session" and 0.0 < band["heldout_curve_sd_mpa"] < 0.1
+    assert 0.0 < band["pv_shift_sd_mm"] < 3 * 0.25 and "in-sample" in s["with_effect"]["in_sample"]
     for observer in ("ukf", "ekf"):
         assert 0.85 <= s["coverage_95_braking"][observer] <= 1.0, s["coverage_95_braking"]
     production = write_ebooster_session(simulate_ebooster(cfg), tmp_path / "p.mcap",
                                         channels=PRODUCTION_CHANNELS)[0]
     s = observe(production).summary
     assert s["with_effect"] is None and s["band"]["pv_shift_sd_mm"] == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize("fault", ["x10", "offset"])
+def test_the_default_does_not_trust_a_pressure_sensor_that_is_off(tmp_path, fault):
+    """The default places the curve with the session's own pressure sensor: one read in
+    bar as MPa (its channel check flags it) is not used, the band stays the datasheet's
+    and the coverage warning against it still speaks; a sensor 2 MPa off that passes the
+    channel check reads so at rest, where a master cylinder holds none: not used either."""
+    sim = simulate_ebooster(EboosterSimConfig("open", seed=27, rate_hz=500.0, duration_s=12.0))
+    p_m = sim.meas[PRESSURES["p_m"]]
+    bad = replace(sim, meas={**sim.meas,
+                             PRESSURES["p_m"]: 10.0 * p_m if fault == "x10" else p_m + 2.0})
+    path, _ = write_ebooster_session(bad, tmp_path / "s.mcap")
+    s = observe(path).summary
+    assert s["band"]["pv_shift_sd_mm"] == pytest.approx(0.25)
+    assert "suspect" in s["with_effect"]["skipped"] and s["with_effect"]["effects"] == {}
+    assert any("while the brake is applied" in w for w in s["warnings"])
+    if fault == "offset":
+        assert "+2.00 MPa with the screw back at rest" in s["with_effect"]["skipped"]

@@ -406,8 +406,9 @@ def carry(with_effect: str | None, session: Session, s2: Array, fit: BoosterFit,
     By default (``with_effect`` None) a session that logs the master-cylinder pressure is
     diagnosed first ('auto'): a real booster's curve sits 0.2-0.4 mm along the stroke from
     the training day's, which delta cannot resolve and the pressure sensor can, on
-    held-out applies. Where that diagnosis cannot run (too few applies), the curve is
-    carried as trained and the fact says why.
+    held-out applies. The default then trusts that sensor (a gain error moves the curve
+    with it), so a sensor its channel check flagged is not used, and where the diagnosis
+    cannot run (too few applies) the curve is carried as trained; the fact says why.
     """
     found: dict[str, Any] = {}
 
@@ -418,19 +419,53 @@ def carry(with_effect: str | None, session: Session, s2: Array, fit: BoosterFit,
                                       fit=fit).summary)
         return found
 
-    default = with_effect is None
-    text = ("auto" if session.has(PRESSURES["p_m"]) else "none") if default else with_effect
+    if with_effect is not None:
+        pv, fact = static_pressure_carried(with_effect, session, s2, fit, diagnose)
+        return pv, fact, heldout_curve_sd(found)
+    channel = PRESSURES["p_m"]
+    if not session.has(channel):
+        return None, None, None
+    suspect = [w for w in session.warnings if w.startswith(f"channel '{channel}'")]
+    rest = _rest_reading(session, s2)
+    if rest is not None and abs(rest) > REST_OFFSET_MPA:
+        suspect.append(f"it reads {rest:+.2f} MPa with the screw back at rest, where a"
+                       " master cylinder holds no pressure: an offset or a unit fault")
+    if suspect:
+        return None, _skipped(f"its pressure sensor is suspect ({suspect[0]})"), None
     try:
-        pv, fact = static_pressure_carried(str(text), session, s2, fit, diagnose)
-    except ConfigError as exc:
-        if not default:
-            raise
-        return None, {"source": "default", "verdict": None, "verdict_set": [],
-                      "effects": {}, "note": f"the curve as trained: {exc}"}, None
-    if default and fact is not None:
-        fact["source"] = ("default: this session logs the master-cylinder pressure, so it"
-                          " is diagnosed first (auto)")
+        diagnose()
+    except DataError as exc:
+        return None, _skipped(f"its diagnosis cannot run ({exc.detail})"), None
+    pv, fact = static_pressure_carried("auto", session, s2, fit, lambda: found)
+    assert fact is not None  # auto always states what it carried
+    fact["source"] = DEFAULT_SOURCE
+    fact["in_sample"] = IN_SAMPLE
     return pv, fact, heldout_curve_sd(found)
+
+
+DEFAULT_SOURCE = ("default: this session logs the master-cylinder pressure, so it is"
+                  " diagnosed first (auto)")
+IN_SAMPLE = ("this session's pressure sensor placed the curve (on its fitting applies) and"
+             " scores p_m: pressure_rmse_mpa.p_m and the coverage against it are partly"
+             " in-sample; p_f and p_r are not measured by it")
+
+
+REST_OFFSET_MPA = 0.3  # MPa a master cylinder may read at rest (a transducer's zero)
+REST_TRAVEL_MM = 0.2  # mm of screw travel that count as at rest
+
+
+def _rest_reading(session: Session, s2: Array) -> float | None:
+    """MPa: the median master-cylinder pressure with the screw back at rest (None when the
+    session never rests, or logs no pressure there)."""
+    p_m = _series(session, PRESSURES["p_m"], MPA, gaps=True)
+    rest = (s2 < REST_TRAVEL_MM) & np.isfinite(p_m)
+    return float(np.median(p_m[rest])) if rest.sum() >= 10 else None
+
+
+def _skipped(why: str) -> dict[str, Any]:
+    """The default's fact when it does not diagnose a session that logs the pressure."""
+    return {"source": DEFAULT_SOURCE, "verdict": "none", "verdict_set": [], "effects": {},
+            "skipped": why, "note": f"the curve as trained: {why}"}
 
 
 def heldout_curve_sd(diagnosis: dict[str, Any]) -> float | None:
@@ -445,19 +480,48 @@ def heldout_curve_sd(diagnosis: dict[str, Any]) -> float | None:
     return float(value) if value is not None and np.isfinite(value) else None
 
 
-def _band(spec: BoosterSpec, curve_sd: float | None) -> dict[str, Any]:
+SHIFT_SD_PLAUSIBLE = 3.0  # x the datasheet's: a session's own curve spread beyond is suspect
+
+
+def band_shift_sd(model: EboosterModel, curve_sd: float | None) -> tuple[float, str]:
+    """mm: the 1 sigma of the curve's place along the stroke the pressure bands admit, and
+    where it comes from.
+
+    The session's own held-out RMS about its curve (MPa), where a diagnosis measured it,
+    as the shift that explains it at the curve's slopes while applied (the band is then
+    nil at rest and grows with the slope, as the datasheet's); the datasheet's
+    ``pv_shift_sd_mm`` otherwise, and where the session's would be more than
+    :data:`SHIFT_SD_PLAUSIBLE` times it (a sensor whose unit or gain is off, not a
+    curve: it is said).
+    """
+    spec = model.spec
+    if curve_sd is None:
+        return spec.pv_shift_sd_mm, "datasheet"
+    slope = np.sqrt(pv_position_var(model, 1.0))
+    applied = model.fit.pressure(np.clip(model.s2, 0.0, None)) > APPLIED_MPA
+    rms = float(np.sqrt(np.mean(slope[applied] ** 2))) if applied.any() else 0.0
+    shift = curve_sd / rms if rms > 0.0 else float("inf")
+    if not shift <= SHIFT_SD_PLAUSIBLE * spec.pv_shift_sd_mm:
+        return spec.pv_shift_sd_mm, (
+            f"datasheet: this session's pressures sit {curve_sd:.3g} MPa RMS about its curve"
+            f" on held-out applies, {shift:.3g} mm of shift at its slopes, beyond what a"
+            f" curve's place does ({SHIFT_SD_PLAUSIBLE:g}x the datasheet's"
+            f" {spec.pv_shift_sd_mm:g} mm): its pressure sensor or its unit is suspect")
+    return shift, "session"
+
+
+def _band(shift_sd: float, source: str, curve_sd: float | None) -> dict[str, Any]:
     """``summary.json`` ``band``: what the pressure bands hold."""
-    own = ("the filter's (smoother's) own spread, times noise_scale where its innovations"
-           " show it over-confident (their mean NIS), widened for the pressures by ")
-    if curve_sd is not None:
-        return {"pv_shift_sd_mm": None, "heldout_curve_sd_mpa": curve_sd,
-                "contains": own + "the session's own held-out RMS about the curve carried"
-                            " (its diagnosis on held-out applies): where its curve sits is"
-                            " measured, what the static curve still misses is admitted"}
-    return {"pv_shift_sd_mm": spec.pv_shift_sd_mm, "heldout_curve_sd_mpa": None,
-            "contains": own + "the p-V curve's slope times pv_shift_sd_mm: where this"
-                        " session's curve sits against the training session's, which delta"
-                        " cannot resolve (it trades against the pedal force)"}
+    where = ("this session's own held-out RMS about the curve carried (its diagnosis on"
+             " held-out applies), as a shift at the curve's slopes while applied"
+             if source == "session" else
+             "the datasheet's shift: where this session's curve sits against the training"
+             " session's, which delta cannot resolve (it trades against the pedal force)")
+    return {"pv_shift_sd_mm": shift_sd, "shift_sd_from": source,
+            "heldout_curve_sd_mpa": curve_sd,
+            "contains": "the filter's (smoother's) own spread, times noise_scale where its"
+                        " innovations show it over-confident (their mean NIS), widened for the"
+                        " pressures by the p-V curve's slope times pv_shift_sd_mm: " + where}
 
 
 def default_fit_path() -> Path:
@@ -465,19 +529,20 @@ def default_fit_path() -> Path:
     return config_dir() / "rigs" / f"{DEFAULT_FIT}.toml"
 
 
-def pv_position_var(model: EboosterModel) -> Array:
+def pv_position_var(model: EboosterModel, shift_sd_mm: float | None = None) -> Array:
     """MPa^2 per step: what not knowing where the session's p-V curve sits adds.
 
-    The curve's slope at the screw position times the datasheet's 1 sigma of the curve's
-    shift along the stroke (``pv_shift_sd_mm``); delta cannot resolve the shift (it trades
-    against the pedal force), so it widens the pressure bands instead of being a state.
+    The curve's slope at the screw position times a 1 sigma of the curve's shift along the
+    stroke (mm; default the datasheet's ``pv_shift_sd_mm``); delta cannot resolve the
+    shift (it trades against the pedal force), so it widens the pressure bands instead of
+    being a state.
     """
     eps = 0.05  # mm
     curve = model.fit.pressure
     s2 = np.clip(model.s2, 0.0, None)
     slope = (curve(s2 + eps) - curve(np.clip(s2 - eps, 0.0, None))) / (
         s2 + eps - np.clip(s2 - eps, 0.0, None))
-    return (slope * model.spec.pv_shift_sd_mm) ** 2
+    return (slope * (model.spec.pv_shift_sd_mm if shift_sd_mm is None else shift_sd_mm)) ** 2
 
 
 def gauge_pressure(mean: Array, var: Array) -> tuple[Array, Array]:
@@ -614,7 +679,8 @@ def observe(
 
     pv, carried_fact, curve_sd = carry(with_effect, session, s2, fit, bench, aliases)
     model = EboosterModel(spec, fit, s2, session.dt, pv=pv)
-    curve_var = None if curve_sd is None else np.full(s2.size, curve_sd**2)
+    shift_sd, shift_from = band_shift_sd(model, curve_sd)
+    curve_var = pv_position_var(model, shift_sd)
     tracks = {which: _run(model, which, delta, smooth, curve_var) for which in OBSERVERS}
     lost = {w: why for w in OBSERVERS if (why := lost_track(tracks[w], delta, session.time))}
     if len(lost) == len(OBSERVERS):
@@ -630,7 +696,9 @@ def observe(
         for state, ch in PRESSURES.items() if session.has(ch)
     }
     summary = _summary(session, spec, fit, tracks, validation, smooth, t_train, s2)
-    summary["band"] = _band(spec, curve_sd)
+    summary["band"] = _band(shift_sd, shift_from.split(":")[0], curve_sd)
+    if shift_from.startswith("datasheet:"):
+        summary["warnings"].append(shift_from.split(": ", 1)[1])
     summary["with_effect"] = carried_fact
     summary["lost_track"] = lost
     summary["warnings"] += fit_warnings(fit) + ([SHIPPED_FIT_NOTE] if shipped else [])
