@@ -198,18 +198,22 @@ def _fit(fam: Family, s: Array, mu: Array, p0: Array) -> Array:
     ).x
 
 
-def fit_families(s: Array, mu: Array, *, folds: int = 5, seed: int = 0) -> list[FamilyFit]:
+def fit_families(s: Array, mu: Array, *, folds: int = 5, seed: int = 0,
+                 blocks: int | None = None) -> list[FamilyFit]:
     """Fit every family of :data:`FAMILIES`; held-out RMSE by ``folds``-fold cross-validation.
 
     Parameters
     ----------
     s, mu : ndarray (K,) — slip, –, and friction coefficient, –.
     folds : int — cross-validation folds (random, fixed ``seed``).
+    blocks : int, optional — instead, cut the points (in time order) into this many runs
+        of neighbours, dealt to the folds in turn.
     """
     s, mu = np.asarray(s, float), np.asarray(mu, float)
     i = int(np.argmax(np.convolve(mu, np.ones(25) / 25, mode="same")))
     m0, sp0 = float(mu[max(i - 12, 0) : i + 13].mean()), max(float(s[i]), 0.02)
-    fold = np.random.default_rng(seed).permutation(s.size) % folds
+    fold = (np.random.default_rng(seed).permutation(s.size) if blocks is None
+            else np.arange(s.size) * blocks // max(s.size, 1)) % folds
     out = []
     for fam in FAMILIES:
         p = _fit(fam, s, mu, fam.start(m0, sp0))
@@ -258,25 +262,33 @@ class RelaxationChoice:
     as_logged: list[FamilyFit]
 
 
-def choose_relaxation(t: Array, s: Array, mu: Array, speed: Array
-                      ) -> tuple[RelaxationChoice, Array]:
+HELD_BLOCKS = 25  # runs of neighbouring points held out together when σ is chosen
+
+
+def choose_relaxation(t: Array, s: Array, mu: Array, speed: Array,
+                      kept: Array | None = None) -> tuple[RelaxationChoice, Array]:
     """The slip aligned with the force, and the length that aligns it.
 
     Each candidate σ lags the logged slip by σ / V (:func:`relaxation_lag`: the force
     follows the slip it had σ of travel earlier); the families are fitted to the lagged
-    slip and scored on held-out points (:func:`fit_families`); the shortest σ within
-    :data:`SIMPLER_WITHIN` of the best score wins, so a ramp whose force keeps up with
-    its slip keeps the slip as logged.
+    slip and scored on held-out runs of neighbouring points (:func:`fit_families` with
+    ``blocks``: a point beside its fitted neighbours 1 ms away is no held-out point); the
+    shortest σ within :data:`SIMPLER_WITHIN` of the best score wins, so a ramp whose force
+    keeps up with its slip keeps the slip as logged.
 
     Parameters
     ----------
-    t : ndarray (K,) — s, the ramp's points in time order.
-    s, mu : ndarray (K,) — slip and friction coefficient, –.
+    t : ndarray (K,) — s, the whole ramp in time order.
+    s : ndarray (K,) — slip over the whole ramp, –.
+    mu : ndarray — friction coefficient at the points ``kept``, –.
     speed : ndarray (K,) — carriage speed, m/s.
+    kept : ndarray of int, optional — the points of the ramp that have a μ (default all).
     """
-    fits = [fit_families(relaxation_lag(s, t, speed, L), mu) for L in RELAXATION_M]
+    idx = np.arange(s.size) if kept is None else np.asarray(kept)
+    fits = [fit_families(relaxation_lag(s, t, speed, L)[idx], mu, blocks=HELD_BLOCKS)
+            for L in RELAXATION_M]
     scores = [min(f.heldout_rmse for f in fam) for fam in fits]
     best = min(scores)
     i = next(i for i, v in enumerate(scores) if v <= best * (1.0 + SIMPLER_WITHIN))
     choice = RelaxationChoice(RELAXATION_M[i], RELAXATION_M, tuple(scores), fits[0])
-    return choice, relaxation_lag(s, t, speed, choice.length_m)
+    return choice, relaxation_lag(s, t, speed, choice.length_m)[idx]

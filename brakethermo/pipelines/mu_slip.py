@@ -281,6 +281,11 @@ class RampPoints:
     radius_m: float | None
     ramp_s: tuple[float, float]
     warnings: tuple[str, ...] = ()
+    # the whole ramp in time order (slip bridged over its gaps) and where the points sit in
+    # it: a lag runs over the ramp, not over the points kept (a dropped force leaves holes)
+    ramp_time: np.ndarray | None = None
+    ramp_slip: np.ndarray | None = None
+    kept: np.ndarray | None = None
 
 
 FREE_SLIP = (0.02, 0.06)  # |slip| in free rolling: said above the first, refused above the second
@@ -392,9 +397,13 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
         raise DataError(f"only {s.size} (slip, μ) points with 0 < slip <= 1; a curve needs"
                         f" at least 10{hint}", path=session.path)
     _check_plausible_mu(m, session)
-    return RampPoints(session, t, s, m, radius,
-                      (float(session.time[start]), float(session.time[min(lock, slip.size - 1)])),
-                      tuple(warnings))
+    span = (float(session.time[start]), float(session.time[min(lock, slip.size - 1)]))
+    if options.points:
+        return RampPoints(session, t, s, m, radius, span, tuple(warnings))
+    t_ramp, s_ramp = session.time[sl], slip[sl]
+    fin = np.isfinite(s_ramp)
+    return RampPoints(session, t, s, m, radius, span, tuple(warnings), t_ramp,
+                      np.interp(t_ramp, t_ramp[fin], s_ramp[fin]), np.flatnonzero(ok))
 
 
 def _radius_warning(session: Session, radius_m: float | None) -> list[str]:
@@ -444,10 +453,11 @@ def mu_slip(
     ramp = ramp_points(path, options, aliases=aliases)
     session, t, s, m = ramp.session, ramp.time, ramp.slip, ramp.mu
     relax = None
-    if not options.points and session.has("vehicle_speed"):
+    if ramp.kept is not None and session.has("vehicle_speed"):
         # the force lags the slip on a ramp: every estimator sees the slip aligned with it
-        relax, s = choose_relaxation(t, s, m, np.interp(t, session.time,
-                                                        session.values("vehicle_speed")))
+        speed = np.interp(ramp.ramp_time, session.time, session.values("vehicle_speed"))
+        if np.isfinite(speed).all():
+            relax, s = choose_relaxation(ramp.ramp_time, ramp.ramp_slip, m, speed, ramp.kept)
     sigma = noise_std(m)
     (m_lo, m_hi), (s_lo, s_hi) = options.mu_range, options.slip_range
     x0 = np.array([m_hi, s_hi])  # paper: start at the high end, covariance covering the range
@@ -546,16 +556,16 @@ def peak_band(result: MuSlipResult) -> dict[str, float]:
     against 0.15 off)."""
     best = result.best
     relax = result.relaxation
-    named = [(f.name, f) for f in _allowed(result.families)] + (
-        [(f"{f.name} (slip as logged)", f) for f in _allowed(relax.as_logged)]
-        if relax is not None and relax.length_m > 0.0 else [])
-    names = [n for n, _ in named] or [best.name]
-    allowed = [f for _, f in named] or [best]
+    aligned = _allowed(result.families)
+    logged = (_allowed(relax.as_logged) if relax is not None and relax.length_m > 0.0
+              else [])
+    allowed = aligned + logged or [best]
     sd_fit = np.sqrt(np.maximum(result.ekf.var_filt[-1], 0.0))
     mu_sd = rmse([f.mu_peak for f in allowed], best.mu_peak)
     slip_sd = rmse([f.slip_peak for f in allowed], best.slip_peak)
     return {"mu_std": max(mu_sd, float(sd_fit[0])), "slip_std": max(slip_sd, float(sd_fit[1])),
-            "families": names}
+            "families": [f.name for f in aligned] or [best.name],
+            "families_as_logged": [f.name for f in logged]}
 
 
 def result_frame(res: MuSlipResult) -> pd.DataFrame:
@@ -633,6 +643,7 @@ def _relaxation(choice: RelaxationChoice | None) -> dict[str, Any] | None:
     if choice is None:
         return None
     L = choice.length_m
+    at = choice.heldout_rmse[choice.candidates_m.index(L)]
     return {
         "length_m": L,
         "candidates_m": list(choice.candidates_m),
@@ -641,9 +652,8 @@ def _relaxation(choice: RelaxationChoice | None) -> dict[str, Any] | None:
                   if L == 0.0 else
                   f"the slip aligned with the force over {L:g} m of travel (the tyre's"
                   " relaxation length and the force sensors' lag: held-out μ RMSE"
-                  f" {choice.heldout_rmse[0]:.4f} with the slip as logged,"
-                  f" {min(choice.heldout_rmse):.4f} aligned); every estimator here sees the"
-                  " aligned slip"),
+                  f" {choice.heldout_rmse[0]:.4f} with the slip as logged, {at:.4f} aligned);"
+                  " every estimator here sees the aligned slip"),
     }
 
 
