@@ -679,7 +679,7 @@ def test_a_band_the_sessions_own_sensor_refutes_is_said(tmp_path: Path) -> None:
     sensor reading 1.4x (a gain or unit fault: the caliper itself is the trained one); the
     same session with its sensor right says nothing. Our simulator's calipers stay inside
     the band even with four times the trained hysteresis (93 %); an independent one with
-    three times it did not (72 %)."""
+    three times it did not (63 % of its applied samples)."""
     tr, _ = write_emb_simulation(simulate_emb("nominal", seed=6501, duration_s=30.0),
                                  tmp_path / "tr.mcap")
     sim = simulate_emb("nominal", seed=6502, duration_s=20.0)

@@ -436,12 +436,17 @@ def _verdict_set(sse_before: np.ndarray, rows: list[dict[str, Any]], significant
             verdict_set.insert(0, simplest)
     if len(verdict_set) > rule.max_set:
         rest = verdict_set[rule.max_set:]
+        bound = {r["name"] for r in rows if r.get("at_bound")}
         also = [n for n in rest if n in significant]
-        maybe = [n for n in rest if n not in significant]
+        maybe = [n for n in rest if n not in significant and n not in bound]
+        edge = [n for n in rest if n in bound]
         if also:
             reasons.append("also significant, not separated: " + ", ".join(also))
         if maybe:
             reasons.append("also possible (undecided), not separated: " + ", ".join(maybe))
+        if edge:
+            reasons.append("also possible (at a bound of its range), not separated: "
+                           + ", ".join(edge))
         verdict_set = verdict_set[: rule.max_set]
     return verdict_set, reasons
 

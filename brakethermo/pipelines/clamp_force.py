@@ -46,7 +46,13 @@ from brakethermo.models.clamp_force import (
     train,
 )
 from brakethermo.numeric import rmse
-from brakethermo.pipelines.rig_checks import LOW_COVERAGE, Expect, check_rig_channels
+from brakethermo.pipelines.rig_checks import (
+    LOW_COVERAGE,
+    MIN_APPLIED,
+    Z95,
+    Expect,
+    check_rig_channels,
+)
 from brakethermo.report.page import Card, Page, Section, TableBlock
 from brakethermo.rigs.emb import sensor_delagged
 
@@ -624,15 +630,17 @@ APPLIED_KN = 0.5  # kN: a clamp force above this is an apply, not a resting cali
 def band_coverage(res: ClampForceResult, force: np.ndarray | None
                   ) -> dict[str, float] | None:
     """Share of this session's own force-sensor readings (lag taken out) inside the
-    reported kf's 95 % band, over the session and while applied; None without the sensor."""
+    reported kf's 95 % band, over the session and while applied (NaN under
+    :data:`MIN_APPLIED` applied samples); None without the sensor."""
     if force is None:
         return None
     est = res.reported
     ok = np.isfinite(force) & np.isfinite(est.kf) & np.isfinite(est.kf_std)
-    inside = np.abs(est.kf - force) <= 1.96 * est.kf_std
+    inside = np.abs(est.kf - force) <= Z95 * est.kf_std
     applied = ok & (force > APPLIED_KN * 1e3)
     return {"all": float(inside[ok].mean()) if ok.any() else float("nan"),
-            "applied": float(inside[applied].mean()) if applied.any() else float("nan")}
+            "applied": (float(inside[applied].mean()) if applied.sum() >= MIN_APPLIED
+                        else float("nan"))}
 
 
 def _coverage_warnings(coverage: dict[str, float] | None) -> list[str]:
@@ -640,7 +648,8 @@ def _coverage_warnings(coverage: dict[str, float] | None) -> list[str]:
     if coverage is None or not coverage["applied"] < LOW_COVERAGE:
         return []
     return [f"scored against this session's own force sensor, the kf's 95 % band covers"
-            f" {100 * coverage['applied']:.0f} % of the applies (above {APPLIED_KN:g} kN):"
+            f" {100 * coverage['applied']:.0f} % of the applied samples (above"
+            f" {APPLIED_KN:g} kN):"
             " this caliper departs from the trained one beyond what the band admits"
             " (hysteresis, stiffness, the pads' gap), or the force sensor or its unit is"
             " off; `diagnose --rig emb` on this session names and sizes a departure of the"

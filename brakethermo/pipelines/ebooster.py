@@ -32,7 +32,13 @@ from brakethermo.models.ebooster import STATE_NAMES, BoosterFit, EboosterModel, 
 from brakethermo.models.rig_effects import BOOSTER_EFFECTS, RigContext
 from brakethermo.numeric import noise_std, rmse
 from brakethermo.pipelines.rig_carry import carried, carried_prediction
-from brakethermo.pipelines.rig_checks import LOW_COVERAGE, Expect, check_rig_channels
+from brakethermo.pipelines.rig_checks import (
+    LOW_COVERAGE,
+    MIN_APPLIED,
+    Z95,
+    Expect,
+    check_rig_channels,
+)
 from brakethermo.results.ebooster import (
     OBSERVERS,
     PRESSURES,
@@ -63,9 +69,7 @@ PEDAL = "pedal_force"
 CHANNELS = (S2, DELTA, *PRESSURES.values(), PEDAL)
 DEFAULT_FIT = "ebooster_fit"  # configs/rigs/ebooster_fit.toml, trained on a simulated bench
 MM, MPA = 1e3, 1e-6  # SI -> model units
-Z95 = 1.959963984540054
 APPLIED_MPA = 0.2  # a pressure above this: the brake is applied (coverage while braking)
-MIN_APPLIED = 200  # applied samples (over the pressures) needed to score the band while braking
 
 
 def _series(session: Session, name: str, scale: float, *, gaps: bool) -> Array:

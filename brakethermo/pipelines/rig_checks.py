@@ -23,6 +23,8 @@ from brakethermo.numeric import true_runs
 # A 95 % band covering less than this of the applies on the session's own sensor is said
 # (an observer's band is checked wherever the session logs what it estimates)
 LOW_COVERAGE = 0.8
+Z95 = 1.959963984540054  # two-sided 95 % of a Gaussian
+MIN_APPLIED = 200  # applied samples needed to score a band while the brake is applied
 
 
 @dataclass(frozen=True)

@@ -392,16 +392,16 @@ def effect_names(text: str | None, registry: dict[str, RigEffect], rig: str
 
 
 def _booster_step(name: str, path: str | Path) -> str:
+    carry = (f"brakethermo ebooster {path} carries it by default (the session logs the"
+             " pressure); carry it into sessions of this day without the pressure sensor:"
+             " brakethermo ebooster SESSION --with-effect DIR/<stem>/diagnosis.json")
     if name in ("pv_shift", "pv_scale", "pv_drift"):
-        return (f"carry it into sessions of this day without the pressure sensor:"
-                " brakethermo ebooster SESSION --with-effect DIR/<stem>/diagnosis.json; or"
-                f" retrain on this session, which logs the pressure: brakethermo ebooster"
-                f" SESSION --train {path}  (constant-speed sweeps up and down train best;"
-                " the observer's band admits a shift of the datasheet's pv_shift_sd_mm, not"
-                " more)")
-    return ("the observer's p-V is static: this effect is in its band only through"
-            " q_pm_speed; widen it in the bench file, or train on applies at the speeds of"
-            " use")
+        return (f"{carry}; or retrain on this session: brakethermo ebooster SESSION --train"
+                f" {path}  (constant-speed sweeps up and down train best; without the"
+                " sensor the observer's band admits a shift of the datasheet's"
+                " pv_shift_sd_mm, not more)")
+    return (f"{carry}; or train on applies at the speeds of use (without the effect, the"
+            " observer holds it in its band only through q_pm_speed)")
 
 
 def negligible_cut(size: dict[str, float], floor: float) -> float:
