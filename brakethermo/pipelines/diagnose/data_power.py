@@ -75,11 +75,10 @@ def disc_data_power(
             near = float(np.mean(read - air <= MAX_COLD_GAP_C))
             seldom = (f"only {100 * near:.1f} % of them" if near > 0 else "none of them")
             out["emissivity_error"] = (
-                f"98 % of the readings lie within {lo:.0f}–{hi:.0f} °C (1st to 99th"
-                f" percentile), {seldom} within"
-                f" {MAX_COLD_GAP_C:.0f} °C of the air ({air:.0f} °C; readings below"
-                f" {floor_c:.0f} °C are not used, where many pyrometers read nothing): there"
-                " a wrong emissivity is mostly a power"
+                f"of the readings used on the flying laps (those above {floor_c:.0f} °C:"
+                f" below it many pyrometers read nothing), 98 % lie within {lo:.0f}–{hi:.0f}"
+                f" °C (1st to 99th percentile), {seldom} within {MAX_COLD_GAP_C:.0f} °C of"
+                f" the air ({air:.0f} °C): there a wrong emissivity is mostly a power"
                 " scale and an offset the h law absorbs, so a weak one cannot show — a"
                 " contact thermocouple on a cold and a hot disc, or a pyrometer of known"
                 " emissivity, would test it")
