@@ -256,14 +256,17 @@ def _dot_row(A, B, i, j, mk):
 
 @njit(cache=True, nogil=True)
 def _sigma(x, L, c, X):
-    n = x.shape[0]
+    """Sigma points ``x`` and ``x +- c L[:, j]`` into the rows of X (eq. 32-34); L is
+    (n, m): square in the filter, a lifted factor (full states by modes) in the reduced
+    disc filter."""
+    n, m = L.shape
     for i in range(n):
         X[0, i] = x[i]
-    for j in range(n):
+    for j in range(m):
         for i in range(n):
             d = c * L[i, j]
             X[1 + j, i] = x[i] + d
-            X[1 + n + j, i] = x[i] - d
+            X[1 + m + j, i] = x[i] - d
 
 
 @njit(cache=True, nogil=True)

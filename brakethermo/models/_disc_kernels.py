@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from brakethermo.estimation._kernels import ukf_step
+from brakethermo.estimation._kernels import _sigma, ukf_step
 from brakethermo.thermal._fe_kernels import step_nb
 
 # columns of the transition's parameter table (-1: the state has no such parameter)
@@ -152,13 +152,7 @@ def ukf_reduced_steps(k0, k1, offset, work, W, par, thr, H, R, y, M, st, cov, gs
         j = k + offset
         np.dot(L, x, x_full)
         np.dot(L, S, LS)
-        for i in range(n_full):
-            X_full[0, i] = x_full[i]
-        for col in range(n):
-            for i in range(n_full):
-                d = c * LS[i, col]
-                X_full[1 + col, i] = x_full[i] + d
-                X_full[1 + n + col, i] = x_full[i] - d
+        _sigma(x_full, LS, c, X_full)
         disc_transition(X_full, j, Xf_full, inputs, cols, lower, floats, contact, loads,
                         sensor_row, geometry)
         np.dot(Xf_full, L, Xf)
