@@ -250,3 +250,18 @@ def test_the_page_says_why_a_signature_has_no_interval(point, ci, said) -> None:
     text = _significant_text({"significant": False, "signature_where": "fast straights",
                               "signature_shrink_pct": point, "signature_shrink_ci95_pct": ci})
     assert said in text
+
+
+def test_a_name_an_untestable_effect_reads_like_is_a_set() -> None:
+    """A wrong emissivity with no reading near the air cannot be tested and reads like a
+    friction rising with temperature: μ(T) is then the first of a set with it, not a
+    single name; where the emissivity can be tested, μ(T) stands alone."""
+    rng = np.random.default_rng(12)
+    before = _units(40, rng, 100.0)
+    mu = CandidateEvidence("mu", before * 0.5)
+    eps = CandidateEvidence("eps", before * 0.99 * rng.uniform(0.9, 1.1, 40))
+    why = {"eps": "no reading near the air"}
+    d = decide(before, [mu, eps], RULE, untestable=why, reads_like={"eps": ("mu",)})
+    assert d.verdict == "mu" and d.verdict_set == ["mu", "eps"] and d.kind == "set"
+    assert any("mu is not named alone: eps reads like it" in r for r in d.reasons)
+    assert decide(before, [mu, eps], RULE, reads_like={"eps": ("mu",)}).verdict_set == ["mu"]

@@ -35,7 +35,8 @@ hands over the sum of squared errors per unit. Everything here resamples those u
   alone);
 - **untestable**: candidates the caller knows the data hardly contain the signature of
   (a model-specific check) are, when not significant, listed with why rather than left
-  to read as absent.
+  to read as absent; one the caller says reads like the single name (``reads_like``)
+  joins it: the data cannot rule it out.
 """
 
 from __future__ import annotations
@@ -309,7 +310,8 @@ def _signature_test(sig: Signature, whole_lo: float, significant: bool, rule: Ve
 
 def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
            rule: VerdictRule | None = None,
-           untestable: Mapping[str, str] | None = None) -> Decision:
+           untestable: Mapping[str, str] | None = None,
+           reads_like: Mapping[str, Sequence[str]] | None = None) -> Decision:
     """Rank the candidates and give the verdict (module docstring).
 
     Parameters
@@ -319,6 +321,9 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
     rule : VerdictRule, optional.
     untestable : mapping, optional — candidate name -> why the data hardly hold its
         signature (and what would); kept for the candidates that are not significant.
+    reads_like : mapping, optional — candidate name -> the candidates its effect reads
+        like where it cannot be tested (a model's knowledge): one of those is not named
+        alone while it is untestable, it is the set of both.
     """
     rule = rule or VerdictRule()
     by_name = {c.name: c for c in candidates}
@@ -338,6 +343,8 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
         verdict_set, reasons = _verdict_set(sse_before, rows, significant,
                                             undecided + [r["name"] for r in edge], by_name,
                                             rule)
+    verdict_set, reasons = _untestable_alike(verdict_set, reasons, by_name, untestable,
+                                             reads_like)
     next_steps = _next_steps(verdict_set, undecided, rows, by_name, untestable)
     next_steps += [f"{r['name']} closes {r['shrink_pct']:.0f} % of the held-out gap only with"
                    f" {r['at_bound']}, past what its form allows: "
@@ -354,6 +361,24 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
     next_steps += [f"{n} cannot be told on this data: {why}" for n, why in unseen.items()]
     return Decision(verdict_set[0] if verdict_set else "none", verdict_set, rows, undecided,
                     next_steps, reasons, rule, unseen)
+
+
+def _untestable_alike(verdict_set: list[str], reasons: list[str],
+                      by_name: Mapping[str, CandidateEvidence],
+                      untestable: Mapping[str, str] | None,
+                      reads_like: Mapping[str, Sequence[str]] | None
+                      ) -> tuple[list[str], list[str]]:
+    """A single name that an untestable candidate reads like becomes the set of both: the
+    data cannot rule that one out (a wrong emissivity with no reading near the air was
+    named μ(T), twice, by an independent generator)."""
+    if len(verdict_set) != 1:
+        return verdict_set, reasons
+    for name, alikes in (reads_like or {}).items():
+        if (verdict_set[0] in alikes and name in (untestable or {}) and name in by_name):
+            return [*verdict_set, name], [
+                *reasons, f"{verdict_set[0]} is not named alone: {name} reads like it and"
+                f" cannot be tested on this data ({(untestable or {})[name]})"]
+    return verdict_set, reasons
 
 
 def _may_matter(row: dict[str, Any], rule: VerdictRule) -> bool:

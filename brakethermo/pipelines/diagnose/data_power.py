@@ -18,6 +18,11 @@ from brakethermo.io.session import Session
 from brakethermo.models.disc_effects import KNEE
 from brakethermo.pipelines.inputs import DiscInputs
 
+# Where an effect cannot be tested, the effects it reads like are not named alone: a wrong
+# emissivity with no reading near the air makes the reading error grow with temperature,
+# as a friction rising with temperature makes the heat (an independent generator's wrong
+# emissivity was named friction_temperature on two sessions, a third's on one)
+READS_LIKE = {"emissivity_error": ("friction_temperature",)}
 MIN_ABOVE_KNEE = 0.03  # share of off-brake flying time above the knee speed
 MAX_COLD_GAP_C = 100.0  # degC: lowest reading above the air a wrong emissivity can show at
 MIN_ONSET_SPREAD_C = 80.0  # degC: spread (10-90 %) of contact temperature at brake onset

@@ -33,7 +33,7 @@ from brakethermo.pipelines.diagnose._common import (
     DiagnoseOptions,
     DiagnoseResult,
 )
-from brakethermo.pipelines.diagnose.data_power import disc_data_power
+from brakethermo.pipelines.diagnose.data_power import READS_LIKE, disc_data_power
 from brakethermo.pipelines.diagnose.evidence import (
     EVIDENCE,
     _corr,
@@ -255,7 +255,7 @@ class _FourSpot:
             for c in candidates]
         blind = disc_data_power(self.inputs.speed, y, self.inputs.t_amb, layout.braking,
                                 layout.train | layout.held, self.disc.v_ref, SENSOR_FLOOR_C)
-        decision = decide(self.ref_sse, evidence, RULE, untestable=blind)
+        decision = decide(self.ref_sse, evidence, RULE, untestable=blind, reads_like=READS_LIKE)
         for c in candidates:
             c.scores = self.describe(c, self.ref_pred)
             row = next(r for r in decision.rows if r["name"] == c.name)

@@ -20,6 +20,7 @@ from brakethermo.pipelines.diagnose._common import (
     DiagnoseResult,
     with_out,
 )
+from brakethermo.pipelines.diagnose.data_power import READS_LIKE
 from brakethermo.pipelines.diagnose.four_spot import diagnose_session
 from brakethermo.pipelines.diagnose.pooled import (
     end_to_end,
@@ -109,7 +110,7 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
                   for r in results]
     blind = {n: f"in every session (in {results[0].stem}: {why})"
              for n, why in blind_sets[0].items() if all(n in b for b in blind_sets)}
-    decision = decide(ref, evidence, RULE, untestable=blind)
+    decision = decide(ref, evidence, RULE, untestable=blind, reads_like=READS_LIKE)
     stems = [r.stem for r in results]
     summaries = [r.summary for r in results]
     seen_in = {n: [r.stem for r in results for e in r.summary["effects"]
