@@ -545,8 +545,10 @@ def test_a_session_spread_no_curve_shift_explains_keeps_the_datasheets_band():
     from brakethermo.pipelines.ebooster import SHIFT_SD_PLAUSIBLE, band_shift_sd
 
     model, _, _, _ = _problem(1500)
-    assert band_shift_sd(model, None) == (SPEC.pv_shift_sd_mm, "datasheet")
-    shift, source = band_shift_sd(model, 0.05)
-    assert source == "session" and 0.0 < shift < SHIFT_SD_PLAUSIBLE * SPEC.pv_shift_sd_mm
-    shift, source = band_shift_sd(model, 50.0)
-    assert shift == SPEC.pv_shift_sd_mm and "pressure sensor or its unit is suspect" in source
+    assert band_shift_sd(model, None) == (SPEC.pv_shift_sd_mm, "datasheet", None)
+    shift, source, said = band_shift_sd(model, 0.05)
+    assert source == "session" and said is None
+    assert 0.0 < shift < SHIFT_SD_PLAUSIBLE * SPEC.pv_shift_sd_mm
+    shift, source, said = band_shift_sd(model, 50.0)
+    assert (shift, source) == (SPEC.pv_shift_sd_mm, "datasheet")
+    assert said is not None and "pressure sensor or its unit is suspect" in said

@@ -35,9 +35,9 @@ from brakethermo.pipelines.rig_carry import carried, carried_prediction
 from brakethermo.pipelines.rig_checks import (
     LOW_COVERAGE,
     MIN_APPLIED,
-    Z95,
     Expect,
     check_rig_channels,
+    in_band,
 )
 from brakethermo.results.ebooster import (
     OBSERVERS,
@@ -400,6 +400,16 @@ def static_pressure_carried(text: str, session: Session, s2: Array, fit: Booster
     return np.clip(pv, 0.0, None), fact
 
 
+DEFAULT_SOURCE = ("default: this session logs the master-cylinder pressure, so it is"
+                  " diagnosed first (auto)")
+IN_SAMPLE = ("this session's pressure sensor placed the curve (on its fitting applies) and"
+             " scores p_m: pressure_rmse_mpa.p_m and the coverage against it are partly"
+             " in-sample; p_f and p_r are not measured by it")
+REST_OFFSET_MPA = 0.3  # MPa a master cylinder may read at rest (a transducer's zero)
+REST_TRAVEL_MM = 0.2  # mm of screw travel that count as at rest
+SHIFT_SD_PLAUSIBLE = 3.0  # x the datasheet's: a session's own curve spread beyond is suspect
+
+
 def carry(with_effect: str | None, session: Session, s2: Array, fit: BoosterFit,
           bench: str | Path, aliases: str | Path | None
           ) -> tuple[Array | None, dict[str, Any] | None, float | None]:
@@ -447,17 +457,6 @@ def carry(with_effect: str | None, session: Session, s2: Array, fit: BoosterFit,
     return pv, fact, heldout_curve_sd(found)
 
 
-DEFAULT_SOURCE = ("default: this session logs the master-cylinder pressure, so it is"
-                  " diagnosed first (auto)")
-IN_SAMPLE = ("this session's pressure sensor placed the curve (on its fitting applies) and"
-             " scores p_m: pressure_rmse_mpa.p_m and the coverage against it are partly"
-             " in-sample; p_f and p_r are not measured by it")
-
-
-REST_OFFSET_MPA = 0.3  # MPa a master cylinder may read at rest (a transducer's zero)
-REST_TRAVEL_MM = 0.2  # mm of screw travel that count as at rest
-
-
 def _rest_reading(session: Session, s2: Array) -> float | None:
     """MPa: the median master-cylinder pressure with the screw back at rest (None when the
     session never rests, or logs no pressure there)."""
@@ -484,12 +483,10 @@ def heldout_curve_sd(diagnosis: dict[str, Any]) -> float | None:
     return float(value) if value is not None and np.isfinite(value) else None
 
 
-SHIFT_SD_PLAUSIBLE = 3.0  # x the datasheet's: a session's own curve spread beyond is suspect
-
-
-def band_shift_sd(model: EboosterModel, curve_sd: float | None) -> tuple[float, str]:
-    """mm: the 1 sigma of the curve's place along the stroke the pressure bands admit, and
-    where it comes from.
+def band_shift_sd(model: EboosterModel, curve_sd: float | None
+                  ) -> tuple[float, str, str | None]:
+    """mm: the 1 sigma of the curve's place along the stroke the pressure bands admit,
+    where it comes from (``"datasheet"`` or ``"session"``), and a warning or None.
 
     The session's own held-out RMS about its curve (MPa), where a diagnosis measured it,
     as the shift that explains it at the curve's slopes while applied (the band is then
@@ -500,18 +497,18 @@ def band_shift_sd(model: EboosterModel, curve_sd: float | None) -> tuple[float, 
     """
     spec = model.spec
     if curve_sd is None:
-        return spec.pv_shift_sd_mm, "datasheet"
-    slope = np.sqrt(pv_position_var(model, 1.0))
+        return spec.pv_shift_sd_mm, "datasheet", None
+    slope = pv_slope(model)
     applied = model.fit.pressure(np.clip(model.s2, 0.0, None)) > APPLIED_MPA
     rms = float(np.sqrt(np.mean(slope[applied] ** 2))) if applied.any() else 0.0
     shift = curve_sd / rms if rms > 0.0 else float("inf")
-    if not shift <= SHIFT_SD_PLAUSIBLE * spec.pv_shift_sd_mm:
-        return spec.pv_shift_sd_mm, (
-            f"datasheet: this session's pressures sit {curve_sd:.3g} MPa RMS about its curve"
-            f" on held-out applies, {shift:.3g} mm of shift at its slopes, beyond what a"
-            f" curve's place does ({SHIFT_SD_PLAUSIBLE:g}x the datasheet's"
-            f" {spec.pv_shift_sd_mm:g} mm): its pressure sensor or its unit is suspect")
-    return shift, "session"
+    if shift <= SHIFT_SD_PLAUSIBLE * spec.pv_shift_sd_mm:
+        return shift, "session", None
+    return spec.pv_shift_sd_mm, "datasheet", (
+        f"this session's pressures sit {curve_sd:.3g} MPa RMS about its curve on held-out"
+        f" applies, {shift:.3g} mm of shift at its slopes, beyond what a curve's place does"
+        f" ({SHIFT_SD_PLAUSIBLE:g}x the datasheet's {spec.pv_shift_sd_mm:g} mm): its"
+        " pressure sensor or its unit is suspect")
 
 
 def _band(shift_sd: float, source: str, curve_sd: float | None) -> dict[str, Any]:
@@ -533,6 +530,15 @@ def default_fit_path() -> Path:
     return config_dir() / "rigs" / f"{DEFAULT_FIT}.toml"
 
 
+def pv_slope(model: EboosterModel) -> Array:
+    """MPa/mm per step: the trained p-V curve's slope at the screw position."""
+    eps = 0.05  # mm
+    curve = model.fit.pressure
+    s2 = np.clip(model.s2, 0.0, None)
+    return (curve(s2 + eps) - curve(np.clip(s2 - eps, 0.0, None))) / (
+        s2 + eps - np.clip(s2 - eps, 0.0, None))
+
+
 def pv_position_var(model: EboosterModel, shift_sd_mm: float | None = None) -> Array:
     """MPa^2 per step: what not knowing where the session's p-V curve sits adds.
 
@@ -541,12 +547,8 @@ def pv_position_var(model: EboosterModel, shift_sd_mm: float | None = None) -> A
     shift (it trades against the pedal force), so it widens the pressure bands instead of
     being a state.
     """
-    eps = 0.05  # mm
-    curve = model.fit.pressure
-    s2 = np.clip(model.s2, 0.0, None)
-    slope = (curve(s2 + eps) - curve(np.clip(s2 - eps, 0.0, None))) / (
-        s2 + eps - np.clip(s2 - eps, 0.0, None))
-    return (slope * (model.spec.pv_shift_sd_mm if shift_sd_mm is None else shift_sd_mm)) ** 2
+    sd = model.spec.pv_shift_sd_mm if shift_sd_mm is None else shift_sd_mm
+    return (pv_slope(model) * sd) ** 2
 
 
 def gauge_pressure(mean: Array, var: Array) -> tuple[Array, Array]:
@@ -683,7 +685,7 @@ def observe(
 
     pv, carried_fact, curve_sd = carry(with_effect, session, s2, fit, bench, aliases)
     model = EboosterModel(spec, fit, s2, session.dt, pv=pv)
-    shift_sd, shift_from = band_shift_sd(model, curve_sd)
+    shift_sd, shift_from, shift_warning = band_shift_sd(model, curve_sd)
     curve_var = pv_position_var(model, shift_sd)
     tracks = {which: _run(model, which, delta, smooth, curve_var) for which in OBSERVERS}
     lost = {w: why for w in OBSERVERS if (why := lost_track(tracks[w], delta, session.time))}
@@ -700,9 +702,8 @@ def observe(
         for state, ch in PRESSURES.items() if session.has(ch)
     }
     summary = _summary(session, spec, fit, tracks, validation, smooth, t_train, s2)
-    summary["band"] = _band(shift_sd, shift_from.split(":")[0], curve_sd)
-    if shift_from.startswith("datasheet:"):
-        summary["warnings"].append(shift_from.split(": ", 1)[1])
+    summary["band"] = _band(shift_sd, shift_from, curve_sd)
+    summary["warnings"] += [shift_warning] if shift_warning else []
     summary["with_effect"] = carried_fact
     summary["lost_track"] = lost
     summary["warnings"] += fit_warnings(fit) + ([SHIPPED_FIT_NOTE] if shipped else [])
@@ -812,14 +813,11 @@ def _pressure_scores(tr: ObserverTrack, validation: dict[str, Array]) -> _Pressu
         err = tr.x[:, i] - validation[state]
         ok = np.isfinite(err)
         p_rmse[state] = _rmse(err)
-        z = np.abs(err[ok]) / np.maximum(tr.std[ok, i], 1e-12)
-        out1[state] = float(np.mean(z > 1.0))
-        inside += int(np.sum(z <= Z95))
-        total += int(ok.sum())
-        # while the brake is applied by either side's account: idle samples, both near
-        # 0, flatter the pool, and the observer's onsets and releases belong in it
-        applied = np.maximum(validation[state][ok], tr.x[ok, i]) > APPLIED_MPA
-        inside_b += int(np.sum(z[applied] <= Z95))
+        out1[state] = float(np.mean(np.abs(err[ok]) > np.maximum(tr.std[ok, i], 1e-12)))
+        hit, applied = in_band(validation[state], tr.x[:, i], tr.std[:, i], APPLIED_MPA)
+        inside += int(hit.sum())
+        total += hit.size
+        inside_b += int(hit[applied].sum())
         total_b += int(applied.sum())
     return _PressureScores(
         rmse_mpa=p_rmse,
