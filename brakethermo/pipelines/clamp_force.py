@@ -49,9 +49,9 @@ from brakethermo.numeric import rmse
 from brakethermo.pipelines.rig_checks import (
     LOW_COVERAGE,
     MIN_APPLIED,
-    Z95,
     Expect,
     check_rig_channels,
+    in_band,
 )
 from brakethermo.report.page import Card, Page, Section, TableBlock
 from brakethermo.rigs.emb import sensor_delagged
@@ -635,10 +635,8 @@ def band_coverage(res: ClampForceResult, force: np.ndarray | None
     if force is None:
         return None
     est = res.reported
-    ok = np.isfinite(force) & np.isfinite(est.kf) & np.isfinite(est.kf_std)
-    inside = np.abs(est.kf - force) <= Z95 * est.kf_std
-    applied = ok & (force > APPLIED_KN * 1e3)
-    return {"all": float(inside[ok].mean()) if ok.any() else float("nan"),
+    inside, applied = in_band(force, est.kf, est.kf_std, APPLIED_KN * 1e3)
+    return {"all": float(inside.mean()) if inside.size else float("nan"),
             "applied": (float(inside[applied].mean()) if applied.sum() >= MIN_APPLIED
                         else float("nan"))}
 

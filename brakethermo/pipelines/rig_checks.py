@@ -27,6 +27,17 @@ Z95 = 1.959963984540054  # two-sided 95 % of a Gaussian
 MIN_APPLIED = 200  # applied samples needed to score a band while the brake is applied
 
 
+def in_band(measured: np.ndarray, est: np.ndarray, std: np.ndarray, applied_above: float
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """A session's own sensor against an estimate's 95 % band, over the samples where both
+    are finite: whether each reading lies inside, and whether the brake is applied there
+    by either side's account (idle samples, both near 0, flatter a pooled figure, and the
+    estimate's onsets and releases belong in it), in the sensor's unit."""
+    ok = np.isfinite(measured) & np.isfinite(est) & np.isfinite(std)
+    inside = np.abs(est[ok] - measured[ok]) <= Z95 * np.maximum(std[ok], 1e-12)
+    return inside, np.maximum(measured[ok], est[ok]) > applied_above
+
+
 @dataclass(frozen=True)
 class Expect:
     """What a channel of a rig must look like, in SI units.
