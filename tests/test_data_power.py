@@ -1,10 +1,15 @@
 """What a disc session can test: the knee, the emissivity and μ(T) power checks."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from brakethermo.diagnosis.verdict import CandidateEvidence, decide
+from brakethermo.models.disc_effects import KNEE
 from brakethermo.pipelines.diagnose.data_power import disc_data_power
+from brakethermo.pipelines.diagnose.evidence import effect_size
+from brakethermo.thermal.disc import load_disc
 
 V_REF = 350 / 3.6
 
@@ -54,3 +59,32 @@ def test_the_verdict_lists_an_untestable_effect_only_when_it_did_not_show(signif
     else:
         assert s["verdict"] == "none" and names == ["knee"]
         assert any("cannot be told on this data: no fast laps" in n for n in s["next_steps"])
+
+
+def test_the_top_speed_said_is_the_flying_laps_highest():
+    speed, y, t_amb, braking, flying = _session(290, 30, 200)
+    said = disc_data_power(speed, y, t_amb, braking, flying, V_REF, 101.0)["h_speed_knee"]
+    assert f"top speed {np.max(speed) * 3.6:.0f} km/h" in said  # the highest, not a percentile
+    assert np.percentile(speed, 99.5) * 3.6 < np.max(speed) * 3.6 - 1
+
+
+def test_a_knee_is_sized_at_the_top_speed_the_session_reached():
+    disc = replace(load_disc(), v_ref=V_REF)
+    size, text = effect_size("h_speed_knee", {"gain": 1.0}, disc, 4, top_kmh=315.0)
+    u = (315 / 350 - KNEE) / (1 - KNEE)
+    assert size["gain_at_top"] == pytest.approx(u * u)
+    assert f"{100 * u * u:+.0f} % at 315 km/h" in text and "+100 % at 350 km/h" in text
+    faster, text_fast = effect_size("h_speed_knee", {"gain": 1.0}, disc, 4, top_kmh=360.0)
+    assert "gain_at_top" not in faster and text_fast.startswith("h +100 % at 350 km/h")
+
+
+@pytest.mark.parametrize(("ratio", "physical"), [(0.9, True), (0.7, False)])
+def test_an_emissivity_size_never_names_a_setting_above_one(ratio, physical):
+    disc = replace(load_disc(), emissivity=0.85)
+    size, text = effect_size("emissivity_error", {"ratio": ratio}, disc, 4)
+    assert size["eps_disc_over_set"] == ratio
+    if physical:
+        assert "set to emissivity 0.94" in text
+    else:
+        assert "set to 1.00 behind a window passing 82 %" in text
+        assert size["transmission_at_eps_set_1"] == pytest.approx(0.7 / 0.85)

@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from brakethermo.models.disc_effects import Segments
-from brakethermo.models.effects import mu_ratio
+from brakethermo.models.disc_effects import KNEE, Segments
+from brakethermo.models.effects import knee_factor, mu_ratio
 from brakethermo.pipelines.diagnose.fit import _nanmean
 from brakethermo.pipelines.diagnose.layout import Layout
 from brakethermo.pipelines.diagnose.where import zone_label
@@ -116,9 +116,11 @@ def _spread(values: Sequence[float]) -> str:
 
 
 def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
-                zone_names: tuple[str, ...] = ()) -> tuple[dict[str, Any], str]:
+                zone_names: tuple[str, ...] = (), top_kmh: float = float("nan")
+                ) -> tuple[dict[str, Any], str]:
     """An effect's fitted size in physical units, and the sentence the page shows
-    (``zone_names``: the session's track names of its braking zones)."""
+    (``zone_names``: the session's track names of its braking zones; ``top_kmh``: the
+    flying laps' top speed, km/h, where a knee's size is stated when below V_ref)."""
     if name == "thickness_gradient":
         f = float(params["kz_factor"])
         k_z = f * disc.k_z if disc.k_z else float("nan")
@@ -132,10 +134,17 @@ def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
         r = float(params["ratio"])
         eps_set = disc.emissivity / r
         err600 = (600.0 + 273.15) * (r**0.25 - 1.0)
-        return ({"eps_disc_over_set": r, "eps_set": eps_set, "eps_disc": disc.emissivity,
-                 "reading_error_at_600c": err600},
-                f"pyrometer set to emissivity {eps_set:.2f} on a {disc.emissivity:g} disc:"
-                f" reads {err600:+.0f} °C at 600 °C")
+        size = {"eps_disc_over_set": r, "eps_set": eps_set, "eps_disc": disc.emissivity,
+                "reading_error_at_600c": err600}
+        if eps_set <= 1.0:
+            return size, (f"pyrometer set to emissivity {eps_set:.2f} on a {disc.emissivity:g}"
+                          f" disc: reads {err600:+.0f} °C at 600 °C")
+        # no setting exceeds 1: a radiance ratio this low is a window or lens that
+        # passes less than the disc emits (a dirty or misted window), set to 1
+        return ({**size, "transmission_at_eps_set_1": r / disc.emissivity},
+                f"radiance ratio {r:.2f} on a {disc.emissivity:g} disc, lower than any"
+                f" emissivity setting gives: a pyrometer set to 1.00 behind a window passing"
+                f" {100 * r / disc.emissivity:.0f} %; reads {err600:+.0f} °C at 600 °C")
     if name == "friction_temperature":
         points = {f"{t:.0f}": float(mu_ratio(np.array(t), params["beta"], params["t_mid"]))
                   for t in (200.0, 400.0, 600.0, 800.0)}
@@ -144,10 +153,19 @@ def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
                 "μ/μ_ref " + ", ".join(f"{v:.2f} at {t} °C" for t, v in points.items()))
     if name == "h_speed_knee":
         g = float(params["gain"])
-        knee = 0.8 * disc.v_ref * 3.6
-        return ({"knee_kmh": knee, "gain_at_v_ref": g},
-                f"h {100 * g:+.0f} % at {disc.v_ref * 3.6:.0f} km/h, growing from the knee"
-                f" at {knee:.0f} km/h")
+        v_ref = disc.v_ref * 3.6
+        knee = KNEE * v_ref
+        size = {"knee_kmh": knee, "gain_at_v_ref": g}
+        if not knee < top_kmh < v_ref:
+            return size, (f"h {100 * g:+.0f} % at {v_ref:.0f} km/h, growing from the knee"
+                          f" at {knee:.0f} km/h")
+        # a session whose straights end below V_ref shows the knee up to its top speed
+        # only; the gain at V_ref is the form's extrapolation
+        g_top = float(knee_factor(np.array(top_kmh / 3.6), disc.v_ref, KNEE, np.array(g))) - 1
+        return ({**size, "top_kmh": top_kmh, "gain_at_top": g_top},
+                f"h {100 * g_top:+.0f} % at {top_kmh:.0f} km/h (the session's top speed),"
+                f" growing from the knee at {knee:.0f} km/h ({100 * g:+.0f} % at"
+                f" {v_ref:.0f} km/h if the form held beyond the data)")
     if name == "slipstream":
         f = np.asarray(params.get("straight_factor", [1.0]), float)
         off = int(np.sum(np.abs(f - 1.0) > 0.1))

@@ -33,7 +33,7 @@ from brakethermo.pipelines.diagnose._common import (
     DiagnoseOptions,
     DiagnoseResult,
 )
-from brakethermo.pipelines.diagnose.data_power import READS_LIKE, disc_data_power
+from brakethermo.pipelines.diagnose.data_power import READS_LIKE, disc_data_power, top_speed_kmh
 from brakethermo.pipelines.diagnose.evidence import (
     EVIDENCE,
     _corr,
@@ -272,12 +272,13 @@ class _FourSpot:
         sig = signatures(self.y - self.ref_pred, self.y, self.inputs, self.layout,
                          self.segments, self.disc.v_ref, self.session.dt)
         rows = {r["name"]: r for r in decision.rows}
+        top = top_speed_kmh(self.inputs.speed, self.layout.train | self.layout.held)
         out = []
         for c in self.candidates:
             row = rows[c.name]
             params = self.make(c.effects).values(c.p, c.name)
             size, sentence = effect_size(c.name, params, self.disc, self.est_tuning.layers,
-                                         self.segments.zone_names)
+                                         self.segments.zone_names, top)
             if "kz_factor" in params:  # in h_law.toml kz_factor is relative to k(T), not k_z
                 params = {"kz_over_nominal": params.pop("kz_factor"), **params}
             out.append({
