@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from brakethermo.diagnosis.verdict import CandidateEvidence, decide
-from brakethermo.models.disc_effects import KNEE
+from brakethermo.models.disc_effects import KNEE, Segments
 from brakethermo.pipelines.diagnose.data_power import disc_data_power
-from brakethermo.pipelines.diagnose.evidence import effect_size
+from brakethermo.pipelines.diagnose.evidence import effect_size, straight_places
 from brakethermo.thermal.disc import load_disc
 
 V_REF = 350 / 3.6
@@ -74,7 +74,7 @@ def test_a_knee_is_sized_at_the_top_speed_the_session_reached():
     u = (315 / 350 - KNEE) / (1 - KNEE)
     assert size["gain_at_top"] == pytest.approx(u * u)
     assert f"{100 * u * u:+.0f} % at 315 km/h" in text and "+100 % at 350 km/h" in text
-    faster, text_fast = effect_size("h_speed_knee", {"gain": 1.0}, disc, 4, top_kmh=360.0)
+    faster, text_fast = effect_size("h_speed_knee", {"gain": 1.0}, disc, 4, top_kmh=345.0)
     assert "gain_at_top" not in faster and text_fast.startswith("h +100 % at 350 km/h")
 
 
@@ -88,3 +88,16 @@ def test_an_emissivity_size_never_names_a_setting_above_one(ratio, physical):
     else:
         assert "set to 1.00 behind a window passing 82 %" in text
         assert size["transmission_at_eps_set_1"] == pytest.approx(0.7 / 0.85)
+
+
+def test_a_slipstream_says_where_its_straights_departed_most():
+    seg = Segments(zone=np.array([-1, -1, 0, 0, 1, 1, 0, 0, 1, 1]), n_zones=2,
+                   straight=np.array([0, 0, -1, 1, -1, 2, -1, 3, -1, 4]), n_straights=5,
+                   straight_lap=np.array([0, 1, 1, 2, 2]), zone_names=("B1", "B2"))
+    places = straight_places(seg)
+    assert places == [(0, "the start"), (1, "B1"), (1, "B2"), (2, "B1"), (2, "B2")]
+    f = [1.0, 1.02, 0.7, 1.0, 1.25]
+    size, text = effect_size("slipstream", {"straight_factor": f}, load_disc(), 4,
+                             straights=places)
+    assert [w["lap"] for w in size["most_off"]] == [1, 2]
+    assert "most: lap 1 after B2 0.70, lap 2 after B2 1.25" in text

@@ -168,3 +168,19 @@ def test_at_bounds_catches_a_fit_that_stops_near_its_bound_and_skips_shapes() ->
     assert "ratio = 0.6, at the edge of its range 0.6 to 1.5" in ext.at_bounds_words(p)
     p[idx["emissivity_error", "ratio"]] = np.log(0.65)
     assert ext.at_bounds(p) == {} and ext.at_bounds_words(p) == ""
+
+
+def test_slipstream_factors_are_departures_from_the_sessions_own_h() -> None:
+    ext, _ = _toy(("slipstream",))
+    p = ext.neutral()
+    idx = [s.index for s in ext.latent_slots("slipstream")]
+    uneven = p.copy()
+    uneven[idx] = np.log(np.linspace(0.7, 1.3, len(idx)))
+    scaled = uneven.copy()
+    scaled[idx] += np.log(0.5)  # every straight alike: no slipstream, h's own level
+    batch = ext.predict(np.vstack([p, uneven, scaled]))
+    np.testing.assert_allclose(batch[2], batch[1], atol=1e-9)
+    assert np.abs(batch[1] - batch[0]).max() > 1.0  # unevenness does move the readings
+    common = p.copy()
+    common[idx] = np.log(0.5)
+    np.testing.assert_allclose(ext.predict(common)[0], batch[0], atol=1e-9)

@@ -79,6 +79,18 @@ class Slot:
     segment: int = -1  # latent parameters: the zone or straight id
 
 
+def departures(factor: np.ndarray) -> np.ndarray:
+    """Slipstream straight factors (B, straights) as departures from the session's own h:
+    divided by their geometric mean, so their common level is h's.
+
+    A slipstream is a departure from the norm, straight by straight; a common level would
+    trade against h's ``a`` and move h under the brakes instead (an independent
+    generator's test session carried factors of 0.4-0.6 with ``a`` doubled, a law that
+    lost to the one without slipstream on every race).
+    """
+    return factor / np.exp(np.mean(np.log(factor), axis=1, keepdims=True))
+
+
 class ExtendedDisc:
     """Open-loop spot predictions of the disc model with effects, batched over parameters.
 
@@ -183,7 +195,8 @@ class ExtendedDisc:
         return mu, sd
 
     def values(self, p: np.ndarray, effect: str) -> dict[str, float | list[float]]:
-        """Parameter values (in their units) of ``effect`` in vector ``p``."""
+        """Parameter values (in their units) of ``effect`` in vector ``p``; a slipstream's
+        straight factors as they act on h (:func:`departures`)."""
         out: dict[str, float | list[float]] = {}
         for s in self.slots:
             if s.effect != effect:
@@ -195,6 +208,8 @@ class ExtendedDisc:
                 latent = out.setdefault(s.param.name, [])
                 assert isinstance(latent, list)
                 latent.append(v)
+        if effect == "slipstream" and "straight_factor" in out:
+            out["straight_factor"] = departures(np.array([out["straight_factor"]]))[0].tolist()
         return out
 
     def law(self, p: np.ndarray) -> HLaw:
@@ -233,6 +248,7 @@ class ExtendedDisc:
             h = h * knee_factor(self.speed, self.v_ref, KNEE, gain)
         factor = self._latent(P, "slipstream", "straight_factor")
         if factor is not None:
+            factor = departures(factor)
             seg = self.segments.straight[:-1]
             on = seg >= 0
             h[:, on] *= factor[:, seg[on]]

@@ -105,6 +105,16 @@ EVIDENCE: dict[str, Callable[[dict[str, float]], str]] = {
 }
 
 
+def straight_places(segments: Segments) -> list[tuple[int, str]]:
+    """Each straight's lap and the braking zone it follows, as the pages name zones ("the
+    start" for a straight before the first stop)."""
+    ids, first = np.unique(segments.straight, return_index=True)
+    start = dict(zip(ids.tolist(), first.tolist(), strict=True))
+    return [(int(segments.straight_lap[j]),
+             zone_label(int(segments.zone[start[j]]), segments.zone_names) or "the start")
+            for j in range(segments.n_straights)]
+
+
 def carry_command(session: Path, name: str) -> str:
     """The command that carries an effect into the law the race estimate uses."""
     return f"brakethermo identify-h {session} --with-effect {name} --out OUT"
@@ -116,11 +126,13 @@ def _spread(values: Sequence[float]) -> str:
 
 
 def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
-                zone_names: tuple[str, ...] = (), top_kmh: float = float("nan")
-                ) -> tuple[dict[str, Any], str]:
+                zone_names: tuple[str, ...] = (), top_kmh: float = float("nan"),
+                straights: Sequence[tuple[int, str]] = ()) -> tuple[dict[str, Any], str]:
     """An effect's fitted size in physical units, and the sentence the page shows
     (``zone_names``: the session's track names of its braking zones; ``top_kmh``: the
-    flying laps' top speed, km/h, where a knee's size is stated when below V_ref)."""
+    flying laps' top speed, km/h, where a knee's size is stated when below V_ref;
+    ``straights``: each straight's lap and the zone it follows, where a slipstream's
+    largest departures are said)."""
     if name == "thickness_gradient":
         f = float(params["kz_factor"])
         k_z = f * disc.k_z if disc.k_z else float("nan")
@@ -156,7 +168,7 @@ def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
         v_ref = disc.v_ref * 3.6
         knee = KNEE * v_ref
         size = {"knee_kmh": knee, "gain_at_v_ref": g}
-        if not knee < top_kmh < v_ref:
+        if not knee < top_kmh < 0.97 * v_ref:
             return size, (f"h {100 * g:+.0f} % at {v_ref:.0f} km/h, growing from the knee"
                           f" at {knee:.0f} km/h")
         # a session whose straights end below V_ref shows the knee up to its top speed
@@ -169,9 +181,16 @@ def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
     if name == "slipstream":
         f = np.asarray(params.get("straight_factor", [1.0]), float)
         off = int(np.sum(np.abs(f - 1.0) > 0.1))
-        return ({"h_factor_per_straight": f.tolist(), "straights_off_10pct": off},
-                f"h factor per straight {_spread(f)}; {off} of {f.size} straights more than"
+        size = {"h_factor_per_straight": f.tolist(), "straights_off_10pct": off}
+        text = (f"h factor per straight {_spread(f)}; {off} of {f.size} straights more than"
                 " 10 % off")
+        if not straights or len(straights) != f.size:
+            return size, text
+        most = [int(j) for j in np.argsort(-np.abs(np.log(f)))[:3] if abs(f[j] - 1) > 0.1]
+        where = [{"lap": straights[j][0], "after": straights[j][1], "h_factor": float(f[j])}
+                 for j in most]
+        said = ", ".join(f"lap {w['lap']} after {w['after']} {w['h_factor']:.2f}" for w in where)
+        return {**size, "most_off": where}, text + (f" (most: {said})" if said else "")
     if name == "power_distribution":
         b = np.asarray(params.get("zone_balance", []), float)
         m = np.asarray(params.get("zone_middle", []), float)

@@ -40,6 +40,7 @@ from brakethermo.pipelines.diagnose.evidence import (
     carry_command,
     effect_size,
     signatures,
+    straight_places,
 )
 from brakethermo.pipelines.diagnose.fit import _fit, _initial_nodes, _reference_start
 from brakethermo.pipelines.diagnose.layout import (
@@ -273,12 +274,13 @@ class _FourSpot:
                          self.segments, self.disc.v_ref, self.session.dt)
         rows = {r["name"]: r for r in decision.rows}
         top = top_speed_kmh(self.inputs.speed, self.layout.train | self.layout.held)
+        places = straight_places(self.segments)
         out = []
         for c in self.candidates:
             row = rows[c.name]
             params = self.make(c.effects).values(c.p, c.name)
             size, sentence = effect_size(c.name, params, self.disc, self.est_tuning.layers,
-                                         self.segments.zone_names, top)
+                                         self.segments.zone_names, top, places)
             if "kz_factor" in params:  # in h_law.toml kz_factor is relative to k(T), not k_z
                 params = {"kz_over_nominal": params.pop("kz_factor"), **params}
             out.append({
