@@ -188,13 +188,25 @@ def diagnosis_page(summary: dict[str, Any], time: np.ndarray, lap: np.ndarray,
     )
 
 
+def _slow_text(summary: dict[str, Any]) -> str:
+    """The slow laps among those used, said as such (" Lap 7 took 1.43 x ...")."""
+    slow = summary.get("slow_laps") or {}
+    if not slow:
+        return ""
+    laps = ", ".join(slow)
+    shares = ", ".join(f"{share:.2f}" for share in slow.values())
+    return (f" {'Laps' if len(slow) > 1 else 'Lap'} {laps} took {shares} x the typical lap"
+            " time: an in-lap or a cool-down lap, used as any other (its cooling is data for"
+            " the model) but no flying lap.")
+
+
 def _reference_section(summary: dict[str, Any]) -> Section:
     """What the reference model contains, what it was fitted on, and its fitted values."""
     return Section(
         "The reference model",
         [f"Fitted on laps {', '.join(map(str, summary['train_laps']))}; every 'after' figure"
          f" below is measured on laps {', '.join(map(str, summary['heldout_laps']))}, which"
-         " no fit saw (the out-lap is used by neither)."],
+         " no fit saw (the out-lap is used by neither)." + _slow_text(summary)],
         [TableBlock(["contains"], [[c] for c in summary["reference"]["contains"]])],
         notes=["Fitted: " + ", ".join(
             f"{k} = {num(v, '.3g') if not isinstance(v, list) else [round(x, 3) for x in v]}"

@@ -60,6 +60,7 @@ def temp_text(x: float | None) -> str:
 
 
 SHORT_LAP = 0.8  # a flying lap under this share of the typical one is partial (cut, in-lap)
+SLOW_LAP = 1.25  # a whole lap over this share of the typical one is slow (in-lap, cool-down)
 
 
 def whole_flying_laps(laps: tuple[Lap, ...]) -> set[int]:
@@ -86,6 +87,19 @@ def partial_laps(laps: tuple[Lap, ...]) -> set[int]:
         return cut | ({last} if flying[last] < SHORT_LAP * flying[first] else set())
     typical = float(np.median(list(flying.values())))
     return cut | {n for n, d in flying.items() if d < SHORT_LAP * typical}
+
+
+def slow_laps(laps: tuple[Lap, ...]) -> dict[int, float]:
+    """Whole laps after the out-lap over :data:`SLOW_LAP` of the typical one (the median
+    of three or more), each with its share of it: an in-lap or a cool-down lap — data for
+    the model like any other, but no flying lap."""
+    short = partial_laps(laps)
+    whole = {lap.lap: lap.duration_s for lap in laps
+             if lap.lap >= 1 and lap.duration_s > 0 and lap.lap not in short}
+    if len(whole) < 3:
+        return {}
+    typical = float(np.median(list(whole.values())))
+    return {n: d / typical for n, d in whole.items() if d > SLOW_LAP * typical}
 
 
 def lap_time_text(seconds: float | None) -> str:

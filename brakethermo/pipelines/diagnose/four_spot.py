@@ -63,6 +63,7 @@ from brakethermo.pipelines.inputs import DiscInputs, disc_inputs
 from brakethermo.pipelines.models import disc_for
 from brakethermo.pipelines.race_run import SIGMA_MEAS_FLOOR_C
 from brakethermo.pipelines.tuning import EstimateTuning, read_tuning
+from brakethermo.results.laps import slow_laps
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
 
@@ -362,6 +363,8 @@ class _FourSpot:
             "reference": self.reference_facts(),
             "train_laps": list(self.train_laps),
             "heldout_laps": list(self.held_laps),
+            "slow_laps": {str(n): share for n, share in slow_laps(self.session.laps).items()
+                          if n in self.train_laps or n in self.held_laps},
             "gap": {
                 "rmse_c": ref_scores["overall"],
                 "per_spot": ref_scores["per_spot"],
