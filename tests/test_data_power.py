@@ -100,4 +100,7 @@ def test_a_slipstream_says_where_its_straights_departed_most():
     size, text = effect_size("slipstream", {"straight_factor": f}, load_disc(), 4,
                              straights=places)
     assert [w["lap"] for w in size["most_off"]] == [1, 2]
-    assert "most: lap 1 after B2 0.70, lap 2 after B2 1.25" in text
+    assert "most: lap 1 after B2 0.72, lap 2 after B2 1.28" in text  # about their own level
+    doubled = effect_size("slipstream", {"straight_factor": [2 * x for x in f]}, load_disc(),
+                          4, straights=places)[1]
+    assert doubled == text

@@ -281,3 +281,21 @@ def test_a_selected_effect_whose_refit_ends_at_a_bound_is_dropped(monkeypatch):
     _, _, _, kept, _ = ih._refit_carried(None, None, None, None, "law", "caller's",
                                          ("emissivity_error",), given, [])
     assert kept == ("emissivity_error",) and len(calls) == 1
+
+
+def test_a_law_carrying_slipstream_reads_back(tmp_path):
+    """The law's straight factors are written as fitted (within their bounds), so estimate
+    reads the law identify-h wrote (their departures from their own level, which the
+    model applies, may lie beyond those bounds)."""
+    from brakethermo.pipelines.identify_h import IdentifyOptions, identify_h, write_identify
+    from brakethermo.pipelines.models import read_calibration
+    from brakethermo.sim.session import SimConfig, simulate, write_simulation
+
+    path, _ = write_simulation(simulate(SimConfig(track="tight-like", laps=2, sensor="multi",
+                                                  effects=("slipstream",), seed=61501)),
+                               tmp_path / "t.parquet")
+    law = write_identify(identify_h(path, IdentifyOptions(with_effects="slipstream")),
+                         tmp_path / "out") / "h_law.toml"
+    cal = read_calibration(law)
+    factors = np.asarray(cal.effects["slipstream"]["straight_factor"])
+    assert factors.size > 1 and np.all((factors >= 0.4) & (factors <= 1.6))

@@ -195,8 +195,9 @@ class ExtendedDisc:
         return mu, sd
 
     def values(self, p: np.ndarray, effect: str) -> dict[str, float | list[float]]:
-        """Parameter values (in their units) of ``effect`` in vector ``p``; a slipstream's
-        straight factors as they act on h (:func:`departures`)."""
+        """Parameter values (in their units) of ``effect`` in vector ``p`` (a slipstream's
+        straight factors as fitted, within their bounds: :func:`departures` gives them as
+        they act on h)."""
         out: dict[str, float | list[float]] = {}
         for s in self.slots:
             if s.effect != effect:
@@ -208,8 +209,6 @@ class ExtendedDisc:
                 latent = out.setdefault(s.param.name, [])
                 assert isinstance(latent, list)
                 latent.append(v)
-        if effect == "slipstream" and "straight_factor" in out:
-            out["straight_factor"] = departures(np.array([out["straight_factor"]]))[0].tolist()
         return out
 
     def law(self, p: np.ndarray) -> HLaw:

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from brakethermo.models.disc_effects import KNEE, Segments
+from brakethermo.models.disc_effects import KNEE, Segments, departures
 from brakethermo.models.effects import knee_factor, mu_ratio
 from brakethermo.pipelines.diagnose.fit import _nanmean
 from brakethermo.pipelines.diagnose.layout import Layout
@@ -179,7 +179,7 @@ def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
                 f" growing from the knee at {knee:.0f} km/h ({100 * g:+.0f} % at"
                 f" {v_ref:.0f} km/h if the form held beyond the data)")
     if name == "slipstream":
-        f = np.asarray(params.get("straight_factor", [1.0]), float)
+        f = departures(np.asarray([params.get("straight_factor", [1.0])], float))[0]
         off = int(np.sum(np.abs(f - 1.0) > 0.1))
         size = {"h_factor_per_straight": f.tolist(), "straights_off_10pct": off}
         text = (f"h factor per straight {_spread(f)}; {off} of {f.size} straights more than"
