@@ -213,6 +213,46 @@ def test_the_guessed_run_gives_the_sequential_answer(races, monkeypatch, race) -
     assert guessed.summary["laps"] == sequential.summary["laps"]
 
 
+def test_the_decision_hands_over_the_learned_kz_and_the_thin_skin_modes_are_warmed(
+        races, monkeypatch) -> None:
+    """The k_z variant runs first and hands what it learned over from its own thread the
+    moment it ends (the run stops its guess there); on a disc below the law's the
+    thin-skin filter's modes are computed then, once: the filter takes them as kept."""
+    import threading
+
+    import brakethermo.pipelines.race_filter as race_filter
+    import brakethermo.pipelines.race_run as race_run
+
+    seen: list[tuple[float, bool]] = []
+    real = race_run._kz_learned
+
+    def spy(*args: object) -> object:
+        hook = real(*args)
+
+        def learned(kz: float) -> None:
+            seen.append((kz, threading.current_thread() is not threading.main_thread()))
+            hook(kz)
+
+        return learned
+
+    computed: list[int] = []
+    real_modes = race_filter.open_loop_modes
+
+    def modes(model: object, *args: object) -> object:
+        computed.append(model.n_state)
+        return real_modes(model, *args)
+
+    monkeypatch.setattr(race_run, "_kz_learned", spy)
+    monkeypatch.setattr(race_filter, "open_loop_modes", modes)
+    race_filter.forget_modes()
+    path, _ = races["low_kz"]
+    run = estimate_session(path, EstimateOptions(smoother=False)).summary["run"]
+    row = next(r for r in run["online_choice"]["scores"] if r["name"] == "thickness_gradient")
+    assert seen == [(row["learned"], True)]
+    thin = run["nodes"] * run["layers"]
+    assert thin == 90 and computed.count(thin) == 1
+
+
 def _earned_trial(monkeypatch: pytest.MonkeyPatch, written: float, without: float,
                   with_kz: float | None = None):
     """A decision's trial and runs whose lap-ahead predictions miss the readings by the

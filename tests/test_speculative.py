@@ -87,3 +87,23 @@ def test_an_error_of_the_run_reaches_the_caller_and_frees_its_core() -> None:
         guess.result()
     with speculative.core():
         pass
+
+
+def test_abandon_is_idempotent_from_any_thread() -> None:
+    """The decision's thread stops the guess the moment it learns k_z; the caller's later
+    abandon (or its error path's) is then a no-op."""
+    def run(cancel: threading.Event) -> None:
+        while not cancel.wait(0.001):
+            pass
+
+    guess = Speculation(run)
+    assert not guess.abandoned
+    threads = [threading.Thread(target=guess.abandon) for _ in range(2)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    guess.abandon()
+    assert guess.abandoned
+    with speculative.core():  # its core is free again
+        pass

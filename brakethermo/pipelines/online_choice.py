@@ -66,6 +66,7 @@ way.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
@@ -172,12 +173,16 @@ UNDECIDED = "not decided: fewer than two flying laps"  # the rule's opening word
 
 
 def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str, ...],
-                  cal: DiscCalibration, parts: tuple[str, ...] = ()) -> OnlineChoice:
+                  cal: DiscCalibration, parts: tuple[str, ...] = (),
+                  on_learned: Callable[[float], None] | None = None) -> OnlineChoice:
     """Run the decision (module docstring) for ``candidates`` (effect names).
 
     ``base`` is the estimate's options with every candidate's flag unset; the decision
     runs filter-only passes with each flag forced, on the calibration ``cal``. ``parts``
-    are the parts of the h law the race may drop (:func:`droppable`).
+    are the parts of the h law the race may drop (:func:`droppable`). ``on_learned``
+    gets the k_z factor (of the law's) the race learned, as soon as a pass's k_z variant
+    ends (that variant runs first), on the thread and core that ran it: what it does
+    there holds that core from the decision's next variant.
     """
     flying = sorted({lap.lap for lap in session.laps if lap.lap >= 1})
     if not (candidates or parts) or len(flying) < 2:
@@ -192,14 +197,14 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
             "candidates": list(candidates), "law_effects_tested": untested,
             "law_effects_dropped": list(unearned)}, unearned)
     t = _trial(session, base, candidates, parts, flying)
-    runs = _one_pass(t, cal, True)
+    runs = _one_pass(t, cal, True, on_learned)
     tested = _first_tests(t, runs, cal)
     dropped_first = tuple(r["name"].removeprefix("without ") for r in tested
                           if r["significant"])
     for name in dropped_first:
         cal = law_without(cal, name)
     if dropped_first:
-        runs = _one_pass(t, cal, False)
+        runs = _one_pass(t, cal, False, on_learned)
     rows = _online_rows(runs, candidates, t.lap, t.cycles, t.rule)
     if t.joint is not None:
         _judge_jointly(t, t.joint, runs, rows, tested)
@@ -262,20 +267,28 @@ def _trial(session: Session, base: EstimateOptions, candidates: tuple[str, ...],
     return _Trial(part, quick, off, candidates, first, later, joint, lap, cycles, rule)
 
 
-def _one_pass(t: _Trial, law: DiscCalibration, with_first: bool) -> dict[str, Any]:
+def _one_pass(t: _Trial, law: DiscCalibration, with_first: bool,
+              on_learned: Callable[[float], None] | None = None) -> dict[str, Any]:
     """The reference, each candidate alone, the law without each of its parts under test
     (``with_first``: the first ones too) and, with a joint candidate, without each later
-    part plus it; all filter-only runs on the calibration ``law``."""
-    variants = {"reference": (replace(t.quick, **t.off), law)}
-    variants.update({c: (replace(t.quick, **{**t.off, ONLINE_FLAGS[c]: True}), law)
-                     for c in t.candidates})
+    part plus it; all filter-only runs on the calibration ``law``. The k_z variant runs
+    first and hands what it learned to ``on_learned`` (:func:`choose_online`)."""
+    kz = "thickness_gradient"
+    variants = {c: (replace(t.quick, **{**t.off, ONLINE_FLAGS[c]: True}), law)
+                for c in sorted(t.candidates, key=lambda c: c != kz)}
+    variants["reference"] = (replace(t.quick, **t.off), law)
     variants.update({f"without {p}": (replace(t.quick, **t.off), law_without(law, p))
                      for p in (*t.first, *t.later) if with_first or p in t.later})
     if t.joint is not None:
         variants.update({f"without {p} + {t.joint}": (
             replace(t.quick, **{**t.off, ONLINE_FLAGS[t.joint]: True}), law_without(law, p))
             for p in t.later})
-    return _run_variants(t.part, variants)
+
+    def done(name: str, run: Any) -> None:
+        if name == kz and on_learned is not None:
+            on_learned(_learned(run, STRUCTURAL[kz], t.lap))
+
+    return _run_variants(t.part, variants, done)
 
 
 def _first_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration
@@ -529,8 +542,7 @@ def _structural_test(run: Any, param: str, lap: np.ndarray, cycles: np.ndarray,
     ssm, X = run.state_space, run.states
     j = ssm.index[param]
     neutral = NEUTRAL[param]
-    train = (lap >= 1) & (lap % 2 == 1)
-    learned = float(np.median(X[train, j])) if train.any() else neutral
+    learned = _learned(run, param, lap)
     y = run.y_measured
     starts = np.repeat(X[:, None, :], 2, axis=1)
     starts[:, :, j] = (neutral, learned)
@@ -552,6 +564,15 @@ def _structural_test(run: Any, param: str, lap: np.ndarray, cycles: np.ndarray,
     return row
 
 
+def _learned(run: Any, param: str, lap: np.ndarray) -> float:
+    """What the race learned of a disc property: the median of its online state in
+    ``run`` over the odd flying laps (its neutral value without one)."""
+    train = (lap >= 1) & (lap % 2 == 1)
+    if not train.any():
+        return NEUTRAL[param]
+    return float(np.median(run.states[train, run.state_space.index[param]]))
+
+
 def kz_allowed(learned: float) -> bool:
     """May a race switch k_z on at this learned factor of the law's? Only a finite one
     outside the band of discs like the test session's (:data:`KZ_LIKE_LAW`)."""
@@ -565,18 +586,24 @@ _LIKE_LAW_SAID = (f"but the race's k_z came out {{:.2f}} of the law's, within"
                   " stays off (--adapt-kz forces it)")
 
 
-def _run_variants(part: Session, variants: dict[str, tuple[Any, Any]]) -> dict[str, Any]:
-    """Filter-only estimates of ``part``, one per (options, calibration) variant. The
-    filter's kernels release the GIL: the variants run side by side on the cores a
-    speculative run of the estimate leaves (:mod:`brakethermo.pipelines.speculative`)."""
+def _run_variants(part: Session, variants: dict[str, tuple[Any, Any]],
+                  done: Callable[[str, Any], None] | None = None) -> dict[str, Any]:
+    """Filter-only estimates of ``part``, one per (options, calibration) variant, started
+    in their order; ``done(name, result)`` after each, on its core still. The filter's
+    kernels release the GIL: the variants run side by side on the cores a speculative
+    run of the estimate leaves (:mod:`brakethermo.pipelines.speculative`)."""
     from brakethermo.pipelines.estimate import estimate_from_session
 
-    def run(opts: EstimateOptions, cal: DiscCalibration) -> Any:
+    def run(name: str, opts: EstimateOptions, cal: DiscCalibration) -> Any:
         with core():
-            return estimate_from_session(part, opts, cal)
+            result = estimate_from_session(part, opts, cal)
+            if done is not None:
+                done(name, result)
+            return result
 
     with ThreadPoolExecutor(len(variants)) as pool:
-        futures = {name: pool.submit(run, opts, cal) for name, (opts, cal) in variants.items()}
+        futures = {name: pool.submit(run, name, opts, cal)
+                   for name, (opts, cal) in variants.items()}
         return {name: f.result() for name, f in futures.items()}
 
 

@@ -185,10 +185,10 @@ def filter_space(ssm: DiscStateSpace, model: DiscFEModel, inputs: DiscInputs, h:
     """The state space the filter runs on: the full one, or its reduced order
     (:mod:`brakethermo.models.reduced`) with the modes of the model's own open loop over
     the session's first laps at a spread of braking-power scales and h factors."""
-    n_t = ssm.n_temp
-    if modes == 0 or (modes is None and n_t <= AUTO_REDUCE_ABOVE):
+    count = _mode_count(ssm.n_temp, modes)
+    if count is None:
         return ssm, {"kind": "full", "states": ssm.n}
-    Phi, error = session_modes(model, inputs, h, power_scale, min(modes or MAX_MODES, n_t))
+    Phi, error = session_modes(model, inputs, h, power_scale, count)
     span = min(inputs.q_brk.size - 1, SNAPSHOT_SPAN)
     # and the directions the crown-split process noise pushes the field in: the filter's
     # corrections live there, the open loop never goes
@@ -204,6 +204,23 @@ def filter_space(ssm: DiscStateSpace, model: DiscFEModel, inputs: DiscInputs, h:
                          f" {MAX_MODES}, and the directions the crown-split noise pushes"
                          f" the field in ({reduced.r - n_pod} here); what the modes cannot"
                          " hold is dropped each step"}
+
+
+def _mode_count(n_temp: int, modes: int | None) -> int | None:
+    """At most how many modes the filter on ``n_temp`` temperature states takes (None:
+    it runs on the full state), given the ``modes`` option (None: automatic, 0: full)."""
+    if modes == 0 or (modes is None and n_temp <= AUTO_REDUCE_ABOVE):
+        return None
+    return min(modes or MAX_MODES, n_temp)
+
+
+def warm_modes(model: DiscFEModel, inputs: DiscInputs, h: np.ndarray, power_scale: float,
+               modes: int | None) -> None:
+    """Compute now the modes :func:`filter_space` would take for ``model`` (arguments as
+    there), kept by :func:`session_modes` for the filter that will ask for them."""
+    count = _mode_count(model.n_state, modes)
+    if count is not None:
+        session_modes(model, inputs, h, power_scale, count)
 
 
 # Modes computed, or being computed, per (model, session, law): the race's decision runs

@@ -16,6 +16,8 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections.abc import Callable
+from contextlib import suppress
 from dataclasses import dataclass, replace
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -30,12 +32,14 @@ from brakethermo.pipelines import scoring
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.pipelines.models import DiscCalibration
 from brakethermo.pipelines.online_choice import (
+    CROWN,
     DECISION_LAPS,
     EARNED,
     ONLINE_FLAGS,
     OnlineChoice,
     choose_online,
     droppable,
+    kz_allowed,
     law_without,
 )
 from brakethermo.pipelines.race_filter import (
@@ -47,6 +51,7 @@ from brakethermo.pipelines.race_filter import (
     readout_rows,
     run_filter,
     ukf_for,
+    warm_modes,
 )
 from brakethermo.pipelines.speculative import Speculation
 from brakethermo.pipelines.tuning import EstimateTuning, user_tuning_keys
@@ -80,10 +85,12 @@ def _choice_inputs(options: EstimateOptions, cal: DiscCalibration,
 
 def _online_choice(session: Session, options: EstimateOptions, cal: DiscCalibration,
                    tuning: EstimateTuning,
-                   chooses: tuple[tuple[str, ...], tuple[str, ...]]) -> OnlineChoice:
-    """The race's own choice of the online effects nobody forced (:func:`_choice_inputs`)."""
+                   chooses: tuple[tuple[str, ...], tuple[str, ...]],
+                   on_learned: Callable[[float], None] | None = None) -> OnlineChoice:
+    """The race's own choice of the online effects nobody forced (:func:`_choice_inputs`);
+    ``on_learned`` as :func:`choose_online`'s."""
     candidates, parts = chooses
-    choice = choose_online(session, options, candidates, cal, parts)
+    choice = choose_online(session, options, candidates, cal, parts, on_learned)
     forced = {flag: getattr(tuning, flag) for name, flag in ONLINE_FLAGS.items()
               if name not in candidates}
     return OnlineChoice(choice.flags, {**choice.facts, "forced_or_from_law": forced},
@@ -104,6 +111,19 @@ def _race_layering(choice: OnlineChoice, tuning: EstimateTuning, options: Estima
     if (row is None or "thickness_gradient" not in choice.facts.get("chosen", [])
             or not row.get("learned", 1.0) < 1.0):
         return tuning, None
+    thin, said = _thin_skin(tuning, options)
+    if not said:
+        return tuning, None
+    return thin, (
+        f"{' and '.join(said)}: the race's k_z came out {row['learned']:.2f} of the law's,"
+        " a thinner thermal skin")
+
+
+def _thin_skin(tuning: EstimateTuning, options: EstimateOptions
+               ) -> tuple[EstimateTuning, list[str]]:
+    """``tuning`` with the thin-skin layers and radial nodes where neither the options
+    nor the user's tuning file set them (:func:`_race_layering`), and what changed, in
+    words (empty: nothing)."""
     user = user_tuning_keys(options.tuning, "estimate")
     change: dict[str, Any] = {}
     said = []
@@ -117,11 +137,7 @@ def _race_layering(choice: OnlineChoice, tuning: EstimateTuning, options: Estima
             and tuning.nodes < tuning.thin_skin_nodes):
         change["nodes"] = tuning.thin_skin_nodes
         said.append(f"{tuning.thin_skin_nodes} radial nodes instead of {tuning.nodes}")
-    if not change:
-        return tuning, None
-    return replace(tuning, **change), (
-        f"{' and '.join(said)}: the race's k_z came out {row['learned']:.2f} of the law's,"
-        " a thinner thermal skin")
+    return (replace(tuning, **change) if change else tuning), said
 
 
 @dataclass(frozen=True)
@@ -206,6 +222,38 @@ def _filtered(disc: DiscSpec, inputs: DiscInputs, y: np.ndarray, cal: DiscCalibr
                    time.perf_counter() - t0 - forward_s)
 
 
+def _kz_learned(disc: DiscSpec, inputs: DiscInputs, cal: DiscCalibration,
+                tuning: EstimateTuning, options: EstimateOptions, parts: tuple[str, ...],
+                guess: Speculation[RaceRun] | None) -> Callable[[float], None]:
+    """What the race does the moment its decision learns k_z (``on_learned`` of
+    :func:`choose_online`, a factor of the law's): a factor the race may switch on
+    (:func:`kz_allowed`) makes the guess of nothing switched on unlikely, so it stops and
+    the decision's next variant takes its core; one below the law's makes the thin-skin
+    mesh likely (:func:`_race_layering`), so that filter's modes are computed there and
+    then instead of after the decision. Neither changes a number: the guess is only a
+    head start, and the filter takes the modes
+    :func:`~brakethermo.pipelines.race_filter.session_modes` keeps when its model, law and
+    inputs are these (the README's k_z race: its decision ~0.7 s shorter in process)."""
+    thin, said = _thin_skin(tuning, options)
+    # a crown the race may drop is in the modes' model, and not known yet
+    warm = bool(said) and CROWN not in parts
+
+    def learned(kz: float) -> None:
+        if not kz_allowed(kz):
+            return
+        if guess is not None:
+            guess.abandon()
+        if warm and kz < 1.0:
+            model = disc_model(disc, thin, cal.weights, cal.kz_ratio)
+            # a head start only: the filter that needs these modes computes them again
+            # (and raises there) if this fails
+            with suppress(Exception):
+                warm_modes(model, inputs, cal.law(inputs.speed), cal.power_scale,
+                           options.modes)
+
+    return learned
+
+
 def decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
                 inputs: DiscInputs, y: np.ndarray, cal: DiscCalibration,
                 tuning: EstimateTuning, calibration: DiscCalibration | None
@@ -214,7 +262,8 @@ def decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
     decision ended. On a race longer than the decision's laps, the run for "nothing
     switched on, the law's μ(T) unearned" starts before the decision on its own thread
     (:mod:`brakethermo.pipelines.speculative`): a 25-lap race that decides so, 8.3 → 6.3–7 s
-    in process; one that switches k_z on waits for a decision on one core less."""
+    in process; one whose decision learns a k_z it may switch on stops the guess then, and
+    computes the thin-skin filter's modes beside the decision (:func:`_kz_learned`)."""
     chooses = _choice_inputs(options, cal, calibration)
     guess = null = None
     # what the race most often decides: no online state, the law's μ(T) not earned
@@ -228,8 +277,9 @@ def decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
         bare = law_without(cal, EARNED) if unearned else cal
         guess = Speculation(partial(_filtered, disc, inputs, y, bare, null, options))
     try:
-        choice = None if chooses is None else _online_choice(session, options, cal, tuning,
-                                                             chooses)
+        choice = None if chooses is None else _online_choice(
+            session, options, cal, tuning, chooses,
+            _kz_learned(disc, inputs, cal, tuning, options, chooses[1], guess))
     except BaseException:  # a bad session or Ctrl-C: the guess stops with the decision
         if guess is not None:
             guess.abandon()
@@ -241,7 +291,7 @@ def decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
         for name in choice.dropped:
             cal = law_without(cal, name)
     t_choice = time.perf_counter()
-    if (guess is not None and choice is not None and tuning == null
+    if (guess is not None and not guess.abandoned and choice is not None and tuning == null
             and choice.dropped == unearned):
         return choice, replace(guess.result(), speculative=True), t_choice
     if guess is not None:

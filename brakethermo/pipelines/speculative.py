@@ -72,6 +72,8 @@ class Speculation(Generic[T]):
 
     def __init__(self, fn: Callable[[threading.Event], T]) -> None:
         self._cancel = threading.Event()
+        self._lock = threading.Lock()  # abandon from the decision's threads and the caller's
+        self._abandoned = False
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="brakethermo-speculative")
         _cores.acquire()
         self._future = self._pool.submit(fn, self._cancel)
@@ -87,10 +89,20 @@ class Speculation(Generic[T]):
         self._pool.shutdown(wait=False)
         return value
 
+    @property
+    def abandoned(self) -> bool:
+        """Whether :meth:`abandon` was called: the run has no result any more."""
+        return self._abandoned
+
     def abandon(self) -> None:
         """Stop the run (at its next model step or compiled span of steps) and drop
-        whatever it did or raised."""
-        self._cancel.set()
-        self._future.cancel()
-        self._pool.shutdown(wait=True)
-        del self._future  # with its traceback: the run's memory is free when this returns
+        whatever it did or raised; from any thread, once or more (it returns when the run
+        has stopped)."""
+        with self._lock:
+            if self._abandoned:
+                return
+            self._abandoned = True
+            self._cancel.set()
+            self._future.cancel()
+            self._pool.shutdown(wait=True)
+            del self._future  # with its traceback: the run's memory is free on return
