@@ -41,3 +41,26 @@ def test_a_strongly_uneven_law_crown_widens_the_balance_it_admits() -> None:
     wide = crown_sd(np.array([0.40, 0.97, 1.52]), 0.25)  # a test session's tilted pads
     assert wide == pytest.approx(0.5 * np.log(1.52 / 0.40))
     assert crown_sd(np.array([0.40, 0.97, 1.52]), 0.0) == 0.0  # off stays off
+
+
+def test_the_band_takes_the_crown_term_computed_apart_from_the_filter() -> None:
+    """The race computes the crown term beside its filter (pipelines/race_run.py): the
+    band adds it to the spots, the contact band and the face nodes' columns, and refuses
+    a term of other readouts."""
+    from brakethermo.pipelines.estimate_table import crown_term, reported_band
+    from brakethermo.pipelines.tuning import EstimateTuning
+
+    disc = load_disc("cc-340-8")
+    model = DiscFEModel(disc, 10, 2, weights=(1.2, 1.0, 0.8), dt=0.1)
+    q, h, ta = _braking()
+    tuning = EstimateTuning()
+    crown = crown_term(model, model.initial_state(100.0), q, h, ta,
+                       np.asarray(disc.spot_radii), 3, tuning, True)
+    assert crown.shape == (q.size, 5 + model.radii.size)
+    out = np.full((q.size, 6 + model.radii.size), 300.0)  # 5 temperatures, a scale, nodes
+    std = np.zeros_like(out)
+    band = reported_band(out, std, tuning, crown, 6)
+    assert np.all(band[:, 5] == 0.0)  # the power scale carries no crown term
+    assert np.all(band[:, 6:] >= crown[:, 5:]) and np.all(band[:, :5] >= crown[:, :5])
+    with pytest.raises(ValueError, match="crown term"):
+        reported_band(out, std, tuning, crown, None)

@@ -309,9 +309,7 @@ def estimate_from_session(
     # judged as published (a smoother's transient below a -40 degC air is no unit error)
     warnings.extend(check_estimate_result(above_air(out, inputs.t_amb)[:, :5], forward.nis))
     online = {p.name: run.ssm.index[p.name] for p in run.plan.online}
-    band = reported_band(out, std, tuning, model, x0[: model.n_state],
-                         inputs.q_brk * cal.power_scale, h, inputs.t_amb, spot_radii,
-                         options.spot, nodes)
+    band = reported_band(out, std, tuning, run.crown, nodes)
     frame = estimate_frame(inputs, model, run.states, out, band, tuning, h, online,
                            None if nodes is None else band[:, nodes:])
     found = _frame_findings(frame, session, inputs, choice, warnings)

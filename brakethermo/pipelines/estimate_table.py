@@ -45,22 +45,34 @@ def band_std(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning,
     return band
 
 
-def reported_band(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning,
-                  model: DiscFEModel, T0: np.ndarray, q: np.ndarray, h: np.ndarray,
-                  t_amb: np.ndarray, spot_radii: np.ndarray, spot: int,
-                  node_start: int | None = None) -> np.ndarray:
-    """The 1-sigma the outputs carry: the filter's, the pyrometer's calibration
-    (:func:`band_std`) and what a crown balance unlike the law's would do at the spots
-    the filter does not measure (:mod:`brakethermo.pipelines.crown_band`); with
-    ``node_start``, the face nodes' readouts from that column on get the same."""
+def crown_term(model: DiscFEModel, T0: np.ndarray, q: np.ndarray, h: np.ndarray,
+               t_amb: np.ndarray, spot_radii: np.ndarray, spot: int,
+               tuning: EstimateTuning, with_nodes: bool) -> np.ndarray:
+    """What a crown balance unlike the law's would do at the spots the filter does not
+    measure (:mod:`brakethermo.pipelines.crown_band`), 1-sigma (K, 5 + nodes) in degC:
+    the four spots, the contact band and, ``with_nodes``, the face nodes. It needs the
+    model and the inputs only (``T0`` degC, ``q`` the scaled braking power in W, ``h`` in
+    W/(m^2 K), ``t_amb`` degC per step), not the filter: the race runs it beside it."""
     H_spots = model.spot_matrix(spot_radii)
-    rows, cols = [H_spots, H_spots[1:4].mean(axis=0, keepdims=True)], list(range(5))
-    if node_start is not None:
+    rows = [H_spots, H_spots[1:4].mean(axis=0, keepdims=True)]
+    if with_nodes:
         rows.append(model.spot_matrix(model.radii))
-        cols += range(node_start, node_start + model.radii.size)
+    return crown_balance_std(model, T0, q, h, t_amb, np.vstack(rows), spot,
+                             crown_sd(model.weights, tuning.crown_balance_sd))
+
+
+def reported_band(out: np.ndarray, std: np.ndarray, tuning: EstimateTuning,
+                  crown: np.ndarray, node_start: int | None = None) -> np.ndarray:
+    """The 1-sigma the outputs carry: the filter's, the pyrometer's calibration
+    (:func:`band_std`) and the crown balance's (:func:`crown_term`, its columns the
+    spots, the contact band and, with ``node_start``, the face nodes' readouts from that
+    column on)."""
+    cols = list(range(5))
+    if node_start is not None:
+        cols += range(node_start, node_start + crown.shape[1] - 5)
+    if crown.shape[1] != len(cols):
+        raise ValueError(f"a crown term of {crown.shape[1]} columns for {len(cols)} readouts")
     band = band_std(out, std, tuning, cols)
-    crown = crown_balance_std(model, T0, q, h, t_amb, np.vstack(rows), spot,
-                              crown_sd(model.weights, tuning.crown_balance_sd))
     band[:, cols] = np.hypot(band[:, cols], crown)
     return band
 

@@ -17,6 +17,7 @@ import os
 import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import suppress
 from dataclasses import dataclass, replace
 from functools import partial
@@ -29,6 +30,7 @@ from brakethermo.models.disc import DiscStateSpace
 from brakethermo.models.effects import true_from_reading
 from brakethermo.models.reduced import ReducedStateSpace
 from brakethermo.pipelines import scoring
+from brakethermo.pipelines.estimate_table import crown_term
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.pipelines.models import DiscCalibration
 from brakethermo.pipelines.online_choice import (
@@ -161,6 +163,7 @@ class RaceRun:
     windows: int
     filter_s: float
     smoother_s: float
+    crown: np.ndarray  # degC, the band's crown term (estimate_table.crown_term)
     speculative: bool = False
 
 
@@ -209,17 +212,27 @@ def _filtered(disc: DiscSpec, inputs: DiscInputs, y: np.ndarray, cal: DiscCalibr
     x0, P0 = filt.prior(model.initial_state(_initial_temperature(y, inputs.t_amb)),
                         tuning.init_sigma_temp)
     ukf = ukf_for(filt, tuning, spot_radius, cancel)
-    t0 = time.perf_counter()
+    reduced = isinstance(filt, ReducedStateSpace)
+    x0_full = filt.lift(x0) if reduced else x0  # the full model's nodes, everywhere
     # the face nodes' bands (the hottest radius's) where a smoother runs, in its pass
     # only: the decision's filter-only variants do without them
     nodes = filt.H(model.radii) if tuning.smoother else None
-    forward, states, out, out_var, windows, forward_s = run_filter(
-        ukf, x0, P0, y, readout, tuning.smoother, options.workers, nodes)
-    if isinstance(filt, ReducedStateSpace):
-        states, x0 = filt.lift(states), filt.lift(x0)  # the full model's nodes, everywhere
-    return RaceRun(cal, tuning, y, h, model, plan, ssm, order, sigma_meas_source, x0,
-                   forward, states, out, out_var, windows, forward_s,
-                   time.perf_counter() - t0 - forward_s)
+    with ThreadPoolExecutor(1, thread_name_prefix="brakethermo-crown") as pool:
+        # the band's crown term is an open loop of the model on the inputs alone: on
+        # the core the filter leaves (the README's k_z race, 15 x 6 nodes: 0.4 s)
+        crown = pool.submit(crown_term, model, x0_full[: model.n_state],
+                            inputs.q_brk * cal.power_scale, h, inputs.t_amb,
+                            np.asarray(disc.spot_radii), options.spot, tuning,
+                            nodes is not None)
+        t0 = time.perf_counter()
+        forward, states, out, out_var, windows, forward_s = run_filter(
+            ukf, x0, P0, y, readout, tuning.smoother, options.workers, nodes)
+        smoother_s = time.perf_counter() - t0 - forward_s
+        crown_std = crown.result()
+    if reduced:
+        states = filt.lift(states)
+    return RaceRun(cal, tuning, y, h, model, plan, ssm, order, sigma_meas_source, x0_full,
+                   forward, states, out, out_var, windows, forward_s, smoother_s, crown_std)
 
 
 def _kz_learned(disc: DiscSpec, inputs: DiscInputs, cal: DiscCalibration,
