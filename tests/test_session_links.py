@@ -52,3 +52,21 @@ def test_an_estimate_beside_a_batch_keeps_the_back_link(sim_race_session, tmp_pa
         assert res.exit_code == 0, res.output
         page = (out / race.stem / "index.html").read_text()
         assert ('href="../index.html"' in page) is (kind == "batch"), kind
+
+
+def test_refreshing_a_folder_without_a_batch_page_loads_no_report_stack(tmp_path) -> None:
+    """An estimate that writes no page refreshes its folder's links without importing
+    the batch package (and with it the report stack, matplotlib): checked in a fresh
+    interpreter, this test process has long imported everything."""
+    import subprocess
+    import sys
+
+    folder = tmp_path / "race"
+    folder.mkdir()
+    probe = ("import sys; from brakethermo.pipelines.output_dir import refresh_indexes;"
+             f" refresh_indexes({str(folder)!r});"
+             " print(sorted(m for m in sys.modules if m.startswith(('matplotlib',"
+             " 'brakethermo.pipelines.batch', 'brakethermo.report.index'))))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "[]"
