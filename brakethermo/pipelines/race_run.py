@@ -217,18 +217,23 @@ def _filtered(disc: DiscSpec, inputs: DiscInputs, y: np.ndarray, cal: DiscCalibr
     # the face nodes' bands (the hottest radius's) where a smoother runs, in its pass
     # only: the decision's filter-only variants do without them
     nodes = filt.H(model.radii) if tuning.smoother else None
-    with ThreadPoolExecutor(1, thread_name_prefix="brakethermo-crown") as pool:
-        # the band's crown term is an open loop of the model on the inputs alone: on
-        # the core the filter leaves (the README's k_z race, 15 x 6 nodes: 0.4 s)
-        crown = pool.submit(crown_term, model, x0_full[: model.n_state],
-                            inputs.q_brk * cal.power_scale, h, inputs.t_amb,
-                            np.asarray(disc.spot_radii), options.spot, tuning,
-                            nodes is not None)
-        t0 = time.perf_counter()
+    crown_args = (model, x0_full[: model.n_state], inputs.q_brk * cal.power_scale, h,
+                  inputs.t_amb, np.asarray(disc.spot_radii), options.spot, tuning,
+                  nodes is not None)
+    # the band's crown term is an open loop of the model on the inputs alone: beside a
+    # smoother's pass, on the core it leaves (the README's k_z race, 15 x 6 nodes:
+    # 0.4 s); the decision's filter-only passes fill the cores already
+    pool = ThreadPoolExecutor(1, "brakethermo-crown") if tuning.smoother else None
+    crown = None if pool is None else pool.submit(crown_term, *crown_args)
+    t0 = time.perf_counter()
+    try:
         forward, states, out, out_var, windows, forward_s = run_filter(
             ukf, x0, P0, y, readout, tuning.smoother, options.workers, nodes)
         smoother_s = time.perf_counter() - t0 - forward_s
-        crown_std = crown.result()
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True)
+    crown_std = crown_term(*crown_args) if crown is None else crown.result()
     if reduced:
         states = filt.lift(states)
     return RaceRun(cal, tuning, y, h, model, plan, ssm, order, sigma_meas_source, x0_full,
