@@ -251,7 +251,7 @@ def _kz_learned(disc: DiscSpec, inputs: DiscInputs, cal: DiscCalibration,
     then instead of after the decision. Neither changes a number: the guess is only a
     head start, and the filter takes the modes
     :func:`~brakethermo.pipelines.race_filter.session_modes` keeps when its model, law and
-    inputs are these (the README's k_z race: its decision ~0.7 s shorter in process)."""
+    inputs are these (the README's k_z race: its filter starts 0.6-1.2 s earlier)."""
     thin, said = _thin_skin(tuning, options)
     # a crown the race may drop is in the modes' model, and not known yet
     warm = bool(said) and CROWN not in parts
