@@ -25,14 +25,6 @@ def _setup():
     return layout, speed, segments
 
 
-def test_slipstream_is_tested_on_the_held_out_straights_off_the_brakes():
-    layout, speed, segments = _setup()
-    where, units = signature_units("slipstream", layout, speed, segments, V_REF)
-    assert "straights" in where
-    assert np.array_equal(np.flatnonzero(units >= 0), np.arange(13, 20))
-    assert set(units[units >= 0]) == {1}
-
-
 def test_the_knee_is_tested_from_the_first_pass_of_the_knee_speed():
     layout, speed, segments = _setup()
     _, units = signature_units("h_speed_knee", layout, speed, segments, V_REF)
@@ -43,3 +35,5 @@ def test_the_knee_is_tested_from_the_first_pass_of_the_knee_speed():
 def test_an_effect_without_a_signature_is_tested_on_whole_cycles_only():
     layout, speed, segments = _setup()
     assert signature_units("thickness_gradient", layout, speed, segments, V_REF) is None
+    # off-brake straights are no slipstream's own: a k_z change shrinks them as much
+    assert signature_units("slipstream", layout, speed, segments, V_REF) is None

@@ -142,20 +142,12 @@ def _fast_straights(layout: Layout, speed: np.ndarray, segments: Segments, v_ref
     return units
 
 
-def _straights(layout: Layout, speed: np.ndarray, segments: Segments, v_ref: float
-               ) -> np.ndarray:
-    """Held-out straights off the brakes, as units (the straight's id, -1 elsewhere)."""
-    st = segments.straight
-    return np.where(layout.held & ~layout.braking & (st >= 0), st, -1)
-
-
 # Where an effect's signature lives, as held-out units: the effect registered here is
 # also tested on those units (diagnosis.verdict.Signature). An effect not listed is
 # tested on whole held-out braking cycles only.
 SIGNATURE_UNITS = {
     "h_speed_knee": ("held-out straights above the knee speed, to the next braking",
                      _fast_straights),
-    "slipstream": ("held-out straights, off the brakes", _straights),
 }
 
 
