@@ -100,7 +100,10 @@ def test_a_slipstream_says_where_its_straights_departed_most():
     size, text = effect_size("slipstream", {"straight_factor": f}, load_disc(), 4,
                              straights=places)
     assert [w["lap"] for w in size["most_off"]] == [1, 2]
-    assert "most: lap 1 after B2 0.72, lap 2 after B2 1.28" in text  # about their own level
-    doubled = effect_size("slipstream", {"straight_factor": [2 * x for x in f]}, load_disc(),
-                          4, straights=places)[1]
-    assert doubled == text
+    assert "most: lap 1 after B2 0.70, lap 2 after B2 1.25" in text
+
+
+def test_a_knee_the_session_never_passed_is_said_to_be_an_extrapolation():
+    disc = replace(load_disc(), v_ref=V_REF)
+    size, text = effect_size("h_speed_knee", {"gain": 0.5}, disc, 4, top_kmh=250.0)
+    assert size["top_kmh"] == 250.0 and "never passed the knee (top speed 250 km/h)" in text

@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from brakethermo.errors import ConfigError
-from brakethermo.models.disc_effects import ExtendedDisc, Segments
+from brakethermo.models.disc_effects import ExtendedDisc, Segments, departures
 from brakethermo.models.effects import (
     EFFECT_NAMES,
     EFFECTS,
@@ -184,3 +184,20 @@ def test_slipstream_factors_are_departures_from_the_sessions_own_h() -> None:
     common = p.copy()
     common[idx] = np.log(0.5)
     np.testing.assert_allclose(ext.predict(common)[0], batch[0], atol=1e-9)
+
+
+def test_held_out_straights_depart_from_the_training_straights_level() -> None:
+    rng = np.random.default_rng(3)
+    F = np.exp(rng.normal(0.0, 0.2, (2, 6)))
+    level = np.array([True, True, True, False, False, False])
+    moved = F.copy()
+    moved[:, ~level] *= 0.6  # the held-out straights fitted later
+    np.testing.assert_allclose(departures(moved, level)[:, level], departures(F, level)[:, level])
+    np.testing.assert_allclose(np.exp(np.log(departures(F, level)[:, level]).mean(axis=1)), 1.0)
+    ext, _ = _toy(("slipstream",))
+    p = ext.neutral()
+    idx = [s.index for s in ext.latent_slots("slipstream")]
+    p[idx] = np.log(np.linspace(0.5, 0.8, len(idx)))
+    shown = np.asarray(ext.values(p, "slipstream")["straight_factor"])
+    np.testing.assert_allclose(np.exp(np.log(shown).mean()), 1.0)  # h's own level
+    assert shown.min() >= 0.4 and shown.max() <= 1.6

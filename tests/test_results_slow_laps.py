@@ -28,3 +28,5 @@ def test_the_page_says_which_laps_are_slow():
     assert _slow_text({"slow_laps": {}}) == ""
     text = _slow_text({"slow_laps": {"7": 1.43}})
     assert text.startswith(" Lap 7 took 1.43 x the typical lap time") and "no flying lap" in text
+    two = _slow_text({"slow_laps": {"6": 1.3, "7": 1.43}})
+    assert two.startswith(" Laps 6, 7 took 1.30, 1.43 x") and "no flying laps" in two

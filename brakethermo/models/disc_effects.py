@@ -79,16 +79,18 @@ class Slot:
     segment: int = -1  # latent parameters: the zone or straight id
 
 
-def departures(factor: np.ndarray) -> np.ndarray:
+def departures(factor: np.ndarray, level: np.ndarray | None = None) -> np.ndarray:
     """Slipstream straight factors (B, straights) as departures from the session's own h:
-    divided by their geometric mean, so their common level is h's.
+    divided by the geometric mean of the ``level`` straights (all when ``None``), so their
+    common level is h's.
 
     A slipstream is a departure from the norm, straight by straight; a common level would
     trade against h's ``a`` and move h under the brakes instead (an independent
     generator's test session carried factors of 0.4-0.6 with ``a`` doubled, a law that
     lost to the one without slipstream on every race).
     """
-    return factor / np.exp(np.mean(np.log(factor), axis=1, keepdims=True))
+    ref = factor if level is None or not np.any(level) else factor[:, level]
+    return factor / np.exp(np.mean(np.log(ref), axis=1, keepdims=True))
 
 
 class ExtendedDisc:
@@ -108,6 +110,11 @@ class ExtendedDisc:
     effects : sequence of str
         Registered effect names switched on.
     segments : Segments
+    level : ndarray (n_straights,) of bool, optional
+        The straights whose slipstream factors set h's own level (:func:`departures`):
+        those fitted together with h, the training laps' in the diagnosis (held-out
+        straights, fitted later from spot 3, then depart from it without moving it).
+        All when ``None``.
     """
 
     def __init__(
@@ -121,8 +128,10 @@ class ExtendedDisc:
         v_ref: float,
         effects: Sequence[str],
         segments: Segments,
+        level: np.ndarray | None = None,
     ) -> None:
         self.model = model
+        self.level = None if level is None else np.asarray(level, bool)
         self.speed, self.q, self.t_amb = (np.asarray(a, float)[:-1] for a in (speed, q_brk, t_amb))
         self.T0 = np.asarray(T0, float)
         self.H = model.spot_matrix(spot_radii)
@@ -195,9 +204,9 @@ class ExtendedDisc:
         return mu, sd
 
     def values(self, p: np.ndarray, effect: str) -> dict[str, float | list[float]]:
-        """Parameter values (in their units) of ``effect`` in vector ``p`` (a slipstream's
-        straight factors as fitted, within their bounds: :func:`departures` gives them as
-        they act on h)."""
+        """Parameter values (in their units) of ``effect`` in vector ``p``; a slipstream's
+        straight factors as the multipliers of h they act as (:func:`departures`), within
+        their bounds (a common factor changes nothing in the model)."""
         out: dict[str, float | list[float]] = {}
         for s in self.slots:
             if s.effect != effect:
@@ -209,7 +218,17 @@ class ExtendedDisc:
                 latent = out.setdefault(s.param.name, [])
                 assert isinstance(latent, list)
                 latent.append(v)
+        if effect == "slipstream" and "straight_factor" in out:
+            out["straight_factor"] = self._as_multipliers(np.asarray(out["straight_factor"]))
         return out
+
+    def _as_multipliers(self, raw: np.ndarray) -> list[float]:
+        """Raw straight factors scaled by the common factor that makes them the
+        multipliers of h they act as, as far as their bounds allow."""
+        lo, hi = next((sl.param.lower, sl.param.upper) for sl in self.latent_slots("slipstream"))
+        c = float(departures(raw[None], self.level)[0, 0] / raw[0])
+        c = min(max(c, lo / raw.min()), hi / raw.max())
+        return np.clip(raw * c, lo, hi).tolist()
 
     def law(self, p: np.ndarray) -> HLaw:
         """The reference power-law h(V) of vector ``p`` (knee beyond any speed: no knee)."""
@@ -247,7 +266,7 @@ class ExtendedDisc:
             h = h * knee_factor(self.speed, self.v_ref, KNEE, gain)
         factor = self._latent(P, "slipstream", "straight_factor")
         if factor is not None:
-            factor = departures(factor)
+            factor = departures(factor, self.level)
             seg = self.segments.straight[:-1]
             on = seg >= 0
             h[:, on] *= factor[:, seg[on]]

@@ -19,8 +19,9 @@ The laws are deliberately few-parameter and physical, not shaped after our simul
 - ``h_speed_knee``: ``h · (1 + g u²)``, ``u = (V/V_ref − x_k)/(1 − x_k)`` above the knee
   ``x_k`` = 0.8 (tyre deformation exposes the disc above ~0.8 V_ref).
 - ``slipstream``: h on each straight of each lap multiplied by its own factor (a
-  latent value per straight, with a prior around 1): following another bike changes
-  the cooling air straight by straight, not as a law of speed.
+  latent value per straight, with a prior around 1), a departure from the session's own
+  h (``disc_effects.departures``: the fitted straights' geometric mean is 1): following
+  another bike changes the cooling air straight by straight, not as a law of speed.
 - ``friction_temperature``: braking power × μ(T)/μ_ref with
   ``μ(T)/μ_ref = 1 + β · clip((T − T_m)/ΔT, −1, 1)``, T the contact-band face
   temperature of the previous step, ΔT = 250 °C; parameters β and T_m.
@@ -169,8 +170,9 @@ EFFECTS: dict[str, Effect] = {
         Effect(
             "slipstream", "h",
             (),
-            "h on each straight of each lap multiplied by its own factor (following another"
-            " bike changes the cooling air straight by straight)",
+            "h on each straight of each lap multiplied by its own factor, a departure from"
+            " the session's own h (following another bike changes the cooling air straight"
+            " by straight)",
             "cooling only, lap to lap: the same straight cools faster on some laps than on"
             " others, all spots alike",
             "online",

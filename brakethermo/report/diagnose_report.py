@@ -195,9 +195,12 @@ def _slow_text(summary: dict[str, Any]) -> str:
         return ""
     laps = ", ".join(slow)
     shares = ", ".join(f"{share:.2f}" for share in slow.values())
-    return (f" {'Laps' if len(slow) > 1 else 'Lap'} {laps} took {shares} x the typical lap"
-            " time: an in-lap or a cool-down lap, used as any other (its cooling is data for"
-            " the model) but no flying lap.")
+    if len(slow) > 1:
+        return (f" Laps {laps} took {shares} x the typical lap time: in-laps or cool-down"
+                " laps, used as any other (their cooling is data for the model) but no"
+                " flying laps.")
+    return (f" Lap {laps} took {shares} x the typical lap time: an in-lap or a cool-down"
+            " lap, used as any other (its cooling is data for the model) but no flying lap.")
 
 
 def _reference_section(summary: dict[str, Any]) -> Section:

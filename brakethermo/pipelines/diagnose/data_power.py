@@ -29,8 +29,8 @@ MIN_ONSET_SPREAD_C = 80.0  # degC: spread (10-90 %) of contact temperature at br
 
 
 def top_speed_kmh(speed: np.ndarray, flying: np.ndarray) -> float:
-    """The flying laps' top road speed, km/h (``speed`` in m/s on the 0.1 s grid, whose
-    bin means already smooth single-sample spikes)."""
+    """The flying laps' top road speed, km/h (``speed`` in m/s on the 0.1 s grid: a
+    channel logged faster is its bin means there, which smooth single-sample spikes)."""
     return float(np.nanmax(np.abs(speed[flying]))) * 3.6
 
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from brakethermo.models.disc_effects import KNEE, Segments, departures
+from brakethermo.models.disc_effects import KNEE, Segments
 from brakethermo.models.effects import knee_factor, mu_ratio
 from brakethermo.pipelines.diagnose.fit import _nanmean
 from brakethermo.pipelines.diagnose.layout import Layout
@@ -168,7 +168,12 @@ def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
         v_ref = disc.v_ref * 3.6
         knee = KNEE * v_ref
         size = {"knee_kmh": knee, "gain_at_v_ref": g}
-        if not knee < top_kmh < 0.97 * v_ref:
+        if top_kmh <= knee:
+            return ({**size, "top_kmh": top_kmh},
+                    f"h {100 * g:+.0f} % at {v_ref:.0f} km/h, growing from the knee at"
+                    f" {knee:.0f} km/h: the form's extrapolation, the session never passed"
+                    f" the knee (top speed {top_kmh:.0f} km/h)")
+        if not top_kmh < 0.97 * v_ref:
             return size, (f"h {100 * g:+.0f} % at {v_ref:.0f} km/h, growing from the knee"
                           f" at {knee:.0f} km/h")
         # a session whose straights end below V_ref shows the knee up to its top speed
@@ -179,7 +184,7 @@ def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
                 f" growing from the knee at {knee:.0f} km/h ({100 * g:+.0f} % at"
                 f" {v_ref:.0f} km/h if the form held beyond the data)")
     if name == "slipstream":
-        f = departures(np.asarray([params.get("straight_factor", [1.0])], float))[0]
+        f = np.asarray(params.get("straight_factor", [1.0]), float)
         off = int(np.sum(np.abs(f - 1.0) > 0.1))
         size = {"h_factor_per_straight": f.tolist(), "straights_off_10pct": off}
         text = (f"h factor per straight {_spread(f)}; {off} of {f.size} straights more than"

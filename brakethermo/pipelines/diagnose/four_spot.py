@@ -144,8 +144,11 @@ class _FourSpot:
 
     def make(self, effects: tuple[str, ...]) -> ExtendedDisc:
         i = self.inputs
+        # a slipstream's factors depart from the training straights' level: the held-out
+        # ones, fitted later from spot 3, must not move h on the laps before them
+        level = np.isin(self.segments.straight_lap, self.train_laps)
         return ExtendedDisc(self.model, i.speed, i.q_brk, i.t_amb, self.T0, self.spot_radii,
-                            self.disc.v_ref, effects, self.segments)
+                            self.disc.v_ref, effects, self.segments, level)
 
     def fit_reference(self) -> None:
         """Step 1: the reference model fitted on the training laps (all four spots)."""
@@ -276,12 +279,18 @@ class _FourSpot:
         rows = {r["name"]: r for r in decision.rows}
         top = top_speed_kmh(self.inputs.speed, self.layout.train | self.layout.held)
         places = straight_places(self.segments)
+        fitted = np.isin(self.segments.straight_lap, (*self.train_laps, *self.held_laps))
         out = []
         for c in self.candidates:
             row = rows[c.name]
             params = self.make(c.effects).values(c.p, c.name)
-            size, sentence = effect_size(c.name, params, self.disc, self.est_tuning.layers,
-                                         self.segments.zone_names, top, places)
+            shown = params
+            if "straight_factor" in params:  # the straights fitted, not the out-lap's
+                shown = {**params, "straight_factor": list(np.compress(
+                    fitted, params["straight_factor"]))}
+            size, sentence = effect_size(c.name, shown, self.disc, self.est_tuning.layers,
+                                         self.segments.zone_names, top,
+                                         [p for p, f in zip(places, fitted, strict=True) if f])
             if "kz_factor" in params:  # in h_law.toml kz_factor is relative to k(T), not k_z
                 params = {"kz_over_nominal": params.pop("kz_factor"), **params}
             out.append({
