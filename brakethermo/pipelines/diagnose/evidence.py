@@ -125,6 +125,45 @@ def _spread(values: Sequence[float]) -> str:
     return f"median {np.median(v):.2f}, range {v.min():.2f}-{v.max():.2f}"
 
 
+def _knee_size(g: float, disc: DiscSpec, top_kmh: float) -> tuple[dict[str, Any], str]:
+    """The knee's gain ``g`` at V_ref, said at the session's top speed (km/h) where its
+    straights end below V_ref."""
+    v_ref = disc.v_ref * 3.6
+    knee = KNEE * v_ref
+    size = {"knee_kmh": knee, "gain_at_v_ref": g}
+    if top_kmh <= knee:
+        return ({**size, "top_kmh": top_kmh},
+                f"h {100 * g:+.0f} % at {v_ref:.0f} km/h, growing from the knee at"
+                f" {knee:.0f} km/h: the form's extrapolation, the session never passed"
+                f" the knee (top speed {top_kmh:.0f} km/h)")
+    if not top_kmh < 0.97 * v_ref:
+        return size, (f"h {100 * g:+.0f} % at {v_ref:.0f} km/h, growing from the knee"
+                      f" at {knee:.0f} km/h")
+    # a session whose straights end below V_ref shows the knee up to its top speed
+    # only; the gain at V_ref is the form's extrapolation
+    g_top = float(knee_factor(np.array(top_kmh / 3.6), disc.v_ref, KNEE, np.array(g))) - 1
+    return ({**size, "top_kmh": top_kmh, "gain_at_top": g_top},
+            f"h {100 * g_top:+.0f} % at {top_kmh:.0f} km/h (the session's top speed),"
+            f" growing from the knee at {knee:.0f} km/h ({100 * g:+.0f} % at"
+            f" {v_ref:.0f} km/h if the form held beyond the data)")
+
+
+def _slipstream_size(f: np.ndarray, straights: Sequence[tuple[int, str]]
+                     ) -> tuple[dict[str, Any], str]:
+    """The slipstream's h factors per straight ``f`` and where they departed most."""
+    off = int(np.sum(np.abs(f - 1.0) > 0.1))
+    size = {"h_factor_per_straight": f.tolist(), "straights_off_10pct": off}
+    text = (f"h factor per straight {_spread(f)}; {off} of {f.size} straights more than"
+            " 10 % off")
+    if not straights or len(straights) != f.size:
+        return size, text
+    most = [int(j) for j in np.argsort(-np.abs(np.log(f)))[:3] if abs(f[j] - 1) > 0.1]
+    where = [{"lap": straights[j][0], "after": straights[j][1], "h_factor": float(f[j])}
+             for j in most]
+    said = ", ".join(f"lap {w['lap']} after {w['after']} {w['h_factor']:.2f}" for w in where)
+    return {**size, "most_off": where}, text + (f" (most: {said})" if said else "")
+
+
 def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
                 zone_names: tuple[str, ...] = (), top_kmh: float = float("nan"),
                 straights: Sequence[tuple[int, str]] = ()) -> tuple[dict[str, Any], str]:
@@ -164,38 +203,10 @@ def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
                  "t_mid_c": params["t_mid"]},
                 "μ/μ_ref " + ", ".join(f"{v:.2f} at {t} °C" for t, v in points.items()))
     if name == "h_speed_knee":
-        g = float(params["gain"])
-        v_ref = disc.v_ref * 3.6
-        knee = KNEE * v_ref
-        size = {"knee_kmh": knee, "gain_at_v_ref": g}
-        if top_kmh <= knee:
-            return ({**size, "top_kmh": top_kmh},
-                    f"h {100 * g:+.0f} % at {v_ref:.0f} km/h, growing from the knee at"
-                    f" {knee:.0f} km/h: the form's extrapolation, the session never passed"
-                    f" the knee (top speed {top_kmh:.0f} km/h)")
-        if not top_kmh < 0.97 * v_ref:
-            return size, (f"h {100 * g:+.0f} % at {v_ref:.0f} km/h, growing from the knee"
-                          f" at {knee:.0f} km/h")
-        # a session whose straights end below V_ref shows the knee up to its top speed
-        # only; the gain at V_ref is the form's extrapolation
-        g_top = float(knee_factor(np.array(top_kmh / 3.6), disc.v_ref, KNEE, np.array(g))) - 1
-        return ({**size, "top_kmh": top_kmh, "gain_at_top": g_top},
-                f"h {100 * g_top:+.0f} % at {top_kmh:.0f} km/h (the session's top speed),"
-                f" growing from the knee at {knee:.0f} km/h ({100 * g:+.0f} % at"
-                f" {v_ref:.0f} km/h if the form held beyond the data)")
+        return _knee_size(float(params["gain"]), disc, top_kmh)
     if name == "slipstream":
-        f = np.asarray(params.get("straight_factor", [1.0]), float)
-        off = int(np.sum(np.abs(f - 1.0) > 0.1))
-        size = {"h_factor_per_straight": f.tolist(), "straights_off_10pct": off}
-        text = (f"h factor per straight {_spread(f)}; {off} of {f.size} straights more than"
-                " 10 % off")
-        if not straights or len(straights) != f.size:
-            return size, text
-        most = [int(j) for j in np.argsort(-np.abs(np.log(f)))[:3] if abs(f[j] - 1) > 0.1]
-        where = [{"lap": straights[j][0], "after": straights[j][1], "h_factor": float(f[j])}
-                 for j in most]
-        said = ", ".join(f"lap {w['lap']} after {w['after']} {w['h_factor']:.2f}" for w in where)
-        return {**size, "most_off": where}, text + (f" (most: {said})" if said else "")
+        return _slipstream_size(np.asarray(params.get("straight_factor", [1.0]), float),
+                                straights)
     if name == "power_distribution":
         b = np.asarray(params.get("zone_balance", []), float)
         m = np.asarray(params.get("zone_middle", []), float)
