@@ -89,8 +89,13 @@ def departures(factor: np.ndarray, level: np.ndarray | None = None) -> np.ndarra
     generator's test session carried factors of 0.4-0.6 with ``a`` doubled, a law that
     lost to the one without slipstream on every race).
     """
+    return factor / _level_mean(factor, level)[:, None]
+
+
+def _level_mean(factor: np.ndarray, level: np.ndarray | None) -> np.ndarray:
+    """Geometric mean (B,) of the ``level`` straights' factors (all when ``None``)."""
     ref = factor if level is None or not np.any(level) else factor[:, level]
-    return factor / np.exp(np.mean(np.log(ref), axis=1, keepdims=True))
+    return np.exp(np.mean(np.log(ref), axis=1))
 
 
 class ExtendedDisc:
@@ -226,7 +231,7 @@ class ExtendedDisc:
         """Raw straight factors scaled by the common factor that makes them the
         multipliers of h they act as, as far as their bounds allow."""
         lo, hi = next((sl.param.lower, sl.param.upper) for sl in self.latent_slots("slipstream"))
-        c = float(departures(raw[None], self.level)[0, 0] / raw[0])
+        c = 1.0 / float(_level_mean(raw[None], self.level)[0])
         c = min(max(c, lo / raw.min()), hi / raw.max())
         return np.clip(raw * c, lo, hi).tolist()
 

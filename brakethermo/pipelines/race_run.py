@@ -230,13 +230,10 @@ def _filtered(disc: DiscSpec, inputs: DiscInputs, y: np.ndarray, cal: DiscCalibr
         forward, states, out, out_var, windows, forward_s = run_filter(
             ukf, x0, P0, y, readout, tuning.smoother, options.workers, nodes)
         smoother_s = time.perf_counter() - t0 - forward_s
-    except BaseException:
+        crown_std = crown_term(*crown_args) if crown is None else crown.result()
+    finally:
         if pool is not None:  # abandoned or interrupted: nobody waits for the band's term
             pool.shutdown(wait=False, cancel_futures=True)
-        raise
-    crown_std = crown_term(*crown_args) if crown is None else crown.result()
-    if pool is not None:
-        pool.shutdown()
     if reduced:
         states = filt.lift(states)
     return RaceRun(cal, tuning, y, h, model, plan, ssm, order, sigma_meas_source, x0_full,
