@@ -31,6 +31,7 @@ from brakethermo.models.mu_slip import rudd_ekf
 from brakethermo.numeric import rmse
 from brakethermo.pipelines import clamp_force as cf
 from brakethermo.pipelines import mu_slip as ms
+from brakethermo.results.clamp_force import estimator_series
 from brakethermo.rigs.tyre import rudd_mu
 from brakethermo.sim.emb import EmbCaliper, simulate_emb, write_emb_simulation
 from brakethermo.sim.tyre_rig import simulate_tyre_rig, write_tyre_simulation
@@ -69,7 +70,7 @@ def clamp(seeds: int, d: Path) -> None:
         wv, t_wv = sim("worn", s + 3, 60, "worn")
         hv, t_hv = sim("heating", s + 4, 60, "hot")
         nom = cf.clamp_force(ev, tr)
-        for k, v in cf.estimator_series(nom.est).items():
+        for k, v in estimator_series(nom.est).items():
             rows.setdefault(f"nominal {k} (kN)", []).append(rmse(v / 1e3, t_ev))
         rows.setdefault("nominal KF 95 % band coverage (%)", []).append(_covered(nom.est, t_ev))
         kf, ds = rows["nominal kf (kN)"][-1], rows["nominal stiffness (kN)"][-1]

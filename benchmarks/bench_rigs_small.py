@@ -22,6 +22,9 @@ from threadpoolctl import threadpool_limits
 from brakethermo.pipelines import clamp_force as cf
 from brakethermo.pipelines import mu_slip as ms
 from brakethermo.pipelines.rig_outputs import write_rig_outputs
+from brakethermo.report.clamp_force_page import page
+from brakethermo.report.mu_slip_page import animation_gif
+from brakethermo.report.mu_slip_page import page as mu_page
 from brakethermo.sim.emb import simulate_emb, write_emb_simulation
 from brakethermo.sim.tyre_rig import simulate_tyre_rig, write_tyre_simulation
 
@@ -32,7 +35,7 @@ def run_clamp(session: Path, train: Path, worn: Path, out: Path) -> None:
     res = cf.clamp_force(session, train, retrain_path=worn)
     summ = cf.summary(res)
     write_rig_outputs(
-        out, session.stem, "clamp_force", cf.result_frame(res), summ, cf.page(res, summ), cf.UNITS
+        out, session.stem, "clamp_force", cf.result_frame(res), summ, page(res, summ), cf.UNITS
     )
 
 
@@ -45,9 +48,9 @@ def run_mu(session: Path, out: Path) -> None:
         "mu_slip",
         ms.result_frame(res),
         summ,
-        ms.page(res, summ),
+        mu_page(res, summ),
         ms.UNITS,
-        attachments={"ekf_animation.gif": ms.animation_gif(res)},
+        attachments={"ekf_animation.gif": animation_gif(res)},
     )
 
 

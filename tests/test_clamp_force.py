@@ -27,6 +27,7 @@ from brakethermo.models.clamp_force import (
 )
 from brakethermo.numeric import rmse
 from brakethermo.pipelines import clamp_force as cfp
+from brakethermo.results.clamp_force import estimator_series, scored_force
 from brakethermo.rigs.emb import (
     TorqueBalance,
     dynamic_stiffness,
@@ -513,8 +514,8 @@ def test_a_lagging_training_sensor_is_found_and_taken_out(tmp_path: Path) -> Non
     assert summ["kf_noise"].startswith("the coloured-error smoother")
     assert "about 5 ms" in summ["sensor_lag"]["text"]
     frame = cfp.result_frame(res)
-    np.testing.assert_allclose(frame["sensor_delagged"] * 1e3, cfp.scored_force(res))
-    assert summ["rmse_kn"]["kf"] == pytest.approx(rmse(found.kf, cfp.scored_force(res)) / 1e3)
+    np.testing.assert_allclose(frame["sensor_delagged"] * 1e3, scored_force(res))
+    assert summ["rmse_kn"]["kf"] == pytest.approx(rmse(found.kf, scored_force(res)) / 1e3)
 
 
 @pytest.mark.parametrize("viscous", [2.0e-4, 2.0e-3])
@@ -603,7 +604,7 @@ def test_short_training_noise_only_sensor_and_no_negative_force(tmp_path: Path) 
     below = np.array([-860.0, 0.0, 1200.0])
     fake = SimpleNamespace(kf=below, kf_paper=below, ml_fusion=below, stiffness=below,
                            torque_balance=below, adaptive=below)
-    for v in cfp.estimator_series(fake).values():  # type: ignore[arg-type]
+    for v in estimator_series(fake).values():  # type: ignore[arg-type]
         np.testing.assert_array_equal(v, [0.0, 0.0, 1200.0])
     sim = simulate_emb("nominal", seed=6313, duration_s=3)
     ch = {c.name: c for c in sim.session.channels}

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from brakethermo.estimation.coloured import error_filter, error_smoother, smoothed_variance
 from brakethermo.numeric import rmse
 from brakethermo.pipelines import clamp_force as cfp
+from brakethermo.report.clamp_force_page import page
 from brakethermo.rigs.emb import ml_fusion
 from brakethermo.sim.emb import EmbCaliper, simulate_emb, write_emb_simulation
 
@@ -94,6 +95,6 @@ def test_viscoelastic_pads_the_smoother_beats_every_input_and_the_paper(tmp_path
     assert summ["kf_filter"] == "coloured"
     assert summ["kf_noise"].startswith("the coloured-error smoother")
     assert summ["fusion_check"]["coloured"]["adopted"] is True
-    rows = cfp.page(res, summ).sections[0].tables[0].rows
+    rows = page(res, summ).sections[0].tables[0].rows
     assert rows[0][0] == "reported: KF smoother, coloured stiffness error"
     assert rows[1][0] == "the paper's KF (eq. 9-13)" and rows[1][2] == "0.29"

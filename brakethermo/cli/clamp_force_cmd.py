@@ -37,13 +37,13 @@ def clamp_force_cmd(
         MAX_FACTOR_WALK,
         UNITS,
         clamp_force,
-        page,
         result_frame,
         summary,
     )
     from brakethermo.pipelines.output_dir import check_session_output
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.rig_outputs import write_rig_outputs
+    from brakethermo.report.clamp_force_page import page
 
     if not (math.isfinite(factor_walk) and 0 < factor_walk <= MAX_FACTOR_WALK):
         raise typer.BadParameter(

@@ -42,15 +42,14 @@ def mu_slip_cmd(
     from brakethermo.pipelines.mu_slip import (
         UNITS,
         MuSlipOptions,
-        animation_gif,
         mu_slip,
-        page,
         result_frame,
         summary,
     )
     from brakethermo.pipelines.output_dir import check_session_output
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.rig_outputs import write_rig_outputs
+    from brakethermo.report.mu_slip_page import animation_gif, page
 
     with option_values():
         opts = MuSlipOptions(mu_range=(0.1, mu_max), slip_range=(0.05, slip_max),

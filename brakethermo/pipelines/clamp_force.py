@@ -9,25 +9,18 @@ the error of not re-training.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-
-import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from matplotlib.figure import Figure
 from scipy.ndimage import median_filter
 
 from brakethermo.diagnosis.verdict import VerdictRule, shrink_interval
 from brakethermo.errors import DataError
 from brakethermo.estimation.consistency import variance_scale
 from brakethermo.io.load import load_session
-from brakethermo.io.session import Session
 from brakethermo.models.clamp_force import (
     CV_BLOCK_S,
     MIN_HALF_S,
@@ -37,7 +30,6 @@ from brakethermo.models.clamp_force import (
     SENSOR_LAGS_S,
     ClampForceEstimates,
     ClampForceModels,
-    FusionCheck,
     applied_factor,
     eq7_choice,
     estimate,
@@ -53,14 +45,21 @@ from brakethermo.pipelines.rig_checks import (
     check_rig_channels,
     in_band,
 )
-from brakethermo.report.page import Card, Page, Section, TableBlock
+from brakethermo.results.clamp_force import (
+    LAG_MIN_SHRINK_PCT,
+    PEAK_HOLD_S,
+    SOURCE_NAMES,
+    ClampForceResult,
+    EmbData,
+    SensorLag,
+    estimator_series,
+    scored_force,
+)
 from brakethermo.rigs.emb import sensor_delagged
 
 CHANNELS = ("motor_angle", "motor_current", "clamp_force")
-ESTIMATORS = ("kf", "kf_paper", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
 
 APPLIED_N = 500.0  # N: the caliper is clamping (the mean force is taken over these)
-PEAK_HOLD_S = 0.005  # s: a peak force is one held this long (not a current-step spike)
 PEAK_SPIKE = 3  # samples: the longest torque-balance spike the held peak removes
 MAX_FACTOR_WALK = 0.5  # 1/sqrt(s): pads soften over seconds, not by half in one
 MIN_TRAIN_S = 1.25 * CV_BLOCK_S  # s: both folds of eq. 7's cross-validation hold samples
@@ -70,16 +69,6 @@ MAX_SPREAD_RATIO = 20.0
 MAX_FORCE_N = 1e5  # N: no caliper clamps harder (the sensor's check and the estimates')
 MIN_SCORED_SHARE = 0.5  # of an estimated session's force samples, finite, to score on it
 
-
-@dataclass(frozen=True)
-class EmbData:
-    """The arrays of one caliper session: angle rad, current A, sensor N (or None), step s."""
-
-    session: Session
-    theta: np.ndarray
-    current: np.ndarray
-    force: np.ndarray | None
-    ts: float
 
 
 def load_emb(
@@ -161,52 +150,6 @@ def load_emb_at_one_rate(
     return out
 
 
-LAG_MIN_SHRINK_PCT = 1.0  # % — lower bootstrap bound of the current RMSE shrink
-
-
-@dataclass(frozen=True)
-class SensorLag:
-    """The clamp-force sensor's lag as one session shows it (:func:`choose_sensor_lag`).
-
-    Attributes
-    ----------
-    lag_s : float — s, the lag taken out (0: the paper's ideal sensor kept).
-    best_s : float — s, the candidate with the smallest held-out current error.
-    current_rmse_a : dict — held-out motor-current RMSE (A) per candidate lag (s).
-    shrink_pct : tuple of float — the best candidate's current RMSE shrink against no
-        lag, %, and its 95 % bootstrap interval over the blocks.
-    eq7 : (int, float) — eq. 7's derivative window and friction sign band chosen on the
-        sensor with ``lag_s`` taken out.
-    """
-
-    lag_s: float
-    best_s: float
-    current_rmse_a: dict[float, float]
-    shrink_pct: tuple[float, float, float]
-    eq7: tuple[int, float]
-
-    @property
-    def at_edge(self) -> bool:
-        """The largest candidate won: the sensor may lag more than it says."""
-        return self.best_s == SENSOR_LAGS_S[-1]
-
-    def as_dict(self) -> dict[str, Any]:
-        shrink, lo, hi = self.shrink_pct
-        return {
-            "lag_s": self.lag_s, "best_candidate_s": self.best_s,
-            "heldout_current_rmse_a_by_lag_ms": {f"{k * 1e3:g}": v
-                                                 for k, v in self.current_rmse_a.items()},
-            "shrink_pct": shrink, "shrink_ci95_pct": [lo, hi], "at_grid_edge": self.at_edge,
-            "what": "the clamp-force sensor's first-order lag: of the candidates"
-                    f" {SENSOR_LAGS_S[0] * 1e3:g}–{SENSOR_LAGS_S[-1] * 1e3:g} ms, the one"
-                    " whose de-lagged sensor (F + τ dF/dt) lets the torque balance (eq. 7,"
-                    " plus a viscous term so that no speed-proportional friction passes"
-                    " for a lag) predict the motor current best on held-out 2 s blocks,"
-                    " taken out when that shrinks the current RMSE by more than"
-                    f" {LAG_MIN_SHRINK_PCT:g} % at the lower end of a 95 % bootstrap"
-                    " interval (else 0)",
-        }
-
 
 def choose_sensor_lag(theta: np.ndarray, current: np.ndarray, F: np.ndarray | None,
                       ts: float) -> SensorLag | None:
@@ -236,32 +179,6 @@ def choose_sensor_lag(theta: np.ndarray, current: np.ndarray, F: np.ndarray | No
         window, band = eq7_choice(theta, current, sensor_delagged(F, lag, ts), ts)
     return SensorLag(lag, best, rms, shrink, (window, band))
 
-
-@dataclass(frozen=True)
-class ClampForceResult:
-    """Everything ``clamp-force`` computed."""
-
-    data: EmbData
-    train: EmbData
-    models: ClampForceModels
-    est: ClampForceEstimates
-    retrain: EmbData | None
-    models_retrained: ClampForceModels | None
-    est_retrained: ClampForceEstimates | None
-    check: FusionCheck | None = None  # the fusion against its inputs, held out in training
-    check_retrained: FusionCheck | None = None
-    train_lag: SensorLag | None = None  # the training sensor's lag
-    scored_lag: SensorLag | None = None  # this session's sensor's own, when it has one
-
-    @property
-    def reported(self) -> ClampForceEstimates:
-        """The session's estimate: the re-trained models' where pads were re-trained (the
-        user's statement that the training session's pads are gone), else the training's."""
-        return self.est if self.est_retrained is None else self.est_retrained
-
-    @property
-    def reported_check(self) -> FusionCheck | None:
-        return self.check if self.est_retrained is None else self.check_retrained
 
 
 def clamp_force(
@@ -342,23 +259,6 @@ def _check_sources(est: ClampForceEstimates, data: EmbData) -> None:
                 " flip the channel or check its wiring",
                 path=data.session.path, channel=channel)
 
-
-def estimator_series(est: ClampForceEstimates) -> dict[str, np.ndarray]:
-    """Each estimator's clamp force by output column name, N, constrained to >= 0.
-
-    Pads only push: where an estimator's mean sits below zero (after a release, the
-    torque balance's friction, the filter's Gaussian) the reported force is the most
-    probable value of that Gaussian truncated at zero — zero; the band keeps its spread
-    (as the booster's gauge pressure).
-    """
-    return {name: np.maximum(v, 0.0) for name, v in (
-        ("kf", est.kf),
-        ("kf_paper", est.kf_paper),
-        ("ml_fusion", est.ml_fusion),
-        ("stiffness", est.stiffness),
-        ("torque_balance", est.torque_balance),
-        ("kf_adaptive", est.adaptive),
-    )}
 
 
 def _rmse_kn(est: ClampForceEstimates, force: np.ndarray | None) -> dict[str, float | None]:
@@ -458,13 +358,6 @@ def _model_dict(m: ClampForceModels, path: Path) -> dict[str, Any]:
     }
 
 
-KF_NAMES = {"fixed": "the paper's KF (eq. 9-13)",
-            "adaptive": "adaptive KF (stiffness factor)",
-            "coloured": "KF smoother, coloured stiffness error"}
-SOURCE_NAMES = {"stiffness": "dynamic-stiffness model (eq. 6)",
-                "torque_balance": "torque-balance model (eq. 7)",
-                "ml_fusion": "ML fusion (eq. 8)"}
-
 
 def _kf_text(res: ClampForceResult) -> str:
     """What the reported ``kf`` is on this session, in words (summary and page)."""
@@ -532,14 +425,6 @@ def _kf_text(res: ClampForceResult) -> str:
                  " same estimate)")
     return text
 
-
-def scored_force(res: ClampForceResult) -> np.ndarray | None:
-    """The estimated session's sensor (N) with its own lag taken out
-    (:func:`choose_sensor_lag` on this session), what ``rmse_kn`` scores against (None
-    without the sensor)."""
-    force, lag = res.data.force, res.scored_lag
-    return None if force is None or lag is None else sensor_delagged(force, lag.lag_s,
-                                                                     res.data.ts)
 
 
 def lag_text(res: ClampForceResult) -> str | None:
@@ -731,151 +616,3 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
     return out
 
 
-def _fmt(v: float | None) -> str:
-    return "–" if v is None else f"{v:.3f}"
-
-
-def _cards(res: ClampForceResult, summ: dict[str, Any]) -> list[Card]:
-    """The page's headline tiles: RMSEs where the session has the sensor, else forces."""
-    r, e = summ["rmse_kn"], summ["estimate_kn"]
-    kf = "KF" if res.reported.kf_source == "kf" else "reported"
-    if res.data.force is not None:
-        return [
-            Card(f"{kf} RMSE", _fmt(r["kf"]), "kN"),
-            Card("ML fusion RMSE", _fmt(r["ml_fusion"]), "kN"),
-            Card("adaptive KF RMSE", _fmt(summ["rmse_kn_adaptive"]), "kN"),
-            Card("final stiffness factor", f"{summ['stiffness_factor_final']:.3f}"),
-        ]
-    return [
-        Card(f"{kf} peak force", f"{e['kf']['peak']:.2f}", "kN"),
-        Card(f"{kf} 95 % band", f"± {e['kf_band95_median']:.2f}", "kN"),
-        Card("mean force applied", _fmt(e["kf"]["mean_applied"]), "kN"),
-        Card("final stiffness factor", f"{summ['stiffness_factor_final']:.3f}"),
-    ]
-
-
-def page(res: ClampForceResult, summ: dict[str, Any]) -> Page:
-    """The report page: RMSE table, traces, stiffness factor, wear."""
-    force = scored_force(res)
-    main = _estimators_section(res, summ, force)
-    main.figures["traces"] = _traces_figure(res, force)
-    sections = [main, _adaptive_section(res)]
-    if "wear" in summ:
-        sections.append(_wear_section(summ, force is not None))
-    return Page(
-        title=f"clamp-force — {res.data.session.path.name}",
-        subtitle="EMB clamp force from resolver and motor current",
-        cards=_cards(res, summ),
-        sections=sections,
-    )
-
-
-def _estimators_section(res: ClampForceResult, summ: dict[str, Any],
-                        force: np.ndarray | None) -> Section:
-    """Each estimator's RMSE (where the session has the sensor, ``force`` N), the paper's,
-    and what it says, with the sessions and the reported estimate in words."""
-    r = summ["rmse_kn"]
-    e = summ["estimate_kn"]
-    names = ("kf", "kf_paper", "ml_fusion", "stiffness", "torque_balance", "kf_adaptive")
-    est = res.reported
-    reported = (f"reported: {KF_NAMES[est.kf_filter]}" if est.kf_source == "kf" else
-                f"reported: the {SOURCE_NAMES[est.kf_source]}")
-    labels = (reported, "the paper's KF (eq. 9-13)", "ML fusion (eq. 8)",
-              "dynamic stiffness (eq. 6)", "torque balance (eq. 7)",
-              "adaptive KF (stiffness factor)")
-    same = est.kf_source == "kf" and est.kf_filter == "fixed"
-    paper = ("0.29" if same else "–", "0.29", "0.32", "0.35", "0.61", "–")
-    rmse_of = {**r, "kf_paper": summ["rmse_kn_kf_paper"],
-               "kf_adaptive": summ["rmse_kn_adaptive"]}
-    rows = [[lab, _fmt(rmse_of[n]), p, f"{e[n]['peak']:.2f}", _fmt(e[n]["mean_applied"])]
-            for n, lab, p in zip(names, labels, paper, strict=True)]
-    return Section(
-        "Clamp-force estimators",
-        paragraphs=[
-            f"Trained on {res.train.session.path.name} ({res.train.session.time[-1]:.0f} s at"
-            f" {res.train.session.rate_hz:.0f} Hz); estimated on {res.data.session.path.name}."
-            + ("" if force is not None else " The session has no clamp-force sensor: each"
-               " estimator's peak and mean applied force, no RMSE."),
-            f"Reported estimate (kf): {summ['kf_noise']}.",
-            *([summ["sensor_lag"]["text"]] if summ["sensor_lag"]["text"] else []),
-        ],
-        tables=[
-            TableBlock(
-                ["estimator", "RMSE here (kN)", "paper RMSE (kN)", "peak (kN)",
-                 "mean applied (kN)"],
-                rows,
-                caption="RMSE against the clamp-force sensor (where the session has it; its"
-                        " lag taken out where it shows one),"
-                        " and what each estimator says (peak: the largest force held"
-                        f" {PEAK_HOLD_S * 1e3:.0f} ms, a current step's spike dropped)",
-            )
-        ],
-    )
-
-
-def _traces_figure(res: ClampForceResult, force: np.ndarray | None) -> Figure:
-    """Two seconds of every estimator's force against the sensor (``force`` N, de-lagged),
-    kN."""
-    t = res.data.session.time
-    fig, ax = plt.subplots(figsize=(10, 3.6))
-    # 2 s after the filters settled (or the whole of a short session)
-    t0 = t[0] + 1.0 if t[-1] - t[0] > 3.0 else t[0]
-    win = (t >= t0) & (t <= t0 + 2.0)
-    if force is not None:
-        lag = res.scored_lag.lag_s if res.scored_lag is not None else 0.0
-        ax.plot(t[win], force[win] / 1e3, "k", lw=1.6,
-                label=f"sensor, {lag * 1e3:g} ms lag out" if lag > 0.0 else "sensor")
-    for name, v in estimator_series(res.reported).items():
-        ax.plot(t[win], v[win] / 1e3, lw=0.8, label=name)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("clamp force (kN)")
-    ax.legend(ncol=6, fontsize=8)
-    fig.tight_layout()
-    return fig
-
-
-def _adaptive_section(res: ClampForceResult) -> Section:
-    """The adaptive filter's stiffness factor with its 1σ band, and why it is there."""
-    t = res.data.session.time
-    fig2, ax2 = plt.subplots(figsize=(10, 2.8))
-    sf, sd = res.reported.stiffness_factor, res.reported.stiffness_factor_std
-    ax2.fill_between(t, sf - sd, sf + sd, alpha=0.3)
-    ax2.plot(t, sf)
-    ax2.set_xlabel("time (s)")
-    ax2.set_ylabel("stiffness factor (–)")
-    fig2.tight_layout()
-    return Section(
-        "Pad heating: adaptive filter",
-        paragraphs=[
-            "The paper held the pad temperature constant. Pads soften as they heat; the adaptive"
-            " filter carries a random-walk factor on the stiffness model's input, observed"
-            " through the torque balance, which the pads do not affect. A factor drifting away"
-            " from 1 shows the pads changed since training."
-        ],
-        figures={"stiffness_factor": fig2},
-    )
-
-
-def _wear_section(summ: dict[str, Any], has_sensor: bool) -> Section:
-    """The re-trained models beside the training session's: RMSE with the sensor, else
-    peak force."""
-    w = summ["wear"]
-    if has_sensor:
-        head = ["estimator", "RMSE not re-trained (kN)", "RMSE re-trained (kN)"]
-        rows = [[k, _fmt(w["rmse_kn_not_retrained"][k]), _fmt(w["rmse_kn_retrained"][k])]
-                for k in ESTIMATORS]
-    else:
-        e = summ["estimate_kn"]
-        before = w["estimate_kn_not_retrained"]
-        head = ["estimator", "peak not re-trained (kN)", "peak re-trained (kN)"]
-        rows = [[k, f"{before[k]['peak']:.2f}", f"{e[k]['peak']:.2f}"] for k in ESTIMATORS]
-    return Section(
-        "Wear: re-training",
-        paragraphs=[
-            f"Re-trained on {Path(w['retraining_session']).name}"
-            f" ({w['retraining_duration_s']:.0f} s with the sensor): every figure above"
-            " is the re-trained models' estimate; here beside the training session's"
-            " models' (`<column>_not_retrained` in the table)."
-        ],
-        tables=[TableBlock(head, rows)],
-    )
