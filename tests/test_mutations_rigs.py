@@ -42,7 +42,7 @@ def sessions(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 def _mutate(src: Path, column: str, how: str, out: Path) -> Path:
     table = pq.read_table(src)
     v = table.column(column).to_numpy(zero_copy_only=False).astype(float)
-    v = {"zero": np.zeros_like(v), "negate": -v, "x1000": v * 1000.0,
+    v = {"zero": np.zeros_like(v), "negate": -v, "x1000": v * 1000.0, "div1000": v / 1000.0,
          "stuck": np.full_like(v, float(np.nanmedian(v)))}[how]
     field = table.schema.field(column)
     table = table.set_column(table.column_names.index(column), field, pa.array(v))
@@ -78,6 +78,7 @@ CASES = [
     ("clamp-force", "emb", "motor_current", "negate", "refused"),
     ("clamp-force", "emb", "motor_angle", "negate", "refused"),
     ("clamp-force", "emb", "motor_current", "stuck", "refused"),
+    ("clamp-force", "embt", "clamp_force", "div1000", "warned"),  # kN labelled N, scoring
     ("mu-slip", "ty", "drag_force", "zero", "refused"),
     ("mu-slip", "ty", "drag_force", "negate", "refused"),
     ("mu-slip", "ty", "drag_force", "x1000", "refused"),
@@ -104,6 +105,17 @@ def test_rig_mutation(rig: str, src: str, channel: str, how: str, expected: str,
         summary = json.loads(res.stdout[res.stdout.index("{"):])
         assert _finite(summary)
         assert any(channel in w for w in summary["warnings"]), summary["warnings"]
+
+
+def test_a_training_force_a_thousand_times_too_small_is_refused(sessions: dict[str, Path],
+                                                               tmp_path: Path) -> None:
+    """A training sensor in kN labelled N trained every force 1000x too small, exit 0."""
+    train = _mutate(sessions["embt"], "clamp_force", "div1000", tmp_path)
+    res = RUNNER.invoke(app, ["clamp-force", str(sessions["emb"]), "--train", str(train),
+                              "--out", str(tmp_path / "out")])
+    assert res.exit_code == 1, res.output
+    text = " ".join(res.output.split())
+    assert train.name in text and "clamp_force" in text and "unit" in text, res.output
 
 
 def test_clean_rig_sessions_pass_without_warnings(sessions: dict[str, Path],

@@ -67,6 +67,9 @@ MIN_TRAIN_S = 1.25 * CV_BLOCK_S  # s: both folds of eq. 7's cross-validation hol
 # harder applies widen it a few times; a unit slip (deg read as rad: x57) far more
 MAX_SPREAD_RATIO = 20.0
 MAX_FORCE_N = 1e5  # N: no caliper clamps harder (the sensor's check and the estimates')
+# N: a session's clamp force reaches at least this (a car's EMB clamps 10-40 kN; a sensor
+# in kN labelled N peaks at tens)
+MIN_PEAK_FORCE_N = 200.0
 MIN_SCORED_SHARE = 0.5  # of an estimated session's force samples, finite, to score on it
 
 
@@ -118,7 +121,7 @@ def load_emb(
     notes = check_rig_channels(session, (
         Expect("motor_angle", "rad", 2e3), Expect("motor_current", "A", 500.0),
         Expect("clamp_force", "N", MAX_FORCE_N, positive=True,
-               role="input" if need_sensor else "score")))
+               role="input" if need_sensor else "score", least=MIN_PEAK_FORCE_N)))
     if notes:
         session = replace(session, warnings=(*session.warnings, *notes))
     force = session.values("clamp_force") if session.has("clamp_force") else None

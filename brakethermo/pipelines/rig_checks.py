@@ -53,6 +53,8 @@ class Expect:
         exactly, as a torque request of 0 in free rolling does).
     setpoint : bool — a rig may log it as a set-point, one value throughout (an air
         spring's load): taken, with a warning, where a measured channel would be refused.
+    least : float — the smallest largest-magnitude any use of such a rig reaches (below
+        it: a unit error, as kN labelled N; 0: not checked).
     """
 
     channel: str
@@ -62,6 +64,7 @@ class Expect:
     role: Literal["input", "score"] = "input"
     measured: bool = True
     setpoint: bool = False
+    least: float = 0.0
 
 
 def _fault(v: np.ndarray, e: Expect) -> str | None:
@@ -76,6 +79,10 @@ def _fault(v: np.ndarray, e: Expect) -> str | None:
     if scale > e.most:
         return (f"reaches {scale:.4g} {e.unit}, beyond any such rig (at most about"
                 f" {e.most:g} {e.unit}): check the channel's unit")
+    if scale < e.least:
+        return (f"reaches at most {scale:.4g} {e.unit}, less than any use of such a rig"
+                f" (at least about {e.least:g} {e.unit}): check the channel's unit (a"
+                " thousand times too small reads as kN labelled N, MPa labelled Pa)")
     low, high = (float(np.percentile(v, q)) for q in (5, 95))
     if e.positive and low < -0.2 * scale:
         if -low < 2.0 * high:  # as far below zero as above: noise, not a reversed sign
