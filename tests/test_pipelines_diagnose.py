@@ -216,6 +216,20 @@ def test_pooled_sessions_and_pooling_bad_input(lag_session: Path, tmp_path: Path
     assert result.exit_code == 1 and "four-spot" in result.output
 
 
+def test_a_pooled_next_step_carries_the_effect_from_the_session_that_shows_it() -> None:
+    """The first session named had its law identified with an effect it did not show
+    (new-user test: identify-h ft_test --with-effect thickness_gradient, where kz_test
+    showed it)."""
+    from brakethermo.pipelines.diagnose.pooled import leading
+
+    rows = [{"significant": False, "shrink_ci95_pct": [-0.1, 2.1]},
+            {"significant": True, "shrink_ci95_pct": [20.0, 31.0]},
+            {"significant": True, "shrink_ci95_pct": [9.0, 14.0]}]
+    assert leading(rows) == 1
+    assert leading([{"significant": False, "shrink_ci95_pct": [float("nan")] * 2},
+                    {"significant": False, "shrink_ci95_pct": [1.0, 4.0]}]) == 1
+
+
 def test_pooling_refuses_a_session_twice_or_two_of_one_name(tmp_path) -> None:
     """Two files of one name shared OUT/<name>/ (one diagnosis lost, exit 0); one file
     given twice counted its evidence twice and narrowed the interval."""

@@ -107,6 +107,13 @@ def test_several_booster_sessions_are_pooled_as_the_contract_says(tmp_path):
     # its carry command names the diagnosis of the run that shows the effect
     carry = next(step for step in pooled["next_steps"] if "--with-effect" in step)
     assert f"{out}/{shifted.stem}/diagnosis.json" in carry and "DIR/" not in carry
+    # ... whichever session comes first: the clean one named first used to be the one the
+    # carry command (and its --train advice) named
+    r = runner.invoke(app, ["diagnose", str(clean), str(shifted), "--out",
+                            str(tmp_path / "pool2"), "--json"])
+    assert r.exit_code == 0, r.output
+    carry = next(step for step in json.loads(r.output)["next_steps"] if "--with-effect" in step)
+    assert shifted.name in carry and clean.name not in carry, carry
     # sessions of two rigs in one call: one line, nothing written
     from brakethermo.sim.emb import simulate_emb, write_emb_simulation
 

@@ -21,12 +21,27 @@ from scipy.special import chdtri
 from brakethermo.diagnosis.verdict import CandidateEvidence
 
 
-def end_to_end(evidence: Sequence[CandidateEvidence], **fields: Any) -> CandidateEvidence:
+def end_to_end(evidence: Sequence[CandidateEvidence], lead: int = 0, **fields: Any
+               ) -> CandidateEvidence:
     """One candidate's evidence over several sessions: its SSE per unit and its
-    corrections end to end, the rest the first session's unless ``fields`` says."""
+    corrections end to end, its next step session ``lead``'s (:func:`leading`: the
+    command names that session), the rest the first session's unless ``fields`` says."""
     return replace(evidence[0], sse=np.concatenate([e.sse for e in evidence]),
                    correction=np.concatenate([np.ravel(e.correction) for e in evidence]),
-                   **fields)
+                   next_step=evidence[lead].next_step, **fields)
+
+
+def leading(rows: Sequence[dict[str, Any]]) -> int:
+    """Which of the sessions' rows of one effect (their ``diagnosis.json`` ``effects``
+    entries, in session order) shows it most: significant before not, then the higher
+    lower end of the held-out shrink interval. A pooled verdict's next step carries the
+    effect from that session: the first session named, whatever it showed, had a test
+    session identified with an effect it did not have (new-user test)."""
+    def strength(i: int) -> tuple[bool, float]:
+        lo = (rows[i].get("shrink_ci95_pct") or [float("nan")])[0]
+        return bool(rows[i].get("significant")), float(np.nan_to_num(lo, nan=-np.inf))
+
+    return max(range(len(rows)), key=strength)
 
 
 def rms(values: Sequence[float]) -> float:

@@ -13,7 +13,7 @@ import numpy as np
 
 from brakethermo.diagnosis.verdict import decide
 from brakethermo.pipelines.diagnose._common import filled
-from brakethermo.pipelines.diagnose.pooled import end_to_end, rms
+from brakethermo.pipelines.diagnose.pooled import end_to_end, leading, rms
 from brakethermo.pipelines.diagnose.rig import RULE
 from brakethermo.results.rig_diagnosis import RigDiagnosis
 
@@ -26,7 +26,9 @@ def pool_rig(results: Sequence[RigDiagnosis]) -> dict[str, Any]:
     by_session = [{e.name: e for e in r.evidence} for r in results]
     names = [n for n in by_session[0] if all(n in b for b in by_session)]
     ignored = set.intersection(*(set(r.negligible) for r in results))
-    evidence = [end_to_end([b[n] for b in by_session], at_bound="; ".join(
+    lead = {n: leading([next(e for e in r.summary["effects"] if e["name"] == n)
+                        for r in results]) for n in names}
+    evidence = [end_to_end([b[n] for b in by_session], lead[n], at_bound="; ".join(
         dict.fromkeys(b[n].at_bound for b in by_session if b[n].at_bound)))
         for n in names if n not in ignored]
     decision = decide(np.concatenate([r.reference_sse for r in results]), evidence, RULE)
@@ -39,9 +41,9 @@ def pool_rig(results: Sequence[RigDiagnosis]) -> dict[str, Any]:
               **_pooled_row(n, nan, results)}
              for i, n in enumerate(n for n in names if n in ignored)]
     first = results[0].summary
-    # a carried effect is read from a session's diagnosis: the first run that shows it
-    shows = next((r.stem for r in results if r.summary["verdict"] == decision.verdict),
-                 results[0].stem)
+    # a carried effect is read from a session's diagnosis: the run that shows it most
+    shows = (results[lead[decision.verdict_set[0]]].stem if decision.verdict_set
+             else results[0].stem)
     decision = replace(decision, next_steps=filled(
         decision.next_steps, {"DIR/<stem>/": f"DIR/{shows}/"}))
     return {

@@ -24,6 +24,7 @@ from brakethermo.pipelines.diagnose.data_power import READS_LIKE
 from brakethermo.pipelines.diagnose.four_spot import diagnose_session
 from brakethermo.pipelines.diagnose.pooled import (
     end_to_end,
+    leading,
     pooled_consistency,
     pooled_effect,
     pooled_gap,
@@ -103,8 +104,8 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
     names = [e.name for e in results[0].evidence]
     by_session = [{e.name: e for e in r.evidence} for r in results]
     ref = np.concatenate([r.reference_sse for r in results if r.reference_sse is not None])
-    evidence = [end_to_end([b[n] for b in by_session], n_params=0, signature=None,
-                           at_bound="")
+    evidence = [end_to_end([b[n] for b in by_session], leading(_rows(results, n)),
+                           n_params=0, signature=None, at_bound="")
                 for n in names if all(n in b for b in by_session)]
     blind_sets = [{u["name"]: u["why"] for u in r.summary.get("untestable", [])}
                   for r in results]
@@ -151,6 +152,11 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
         "run": {"brakethermo": __version__, "disc": first["run"]["disc"],
                 "pooled_units": int(ref.shape[0])},
     }
+
+
+def _rows(results: Sequence[DiagnoseResult], name: str) -> list[dict[str, Any]]:
+    """Each session's ``effects`` entry of ``name``, in session order."""
+    return [next(e for e in r.summary["effects"] if e["name"] == name) for r in results]
 
 
 def write_pooled(summary: dict[str, Any], out_dir: str | Path) -> Path:
