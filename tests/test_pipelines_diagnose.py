@@ -195,6 +195,10 @@ def test_pooled_sessions_and_pooling_bad_input(lag_session: Path, tmp_path: Path
     assert lag["params"]["tau_s"] == pytest.approx(np.median(taus))
     assert (tmp_path / "o" / "pooled" / "diagnosis.json").is_file()
     assert (tmp_path / "o" / "lag2" / "diagnosis.json").is_file()
+    html = (tmp_path / "o" / "pooled" / "index.html").read_text()
+    for stem in (lag_session.stem, "lag2"):
+        assert f'href="../{stem}/diagnosis/index.html"' in html
+        assert (tmp_path / "o" / stem / "diagnosis" / "index.html").is_file()
     # another disc in the same call
     table = pq.read_table(second)
     meta = dict(table.schema.metadata)

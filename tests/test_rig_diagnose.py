@@ -104,6 +104,12 @@ def test_several_booster_sessions_are_pooled_as_the_contract_says(tmp_path):
     assert row["significant_in"] == [shifted.stem]  # seen in one run only, and said
     assert any("pv_shift is significant in" in n for n in pooled["notes"])
     assert set(pooled["per_session"]) == {shifted.stem, clean.stem}
+    # the pooled result has a page beside its JSON, linking each session's (it had none)
+    html = (out / "pooled" / "index.html").read_text()
+    for stem in (shifted.stem, clean.stem):
+        assert f'href="../{stem}/diagnosis/index.html"' in html
+        assert (out / stem / "diagnosis" / "index.html").is_file()
+    assert "pv_shift" in html
     # its carry command names the diagnosis of the run that shows the effect
     carry = next(step for step in pooled["next_steps"] if "--with-effect" in step)
     assert f"{out}/{shifted.stem}/diagnosis.json" in carry and "DIR/" not in carry

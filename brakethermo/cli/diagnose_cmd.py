@@ -144,7 +144,8 @@ def _diagnose_discs(sessions: list[Path], out: Path, options: DiagnoseOptions,
         _next_steps(pooled)
         for note in pooled["notes"]:
             console.print(f"  [yellow]note:[/] {escape(note)}")
-        console.print(f"wrote {escape(str(pooled_path))}")
+        console.print(f"wrote {escape(str(pooled_path))} and its page"
+                      f" {escape(str(pooled_path.parent / 'index.html'))}")
 
 
 def _run_with_progress(sessions: list[Path], options: DiagnoseOptions,
@@ -224,11 +225,11 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
     folders = [write_rig_diagnosis(r, out) for r in results]
     pooled = pooled_path = None
     if len(results) > 1:
+        from brakethermo.pipelines.diagnose import write_pooled
         from brakethermo.pipelines.diagnose.rig_pooled import pool_rig
-        from brakethermo.pipelines.outputs import write_json
 
         pooled = filled(pool_rig(results), {"DIR/": f"{shlex.quote(str(out))}/"})
-        pooled_path = write_json(out / "pooled" / "diagnosis.json", pooled)
+        pooled_path = write_pooled(pooled, out)
     if as_json:
         print(to_json({**pooled, "output": str(pooled_path)} if pooled is not None else
                       {**results[0].summary, "output": str(folders[0])}))
@@ -241,7 +242,8 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
         _next_steps(pooled)
         for note in pooled["notes"]:
             console.print(f"  note: {escape(note)}", highlight=False)
-        console.print(f"wrote {escape(str(pooled_path))}")
+        console.print(f"wrote {escape(str(pooled_path))} and its page"
+                      f" {escape(str(pooled_path.parent / 'index.html'))}")
 
 
 def _one_rig(rig: str, path: Path, effects: str, train: Path | None, fit: Path | None,

@@ -57,6 +57,8 @@ class Section:
         PNG file stem -> matplotlib figure; each becomes ``<stem>.png`` beside the page.
     notes : list of str
         Small print under the figures (assumptions, what was not measured).
+    links : list of (str, str)
+        (text, relative href) of other pages, listed after the paragraphs.
     """
 
     heading: str
@@ -64,6 +66,7 @@ class Section:
     tables: list[TableBlock] = field(default_factory=list)
     figures: dict[str, Figure] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    links: list[tuple[str, str]] = field(default_factory=list)
 
 
 @dataclass
@@ -136,6 +139,7 @@ def write_page(page: Page, folder: Path, name: str = "index.html") -> Path:
             "tables": section.tables,
             "figures": figures,
             "notes": section.notes,
+            "links": section.links,
         })
     env = template_environment(trim_blocks=True, lstrip_blocks=True)
     html = env.get_template("page.html.j2").render(

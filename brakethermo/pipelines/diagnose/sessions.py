@@ -160,12 +160,17 @@ def _rows(results: Sequence[DiagnoseResult], name: str) -> list[dict[str, Any]]:
 
 
 def write_pooled(summary: dict[str, Any], out_dir: str | Path) -> Path:
-    """``<out>/pooled/diagnosis.json``; returns its path (``summary``'s suggested commands
-    are given ``--out out_dir``, in place)."""
+    """``<out>/pooled/diagnosis.json`` and its page ``index.html`` beside it (disc and rig
+    pools); returns the JSON's path (``summary``'s suggested commands are given ``--out
+    out_dir``, in place)."""
     from brakethermo.pipelines.outputs import write_json
+    from brakethermo.report.page import write_page
+    from brakethermo.report.pooled_diagnosis_page import pooled_page
 
     summary.update(with_out(summary, out_dir))
-    return write_json(Path(out_dir) / "pooled" / "diagnosis.json", summary)
+    path = write_json(Path(out_dir) / "pooled" / "diagnosis.json", summary)
+    write_page(pooled_page(summary), path.parent)
+    return path
 
 
 def write_diagnosis(result: DiagnoseResult, out_dir: str | Path,
