@@ -391,3 +391,14 @@ def test_two_clean_booster_sessions_pool_to_none_with_every_row_complete(tmp_pat
     for row in s["effects"]:  # under the floor in both: said, with the keys of any row
         assert row["negligible"] and not row["significant"]
         assert {"shrink_pct", "shrink_ci95_pct", "rank", "rmse_before", "rmse_after"} <= set(row)
+
+
+def test_an_interval_not_drawn_shows_as_a_dash_not_nan():
+    """Fewer than two held-out units draw no interval (NaN): the console and the page said
+    '+nan … +nan'."""
+    from brakethermo.cli.diagnose_cmd import _interval as console
+    from brakethermo.report.rig_diagnosis_page import _interval as page
+
+    nan = float("nan")
+    assert console(nan, nan) == "–" and page(nan, None).startswith("–")
+    assert console(-3.2, 14.6) == "-3 … +15" == page(-3.2, 14.6)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -292,8 +293,13 @@ def _effects_table(effects: list[dict], unit: str, digits: int) -> Table:
         lo, hi = e["shrink_ci95_pct"]
         table.add_row(e["name"], f"{e['rmse_before']:.{digits}f}",
                       f"{e['rmse_after']:.{digits}f}", f"{e['shrink_pct']:+.1f}",
-                      f"{lo:+.0f} … {hi:+.0f}")
+                      _interval(lo, hi))
     return table
+
+
+def _interval(lo: float, hi: float) -> str:
+    """A shrink interval for a table; '–' where none was drawn (too few units)."""
+    return f"{lo:+.0f} … {hi:+.0f}" if math.isfinite(lo) and math.isfinite(hi) else "–"
 
 
 def _next_steps(s: dict) -> None:

@@ -8,7 +8,14 @@ from typing import TYPE_CHECKING
 import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 
-from brakethermo.report.page import Card, Page, Section, TableBlock, finish_figure
+from brakethermo.report.page import (
+    Card,
+    Page,
+    Section,
+    TableBlock,
+    as_number,
+    finish_figure,
+)
 
 RIG_NAMES = {"ebooster": "E-Booster", "emb": "EMB caliper", "roller-rig": "Roller rig",
              "tyre": "Tyre rig"}
@@ -16,6 +23,12 @@ RIG_NAMES = {"ebooster": "E-Booster", "emb": "EMB caliper", "roller-rig": "Rolle
 if TYPE_CHECKING:
     from brakethermo.results.rig_diagnosis import RigDiagnosis
 
+
+
+def _interval(lo: object, hi: object) -> str:
+    """A shrink interval for the table; a dash where none was drawn (too few units)."""
+    a, b = as_number(lo), as_number(hi)
+    return f"{a:+.0f} … {b:+.0f}" if math.isfinite(a) and math.isfinite(b) else "– (too few units)"
 
 def _pv_figure(r: RigDiagnosis) -> Figure:
     fig, ax = plt.subplots(figsize=(7, 4.2))
@@ -54,7 +67,7 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
         lo, hi = e["shrink_ci95_pct"]
         params = ", ".join(f"{k} {v:+.3g} {e['units'][k]}" for k, v in e["params"].items())
         rows.append([e["name"], f"{e['rmse_before']:.3f}", f"{e['rmse_after']:.3f}",
-                     f"{e['shrink_pct']:+.1f}", f"{lo:+.0f} … {hi:+.0f}", params,
+                     f"{e['shrink_pct']:+.1f}", _interval(lo, hi), params,
                      e["evidence"]])
     return Page(
         title=f"{RIG_NAMES.get(s['rig'], s['rig'])} diagnosis — {r.stem}",
