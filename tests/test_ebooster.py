@@ -552,3 +552,19 @@ def test_a_session_spread_no_curve_shift_explains_keeps_the_datasheets_band():
     shift, source, said = band_shift_sd(model, 50.0)
     assert (shift, source) == (SPEC.pv_shift_sd_mm, "datasheet")
     assert said is not None and "pressure sensor or its unit is suspect" in said
+
+def test_the_band_sentence_is_computed_from_the_table():
+    """The page said a consistent 1σ band leaves 32 % outside, beside 3.2 % measured, and
+    never that the p–V curve alone beat both observers (new-user test)."""
+    from brakethermo.report.ebooster import _band_words
+
+    s = {"outside_1sigma": {"ukf": {"p_m": 0.032}}, "coverage_95": {"ukf": 0.992},
+         "pressure_rmse_mpa": {"ukf": {"p_m": 0.041}, "ekf": {"p_m": 0.037}}}
+    words = _band_words(s, 0.036)
+    assert "3.2 % outside 1σ" in words[0] and "wider than its errors" in words[0]
+    assert "p–V curve alone (0.036 MPa RMSE)" in words[1]
+    assert len(_band_words(s, 0.040)) == 1  # the EKF beat the curve: nothing said
+    s["outside_1sigma"]["ukf"]["p_m"] = 0.31
+    assert "about as wide as its errors" in _band_words(s, None)[0]
+    s["outside_1sigma"]["ukf"]["p_m"] = None  # no p_m sensor: no sentence
+    assert _band_words(s, None) == []

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -88,6 +90,29 @@ def _pv_figure(r: EboosterResult) -> Figure:
                          "master-cylinder pressure p_m, MPa")
 
 
+
+def _band_words(s: dict, pv_only: float | None) -> list[str]:
+    """What the pressure table shows, computed from it: whether the UKF's p_m band is as
+    wide as its errors (outside 1σ against the 32 % of a consistent band), and whether the
+    observers beat the p–V curve alone (None: the session has no p_m sensor)."""
+    out1 = as_number(s["outside_1sigma"]["ukf"]["p_m"])
+    cov = as_number(s["coverage_95"]["ukf"])
+    words = []
+    if math.isfinite(out1) and math.isfinite(cov):
+        width = ("wider than its errors (conservative)" if out1 < 0.2 else
+                 "narrower than its errors" if out1 > 0.45 else "about as wide as its errors")
+        words.append(f"Here the UKF's p_m band leaves {100 * out1:.1f} % outside 1σ (32 % for"
+                     f" a band as wide as its errors) and covers {100 * cov:.1f} % at 95 %:"
+                     f" it is {width}.")
+    observers = {w: as_number(s["pressure_rmse_mpa"][w]["p_m"]) for w in ("ukf", "ekf")}
+    if pv_only is not None and all(math.isfinite(v) and pv_only <= v
+                                   for v in observers.values()):
+        words.append(f"The p–V curve alone ({pv_only:.3f} MPa RMSE) does as well as or"
+                     f" better than both observers here (UKF {observers['ukf']:.3f}, EKF"
+                     f" {observers['ekf']:.3f} MPa): on this session their dynamics add"
+                     " nothing to the master-cylinder pressure.")
+    return words
+
 def booster_page(r: EboosterResult) -> Page:
     """The report page of one run."""
     s = r.summary
@@ -142,6 +167,7 @@ def booster_page(r: EboosterResult) -> Page:
     ]
     if s["with_effect"] is not None:
         notes.insert(1, "Both observers' p–V carries " + carried_text(s["with_effect"]) + ".")
+    said = _band_words(s, pv_only)
     choice = s.get("noise_choice")
     band_notes = notes[:1] + ([f"Process noise of the physical states: {choice['q_factor']:g}x"
                                f" the datasheet's — {choice['why']}."] if choice else [])
@@ -154,7 +180,7 @@ def booster_page(r: EboosterResult) -> Page:
         sections=[
             Section("Residuals (paper Table 1)", tables=[table1],
                     figures={"residuals": _residual_figure(r)}),
-            Section("Pressures and bands", tables=[ptable],
+            Section("Pressures and bands", paragraphs=said, tables=[ptable],
                     figures={"states": _states_figure(r)}, notes=band_notes),
             Section("Identification", figures={"pv_fit": _pv_figure(r)},
                     paragraphs=[
