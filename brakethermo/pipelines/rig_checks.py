@@ -79,10 +79,6 @@ def _fault(v: np.ndarray, e: Expect) -> str | None:
     if scale > e.most:
         return (f"reaches {scale:.4g} {e.unit}, beyond any such rig (at most about"
                 f" {e.most:g} {e.unit}): check the channel's unit")
-    if scale < e.least:
-        return (f"reaches at most {scale:.4g} {e.unit}, less than any use of such a rig"
-                f" (at least about {e.least:g} {e.unit}): check the channel's unit (a"
-                " thousand times too small reads as kN labelled N, MPa labelled Pa)")
     low, high = (float(np.percentile(v, q)) for q in (5, 95))
     if e.positive and low < -0.2 * scale:
         if -low < 2.0 * high:  # as far below zero as above: noise, not a reversed sign
@@ -91,6 +87,11 @@ def _fault(v: np.ndarray, e: Expect) -> str | None:
                     " sensor is zeroed or not connected")
         return (f"is mostly negative (5th percentile {low:.4g} {e.unit}"
                 f" against a largest magnitude of {scale:.4g}): the sign is reversed")
+    # after the noise test: a sensor reading noise around zero is said so, not a unit slip
+    if scale < e.least:
+        return (f"reaches at most {scale:.4g} {e.unit}, less than any use of such a rig"
+                f" (at least about {e.least:g} {e.unit}): check the channel's unit (a"
+                " thousand times too small reads as kN labelled N, MPa labelled Pa)")
     return None
 
 
