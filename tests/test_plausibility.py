@@ -73,3 +73,51 @@ def test_the_clean_session_passes_every_check(sim_race_session, tmp_path: Path,
     assert res.exit_code == 0, res.output
     warnings = json.loads(res.stdout)["run"]["warnings"]
     assert not any("kelvin" in w or "IMPLAUSIBLE" in w for w in warnings)
+
+
+SAMPLE_CSV = Path(__file__).parents[1] / "sample_sessions" / "tight_test_multi.csv"
+
+
+def _celsius_labelled_kelvin(dst: Path) -> Path:
+    """The shipped multi-spot CSV with its four pyrometers' unit cells saying K."""
+    lines = SAMPLE_CSV.read_text().splitlines(keepends=True)
+    head = lines[0].replace("[degC],", "[K],", 4)
+    assert head.count("[K]") == 4
+    dst.write_text(head + "".join(lines[1:]))
+    return dst
+
+
+@pytest.mark.parametrize("command", ["estimate", "identify-h", "diagnose"])
+def test_degc_labelled_kelvin_is_refused_by_every_disc_command(tmp_path: Path,
+                                                               command: str) -> None:
+    # the readings become -173..+510 degC with the air at 26 degC: diagnose gave a verdict
+    bad = _celsius_labelled_kelvin(tmp_path / "as_kelvin.csv")
+    res = runner.invoke(app, [command, str(bad), "--out", str(tmp_path / "o")])
+    text = " ".join(res.output.split())
+    assert res.exit_code == 1, res.output
+    assert str(bad) in text and "disc_temp_spot" in text, text
+    assert "°C labelled K?" in text and "set the channel's unit to degC" in text, text
+    assert "Traceback" not in res.output
+
+
+def test_degc_labelled_kelvin_fails_its_batch_session(tmp_path: Path) -> None:
+    folder = tmp_path / "in"
+    folder.mkdir()
+    _celsius_labelled_kelvin(folder / "as_kelvin.csv")
+    res = runner.invoke(app, ["batch", str(folder), "--out", str(tmp_path / "o"), "--json"])
+    assert res.exit_code == 3, res.output
+    (session,) = json.loads(res.stdout)["sessions"]
+    assert session["status"] == "failed" and "disc_temp_spot1" in session["reason"]
+    assert "°C labelled K?" in session["reason"], session
+
+
+def test_a_race_pyrometer_in_degc_labelled_kelvin_is_refused(tmp_path: Path) -> None:
+    # a race's single spot is hot: only its warm-up past the floor reads below -50 degC
+    table = pq.read_table(SAMPLE_CSV.with_name("mugello_race_single.parquet"))
+    fields = [f.with_metadata({**(f.metadata or {}), b"unit": b"K"})
+              if f.name == "disc_temp" else f for f in table.schema]
+    bad = tmp_path / "race_as_kelvin.parquet"
+    pq.write_table(table.cast(pa.schema(fields, metadata=table.schema.metadata)), bad)
+    res = _estimate(bad, tmp_path)
+    assert res.exit_code == 1, res.output
+    assert "disc_temp" in res.output and "°C labelled K?" in " ".join(res.output.split())

@@ -31,6 +31,15 @@ CLIP_RUN_S = 0.5  # s: a pyrometer at exactly its highest value this long is cli
 SENSOR_FLOOR_C = 100.0  # degC: IR pyrometers read nothing useful below this (datasheet floor)
 SILENT_START_S = 5.0  # s: a channel empty this long at the start began below its floor
 FIRST_READ_EXCESS_C = 150.0  # a disc heating past the floor is first read within this
+# degC: no disc reads below this. A disc is never colder than the air around it, no session
+# is run in air this cold, and an IR pyrometer reads nothing below its floor (~100 degC); a
+# real session's readings all lie near or above the air. Degrees Celsius labelled K lose
+# 273.15 and put the floor at about -173 degC, far below it.
+LOWEST_DISC_C = -50.0
+# s of readings below LOWEST_DISC_C that refuse the channel: a one-sample glitch (which the
+# reader's Hampel filter mostly removes) touches at most two grid points (0.2 s), while the
+# warm-up past the floor of a hot spot read in degC labelled K lasts 1 s or more
+COLD_SPAN_S = 0.5
 
 
 def _finite(values: np.ndarray) -> np.ndarray:
@@ -123,7 +132,8 @@ def check_pressure(pressure: np.ndarray, path: Path | None = None,
 def check_pyrometer(temps: np.ndarray, braking: np.ndarray, ambient_c: float,
                     dt: float, path: Path | None = None, source: str = "disc_temp"
                     ) -> list[str]:
-    """One IR channel: not negated, not in kelvin labelled degC, not stuck.
+    """One IR channel: not negated, not in kelvin labelled degC nor degC labelled K, not
+    stuck.
 
     Parameters
     ----------
@@ -143,6 +153,7 @@ def check_pyrometer(temps: np.ndarray, braking: np.ndarray, ambient_c: float,
     if np.median(t) < -50.0:
         raise DataError(f"reads {np.median(t):.0f} °C typically: the signal is negated or "
                         "in a wrong unit", path=path, channel=source)
+    _check_not_celsius_as_kelvin(t, ambient_c, dt, path, source)
     if t.size * dt >= STUCK_SPAN_S and np.ptp(t) <= STUCK_TOLERANCE_C:
         raise DataError(f"constant at {t[0]:.1f} °C for the whole session: the pyrometer is "
                         "stuck or frozen; drop the channel or fix the sensor",
@@ -168,6 +179,36 @@ def check_pyrometer(temps: np.ndarray, braking: np.ndarray, ambient_c: float,
             + ("the values are kelvin labelled degC (then set the unit to K)" if kelvin
                else "a unit or sensor problem") + "; check the channel if the disc was cold")
     return warnings
+
+
+def _check_not_celsius_as_kelvin(t: np.ndarray, ambient_c: float, dt: float,
+                                 path: Path | None, source: str) -> None:
+    """Refuse readings far below the air for longer than a glitch (:data:`LOWEST_DISC_C`,
+    :data:`COLD_SPAN_S`): degrees Celsius labelled K, or a sentinel value.
+
+    Parameters
+    ----------
+    t : ndarray — degC, the channel's finite readings on the grid
+    ambient_c : float — degC, the air
+    dt : float — s, grid step
+    path : Path or None — the session file, for the message
+    source : str — the channel's name in the file
+    """
+    cold = t < LOWEST_DISC_C
+    if cold.sum() * dt < COLD_SPAN_S:
+        return
+    low = float(np.min(t))
+    head = (f"reads down to {low:.0f} °C ({cold.sum() * dt:.1f} s below"
+            f" {LOWEST_DISC_C:.0f} °C) with the air at {ambient_c:.0f} °C: no disc is colder"
+            " than the air")
+    if low + KELVIN_OFFSET >= ambient_c - 30.0:
+        # plus 273.15 the lowest reading is at or above the air (a pyrometer's floor or a
+        # disc at rest): the values are degC and the file's unit says K
+        raise DataError(f"{head}; read as degC they start at {low + KELVIN_OFFSET:.0f} °C"
+                        " (°C labelled K?): set the channel's unit to degC",
+                        path=path, channel=source)
+    raise DataError(f"{head}: a sentinel value or a wrong unit; fix the channel's unit, or"
+                    " blank the invalid readings in the export", path=path, channel=source)
 
 
 def _late_start(temps: np.ndarray, dt: float, source: str) -> list[str]:
