@@ -265,3 +265,32 @@ def test_a_name_an_untestable_effect_reads_like_is_a_set() -> None:
     assert d.verdict == "mu" and d.verdict_set == ["mu", "eps"] and d.kind == "set"
     assert any("mu is not named alone: eps reads like it" in r for r in d.reasons)
     assert decide(before, [mu, eps], RULE, reads_like={"eps": ("mu",)}).verdict_set == ["mu"]
+
+
+def test_a_set_made_by_an_untestable_look_alike_says_so() -> None:
+    """μ(T) significant alone, a wrong emissivity joined it as untestable: the rule text,
+    the console's verdict line and the page's verdict line gave only "the data cannot
+    tell them apart", the clause that set the verdict only in verdict_reasons."""
+    from brakethermo.cli.diagnose_cmd import _verdict_text
+    from brakethermo.report.diagnose_report import _which_section
+
+    rng = np.random.default_rng(12)
+    before = _units(40, rng, 100.0)
+    mu = CandidateEvidence("mu", before * 0.5)
+    eps = CandidateEvidence("eps", before * 0.99 * rng.uniform(0.9, 1.1, 40))
+    joined = decide(before, [mu, eps], RULE, untestable={"eps": "no reading near the air"},
+                    reads_like={"eps": ("mu",)}).summary()
+    said = "eps cannot be tested on this data and reads like mu"
+    assert joined["verdict_why"] == said
+    assert "cannot test that the single named one reads like joins it" in joined[
+        "verdict_rule"]
+    assert _verdict_text(joined) == f"one of mu / eps ({said})"
+    page = _which_section({**joined, "effects": [], "combined": {"effects": []}},
+                          joined["verdict_set"], "mu or eps")
+    assert page.paragraphs[0].startswith(f"Verdict: mu or eps ({said}). Rule:")
+    # a set of candidates the first does not beat clearly says that instead
+    alike = decide(before, [mu, CandidateEvidence("nu", before * 0.5)], RULE).summary()
+    assert alike["verdict_set"] == ["mu", "nu"]
+    assert alike["verdict_why"] == "the data cannot tell them apart"
+    alone = decide(before, [mu, eps], RULE).summary()
+    assert alone["verdict_why"] == "" and _verdict_text(alone) == "mu"

@@ -310,7 +310,9 @@ def _next_steps(s: dict) -> None:
 
 def _verdict_text(s: dict) -> str:
     if s["verdict_kind"] == "set":
-        return "one of " + " / ".join(s["verdict_set"]) + " (the data cannot tell them apart)"
+        # the clause that made it a set: a diagnosis.json of an older run has no verdict_why
+        why = s.get("verdict_why") or "the data cannot tell them apart"
+        return "one of " + " / ".join(s["verdict_set"]) + f" ({why})"
     return s["verdict"]
 
 

@@ -259,12 +259,25 @@ class Decision:
     reasons: list[str]
     rule: VerdictRule
     untestable: dict[str, str] = field(default_factory=dict)
+    joined_untested: dict[str, str] = field(default_factory=dict)
 
     @property
     def kind(self) -> str:
         """``"none"``, ``"single"`` or ``"set"``."""
         return "none" if not self.verdict_set else (
             "single" if len(self.verdict_set) == 1 else "set")
+
+    @property
+    def why(self) -> str:
+        """Which clause made the verdict a set, in a few words (``""`` for a single name or
+        none): an untestable look-alike that joined the named one, or candidates the first
+        does not beat clearly."""
+        if self.kind != "set":
+            return ""
+        if self.joined_untested:
+            return "; ".join(f"{name} cannot be tested on this data and reads like {alike}"
+                             for name, alike in self.joined_untested.items())
+        return "the data cannot tell them apart"
 
     def summary(self) -> dict[str, Any]:
         r = self.rule
@@ -275,6 +288,7 @@ class Decision:
             "undecided": list(self.undecided),
             "next_steps": list(self.next_steps),
             "verdict_reasons": list(self.reasons),
+            "verdict_why": self.why,
             "untestable": [{"name": n, "why": why} for n, why in self.untestable.items()],
             "verdict_rule": (
                 f"an effect is significant when the lower end of its 95 % bootstrap interval"
@@ -290,7 +304,9 @@ class Decision:
                 f" the set of those it does not beat, significant ones first"
                 f" (at most {r.max_set}); none when no effect is significant; an effect"
                 f" whose fitted parameters end at a bound of their range is not named for"
-                f" itself, but joins the set when the first does not beat it clearly"),
+                f" itself, but joins the set when the first does not beat it clearly; an"
+                f" effect this data cannot test that the single named one reads like joins"
+                f" it (the data cannot rule it out), the set of both"),
         }
 
 
@@ -343,8 +359,8 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
         verdict_set, reasons = _verdict_set(sse_before, rows, significant,
                                             undecided + [r["name"] for r in edge], by_name,
                                             rule)
-    verdict_set, reasons = _untestable_alike(verdict_set, reasons, by_name, untestable,
-                                             reads_like)
+    verdict_set, reasons, joined = _untestable_alike(verdict_set, reasons, by_name,
+                                                     untestable, reads_like)
     next_steps = _next_steps(verdict_set, undecided, rows, by_name, untestable)
     next_steps += [f"{r['name']} closes {r['shrink_pct']:.0f} % of the held-out gap only with"
                    f" {r['at_bound']}, past what its form allows: "
@@ -360,25 +376,27 @@ def decide(sse_before: np.ndarray, candidates: Sequence[CandidateEvidence],
               if n in by_name and n not in significant and n not in undecided}
     next_steps += [f"{n} cannot be told on this data: {why}" for n, why in unseen.items()]
     return Decision(verdict_set[0] if verdict_set else "none", verdict_set, rows, undecided,
-                    next_steps, reasons, rule, unseen)
+                    next_steps, reasons, rule, unseen, joined)
 
 
 def _untestable_alike(verdict_set: list[str], reasons: list[str],
                       by_name: Mapping[str, CandidateEvidence],
                       untestable: Mapping[str, str] | None,
                       reads_like: Mapping[str, Sequence[str]] | None
-                      ) -> tuple[list[str], list[str]]:
+                      ) -> tuple[list[str], list[str], dict[str, str]]:
     """A single name that an untestable candidate reads like becomes the set of both: the
     data cannot rule that one out (a wrong emissivity with no reading near the air was
-    named μ(T), twice, by an independent generator)."""
+    named μ(T), twice, by an independent generator). Also returns the candidate that
+    joined, mapped to the name it reads like (empty when none did)."""
     if len(verdict_set) != 1:
-        return verdict_set, reasons
+        return verdict_set, reasons, {}
     for name, alikes in (reads_like or {}).items():
         if (verdict_set[0] in alikes and name in (untestable or {}) and name in by_name):
             return [*verdict_set, name], [
                 *reasons, f"{verdict_set[0]} is not named alone: {name} reads like it and"
-                f" cannot be tested on this data ({(untestable or {})[name]})"]
-    return verdict_set, reasons
+                f" cannot be tested on this data ({(untestable or {})[name]})"], {
+                name: verdict_set[0]}
+    return verdict_set, reasons, {}
 
 
 def _may_matter(row: dict[str, Any], rule: VerdictRule) -> bool:

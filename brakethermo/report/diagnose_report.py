@@ -272,6 +272,12 @@ def _where_section(summary: dict[str, Any], dist: np.ndarray, lap: np.ndarray,
     )
 
 
+def _why(summary: dict[str, Any]) -> str:
+    """The clause that made the verdict a set, in brackets ("" for a single name)."""
+    why = summary.get("verdict_why", "")
+    return f" ({why})" if why else ""
+
+
 def _which_section(summary: dict[str, Any], vset: list[str], shown: str) -> Section:
     """Which effect, how far each shrinks the gap, their sizes, and what one spot cannot
     tell apart.
@@ -295,7 +301,7 @@ def _which_section(summary: dict[str, Any], vset: list[str], shown: str) -> Sect
     sizes = [[e["name"], e.get("size_text", "")] for e in effects if e["name"] in vset]
     which_section = Section(
         "Which effect, and how far the gap shrinks",
-        [f"Verdict: {shown}. Rule: {summary['verdict_rule']}.",
+        [f"Verdict: {shown}{_why(summary)}. Rule: {summary['verdict_rule']}.",
          *summary.get("verdict_reasons", []),
          "Combined model by forward selection: "
          + (" + ".join(combined["effects"]) if combined["effects"] else "none") + "."],

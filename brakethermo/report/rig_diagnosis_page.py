@@ -59,7 +59,8 @@ def _residual_figure(r: RigDiagnosis) -> Figure:
 def rig_diagnosis_page(r: RigDiagnosis) -> Page:
     """The page of a rig diagnosis."""
     s = r.summary
-    verdict = (" / ".join(s["verdict_set"]) + " (the data cannot tell them apart)"
+    why = s.get("verdict_why") or "the data cannot tell them apart"
+    verdict = (" / ".join(s["verdict_set"]) + f" ({why})"
                if s["verdict_kind"] == "set" else s["verdict"])
     top = s["effects"][0] if s["effects"] else None
     rows = []
