@@ -329,6 +329,11 @@ def test_the_joint_test_judges_each_factor_against_its_counterpart(
     bare = f"without {online_choice.EARNED}"
     assert {c["name"] for c in j.combos} == {"reference", "thickness_gradient",
                                             f"{bare} + thickness_gradient"}
+    # "reference" read as the law without its parts: each combination says what it is
+    variant = {c["name"]: c["variant"] for c in j.combos}
+    assert variant["reference"] == "the law as written, with its friction_temperature; k_z off"
+    assert variant[f"{bare} + thickness_gradient"] == ("the law without its"
+                                                       " friction_temperature; k_z online")
 
 
 def test_the_guess_run_assumes_mu_t_unearned_and_equals_the_decided_run(tmp_path,
@@ -442,6 +447,33 @@ def test_a_race_too_short_to_decide_drops_the_unearned_mu_t_and_says_so(tmp_path
     (line,) = [s for s in _decisions(res.summary) if s.startswith("the h law's")]
     assert "dropped" in line and "not tested: fewer than two flying laps" in line
     assert "nan" not in line
+    (row,) = choice["law_effects_tested"]
+    assert row["outcome"] == "dropped" and row["meaning"].startswith("not tested")
+
+
+@pytest.mark.parametrize(("written", "without", "outcome"),
+                         [(6.0, 2.0, "dropped"), (2.0, 6.0, "kept")])
+def test_each_law_effect_row_says_its_outcome_and_its_signs_meaning(
+        monkeypatch, written, without, outcome) -> None:
+    """The earned row is named "without friction_temperature" but compares the law with
+    it against without it: -9 % read as "removing μ(T) makes the error 9 % worse" where
+    the law's μ(T) had raised it and was dropped. Each row says what it decided and what
+    the sign of its figure means; the crown's and the lag's compare the other way."""
+    trial, runs = _earned_trial(monkeypatch, written, without)
+    (row,) = online_choice._later_tests(trial, runs, None, [])
+    dropped = (online_choice.EARNED,) if row["significant"] else ()
+    said = online_choice._read_out(row, dropped)
+    assert said["outcome"] == outcome and (row["shrink_pct"] < 0) is (outcome == "dropped")
+    assert said["meaning"].startswith("shrink_pct: how much the lap-ahead error shrinks with"
+                                      " the law's friction_temperature kept against dropped")
+    assert {k: said[k] for k in row} == row  # extended, nothing renamed
+    crown = online_choice._read_out({"name": f"without {online_choice.CROWN}",
+                                     "shrink_pct": 12.0, "significant": True},
+                                    (online_choice.CROWN,))
+    assert crown["outcome"] == "dropped" and "instead of the law's" in crown["meaning"]
+    lag = online_choice._read_out({"name": "without sensor_lag", "shrink_pct": 1.0,
+                                   "significant": False}, ())
+    assert lag["outcome"] == "kept" and "with the law's sensor_lag dropped" in lag["meaning"]
 
 
 def test_decision_lines_read_a_summary_that_has_been_through_json() -> None:

@@ -194,7 +194,8 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
         return OnlineChoice({ONLINE_FLAGS[c]: False for c in candidates}, {
             "rule": f"{UNDECIDED}; online effects left off, the h law's effects kept"
                     + (f" but its {EARNED}, which a race must earn" if unearned else ""),
-            "candidates": list(candidates), "law_effects_tested": untested,
+            "candidates": list(candidates),
+            "law_effects_tested": [_read_out(r, unearned) for r in untested],
             "law_effects_dropped": list(unearned)}, unearned)
     t = _trial(session, base, candidates, parts, flying)
     runs = _one_pass(t, cal, True, on_learned)
@@ -227,9 +228,37 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
         "laps": [int(v) for v in np.unique(t.lap[t.lap >= 1])],
         "chosen": chosen,
         "scores": rows,
-        "law_effects_tested": tested,
+        "law_effects_tested": [_read_out(r, dropped) for r in tested],
         "law_effects_dropped": list(dropped),
     }, dropped)
+
+
+def _read_out(row: dict[str, Any], dropped: tuple[str, ...]) -> dict[str, Any]:
+    """A ``law_effects_tested`` row with what it decided (``outcome``) and what the sign of
+    its figure means (``meaning``): the rows compare in different directions (the crown
+    and the lag: the law without the part against with it; an earned effect: with it
+    against without), so "without friction_temperature" at -9 % read as "removing μ(T)
+    makes the error 9 % worse" where the law's μ(T) had raised it by 9 % and was dropped."""
+    name = row["name"].removeprefix("without ")
+    if row.get("must_earn") and not np.isfinite(row["shrink_pct"]):
+        meaning = (f"not tested (fewer than two flying laps): the law's {name} must be"
+                   " earned by the race, so it is dropped")
+    elif row.get("must_earn"):
+        meaning = (f"shrink_pct: how much the lap-ahead error shrinks with the law's {name}"
+                   " kept against dropped (negative: it made the error worse); kept only"
+                   " where that shrink clears the rule (significant: true here means"
+                   " dropped, not earned)")
+    elif name in BY_LIKELIHOOD:
+        meaning = (f"loglik_gain_per_reading: how much the one-step predictive likelihood"
+                   f" rises with the law's {name} dropped (positive favours dropping it;"
+                   f" dropped, significant: true, when its lower 95 % bound exceeds"
+                   f" {MIN_LOGLIK_GAIN:g}); shrink_pct: the one-step innovations' shrink"
+                   " with it dropped")
+    else:
+        meaning = ("shrink_pct: how much the lap-ahead error shrinks with uniform pad-crown"
+                   " weights instead of the law's (positive favours dropping the law's;"
+                   " dropped, significant: true, where it clears the rule)")
+    return {**row, "outcome": "dropped" if name in dropped else "kept", "meaning": meaning}
 
 
 @dataclass(frozen=True)
@@ -455,7 +484,12 @@ def _joint_test(runs: dict[str, Any], joint: str, p: str, lap: np.ndarray,
         str(int(v)) for v in laps)
     d = decide(sse[base], [CandidateEvidence(n, sse[n])
                            for n in ("reference", law_kz, base_kz)], rule)
-    combos = [{**r, "test": f"against the law without its {p}, {where}"} for r in d.rows]
+    # "reference" is the law as written, μ(T) included: each combination says what it is
+    variant = {"reference": f"the law as written, with its {p}; k_z off",
+               law_kz: f"the law as written, with its {p}; k_z online",
+               base_kz: f"the law without its {p}; k_z online"}
+    combos = [{**r, "variant": variant[r["name"]],
+               "test": f"against the law without its {p} (k_z off), {where}"} for r in d.rows]
     winner = next((r["name"] for r in combos if r["significant"]), base)
     won_kz = winner in (law_kz, base_kz)
 
