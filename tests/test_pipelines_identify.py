@@ -299,3 +299,46 @@ def test_a_law_carrying_slipstream_reads_back(tmp_path):
     cal = read_calibration(law)
     factors = np.asarray(cal.effects["slipstream"]["straight_factor"])
     assert factors.size > 1 and np.all((factors >= 0.4) & (factors <= 1.6))
+
+
+def test_the_laws_kz_says_its_scale_and_agrees_with_the_diagnosis(identified, tmp_path) -> None:
+    """h_law.toml gave k_z only as kz_ratio (and the effect's kz_factor), relative to the
+    in-plane k(T), while diagnose says kz_over_nominal, relative to the datasheet's k_z:
+    0.112 beside 0.34 for one disc. The law now says k_z in W/(m K) and over the
+    datasheet's k_z, with a comment on kz_ratio's reference, and still reads back."""
+    import tomllib
+
+    from brakethermo.pipelines.diagnose.evidence import effect_size
+    from brakethermo.pipelines.identify_h import KZ_NOTES
+    from brakethermo.thermal.disc import KZ_REF_C, load_disc
+    from brakethermo.thermal.model import DiscFEModel
+
+    result, path = identified
+    text = path.read_text()
+    assert "# kz_ratio: through-thickness conductivity over the datasheet's in-plane k(T)" in text
+    extra = tomllib.loads(text)["extra"]
+    cal = read_calibration(path)
+    disc = load_disc(extra["disc"])
+    assert extra["k_z_ref_c"] == KZ_REF_C
+    assert extra["k_z_w_mk"] == pytest.approx(cal.kz_ratio * disc.conductivity(KZ_REF_C))
+    assert extra["kz_over_nominal"] == pytest.approx(extra["k_z_w_mk"] / disc.k_z)
+    # the diagnosis's size of the same k_z, on its scale (a factor of the datasheet's k_z)
+    size, _ = effect_size("thickness_gradient", {"kz_factor": extra["kz_over_nominal"]},
+                          disc, cal.layers)
+    assert size["k_z_w_mk"] == pytest.approx(extra["k_z_w_mk"])
+    # and the two models conduct alike through the thickness at the stated temperature:
+    # estimate's k_z = kz_ratio k(T), the diagnosis's k_z = kz_over_nominal x datasheet k_z
+    law_model = DiscFEModel(disc, 10, 4, kz_ratio=cal.kz_ratio)
+    diag_model = DiscFEModel(disc, 10, 4, k_z=disc.k_z, kz_ratio=extra["kz_over_nominal"])
+    hot = np.full((1, 10, 4), KZ_REF_C)
+    one = np.ones(1)
+    np.testing.assert_allclose(law_model._conductances(hot, one * cal.kz_ratio)[1],
+                               diag_model._conductances(hot, one * extra["kz_over_nominal"])[1])
+    # a law carrying the effect, its table commented, reads back with it
+    carried = tmp_path / "carried.toml"
+    carried.write_text(result.law.toml_text(
+        weights=cal.weights, extra=extra, notes=KZ_NOTES,
+        effects={"thickness_gradient": {"kz_factor": cal.kz_ratio}}))
+    assert "# kz_factor here is kz_ratio" in carried.read_text()
+    again = read_calibration(carried)
+    assert again.effects["thickness_gradient"]["kz_factor"] == pytest.approx(cal.kz_ratio)

@@ -57,7 +57,7 @@ from brakethermo.pipelines.tuning import (
     load_tuning,
     read_tuning,
 )
-from brakethermo.thermal.disc import DiscSpec
+from brakethermo.thermal.disc import DiscSpec, kz_scales
 from brakethermo.thermal.hlaw import HLaw, read_h_law
 from brakethermo.thermal.model import DiscFEModel
 from brakethermo.thermal.power import normalise_weights
@@ -784,6 +784,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         "law_ukf_only": None if law_ukf is None else _law_dict(law_ukf),
         "fit": _fit_facts(fit_mask, h_std, residual),
         "structure": None if structure is None else structure.facts(),
+        "k_z": kz_scales(disc, calibration.kz_ratio),  # kz_ratio in W/(m K), over nominal
         "evidence": None if level is None else _evidence_facts(level),
         "with_effects": list(effects),
         "effect_selection": selection,
@@ -830,6 +831,17 @@ def identify_h(path: str | Path, options: IdentifyOptions | None = None) -> Iden
     return result
 
 
+# h_law.toml's k_z values are on three scales: say which is which where they are written
+KZ_NOTES = {
+    "kz_ratio": "kz_ratio: through-thickness conductivity over the datasheet's in-plane k(T)"
+                " (k_z = kz_ratio x k(T)),\nnot over its nominal k_z; k_z_w_mk is it in W/(m K)"
+                " at k_z_ref_c (degC), kz_over_nominal\nover the datasheet's k_z (diagnose's"
+                " kz_over_nominal: the same scale)",
+    "effects.thickness_gradient": "kz_factor here is kz_ratio (k_z / k(T), [extra]), not"
+                                  " diagnose's kz_over_nominal",
+}
+
+
 def write_identify(result: IdentifyResult, out_dir: str | Path,
                    shown_out: str | Path | None = None) -> Path:
     """Write ``h_law.toml``, ``h_samples.parquet``, ``identify.json`` and the h(V) plot
@@ -847,6 +859,7 @@ def write_identify(result: IdentifyResult, out_dir: str | Path,
         "disc": result.summary["run"]["disc"],  # whatif and estimate refuse another disc's law
         "brakethermo": __version__,
         "kz_ratio": cal.kz_ratio,
+        **result.summary["k_z"],
         "power_scale": cal.power_scale,
         "band_scale": cal.band_scale,
         "sigma_crown": cal.sigma_crown,
@@ -857,7 +870,8 @@ def write_identify(result: IdentifyResult, out_dir: str | Path,
         "nodes": cal.nodes,
     }
     write_text_atomic(folder / "h_law.toml",
-                      result.law.toml_text(weights=cal.weights, extra=extra, effects=cal.effects))
+                      result.law.toml_text(weights=cal.weights, extra=extra, effects=cal.effects,
+                                           notes=KZ_NOTES))
     write_parquet(
         folder / "h_samples.parquet", result.samples,
         {"time": {"unit": "s"}, "speed": {"unit": "m/s"}, "h": {"unit": "W/(m2 K)"},

@@ -32,10 +32,9 @@ from brakethermo.sim.heat import HLaw, MuLaw, air_convection_factor, crown_overl
 from brakethermo.sim.track import TrackSpec
 from brakethermo.sim.truth_disc import Boundary, DiscGrid, TruthDisc, make_grid
 from brakethermo.sim.vehicle import G, RiderRun, VehicleSpec
-from brakethermo.thermal.disc import DiscSpec
+from brakethermo.thermal.disc import KZ_REF_C, DiscSpec  # KZ_REF_C: the one every k_z uses
 
 KMH = 3.6  # km/h per m/s
-KZ_REF_C = 400.0  # degC, temperature at which the truth k_z is stated
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,10 @@ from brakethermo.errors import ConfigError
 
 BAR = 1.0e5  # Pa
 KMH = 1.0 / 3.6  # m/s
+# degC: where a through-thickness conductivity relative to k(T) is stated in W/(m K) (the
+# estimation model's k_z follows k(T), the diagnosis's is a constant); mid-window of a
+# carbon disc, and the temperature the simulator states its truth k_z at
+KZ_REF_C = 400.0
 
 
 @dataclass(frozen=True)
@@ -87,6 +91,28 @@ class DiscSpec:
     def braking_power(self, pressure_pa: np.ndarray, omega: np.ndarray) -> np.ndarray:
         """Friction heat entering the disc, W: ``share · torque_per_Pa · p · ω``."""
         return self.heat_share * self.torque_per_pa * np.asarray(pressure_pa) * np.abs(omega)
+
+
+def kz_scales(disc: DiscSpec, kz_ratio: float) -> dict[str, float]:
+    """A through-thickness conductivity given relative to the in-plane ``k(T)`` (the
+    estimation model's ``kz_ratio``: ``k_z = kz_ratio · k(T)``), on the other two scales:
+    W/(m K) at :data:`KZ_REF_C`, and over the datasheet's nominal ``k_z`` (the scale of
+    diagnose's ``kz_over_nominal``; left out when the datasheet gives no ``k_z``).
+
+    Parameters
+    ----------
+    disc : DiscSpec
+    kz_ratio : float — dimensionless, k_z / k(T)
+
+    Returns
+    -------
+    dict — ``k_z_ref_c`` (degC), ``k_z_w_mk`` (W/(m K)) and ``kz_over_nominal``
+    """
+    k_z = float(kz_ratio * disc.conductivity(KZ_REF_C))
+    out = {"k_z_ref_c": KZ_REF_C, "k_z_w_mk": k_z}
+    if disc.k_z:
+        out["kz_over_nominal"] = k_z / disc.k_z
+    return out
 
 
 def load_disc(name_or_path: str | Path = "cc-340-8") -> DiscSpec:

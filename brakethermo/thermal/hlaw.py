@@ -203,6 +203,7 @@ class HLaw:
         weights: Sequence[float] = (1.0, 1.0, 1.0),
         extra: Mapping[str, Any] | None = None,
         effects: Mapping[str, Mapping[str, Any]] | None = None,
+        notes: Mapping[str, str] | None = None,
     ) -> str:
         """The ``h_law.toml`` text (OUTPUTS.md layout); io writes it.
 
@@ -216,7 +217,15 @@ class HLaw:
         effects : mapping of str to mapping, optional
             Fitted effect parameters, one table ``[effects.<name>]`` per effect
             (OUTPUTS.md); ``estimate --h-law`` uses them.
+        notes : mapping of str to str, optional
+            Comment lines, each above the ``[extra]`` key or the ``effects.<name>`` table
+            it names (what a value's scale is, for a reader of the file).
         """
+        said = notes or {}
+
+        def noted(key: str) -> list[str]:
+            return [f"# {line}" for line in said[key].splitlines()] if key in said else []
+
         w = [float(v) for v in weights]
         if len(w) != 3 or not all(math.isfinite(v) and v >= 0 for v in w):
             raise ValueError(f"weights must be three finite values >= 0, got {weights}")
@@ -254,11 +263,14 @@ class HLaw:
         if extra:
             lines += ["", "[extra]"]
             tables = {k: v for k, v in extra.items() if isinstance(v, Mapping)}
-            lines += [f"{k} = {_fmt(v)}" for k, v in extra.items() if k not in tables]
+            for k, v in extra.items():
+                if k not in tables:
+                    lines += [*noted(k), f"{k} = {_fmt(v)}"]
             for name, table in tables.items():
                 lines += ["", f"[extra.{name}]"] + [f"{k} = {_fmt(v)}" for k, v in table.items()]
         for name, table in (effects or {}).items():
-            lines += ["", f"[effects.{name}]"] + [f"{k} = {_fmt(v)}" for k, v in table.items()]
+            lines += ["", *noted(f"effects.{name}"), f"[effects.{name}]"] + [
+                f"{k} = {_fmt(v)}" for k, v in table.items()]
         return "\n".join(lines) + "\n"
 
     @classmethod
