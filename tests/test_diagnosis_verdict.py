@@ -294,3 +294,17 @@ def test_a_set_made_by_an_untestable_look_alike_says_so() -> None:
     assert alike["verdict_why"] == "the data cannot tell them apart"
     alone = decide(before, [mu, eps], RULE).summary()
     assert alone["verdict_why"] == "" and _verdict_text(alone) == "mu"
+
+
+def test_the_pages_ranked_cells_say_they_span_every_flying_lap() -> None:
+    """where_table scores the training and the held-out laps (layout.train | held): the
+    page said "(all flying laps; …)" and the README "held-out residuals"; both now say
+    the cells span the training laps and the held-out ones."""
+    from brakethermo.report.diagnose_report import _where_section
+
+    summary = {"gap": {"per_spot_phase": {}}, "where": {"ranked_cells": []}}
+    n = 200
+    section = _where_section(summary, np.linspace(0.0, 4000.0, n), np.ones(n, int),
+                             np.zeros((n, 4)))
+    caption = section.tables[1].caption
+    assert "all flying laps, the training laps and the held-out ones" in caption

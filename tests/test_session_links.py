@@ -70,3 +70,18 @@ def test_refreshing_a_folder_without_a_batch_page_loads_no_report_stack(tmp_path
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_the_small_index_names_the_option_that_exists(tmp_path: Path) -> None:
+    """The index written without lap reports said "without --no-report"; the option is
+    --no-reports (the old spelling is a hidden alias)."""
+    from typer.testing import CliRunner
+
+    from brakethermo.cli import app
+
+    folder = tmp_path / "race"
+    _summary(folder / "whatif" / "summary.json", "/laws/h_law.toml")
+    (folder / "whatif" / "index.html").write_text("<html></html>")
+    text = refresh_page_links(folder).read_text()
+    assert "without --no-reports for them" in text
+    assert "--no-reports" in CliRunner().invoke(app, ["estimate", "--help"]).output

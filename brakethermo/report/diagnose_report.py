@@ -267,7 +267,8 @@ def _where_section(summary: dict[str, Any], dist: np.ndarray, lap: np.ndarray,
          TableBlock(["spot", "phase", "zone", "speed km/h", "temperature °C", "RMSE °C",
                      "bias °C", "share of squared error %"], where_rows,
                     caption="Cells ranked by their share of the squared error (all flying"
-                            " laps; bias = measured − model)")],
+                            " laps, the training laps and the held-out ones; bias ="
+                            " measured − model)")],
         {"residual_map": residual_map(dist, lap, res)},
     )
 

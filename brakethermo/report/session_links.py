@@ -86,7 +86,7 @@ def refresh_page_links(folder: str | Path) -> Path | None:
     rig = _rig_of(folder)
     own = (f"No page of the rig's own run here (run <code>{rig}</code> for it)." if rig
            else "No per-lap reports here (run <code>brakethermo estimate</code> without"
-           " --no-report for them).")
+           " --no-reports for them).")
     write_text_atomic(index, (
         "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
         f"<title>{name}</title><link rel=\"icon\" href=\"data:,\"></head><body>"

@@ -19,7 +19,9 @@ from brakethermo.pipelines.inputs import DiscInputs
 
 def where_table(res: np.ndarray, layout: Layout, inputs: DiscInputs, segments: Segments,
                 y: np.ndarray, top: int = 12) -> list[dict[str, Any]]:
-    """Cells spot × phase × zone × speed band × temperature band, by share of squared error."""
+    """Cells spot × phase × zone × speed band × temperature band, by share of squared error,
+    over all flying laps (the training laps and the held-out ones: where the model parts
+    from the disc, not how well it generalises — the held-out scores say that)."""
     scored = layout.held | layout.train
     phase = np.where(layout.braking, "braking", np.where(layout.release, "release", "straight"))
     v_kmh = np.abs(inputs.speed) * 3.6
