@@ -107,3 +107,29 @@ def test_a_knee_the_session_never_passed_is_said_to_be_an_extrapolation():
     disc = replace(load_disc(), v_ref=V_REF)
     size, text = effect_size("h_speed_knee", {"gain": 0.5}, disc, 4, top_kmh=250.0)
     assert size["top_kmh"] == 250.0 and "never passed the knee (top speed 250 km/h)" in text
+
+
+def test_a_pad_splits_size_is_each_zones_whole_crown() -> None:
+    """The zones' balance acts on the candidate's own mean crown, which the fit moves with
+    it: e^(2b) alone said 'inner/outer 4.81' on a session whose zones' crowns were
+    1.4-1.8 (identify-h: 1.55). By hand: inner/outer = (w1 / w3) e^(2b), and the middle
+    weight normalised over the crown areas (eq. 8) against the reference's."""
+    from brakethermo.thermal.disc import load_disc
+
+    disc = load_disc("cc-340-8")
+    crown, reference = (0.33, 0.55, 1.0), (1.208, 1.051, 0.787)
+    b, m = [0.755, 0.859], [0.171, -0.024]
+    size, text = effect_size("power_distribution", {"zone_balance": b, "zone_middle": m},
+                             disc, 4, ("T1", "T2"), crown=crown, reference_crown=reference)
+    r = disc.crown_edges
+    area = np.pi * (r[1:] ** 2 - r[:-1] ** 2)
+    ref_w2 = reference[1] * area.sum() / np.dot(area, reference)
+    for z, name in enumerate(("T1", "T2")):
+        zone = size["per_zone"][name]
+        raw = np.array([crown[0] * np.exp(b[z]), crown[1] * np.exp(m[z]),
+                        crown[2] * np.exp(-b[z])])
+        assert zone["inner_vs_outer"] == pytest.approx(0.33 * np.exp(2 * b[z]))
+        w2 = raw[1] * area.sum() / np.dot(area, raw)
+        assert zone["middle_factor"] == pytest.approx(w2 / ref_w2)
+    assert size["reference_inner_vs_outer"] == pytest.approx(1.208 / 0.787)
+    assert "1.53)" in text and "T2: 1.84" in text and "4.8" not in text

@@ -16,6 +16,7 @@ from brakethermo.pipelines.diagnose.layout import Layout
 from brakethermo.pipelines.diagnose.where import zone_label
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.thermal.disc import DiscSpec
+from brakethermo.thermal.power import normalise_weights
 
 
 def _corr(a: np.ndarray, b: np.ndarray) -> float:
@@ -166,12 +167,16 @@ def _slipstream_size(f: np.ndarray, straights: Sequence[tuple[int, str]]
 
 def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
                 zone_names: tuple[str, ...] = (), top_kmh: float = float("nan"),
-                straights: Sequence[tuple[int, str]] = ()) -> tuple[dict[str, Any], str]:
+                straights: Sequence[tuple[int, str]] = (),
+                crown: Sequence[float] = (1.0, 1.0, 1.0),
+                reference_crown: Sequence[float] = (1.0, 1.0, 1.0)
+                ) -> tuple[dict[str, Any], str]:
     """An effect's fitted size in physical units, and the sentence the page shows
     (``zone_names``: the session's track names of its braking zones; ``top_kmh``: the
     flying laps' top speed, km/h, where a knee's size is stated when below V_ref;
     ``straights``: each straight's lap and the zone it follows, where a slipstream's
-    largest departures are said)."""
+    largest departures are said; ``crown``: the candidate's mean crown weights, which a
+    pad split's zones act on, and ``reference_crown`` the reference's, w1..w3)."""
     if name == "thickness_gradient":
         f = float(params["kz_factor"])
         k_z = f * disc.k_z if disc.k_z else float("nan")
@@ -208,14 +213,50 @@ def effect_size(name: str, params: dict[str, Any], disc: DiscSpec, layers: int,
         return _slipstream_size(np.asarray(params.get("straight_factor", [1.0]), float),
                                 straights)
     if name == "power_distribution":
-        b = np.asarray(params.get("zone_balance", []), float)
-        m = np.asarray(params.get("zone_middle", []), float)
-        zones = {zone_label(z, zone_names): {"inner_vs_outer": float(np.exp(2 * b[z])),
-                                 "middle_factor": float(np.exp(m[z]))} for z in range(b.size)}
-        worst = int(np.argmax(np.abs(b))) if b.size else -1
-        text = ("no zone" if worst < 0 else
-                f"inner/outer crown power ratio per zone {_spread(np.exp(2 * b))}; most"
-                f" uneven {zone_label(worst, zone_names)}: {np.exp(2 * b[worst]):.2f}")
-        return {"per_zone": zones}, text
+        return _crown_size(params, disc, zone_names, crown, reference_crown)
     return dict(params), ""
+
+
+def _crown_size(params: dict[str, Any], disc: DiscSpec, zone_names: tuple[str, ...],
+                crown: Sequence[float], reference: Sequence[float]
+                ) -> tuple[dict[str, Any], str]:
+    """Each braking zone's pad crown, and the sentence.
+
+    A zone's balance ``b`` and middle ``m`` act on the candidate's own mean crown
+    ``(w1 e^b, w2 e^m, w3 e^-b)``, which the fit moves with them (what all zones share is
+    that crown's), so the zone's inner/outer power ratio is ``(w1 / w3) e^(2b)``: ``e^(2b)``
+    alone said 4.81 on a session whose zones' crowns were 1.4-1.8 (identify-h: 1.55).
+
+    Parameters
+    ----------
+    params : dict — ``zone_balance``, ``zone_middle`` (one per zone, dimensionless)
+    disc : DiscSpec — its crown edges normalise the weights (eq. 8)
+    zone_names : tuple of str — the zones' track names
+    crown : sequence of 3 float — the candidate's mean crown weights, any scale
+    reference : sequence of 3 float — the reference fit's crown weights (one for every stop)
+
+    Returns
+    -------
+    size : dict — ``per_zone`` (``inner_vs_outer``, ``middle_factor``: the zone's middle
+        weight over the reference's, ``weights``: w1..w3 normalised) and
+        ``reference_inner_vs_outer``
+    text : str
+    """
+    b = np.asarray(params.get("zone_balance", []), float)
+    m = np.asarray(params.get("zone_middle", []), float)
+    ref = normalise_weights(np.asarray(reference, float), disc.crown_edges)
+    w = [normalise_weights(np.asarray(crown, float) * np.exp([b[z], m[z], -b[z]]),
+                           disc.crown_edges) for z in range(b.size)]
+    ratio = np.array([wz[0] / wz[2] for wz in w])
+    zones = {zone_label(z, zone_names): {"inner_vs_outer": float(ratio[z]),
+                                         "middle_factor": float(w[z][1] / ref[1]),
+                                         "weights": [float(v) for v in w[z]]}
+             for z in range(b.size)}
+    size = {"per_zone": zones, "reference_inner_vs_outer": float(ref[0] / ref[2])}
+    if not b.size:
+        return size, "no zone"
+    worst = int(np.argmax(np.abs(np.log(ratio * ref[2] / ref[0]))))
+    return size, (f"inner/outer crown power ratio per zone {_spread(ratio)} (one crown for"
+                  f" every stop: {ref[0] / ref[2]:.2f}); furthest from it"
+                  f" {zone_label(worst, zone_names)}: {ratio[worst]:.2f}")
 

@@ -283,14 +283,17 @@ class _FourSpot:
         out = []
         for c in self.candidates:
             row = rows[c.name]
-            params = self.make(c.effects).values(c.p, c.name)
+            ext = self.make(c.effects)
+            params = ext.values(c.p, c.name)
             shown = params
             if "straight_factor" in params:  # the straights fitted, not the out-lap's
                 shown = {**params, "straight_factor": list(np.compress(
                     fitted, params["straight_factor"]))}
             size, sentence = effect_size(c.name, shown, self.disc, self.est_tuning.layers,
                                          self.segments.zone_names, top,
-                                         [p for p, f in zip(places, fitted, strict=True) if f])
+                                         [p for p, f in zip(places, fitted, strict=True) if f],
+                                         crown=ext.weights(c.p),
+                                         reference_crown=self.ref.weights(self.p_ref))
             if "kz_factor" in params:  # in h_law.toml kz_factor is relative to k(T), not k_z
                 params = {"kz_over_nominal": params.pop("kz_factor"), **params}
             out.append({
