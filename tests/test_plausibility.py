@@ -13,6 +13,7 @@ import pytest
 from typer.testing import CliRunner
 
 from brakethermo.cli import app
+from brakethermo.errors import DataError
 
 runner = CliRunner()
 
@@ -121,3 +122,17 @@ def test_a_race_pyrometer_in_degc_labelled_kelvin_is_refused(tmp_path: Path) -> 
     res = _estimate(bad, tmp_path)
     assert res.exit_code == 1, res.output
     assert "disc_temp" in res.output and "°C labelled K?" in " ".join(res.output.split())
+
+
+def test_a_loggers_no_reading_code_is_left_out_not_refused() -> None:
+    """A constant sentinel far below the air (-999 for 'no reading' while the disc is under
+    the floor) is no mislabelled unit: the °C-labelled-K check lets it through."""
+    from brakethermo.io.plausibility import check_pyrometer
+
+    t = np.concatenate([np.full(100, -999.0), np.linspace(150.0, 520.0, 400),
+                        np.full(50, -999.0), np.linspace(500.0, 200.0, 300)])
+    check_pyrometer(t, np.zeros(t.size, bool), 24.0, 0.1)  # no DataError
+    varying = t.copy()
+    varying[:100] = np.linspace(-180.0, -120.0, 100)  # a cold disc read as degC labelled K
+    with pytest.raises(DataError, match="labelled K"):
+        check_pyrometer(varying, np.zeros(t.size, bool), 24.0, 0.1)

@@ -197,6 +197,10 @@ def _check_not_celsius_as_kelvin(t: np.ndarray, ambient_c: float, dt: float,
     cold = t < LOWEST_DISC_C
     if cold.sum() * dt < COLD_SPAN_S:
         return
+    if np.ptp(t[cold]) == 0.0:
+        # one value repeated: a logger's code for "no reading" (-999, -273.15), not a
+        # disc; under the floor, it is left out like every reading there
+        return
     low = float(np.min(t))
     head = (f"reads down to {low:.0f} °C ({cold.sum() * dt:.1f} s below"
             f" {LOWEST_DISC_C:.0f} °C) with the air at {ambient_c:.0f} °C: no disc is colder"
