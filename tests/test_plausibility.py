@@ -132,7 +132,8 @@ def test_a_loggers_no_reading_code_is_left_out_not_refused() -> None:
     t = np.concatenate([np.full(100, -999.0), np.linspace(150.0, 520.0, 400),
                         np.full(50, -999.0), np.linspace(500.0, 200.0, 300)])
     check_pyrometer(t, np.zeros(t.size, bool), 24.0, 0.1)  # no DataError
-    varying = t.copy()
-    varying[:100] = np.linspace(-180.0, -120.0, 100)  # a cold disc read as degC labelled K
+    varying = t - 273.15  # the same disc in degC labelled K, its cold start read
+    varying[:100] = np.linspace(-180.0, -120.0, 100)
+    varying[500:550] = np.linspace(-130.0, -150.0, 50)
     with pytest.raises(DataError, match="labelled K"):
         check_pyrometer(varying, np.zeros(t.size, bool), 24.0, 0.1)
