@@ -42,8 +42,8 @@ def sessions(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 def _mutate(src: Path, column: str, how: str, out: Path) -> Path:
     table = pq.read_table(src)
     v = table.column(column).to_numpy(zero_copy_only=False).astype(float)
-    v = {"zero": np.zeros_like(v), "negate": -v, "x1000": v * 1000.0, "div1000": v / 1000.0,
-         "stuck": np.full_like(v, float(np.nanmedian(v)))}[how]
+    v = {"zero": np.zeros_like(v), "negate": -v, "x1000": v * 1000.0, "x4": v * 4.0,
+         "div1000": v / 1000.0, "stuck": np.full_like(v, float(np.nanmedian(v)))}[how]
     field = table.schema.field(column)
     table = table.set_column(table.column_names.index(column), field, pa.array(v))
     path = out / f"{src.stem}_{column}_{how}.parquet"
@@ -74,6 +74,7 @@ CASES = [
     ("ebooster", "ebv", "pushrod_displacement", "x1000", "refused"),
     ("ebooster", "ebv", "master_cylinder_pressure", "zero", "warned"),
     ("ebooster", "ebv", "pedal_force", "negate", "warned"),
+    ("ebooster", "ebv", "reaction_disk_delta", "negate", "refused"),  # vs the disk fit
     ("clamp-force", "emb", "motor_current", "x1000", "refused"),
     ("clamp-force", "emb", "motor_current", "negate", "refused"),
     ("clamp-force", "emb", "motor_angle", "negate", "refused"),
@@ -158,3 +159,20 @@ def test_kind_hint_only_for_a_session_of_another_kind() -> None:
     assert kind_hint(("motor_angle", "motor_current"), "clamp_force") == ""  # its own channel
     assert kind_hint(("speed", "disc_temp"), "brake_pressure_front") == ""
     assert "estimate" in kind_hint(("speed", "disc_temp"), "pushrod_displacement")
+
+
+def test_a_booster_session_far_beyond_the_observers_noise_is_warned(
+        sessions: dict[str, Path], tmp_path: Path) -> None:
+    """A delta four times too large (a wrong unit or gain) made the observers' mean NIS
+    about 8.8 and widened their bands by its root, exit 0 and no warning (new-user test)."""
+    bad = _mutate(sessions["ebv"], "reaction_disk_delta", "x4", tmp_path)
+    res = RUNNER.invoke(app, _command("ebooster", bad, sessions, tmp_path / "out"))
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.stdout[res.stdout.index("{"):])
+    assert summary["noise_scale"]["ukf"] > 3.0
+    said = [w for w in summary["warnings"] if "beyond noise" in w]
+    assert len(said) == 1, summary["warnings"]
+    text = said[0]
+    assert f"{summary['noise_scale']['ukf']:.1f} (UKF)" in text
+    assert "reaction_disk_delta" in text and "reversed sign" in text and "sqrt" in text
+    assert bad.name in text and sessions["ebt"].name in text

@@ -234,6 +234,7 @@ def fit_training(session: Session, spec: BoosterSpec) -> BoosterFit:
     # disk: net force from the leverage (eq. 10) with the measured pedal force
     force = leverage_force(p_m, s2, f_in, spec.area_mm2, spec.return_spring_n_per_mm,
                            spec.area_ratio)
+    _refuse_reversed(force, delta, session.path, "the net disk force (eq. 10)")
     disk, omega_n, damping, tau_z, disk_rmse = _fit_disk(force, delta, ok, session.dt)
     dof = spec.pedal_dof
     return BoosterFit(
@@ -331,6 +332,42 @@ def fit_warnings(fit: BoosterFit) -> list[str]:
     if out:
         out = [f"training {Path(fit.train_session).name}: {w}" for w in out]
     return out
+
+
+# delta against the disk compression the leverage (eq. 10) predicts from the pedal force
+# and p_m correlates +0.93 to +0.99 on the benches (vehicle, open-loop, training sessions)
+# and -0.93 to -0.99 with delta negated; below -0.5 the sign is reversed, not noise.
+REVERSED_CORRELATION = -0.5
+
+
+def _refuse_reversed(compression: Array, delta: Array, path: Path, what: str) -> None:
+    """Refuse a delta (mm) that falls where ``compression`` (any unit, same sign as the
+    disk's compression) rises: the channel's sign is reversed (DataError)."""
+    ok = np.isfinite(compression) & np.isfinite(delta)
+    if ok.sum() < 10 or np.std(compression[ok]) == 0.0 or np.std(delta[ok]) == 0.0:
+        return
+    r = float(np.corrcoef(compression[ok], delta[ok])[0, 1])
+    if r < REVERSED_CORRELATION:
+        raise DataError(
+            f"falls where {what} says the reaction disk is compressed (correlation {r:.2f};"
+            " +0.9 or more on a booster logged right): its sign is reversed; negate the"
+            " channel in the file and run again", path=path, channel=DELTA)
+
+
+def _refuse_reversed_delta(session: Session, s2: Array, delta: Array, fit: BoosterFit,
+                           spec: BoosterSpec) -> None:
+    """Check delta's sign against the training's disk fit, where the session logs the
+    pedal force and p_m and neither got a warning of its own (a reversed pedal force
+    is said by its own check, and would point at delta here)."""
+    p_ch = PRESSURES["p_m"]
+    if not (session.has(PEDAL) and session.has(p_ch)) or any(
+            w.startswith((f"channel '{PEDAL}'", f"channel '{p_ch}'")) for w in session.warnings):
+        return
+    force = leverage_force(_series(session, p_ch, MPA, gaps=True), s2,
+                           _series(session, PEDAL, 1.0, gaps=True), spec.area_mm2,
+                           spec.return_spring_n_per_mm, spec.area_ratio)
+    _refuse_reversed(disk_quasi_static(force, np.array(fit.disk)), delta, session.path,
+                     f"the training's disk fit with this session's {PEDAL} and {p_ch}")
 
 
 def _disk_response(u: Array, omega_n: float, damping: float, tau_z: float, dt: float) -> Array:
@@ -683,6 +720,7 @@ def observe(
     if not np.isfinite(delta).any():
         raise DataError("holds no finite sample", path=session.path, channel=DELTA)
 
+    _refuse_reversed_delta(session, s2, delta, fit, spec)
     pv, carried_fact, curve_sd = carry(with_effect, session, s2, fit, bench, aliases)
     model = EboosterModel(spec, fit, s2, session.dt, pv=pv)
     shift_sd, shift_from, shift_warning = band_shift_sd(model, curve_sd)
@@ -696,6 +734,7 @@ def observe(
             + "): the training result does not hold for this session — retrain on a"
             " session of this booster that sweeps its pressures, or check the units of s2"
             " and delta", path=session.path, channel=DELTA)
+    noise_warning = _beyond_noise(tracks, lost, session.path, fit.train_session)
     tracks = {w: _withdrawn(t) if w in lost else t for w, t in tracks.items()}
     validation = {
         state: _series(session, ch, MPA, gaps=True)
@@ -703,7 +742,7 @@ def observe(
     }
     summary = _summary(session, spec, fit, tracks, validation, smooth, t_train, s2)
     summary["band"] = _band(shift_sd, shift_from, curve_sd)
-    summary["warnings"] += [shift_warning] if shift_warning else []
+    summary["warnings"] += [w for w in (shift_warning, noise_warning) if w]
     summary["with_effect"] = carried_fact
     summary["lost_track"] = lost
     summary["warnings"] += fit_warnings(fit) + ([SHIPPED_FIT_NOTE] if shipped else [])
@@ -840,6 +879,37 @@ def _coverage_warnings(cov95_braking: dict[str, float | None]) -> list[str]:
         " its p–V curve shifted or scaled since (seals, fluid), or the pressure sensor or"
         " its unit is off; `diagnose --rig ebooster` on this session names and sizes a"
         " shift, `--with-effect auto` carries it, or retrain on a session of the day"]
+
+
+# The noise_scale (mean NIS per reading) above which a session is taken to depart from its
+# training result beyond noise. On the independent benches (vehicle, open-loop, production
+# sessions, a p-V shifted and not carried, a pressure sensor in the wrong unit) it is 1.0:
+# the model's own errors stay inside its noise; a reversed reaction_disk_delta makes it 5.5.
+# At 3 the innovations spread sqrt(3) = 1.7x wider than the noise admits, far beyond what
+# the benches leave, well below what a wrong input gives.
+NOISE_SCALE_WARN = 3.0
+
+
+def _beyond_noise(tracks: dict[str, ObserverTrack], lost: dict[str, str], path: Path,
+                  train_session: str) -> str:
+    """The warning when an observer's innovations are far larger than its noise admits
+    (noise_scale above :data:`NOISE_SCALE_WARN`); '' otherwise. An observer that lost its
+    track has its own warning."""
+    scales = {w: t.noise_scale for w, t in tracks.items() if w not in lost}
+    if not scales or max(scales.values()) <= NOISE_SCALE_WARN:
+        return ""
+    figures = ", ".join(f"{s:.1f} ({w.upper()})" for w, s in scales.items())
+    return (
+        f"{path.name}: the observers' δ innovations are {figures} times the variance their"
+        f" noise admits (mean NIS per reading; about 1.0 on a session that follows the"
+        f" training result, warned above {NOISE_SCALE_WARN:g}): this session departs from"
+        f" the training ({Path(train_session).name}) beyond noise. Likely causes:"
+        f" {DELTA} or {S2} with a reversed sign or in the wrong unit, another booster than"
+        " the one trained, or a p–V characteristic moved since. The bands were widened by"
+        " sqrt(noise_scale) ("
+        + ", ".join(f"{np.sqrt(s):.2f}x" for s in scales.values())
+        + ") to hold the innovations; the estimates were not corrected: check the two"
+        " channels' sign and unit, or retrain on a session of this booster")
 
 
 def _beyond_training(s2: Array, dt: float, fit: BoosterFit) -> list[str]:

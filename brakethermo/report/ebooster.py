@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import matplotlib
 
@@ -112,6 +113,28 @@ def _band_words(s: dict, pv_only: float | None) -> list[str]:
                      f" {observers['ekf']:.3f} MPa): on this session their dynamics add"
                      " nothing to the master-cylinder pressure.")
     return words
+def _pressure_table(s: dict[str, Any]) -> TableBlock:
+    """The observers' pressures against the session's sensors, from the summary ``s``."""
+    rows = []
+    for w in OBSERVERS:
+        pr, out1 = s["pressure_rmse_mpa"][w], s["outside_1sigma"][w]
+        rows.append((w.upper(), *(number_text(pr[k], ".3f") for k in PRESSURES),
+                     *(number_text(100 * as_number(out1[k]), ".1f") for k in PRESSURES),
+                     *(number_text(100 * as_number(c), ".1f")
+                       for c in (s["coverage_95"][w], s["coverage_95_braking"][w])),
+                     f"{s['consistency'][w]['mean_nis']:.2f} ({s['consistency'][w]['state']})"))
+    return TableBlock(
+        header=("observer", "p_m RMSE MPa", "p_f RMSE MPa", "p_r RMSE MPa", "p_m outside 1σ %",
+                "p_f outside 1σ %", "p_r outside 1σ %", "95 % band coverage %",
+                "… while braking %", "δ mean NIS"),
+        rows=rows,
+        caption="Against the session's pressure channels (validation only; – where the "
+        "session has none). A consistent 1σ band leaves about 32 % outside, a 95 % band 5 %."
+        " δ mean NIS: the filter's normalised innovations, 1 when its noise settings match"
+        f" ({s['consistency']['ukf']['chi2_band'][0]:.2f}–"
+        f"{s['consistency']['ukf']['chi2_band'][1]:.2f} for this session's length).",
+    )
+
 
 def booster_page(r: EboosterResult) -> Page:
     """The report page of one run."""
@@ -133,25 +156,7 @@ def booster_page(r: EboosterResult) -> Page:
         caption="Table 1 of the paper for this session (residual = measured minus one-step "
         "predicted δ); the paper's rows for reference.",
     )
-    rows = []
-    for w in OBSERVERS:
-        pr, out1 = s["pressure_rmse_mpa"][w], s["outside_1sigma"][w]
-        rows.append((w.upper(), *(number_text(pr[k], ".3f") for k in PRESSURES),
-                     *(number_text(100 * as_number(out1[k]), ".1f") for k in PRESSURES),
-                     *(number_text(100 * as_number(c), ".1f")
-                       for c in (s["coverage_95"][w], s["coverage_95_braking"][w])),
-                     f"{s['consistency'][w]['mean_nis']:.2f} ({s['consistency'][w]['state']})"))
-    ptable = TableBlock(
-        header=("observer", "p_m RMSE MPa", "p_f RMSE MPa", "p_r RMSE MPa", "p_m outside 1σ %",
-                "p_f outside 1σ %", "p_r outside 1σ %", "95 % band coverage %",
-                "… while braking %", "δ mean NIS"),
-        rows=rows,
-        caption="Against the session's pressure channels (validation only; – where the "
-        "session has none). A consistent 1σ band leaves about 32 % outside, a 95 % band 5 %."
-        " δ mean NIS: the filter's normalised innovations, 1 when its noise settings match"
-        f" ({s['consistency']['ukf']['chi2_band'][0]:.2f}–"
-        f"{s['consistency']['ukf']['chi2_band'][1]:.2f} for this session's length).",
-    )
+    ptable = _pressure_table(s)
     pv_only = None
     if "p_m" in r.validation:
         err = static_pressure(r) - r.validation["p_m"]
@@ -177,7 +182,9 @@ def booster_page(r: EboosterResult) -> Page:
         subtitle=f"UKF vs EKF on the same model and noise, {s['samples']} samples at "
         f"{s['rate_hz']:.0f} Hz; states {smooth}",
         cards=cards,
-        sections=[
+        # the console prints the warnings; the page is read without it
+        sections=([Section("Warnings", paragraphs=list(s["warnings"]))] if s["warnings"]
+                  else []) + [
             Section("Residuals (paper Table 1)", tables=[table1],
                     figures={"residuals": _residual_figure(r)}),
             Section("Pressures and bands", paragraphs=said, tables=[ptable],
