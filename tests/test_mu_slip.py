@@ -246,6 +246,22 @@ def test_impossible_answers_are_said_or_refused(tmp_path: Path) -> None:
     assert summ["warnings"] == [] and abs(summ["peak"]["mu"] - clean["peak"]["mu"]) < 0.05
 
 
+@pytest.mark.parametrize("radius", ["0.9", "0.1"])
+def test_a_given_radius_far_off_is_named_before_the_units(tmp_path: Path, radius: str) -> None:
+    """--radius 0.9 (or 0.1) on a 0.300 m wheel ended "vehicle_speed looks like m/s
+    labelled km/h: set its unit to m/s" though the channel is right and the radius was
+    typed by the user (new-user test): the given radius is named first, with the radius
+    the free-rolling speeds give."""
+    path, _ = write_tyre_simulation(simulate_tyre_rig("dry", seed=8107), tmp_path / "r.mcap")
+    res = CliRunner().invoke(app, ["mu-slip", str(path), "--radius", radius,
+                                   "--out", str(tmp_path / "o")])
+    text = " ".join(res.output.split())
+    assert res.exit_code == 1, text
+    assert f"the given --radius {radius} m may be wrong" in text, text
+    assert "give --radius 0.300" in text and "wheel_radius_m" in text, text
+    assert text.index("the given --radius") < text.index("labelled"), text
+
+
 def test_slip_ratio_channel_used(tmp_path: Path) -> None:
     sim = simulate_tyre_rig("wet", seed=8105, log_slip=True)
     chans = tuple(c for c in sim.session.channels if c.name != "wheel_speed")

@@ -18,7 +18,7 @@ import pytest
 from typer.testing import CliRunner
 
 from brakethermo.cli import app
-from brakethermo.errors import ConfigError
+from brakethermo.errors import ConfigError, DataError
 from brakethermo.io.writers import Channel, SessionData, write_session
 from brakethermo.pipelines.roller_rig import (
     CONVERGENCE_WINDOW_S,
@@ -358,3 +358,18 @@ def test_a_normal_force_logged_as_its_set_point_is_taken_with_a_word(tmp_path: P
     res = run_roller_rig(path, RollerRigOptions(r0_mm=(350.0,), smoother=False))
     assert any("set-point" in w and "normal_force" in w for w in res.summary["warnings"])
     assert abs(res.summary["runs"][0]["radius_mm"] - 348.2) < 0.5
+
+
+def test_an_option_that_changes_the_model_is_named_as_a_cause(sessions: dict[str, Path]):
+    """A --supply-hz 16 against the session's fact 7.5 Hz was refused with "check the
+    units of ...", and --tuning paper drew "IMPLAUSIBLE RESULT ... check wheel_torque's
+    sign", neither naming the option the user typed (new-user test)."""
+    with pytest.raises(DataError) as err:
+        run_roller_rig(sessions["15"], RollerRigOptions(supply_hz=16.0))
+    text = str(err.value)
+    assert "--supply-hz 16" in text and "roller_supply_hz says 7.5 Hz" in text, text
+    res = run_roller_rig(sessions["15"], RollerRigOptions(tuning="paper", smoother=False))
+    implausible = [w for w in res.summary["warnings"] if w.startswith("IMPLAUSIBLE")]
+    assert implausible and all("--tuning paper" in w for w in implausible), implausible
+    plain = run_roller_rig(sessions["15"], RollerRigOptions(smoother=False))
+    assert not any("an option given" in w for w in plain.summary["warnings"])

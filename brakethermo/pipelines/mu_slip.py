@@ -274,24 +274,41 @@ def free_rolling_check(session: Session, slip: np.ndarray, mu: np.ndarray, start
     s0 = float(np.median(slip[rolling]))
     if abs(s0) <= FREE_SLIP[0]:
         return []
-    channel = "slip_ratio" if radius_m is None else "wheel_speed"
     if radius_m is None:
-        said, fix = " in the slip_ratio channel", "check the slip channel's zero and unit"
+        channel, said = "slip_ratio", " in the slip_ratio channel"
+        fix = "check the slip channel's zero and unit"
     else:
-        V, w = session.values("vehicle_speed"), session.values("wheel_speed")
-        ok = rolling & np.isfinite(V) & np.isfinite(w) & (V >= 1.0) & (np.abs(w) > 1e-6)
-        r_free = float(np.median(V[ok] / w[ok])) if ok.any() else math.nan
-        speeds = f"; the free-rolling speeds give {r_free:.3f} m" if ok.any() else ""
-        said = (f" with the wheel radius {radius_m:g} m"
-                f" ({'--radius' if given else 'the session fact'}){speeds}")
-        cause = ratio_cause(radius_m / r_free, "vehicle_speed", "wheel_speed", "the radius")
-        fix = "fix the radius" if cause.startswith("check the units") else cause
-        channel = "vehicle_speed" if cause.startswith("vehicle_speed") else channel
+        channel, said, fix = _radius_cause(session, rolling, radius_m, given)
     text = (f"in free rolling before the ramp (μ about 0) the slip is {s0:+.3f}, not about"
             f" 0{said}: every slip of the ramp moves with it")
     if abs(s0) > FREE_SLIP[1]:
         raise DataError(f"{text}; {fix}", path=session.path, channel=channel)
     return [text]
+
+
+def _radius_cause(session: Session, rolling: np.ndarray, radius_m: float, given: bool
+                  ) -> tuple[str, str, str]:
+    """The channel to name, what was used and the likely fix, when the slip computed with
+    ``radius_m`` (m; ``given``: by --radius, else the session's fact) is not nil in free
+    rolling: the radius the free-rolling speeds give (m) against it. A radius the user
+    typed is the first suspect, before a unit the speeds' ratio may resemble."""
+    V, w = session.values("vehicle_speed"), session.values("wheel_speed")
+    ok = rolling & np.isfinite(V) & np.isfinite(w) & (V >= 1.0) & (np.abs(w) > 1e-6)
+    r_free = float(np.median(V[ok] / w[ok])) if ok.any() else math.nan
+    speeds = f"; the free-rolling speeds give {r_free:.3f} m" if ok.any() else ""
+    said = (f" with the wheel radius {radius_m:g} m"
+            f" ({'--radius' if given else 'the session fact'}){speeds}")
+    cause = ratio_cause(radius_m / r_free, "vehicle_speed", "wheel_speed", "the radius")
+    if given:
+        unit = ("check the units of vehicle_speed and wheel_speed"
+                if cause.startswith("check the units") else cause)
+        fact = next((k for k in RADIUS_FACTS if k in session.metadata), None)
+        instead = [f"run without it (the session's {fact})"] if fact else []
+        instead += [f"give --radius {r_free:.3f}"] if ok.any() else []
+        return ("wheel_speed", said, f"the given --radius {radius_m:g} m may be wrong: "
+                + " or ".join(instead or ["check it"]) + f"; else {unit}")
+    fix = "fix the radius" if cause.startswith("check the units") else cause
+    return ("vehicle_speed" if cause.startswith("vehicle_speed") else "wheel_speed", said, fix)
 
 
 MAX_FROZEN_SHARE = 0.2  # of a ramp's samples lost to a frozen force: the curve is not there

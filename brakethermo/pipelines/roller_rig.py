@@ -391,19 +391,20 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
                        (w_w[first], w_r[first]), torque, normal, supply, Q, R, ratio_mm,
                        free & both)
     model = RollerRigModel.from_spec(spec, creep_law=opts.creep_law)
+    suspects = options_suspected(opts, session)
     try:
         runs = guesses(model)
     except DataError as exc:  # the filter's verdict on the session: name the file
-        raise DataError(exc.detail, path=session.path) from None
+        raise DataError(exc.detail + suspects, path=session.path) from None
     if effects != CreepEffects():
         model, runs = _judged(model, runs, replace(model, effects=effects), guesses, carried,
                               free & both, traction & both)
     warnings = [*warnings, *dict.fromkeys(
         w for run in runs
         if (w := ratio_warning(run, ratio_mm, _settled(run, free & both, t))) is not None),
-        *_implausible(runs)]
+        *_implausible(runs, suspects)]
     s_x, F = model.creep(runs[0].states[:, 0], runs[0].states[:, 1], runs[0].states[:, 2], normal)
-    warnings += force_warning(F, torque, runs[0].states[:, 2], traction & both)
+    warnings += force_warning(F, torque, runs[0].states[:, 2], traction & both, suspects)
     naive = w_r * spec.roller_radius / np.where(np.abs(w_w) > 1e-9, w_w, np.nan) * 1e3
     ref = session.constant("rolling_radius_ref")
     # a reference the checks found implausible (said in the warnings) scores nothing
@@ -437,8 +438,38 @@ MAX_MEAN_NIS = 20.0  # clean sessions give 1-5; a reversed torque sign gave 80
 FORCE_RATIO_RANGE = (0.5, 2.0)
 
 
+def options_suspected(opts: RollerRigOptions, session: Session) -> str:
+    """The options given that change the model, as a clause a message about a model that
+    does not fit the session ends with ('' when none): a ``--supply-hz`` the session's
+    fact contradicts (or no fact confirms), a ``--tuning`` or ``--creep`` not the default.
+    A user's option is the first thing to suspect: the session was fine without it."""
+    said = []
+    if opts.supply_hz is not None:
+        key = next((k for k in SUPPLY_FACTS if k in session.metadata), None)
+        try:
+            fact = float(session.metadata[key]) if key else None
+        except ValueError:  # _supply refuses such a fact unless the option overrides it
+            fact = None
+        if fact is None:
+            said.append(f"--supply-hz {opts.supply_hz:g} (no session fact confirms it;"
+                        " without it the supply is inferred from free rolling)")
+        elif not math.isclose(fact, opts.supply_hz, rel_tol=1e-6):
+            said.append(f"--supply-hz {opts.supply_hz:g}, where the session's fact {key}"
+                        f" says {fact:g} Hz")
+    default = RollerRigOptions()
+    if opts.tuning != default.tuning:
+        said.append(f"--tuning {opts.tuning} (the paper's P0, Q and R, not this session's"
+                    " measured noise)")
+    if opts.creep_law != default.creep_law:
+        said.append(f"--creep {opts.creep_law} (the default is {default.creep_law})")
+    if not said:
+        return ""
+    return ("; a likely cause is an option given, which changes the model: "
+            + "; ".join(said) + " — run without it to compare")
+
+
 def force_warning(force: np.ndarray, torque: np.ndarray, radius_m: np.ndarray,
-                  traction: np.ndarray) -> list[str]:
+                  traction: np.ndarray, suspects: str = "") -> list[str]:
     """A warning when, under traction, the creep force the filter infers (N) is not what
     the wheel's torque (N m) can pass through the contact at its radius (m): the wheel's
     own balance F r = T holds to its bearing loss and inertia (a few per cent), so a
@@ -461,10 +492,10 @@ def force_warning(force: np.ndarray, torque: np.ndarray, radius_m: np.ndarray,
     return [f"IMPLAUSIBLE RESULT: under traction the filter's creep force is {ratio:.2f}x"
             f" what the wheel's torque can pass through the contact (T/r, median), {why};"
             " the radius under traction follows that model (the free-rolling radius and"
-            " the speed ratio do not)"]
+            " the speed ratio do not)" + suspects]
 
 
-def _implausible(runs: Sequence[GuessRun]) -> list[str]:
+def _implausible(runs: Sequence[GuessRun], suspects: str = "") -> list[str]:
     """A warning when the filter's innovations are far beyond its noise on every guess:
     no setting of the noise makes such a model describe the session."""
     nis = min(float(r.consistency["mean_nis"]) for r in runs)
@@ -474,7 +505,8 @@ def _implausible(runs: Sequence[GuessRun]) -> list[str]:
             " on every guess, the band widened to match: the model does not describe this"
             " session — check wheel_torque's sign (traction +, CHANNELS.md) and the units of"
             " the speeds, the torque and normal_force; with those right, the roller's drive"
-            " is not the datasheet's (a speed controller on the roller, another motor)"]
+            " is not the datasheet's (a speed controller on the roller, another motor)"
+            + suspects]
 
 
 def _guess_run(r0: float, res: Any, smoother: bool, t: np.ndarray, dt: float) -> GuessRun:
