@@ -247,7 +247,8 @@ def test_the_sessions_own_supply_and_roller_radius_facts_are_read(tmp_path: Path
 def test_any_accepted_guess_gives_the_same_radius_or_says_why(sessions: dict[str, Path]):
     """From 100 to 1000 mm: the same answer as from 320 mm (a guess outside the filter's
     basin is re-started from the free-rolling ratio, and the summary says so); never a
-    wrong or negative radius."""
+    wrong or negative radius. A re-started guess has no convergence time from its r0
+    (null, and why; it read 0.0, the re-run's from the ratio radius)."""
     guesses = (100.0, 150.0, 250.0, 320.0, 550.0, 1000.0)
     res = run_roller_rig(sessions["30"], RollerRigOptions(r0_mm=guesses, smoother=False))
     truth = _truth(sessions["30"])
@@ -256,9 +257,14 @@ def test_any_accepted_guess_gives_the_same_radius_or_says_why(sessions: dict[str
     assert all(abs(f - truth) < 0.005 * truth for f in finals)
     rows = {r["r0_mm"]: r for r in res.summary["runs"]}
     assert rows[320.0]["restarted"] is None
+    assert rows[320.0]["convergence_time_s"] is not None
+    assert rows[320.0]["convergence_time_why"] is None
+    assert any(run.restart is not None for run in res.runs)
     for run in res.runs:
         if run.restart is not None:
             assert "re-started from the ratio radius" in rows[run.r0_mm]["restarted"]
+            assert rows[run.r0_mm]["convergence_time_s"] is None
+            assert "re-started" in rows[run.r0_mm]["convergence_time_why"]
 
 
 def test_creep_model_band_measures_the_torque_proportional_departure() -> None:

@@ -737,6 +737,17 @@ def naive_radius_mm(result: RollerRigResult, mask: np.ndarray) -> float | None:
     )
 
 
+def _convergence_why(run: GuessRun) -> str | None:
+    """Why a guess's ``convergence_time_s`` is null (None when it is a time)."""
+    if run.restart:
+        return ("re-started from the free-rolling ratio radius (see restarted): the filter"
+                " from r0 did not converge")
+    if run.convergence_time_s is None:
+        return (f"the forward filter's {CONVERGENCE_WINDOW_S:g} s means do not stay within"
+                f" {CONVERGED_MM:g} mm of its end value")
+    return None
+
+
 def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> dict[str, Any]:
     ref = result.reference_mm
     runs = []
@@ -758,7 +769,10 @@ def _summary(result: RollerRigResult, warnings: list[str], elapsed: float) -> di
                 "ratio_model_error_mm": run.ratio_error_mm,
                 "consistency": run.consistency,
                 "noise_scale": run.noise_scale,
-                "convergence_time_s": run.convergence_time_s,
+                # a re-started guess's filter ran from the ratio radius, where it is at 0 s:
+                # no time from r0 exists (null, OUTPUTS.md), and the reason is given
+                "convergence_time_s": None if run.restart else run.convergence_time_s,
+                "convergence_time_why": _convergence_why(run),
                 "rmse_vs_ref_mm": err,
                 "rmse_vs_ref_pct": None if ref is None else 100.0 * err / ref,
                 "filter_rmse_vs_ref_mm": err_f,
