@@ -176,3 +176,24 @@ def test_a_booster_session_far_beyond_the_observers_noise_is_warned(
     assert f"{summary['noise_scale']['ukf']:.1f} (UKF)" in text
     assert "reaction_disk_delta" in text and "reversed sign" in text and "sqrt" in text
     assert bad.name in text and sessions["ebt"].name in text
+
+
+@pytest.mark.parametrize("channel", ["motor_current", "motor_angle"])
+def test_a_reversed_channel_is_blamed_on_the_file_that_has_it(
+        channel: str, sessions: dict[str, Path], tmp_path: Path) -> None:
+    """A training session's current negated was refused naming the untouched estimation
+    file ("flip the channel", new-user test): the training's channels are checked against
+    its own sensor, and a reversal found on the estimation session names both files."""
+    train = _mutate(sessions["embt"], channel, "negate", tmp_path)
+    res = RUNNER.invoke(app, ["clamp-force", str(sessions["emb"]), "--train", str(train),
+                              "--out", str(tmp_path / "out")])
+    text = " ".join(res.output.split())
+    assert res.exit_code == 1, text
+    assert train.name in text and channel in text and "reversed in this file" in text, text
+    assert sessions["emb"].name not in text, text
+    bad = _mutate(sessions["emb"], channel, "negate", tmp_path)
+    res = RUNNER.invoke(app, ["clamp-force", str(bad), "--train", str(sessions["embt"]),
+                              "--out", str(tmp_path / "out")])
+    text = " ".join(res.output.split())
+    assert res.exit_code == 1, text
+    assert bad.name in text and sessions["embt"].name in text and channel in text, text

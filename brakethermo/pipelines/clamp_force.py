@@ -198,6 +198,8 @@ def clamp_force(
     if retrain_path is not None:
         specs.append((retrain_path, True, "re-training"))
     tr, data, *rest = load_emb_at_one_rate(specs, aliases)
+    for trained in (tr, *rest):
+        _check_own_signs(trained)
     _check_like(tr, data, "estimation")
     lag = choose_sensor_lag(tr.theta, tr.current, tr.force, tr.ts)
     assert lag is not None  # load_emb(need_sensor=True) refused a session without it
@@ -206,7 +208,7 @@ def clamp_force(
                          sensor_lag_s=lag.lag_s)
     est = estimate(models, data.theta, data.current, data.ts, factor_walk=factor_walk,
                    check=check)
-    _check_sources(est, data)
+    _check_sources(est, data, tr)
     rt = mr = er = cr = None
     if retrain_path is not None:
         rt = rest[0]
@@ -215,7 +217,7 @@ def clamp_force(
         cr = fusion_check(rt.theta, rt.current, rt.force, rt.ts, factor_walk=factor_walk,
                           sensor_lag_s=mr.sensor_lag_s) or check
         er = estimate(mr, data.theta, data.current, data.ts, factor_walk=factor_walk, check=cr)
-        _check_sources(er, data)
+        _check_sources(er, data, rt)
     return ClampForceResult(data, tr, models, est, rt, mr, er, check, cr, lag,
                             choose_sensor_lag(data.theta, data.current, data.force, data.ts))
 
@@ -239,11 +241,38 @@ def _check_like(train: EmbData, data: EmbData, role: str) -> None:
                 path=data.session.path, channel=channel)
 
 
-def _check_sources(est: ClampForceEstimates, data: EmbData) -> None:
+# A training channel against the session's own clamp-force sensor correlates +0.93
+# (current) to +0.98 (angle) on the simulated benches, and as much below 0 reversed:
+# below -0.5 the sign is reversed, not noise.
+REVERSED_CORRELATION = -0.5
+
+
+def _check_own_signs(d: EmbData) -> None:
+    """A (re-)training session's angle and current must rise with its own clamp-force
+    sensor: one that falls is logged with its sign reversed in that file (DataError). The
+    models learn whatever sign they are given, so without this check a reversed training
+    channel shows only later, on the session estimated, and blames that file."""
+    if d.force is None:
+        return
+    for channel, v in (("motor_angle", d.theta), ("motor_current", d.current)):
+        ok = np.isfinite(v) & np.isfinite(d.force)
+        if ok.sum() < 10 or np.std(v[ok]) == 0.0 or np.std(d.force[ok]) == 0.0:
+            continue
+        r = float(np.corrcoef(v[ok], d.force[ok])[0, 1])
+        if r < REVERSED_CORRELATION:
+            raise DataError(
+                f"falls as this session's own clamp_force sensor rises (correlation {r:.2f};"
+                " +0.9 or more logged right): its sign is reversed in this file, which trains"
+                " the models; negate the channel in this file and run again",
+                path=d.session.path, channel=channel)
+
+
+def _check_sources(est: ClampForceEstimates, data: EmbData, trained: EmbData) -> None:
     """Each input's own estimate of the force — the stiffness curve's from the angle, the
     torque balance's from the current — must press (a clamp force pulling in the hardest
-    applies means that input's sign is reversed against the training session) and stay
-    below what any caliper clamps (:data:`MAX_FORCE_N`)."""
+    applies means that input's sign is reversed against the session ``trained`` on, whose
+    own signs :func:`_check_own_signs` confirmed against its sensor, so the reversed one
+    is ``data``'s) and stay below what any caliper clamps (:data:`MAX_FORCE_N`)."""
     for series, channel in ((est.stiffness, "motor_angle"), (est.torque_balance,
                                                               "motor_current")):
         peak = float(np.nanmax(np.abs(series), initial=0.0))
@@ -258,8 +287,10 @@ def _check_sources(est: ClampForceEstimates, data: EmbData) -> None:
         if pull < 0.0:
             raise DataError(
                 f"the clamp force estimated from '{channel}' alone pulls ({pull:.1f} kN in the"
-                " hardest applies): its sign is reversed against the training session's;"
-                " flip the channel or check its wiring",
+                f" hardest applies): its sign is reversed against the training session"
+                f" {trained.session.path.name}'s, whose channel rises with its own clamp-force"
+                " sensor, so the reversed one is this file's: negate the channel in this file"
+                " or check its wiring",
                 path=data.session.path, channel=channel)
 
 
