@@ -658,6 +658,10 @@ def test_a_motor_side_change_is_not_blamed_on_the_pads_and_the_band_admits_it(
     est, s = res.reported, cfp.summary(res)
     assert est.kf_filter == "adaptive" and est.motor_alike == pytest.approx(1.11, abs=0.03)
     assert "cannot tell apart" in s["kf_noise"] and "no longer holds" not in s["kf_noise"]
+    # the text's factor is the median while applied, not the page's final one (new-user
+    # test: "a stiffness factor 0.72" beside a card "final stiffness factor 0.766")
+    assert (f"{s['stiffness_factor_applied_median']:.2f} (the stiffness factor's median"
+            in s["kf_noise"]), s["kf_noise"]
     said = " ".join(s["warnings"])
     assert "disagree by a factor 1.1" in said and "worse than the dynamic-stiffness" in said
     F = pd.read_parquet(truth)["clamp_force"].to_numpy() * 1e3
@@ -670,6 +674,8 @@ def test_a_motor_side_change_is_not_blamed_on_the_pads_and_the_band_admits_it(
     est, s = res.reported, cfp.summary(res)
     assert est.kf_filter == "adaptive" and est.motor_alike is None
     assert "more than a motor's torque constant" in s["kf_noise"]
+    assert (f"a stiffness factor {s['stiffness_factor_applied_median']:.2f}, its median"
+            in s["kf_noise"]), s["kf_noise"]
     assert not any("disagree by a factor" in w for w in s["warnings"])
     assert np.all(est.adaptive_band >= est.adaptive_std)  # its band as published
 

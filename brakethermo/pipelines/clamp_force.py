@@ -393,6 +393,11 @@ def _model_dict(m: ClampForceModels, path: Path) -> dict[str, Any]:
 
 
 
+# what the stiffness factor in _kf_text's words is: not the page's final value (the last
+# sample's, which a release or a last apply moves), so the two are not read as one
+APPLIED_MEDIAN = "median over the samples where the brake is applied, not its final value"
+
+
 def _kf_text(res: ClampForceResult) -> str:
     """What the reported ``kf`` is on this session, in words (summary and page)."""
     est, check = res.reported, res.reported_check
@@ -424,18 +429,21 @@ def _kf_text(res: ClampForceResult) -> str:
         text = (f"the adaptive-stiffness filter: the fixed filter's mean NIS is"
                 f" {est.kf_paper_nis:.2f}, the stiffness model and the torque balance no"
                 " longer agree as in training, by a factor"
-                f" {est.motor_alike:.2f} — pads other than the trained ones (heat, wear) or the"
-                " motor side (a hotter winding's lower torque constant, the gear's"
-                " efficiency), which these data cannot tell apart; the filter follows the"
-                " torque balance (right if the pads changed) and its band reaches past the"
-                " stiffness model's estimate (right if the motor side did)")
+                f" {est.motor_alike:.2f} (the stiffness factor's {APPLIED_MEDIAN}) — pads"
+                " other than the trained ones (heat, wear) or the motor side (a hotter"
+                " winding's lower torque constant, the gear's efficiency), which these data"
+                " cannot tell apart; the filter follows the torque balance (right if the pads"
+                " changed) and its band reaches past the stiffness model's estimate (right if"
+                " the motor side did)")
     elif est.kf_switched and est.kf_paper_nis > NIS_LIMIT:
         f = applied_factor(est.stiffness_factor, est.stiffness)
         why = ("its stiffness model no longer holds for these pads (a stiffness factor"
-               f" {f:.2f}, more than a motor's torque constant or a gear's efficiency moves)"
+               f" {f:.2f}, its {APPLIED_MEDIAN}, more than a motor's torque constant or a"
+               " gear's efficiency moves)"
                if f is not None and abs(f - 1.0) > MOTOR_SPAN else
                "the stiffness model and the torque balance disagree more than in training,"
-               " though not as a scale" + ("" if f is None else f" (stiffness factor {f:.2f})"))
+               " though not as a scale"
+               + ("" if f is None else f" (stiffness factor {f:.2f}, its {APPLIED_MEDIAN})"))
         text = (f"the adaptive-stiffness filter: the fixed filter's mean NIS is"
                 f" {est.kf_paper_nis:.2f}, {why}")
     elif est.kf_switched and check is not None:
@@ -625,6 +633,8 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
         },
         "kf_vs_stiffness_pct": None if force is None else 100.0 * (1 - r["kf"] / r["stiffness"]),
         "stiffness_factor_final": float(res.reported.stiffness_factor[-1]),
+        "stiffness_factor_applied_median": applied_factor(res.reported.stiffness_factor,
+                                                          res.reported.stiffness),
         "fitted": _model_dict(res.models, res.train.session.path),
         "sensor_lag": {
             "training": None if res.train_lag is None else res.train_lag.as_dict(),

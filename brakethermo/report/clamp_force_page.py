@@ -39,13 +39,15 @@ def _cards(res: ClampForceResult, summ: dict[str, Any]) -> list[Card]:
             Card(f"{kf} RMSE", _fmt(r["kf"]), "kN"),
             Card("ML fusion RMSE", _fmt(r["ml_fusion"]), "kN"),
             Card("adaptive KF RMSE", _fmt(summ["rmse_kn_adaptive"]), "kN"),
-            Card("final stiffness factor", f"{summ['stiffness_factor_final']:.3f}"),
+            Card("stiffness factor at the end (last sample)",
+             f"{summ['stiffness_factor_final']:.3f}"),
         ]
     return [
         Card(f"{kf} peak force", f"{e['kf']['peak']:.2f}", "kN"),
         Card(f"{kf} 95 % band", f"± {e['kf_band95_median']:.2f}", "kN"),
         Card("mean force applied", _fmt(e["kf"]["mean_applied"]), "kN"),
-        Card("final stiffness factor", f"{summ['stiffness_factor_final']:.3f}"),
+        Card("stiffness factor at the end (last sample)",
+             f"{summ['stiffness_factor_final']:.3f}"),
     ]
 
 
