@@ -49,3 +49,29 @@ def test_variance_scale_widens_only_an_over_confident_filter():
     assert over["state"] == "over-confident" and variance_scale(over) == pytest.approx(1.5)
     assert variance_scale(nis_consistency(np.full(400, 1.0))) == 1.0
     assert variance_scale(nis_consistency(np.full(400, 0.2))) == 1.0  # never narrowed
+
+
+def test_strongly_autocorrelated_innovations_are_not_called_under_confident():
+    """The μ-slip EKF's innovations were +0.86 autocorrelated and its peak 21σ off, yet
+    its page said "under-confident" from a mean NIS below 1 (new-user test): a model
+    whose shape misses the truth leaves a structured error the filter follows step by
+    step, and the words say that, not that the band is too wide."""
+    from brakethermo.report.page import consistency_text
+
+    rng = np.random.default_rng(4)
+    K = 4000
+    x = 2.0 * np.sin(np.arange(K) / 300.0)  # a slow swing the constant model lacks
+    y = (x + rng.normal(0.0, 0.1, K))[:, None]
+    ukf = UnscentedKalmanFilter(lambda X, k: X, np.array([[1e-4]]), np.array([[4.0]]),
+                                H=np.array([[1.0]]))
+    res = ukf.run(np.array([0.0]), np.array([[1.0]]), y, store="diag")
+    c = nis_consistency(res.nis, res.n_obs, res.innovation)
+    assert c["state"] == "under-confident" and c["lag1_autocorrelation"] > 0.9
+    assert c["structured"]
+    text = consistency_text(c)
+    assert "strongly autocorrelated" in text and "band does not hold" in text, text
+    assert not text.startswith(f"mean NIS {c['mean_nis']:.2f} per step, under-confident")
+    fine = _random_walk_run(0.1, 0.1)
+    assert not fine["structured"]
+    assert consistency_text(fine).startswith(f"mean NIS {fine['mean_nis']:.2f} per step,"
+                                             " consistent")
