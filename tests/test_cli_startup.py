@@ -14,7 +14,7 @@ import sys
 
 import pytest
 
-from brakethermo.sim.rigs import RIG_SIMULATORS, rig_config
+from brakethermo.sim.rigs import RIG_SIMULATORS, rig_settings
 
 HEAVY_ROOTS = ("matplotlib", "scipy", "numba", "pandas", "pyarrow", "mcap", "asammdf", "filterpy")
 # brakethermo packages that are only reached through a pipeline or a reader.
@@ -78,7 +78,7 @@ def test_the_probe_sees_a_heavy_import() -> None:
 def test_rig_registry_resolves_each_config_on_demand(rig: str) -> None:
     cls = RIG_SIMULATORS[rig].config
     assert dataclasses.is_dataclass(cls) and cls.__module__ == RIG_SIMULATORS[rig].module
-    assert isinstance(rig_config(rig, [], seed=3), cls)
+    assert isinstance(cls(**rig_settings(rig, [], seed=3)), cls)
 
 
 def test_the_help_names_every_format_the_readers_take() -> None:

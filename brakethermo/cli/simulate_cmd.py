@@ -13,7 +13,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from brakethermo.cli._app import app, console
-from brakethermo.cli._options import JsonOpt
+from brakethermo.cli._options import JsonOpt, option_values
 from brakethermo.errors import ConfigError
 from brakethermo.sim.effects import EFFECT_NAMES, STRENGTH_MAX, parse_effects
 from brakethermo.sim.rigs import RIG_SIMULATORS
@@ -117,17 +117,20 @@ def _no_disc_options(rig: str, given: dict[str, bool]) -> None:
 
 
 def _disc_settings(settings: list[str]) -> dict[str, float]:
-    """``--set cooling=1.2 --set ambient_c=35`` for a disc session."""
+    """``--set cooling=1.2 --set ambient_c=35`` for a disc session (a key it does not
+    take, a value not a number: a usage error, exit 2)."""
     out: dict[str, float] = {}
-    for item in settings:
-        key, sep, value = item.partition("=")
-        if not sep or key.strip() not in DISC_SETTINGS:
-            raise ConfigError(f"--set {item}: a disc session takes {', '.join(DISC_SETTINGS)}"
-                              " as KEY=VALUE (rig settings need --rig)")
-        try:
-            out[key.strip()] = float(value)
-        except ValueError:
-            raise ConfigError(f"--set {item}: {value!r} is not a number") from None
+    with option_values():
+        for item in settings:
+            key, sep, value = item.partition("=")
+            if not sep or key.strip() not in DISC_SETTINGS:
+                raise ConfigError(f"--set {item}: a disc session takes"
+                                  f" {', '.join(DISC_SETTINGS)} as KEY=VALUE (rig settings"
+                                  " need --rig)")
+            try:
+                out[key.strip()] = float(value)
+            except ValueError:
+                raise ConfigError(f"--set {item}: {value!r} is not a number") from None
     return out
 
 
@@ -178,10 +181,13 @@ def _simulate_rig(
     rig: str, settings: list[str], seed: int, out: Path, fmt: str, as_json: bool
 ) -> None:
     """``simulate --rig``: one rig session and its truth file."""
-    from brakethermo.sim.rigs import simulate_rig
+    from brakethermo.sim.rigs import rig_settings
 
     t0 = time.perf_counter()
-    cfg, session_path, truth_path = simulate_rig(rig, settings, seed, out, fmt)
+    with option_values():  # a --set key the rig lacks, a value not of its type: usage
+        values = rig_settings(rig, settings, seed)
+    cfg = RIG_SIMULATORS[rig].config(**values)  # its own checks of the values: exit 1
+    session_path, truth_path = RIG_SIMULATORS[rig].run(cfg, out, fmt)
     facts = RIG_SIMULATORS[rig].truth_facts
     truth_facts = facts(cfg) if facts else {}
     summary = {

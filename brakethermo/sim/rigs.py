@@ -102,13 +102,15 @@ def _convert(text: str, kind: Any, key: str) -> Any:
             raise ValueError(text)
         return value
     except (TypeError, ValueError):
-        raise ConfigError(
-            f"--set {key}={text}: expected a finite {getattr(target, '__name__', target)}"
-        ) from None
+        expected = ("true or false (or 1/0, yes/no, on/off)" if target is bool else
+                    f"a finite {getattr(target, '__name__', target)}")
+        raise ConfigError(f"--set {key}={text}: expected {expected}") from None
 
 
-def rig_config(rig: str, settings: Sequence[str], seed: int) -> Any:
-    """The rig's config from ``KEY=VALUE`` settings (and the command's seed)."""
+def rig_settings(rig: str, settings: Sequence[str], seed: int) -> dict[str, Any]:
+    """The keyword arguments of the rig's config from ``KEY=VALUE`` settings (and the
+    command's seed), each of its field's type (ConfigError: a key the config does not
+    have, a value not of its type); the config's own checks of the values come after."""
     if rig not in RIG_SIMULATORS:
         raise ConfigError(f"unknown rig '{rig}'; simulated rigs: {', '.join(RIG_SIMULATORS)}")
     cls = RIG_SIMULATORS[rig].config
@@ -127,13 +129,4 @@ def rig_config(rig: str, settings: Sequence[str], seed: int) -> Any:
                 f" {', '.join(sorted(fields - {'seed'}))}"
             )
         values[key] = _convert(text.strip(), hints[key], key)
-    return cls(**values)
-
-
-def simulate_rig(
-    rig: str, settings: Sequence[str], seed: int, out: Path, fmt: str | None
-) -> tuple[Any, Path, Path]:
-    """Simulate and write one rig session: (config, session path, truth path)."""
-    cfg = rig_config(rig, settings, seed)
-    session, truth = RIG_SIMULATORS[rig].run(cfg, out, fmt)
-    return cfg, session, truth
+    return values
