@@ -355,6 +355,8 @@ def test_bad_input_exits_1_with_one_clear_line(tmp_path):
     res = runner.invoke(app, ["ebooster", str(no_delta), "--train", str(still_path),
                               "--out", str(tmp_path)])
     assert res.exit_code == 1 and "'pushrod_displacement': does not move" in res.output
+    # in the unit the file logs it in (it read "constant 0.003 m" for a log in mm)
+    assert "constant 3 mm throughout" in " ".join(res.output.split()), res.output
     # a training session without the pressure sensor: said as such (it read as a
     # missing alias, "add the file's name for it to an alias table")
     no_sensor, _ = write_ebooster_session(sim, tmp_path / "nosensor.csv", channels=(

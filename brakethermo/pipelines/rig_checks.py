@@ -10,7 +10,7 @@ estimate scored against it would be scored against nonsense.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -18,6 +18,7 @@ import numpy as np
 
 from brakethermo.errors import DataError
 from brakethermo.io.session import Session
+from brakethermo.io.units import parse_unit
 from brakethermo.numeric import true_runs
 
 # A 95 % band covering less than this of the applies on the session's own sensor is said
@@ -67,14 +68,27 @@ class Expect:
     least: float = 0.0
 
 
-def _fault(v: np.ndarray, e: Expect) -> str | None:
+def _as_logged(session: Session, e: Expect) -> Callable[[float], str]:
+    """A value of the channel (SI) in words, in the unit the file logs it in ("9.5 mm",
+    not "0.0095 m"): the figure the user finds in the log."""
+    info = session.channels.get(e.channel)
+    unit = parse_unit(info.unit) if info is not None and info.unit.strip() else None
+    if info is None or unit is None or (unit.scale == 1.0 and unit.offset == 0.0):
+        return lambda x: f"{x:.4g} {e.unit}"
+    return lambda x: f"{(x - unit.offset) / unit.scale:.4g} {info.unit}"
+
+
+def _fault(v: np.ndarray, e: Expect, shown: Callable[[float], str] | None = None
+           ) -> str | None:
     """What is wrong with one channel's finite values, in words (None: nothing); a single
-    value (a constant of the log) is judged on its range and sign only."""
+    value (a constant of the log) is judged on its range and sign only. ``shown``: a
+    value (SI) in words (default: in SI, :func:`_as_logged` in the log's unit)."""
     scale = float(np.percentile(np.abs(v), 99.5))
+    shown = shown or (lambda x: f"{x:.4g} {e.unit}")
     if v.size == 1 and e.positive and not v[0] > 0.0:
-        return f"is {float(v[0]):.4g} {e.unit}: it must be positive"
+        return f"is {shown(float(v[0]))}: it must be positive"
     if v.size > 1 and np.ptp(v) <= 1e-9 * max(scale, 1e-30):
-        return (f"does not move (constant {float(v[0]):.4g} {e.unit} throughout): nothing was"
+        return (f"does not move (constant {shown(float(v[0]))} throughout): nothing was"
                 " applied in this session, or the sensor is zeroed, frozen or not connected")
     if scale > e.most:
         return (f"reaches {scale:.4g} {e.unit}, beyond any such rig (at most about"
@@ -123,7 +137,7 @@ def check_rig_channels(session: Session, expects: Sequence[Expect]) -> list[str]
                             " throughout: taken as the rig's set-point (a frozen sensor"
                             " would read so too)")
             continue
-        fault = _fault(v, e)
+        fault = _fault(v, e, _as_logged(session, e))
         if fault is None:
             if e.measured and e.channel not in session.constants:
                 warnings.extend(_frozen_stretches(session, e))
