@@ -261,6 +261,8 @@ def test_a_rig_log_in_the_folder_is_listed_not_failed(tmp_path: Path) -> None:
     status = {o.name: (o.status, o.reason) for o in result.outcomes}
     assert status["race"][0] == "ok" and status["emb"][0] == "rig session"
     assert "brakethermo clamp-force reads it" in status["emb"][1]
+    # its kind is the rig's (the table listed it as a "single"-spot disc session)
+    assert {o.name: o.kind for o in result.outcomes}["emb"] == "emb"
     assert result.exit_code == 0 and "rig session" in (tmp_path / "out" / "index.html"
                                                         ).read_text()
 

@@ -128,7 +128,7 @@ def process_session(
         rig = detect_rig(task.path, task.options.aliases)
         if rig is not None:  # a rig log in the folder is not a disc session that failed
             kind = KINDS[rig]
-            outcome.status = RIG_SESSION
+            outcome.status, outcome.kind = RIG_SESSION, rig  # not "single": no disc spot
             outcome.reason = (f"{kind.words} session, not a disc one: {kind.command} reads"
                               " it (batch estimates the disc sessions)")
     outcome.wall_s = time.perf_counter() - t0

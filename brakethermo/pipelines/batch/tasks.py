@@ -32,7 +32,8 @@ STEPS = ("read_s", "identify_s", "estimate_s", "write_s", "report_s", "mcap_s", 
 Status = Literal["ok", "skipped", "failed", "deferred"]
 
 
-Kind = Literal["multi", "single"]
+# a disc session's spots, or the rig (io.kinds.KINDS) a rig log in the folder is of
+Kind = Literal["multi", "single", "ebooster", "emb", "roller-rig", "mu-slip"]
 
 
 @dataclass(frozen=True)
@@ -186,7 +187,7 @@ class SessionOutcome:
     path : Path
     name : str
     status : {"ok", "skipped", "failed", "deferred"}
-    kind : {"multi", "single"} or None
+    kind : {"multi", "single"}, a rig's name (a rig session) or None
         None when the file could not be read.
     laps : int
     wall_s : float — s
