@@ -128,6 +128,8 @@ def test_several_booster_sessions_are_pooled_as_the_contract_says(tmp_path):
     r = runner.invoke(app, ["diagnose", str(shifted), str(caliper), "--out",
                             str(tmp_path / "mixed")])
     assert r.exit_code == 1 and "one rig" in r.output and "Traceback" not in r.output
+    said = " ".join(r.output.split())  # the kinds' words: it read "a emb session of the"
+    assert "an EMB caliper rig session, while the others are of an E-Booster rig" in said
     assert not (tmp_path / "mixed" / shifted.stem).exists()
 
 

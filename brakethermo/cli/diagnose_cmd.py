@@ -211,16 +211,18 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
     if rig == "emb" and train is None:
         raise ConfigError("--rig emb needs --train SESSION: the caliper session the"
                           " stiffness model is trained on (with the clamp-force sensor)")
-    from brakethermo.io.kinds import detect_rig, rig_kind
+    from brakethermo.io.kinds import KINDS, detect_rig, rig_kind
     from brakethermo.pipelines.output_dir import check_output_dir, check_session_folder
 
     check_output_dir(out)
+    mine = rig_kind(rig).words  # every name of RIGS is a kind's
     for path in sessions:
         other = detect_rig(path, aliases) if len(sessions) > 1 else rig
         if RIG_NAMES.get(other, other) != rig:  # None: a disc session, or no session
-            raise ConfigError(f"{path}: {f'a {other}' if other else 'no'} session of the"
-                              f" {rig} rig among the others; diagnose pools the sessions of"
-                              " one rig: give each rig its own call")
+            # the kinds' own words ("an EMB caliper rig"), not their ids ("a emb")
+            what = f"{KINDS[other].words} session" if other in KINDS else "no rig session"
+            raise ConfigError(f"{path}: {what}, while the others are of {mine}; diagnose"
+                              " pools the sessions of one rig: give each rig its own call")
         check_session_folder(out, path, rig_kind(rig).table)
     results = [_one_rig(rig, path, effects, train, fit, radius, aliases) for path in sessions]
     folders = [write_rig_diagnosis(r, out) for r in results]
