@@ -264,6 +264,7 @@ def test_training_chooses_the_process_noise_its_pressure_sensor_supports(session
     session = load_booster_session(sessions["train"], training=True)
     factor, nats = choose_q_factor(session, SPEC)
     assert factor in Q_FACTORS and len(nats) == len(Q_FACTORS) and np.all(np.isfinite(nats))
+
     def scaled(k: float):
         return replace(SPEC, q_pressure_mpa=tuple(k * q for q in SPEC.q_pressure_mpa),
                        q_zeta=tuple(k * q for q in SPEC.q_zeta), q_pm_speed=k * SPEC.q_pm_speed)
@@ -555,6 +556,7 @@ def test_a_session_spread_no_curve_shift_explains_keeps_the_datasheets_band():
     assert (shift, source) == (SPEC.pv_shift_sd_mm, "datasheet")
     assert said is not None and "pressure sensor or its unit is suspect" in said
 
+
 def test_the_band_sentence_is_computed_from_the_table():
     """The page said a consistent 1σ band leaves 32 % outside, beside 3.2 % measured, and
     never that the p–V curve alone beat both observers (new-user test)."""
@@ -566,6 +568,8 @@ def test_the_band_sentence_is_computed_from_the_table():
     assert "3.2 % outside 1σ" in words[0] and "wider than its errors" in words[0]
     assert "p–V curve alone (0.036 MPa RMSE)" in words[1]
     assert len(_band_words(s, 0.040)) == 1  # the EKF beat the curve: nothing said
+    s["coverage_95"]["ukf"] = 0.938  # a narrow 1σ share, but the 95 % band does not hold
+    assert "about as wide as its errors" in _band_words(s, None)[0]
     s["outside_1sigma"]["ukf"]["p_m"] = 0.31
     assert "about as wide as its errors" in _band_words(s, None)[0]
     s["outside_1sigma"]["ukf"]["p_m"] = None  # no p_m sensor: no sentence

@@ -197,3 +197,16 @@ def test_a_reversed_channel_is_blamed_on_the_file_that_has_it(
     text = " ".join(res.output.split())
     assert res.exit_code == 1, text
     assert bad.name in text and sessions["embt"].name in text and channel in text, text
+
+
+def test_a_caliper_that_clamps_rarely_is_not_a_thousand_times_too_small() -> None:
+    """The check compares the held peak, not the 99.5th percentile: one 0.25 s apply of
+    8 kN in 60 s at 1 kHz read as 36 N and was called a unit slip (review)."""
+    from brakethermo.pipelines.rig_checks import Expect, _fault
+
+    rng = np.random.default_rng(0)
+    v = 20.0 + rng.normal(0.0, 5.0, 60_000)
+    v[30_000:30_250] = 8000.0
+    e = Expect("clamp_force", "N", 1e5, positive=True, least=200.0)
+    assert _fault(v, e) is None
+    assert "less than any use" in (_fault(v / 1000.0, e) or "")

@@ -137,3 +137,19 @@ def test_a_loggers_no_reading_code_is_left_out_not_refused() -> None:
     varying[500:550] = np.linspace(-130.0, -150.0, 50)
     with pytest.raises(DataError, match="labelled K"):
         check_pyrometer(varying, np.zeros(t.size, bool), 24.0, 0.1)
+
+
+@pytest.mark.parametrize("code", [-999.0, -273.15])
+def test_a_loggers_no_reading_code_in_a_file_is_left_out(tmp_path: Path, code: float) -> None:
+    """Through the reader and the grid (which puts values between the code and the first
+    readings): a race whose pyrometer logs a code before the disc passes its floor runs
+    (review: refused whole, and -273.15 told to 'set the channel's unit to degC')."""
+    table = pq.read_table(SAMPLE_CSV.with_name("mugello_race_single.parquet"))
+    temp = table.column("disc_temp").to_numpy(zero_copy_only=False).astype(float)
+    time = table.column("time").to_numpy()
+    temp[np.isnan(temp) & (time < 31.4)] = code
+    i = table.column_names.index("disc_temp")
+    bad = tmp_path / "race_code.parquet"
+    pq.write_table(table.set_column(i, table.schema.field(i), pa.array(temp)), bad)
+    res = _estimate(bad, tmp_path)
+    assert res.exit_code == 0, res.output

@@ -192,7 +192,6 @@ RIGS = ("ebooster", "emb", "roller-rig", "tyre")
 RIG_NAMES = {"mu-slip": "tyre"}  # the tyre rig by its command's name
 
 
-
 def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
                   train: Path | None, fit: Path | None, radius: float | None,
                   aliases: Path | None, as_json: bool) -> None:
@@ -311,11 +310,9 @@ def _next_steps(s: dict) -> None:
 
 
 def _verdict_text(s: dict) -> str:
-    if s["verdict_kind"] == "set":
-        # the clause that made it a set: a diagnosis.json of an older run has no verdict_why
-        why = s.get("verdict_why") or "the data cannot tell them apart"
-        return "one of " + " / ".join(s["verdict_set"]) + f" ({why})"
-    return s["verdict"]
+    from brakethermo.report.page import verdict_text
+
+    return verdict_text(s)
 
 
 def _render(result: Any, folder: Path) -> None:  # a DiagnoseResult (imported lazily)

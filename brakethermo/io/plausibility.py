@@ -40,6 +40,8 @@ LOWEST_DISC_C = -50.0
 # reader's Hampel filter mostly removes) touches at most two grid points (0.2 s), while the
 # warm-up past the floor of a hot spot read in degC labelled K lasts 1 s or more
 COLD_SPAN_S = 0.5
+# share of those readings at one value that makes them a logger's "no reading" code
+SENTINEL_SHARE = 0.9
 
 
 def _finite(values: np.ndarray) -> np.ndarray:
@@ -197,9 +199,11 @@ def _check_not_celsius_as_kelvin(t: np.ndarray, ambient_c: float, dt: float,
     cold = t < LOWEST_DISC_C
     if cold.sum() * dt < COLD_SPAN_S:
         return
-    if np.ptp(t[cold]) == 0.0:
-        # one value repeated: a logger's code for "no reading" (-999, -273.15), not a
-        # disc; under the floor, it is left out like every reading there
+    _, counts = np.unique(np.round(t[cold], 2), return_counts=True)  # unit round trips
+    if counts.max() >= SENTINEL_SHARE * cold.sum():
+        # one value held: a logger's code for "no reading" (-999, -273.15), not a disc;
+        # under the floor, it is left out like every reading there (the grid's
+        # resampling leaves a few values between it and the readings at each end)
         return
     low = float(np.min(t))
     head = (f"reads down to {low:.0f} °C ({cold.sum() * dt:.1f} s below"

@@ -73,7 +73,6 @@ MIN_PEAK_FORCE_N = 200.0
 MIN_SCORED_SHARE = 0.5  # of an estimated session's force samples, finite, to score on it
 
 
-
 def load_emb(
     path: str | Path, *, need_sensor: bool, role: str, aliases: Path | None = None,
     rate_hz: float | None = None,
@@ -153,7 +152,6 @@ def load_emb_at_one_rate(
     return out
 
 
-
 def choose_sensor_lag(theta: np.ndarray, current: np.ndarray, F: np.ndarray | None,
                       ts: float) -> SensorLag | None:
     """The lag of a session's clamp-force sensor (:func:`lag_scores`), None without one.
@@ -181,7 +179,6 @@ def choose_sensor_lag(theta: np.ndarray, current: np.ndarray, F: np.ndarray | No
     if lag > 0.0:
         window, band = eq7_choice(theta, current, sensor_delagged(F, lag, ts), ts)
     return SensorLag(lag, best, rms, shrink, (window, band))
-
 
 
 def clamp_force(
@@ -294,7 +291,6 @@ def _check_sources(est: ClampForceEstimates, data: EmbData, trained: EmbData) ->
                 path=data.session.path, channel=channel)
 
 
-
 def _rmse_kn(est: ClampForceEstimates, force: np.ndarray | None) -> dict[str, float | None]:
     return {
         k: (None if force is None else rmse(v, force) / 1e3)
@@ -392,7 +388,6 @@ def _model_dict(m: ClampForceModels, path: Path) -> dict[str, Any]:
     }
 
 
-
 # what the stiffness factor in _kf_text's words is: not the page's final value (the last
 # sample's, which a release or a last apply moves), so the two are not read as one
 APPLIED_MEDIAN = "median over the samples where the brake is applied, not its final value"
@@ -466,7 +461,6 @@ def _kf_text(res: ClampForceResult) -> str:
         text += (f"; its band widened {np.sqrt(est.kf_noise_scale):.2f}x, {why} (same gain,"
                  " same estimate)")
     return text
-
 
 
 def lag_text(res: ClampForceResult) -> str | None:

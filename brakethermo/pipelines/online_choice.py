@@ -676,6 +676,8 @@ def _open_loop(run: Any, lap: np.ndarray, laps: np.ndarray, starts: np.ndarray
         if step.any():
             x[step] = ssm.f(x[step], k0[step] + j)
     return [(i, pred[m * V:(m + 1) * V, :i.size].T) for m, i in enumerate(idx)]
+
+
 def _lap_ahead_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
                     rule: VerdictRule) -> dict[str, Any]:
     """Does ``other``'s model predict the flying laps after the first better, a lap ahead?"""

@@ -73,11 +73,14 @@ def session_spec(session: Session, spec: RollerRigSpec) -> tuple[RollerRigSpec, 
         return replace(spec, roller_radius=value), (
             f"session fact {key} (the datasheet {spec.id} says {spec.roller_radius:g} m)")
     return spec, f"datasheet {spec.id}"
+
+
 REF_EXPECT = Expect("rolling_radius_ref", "m", 2.0, positive=True, role="score")
 
 RADIUS_RANGE_MM = (100.0, 1000.0)  # a tram wheel's rolling radius, and the accepted guesses
 RATIO_TOLERANCE = 0.03  # traction creep moves the speed-ratio radius by well under this
 RATIO_SIGMAS = 2.0  # a free-rolling departure from the ratio beyond this many sigmas is said
+
 
 @dataclass(frozen=True)
 class RollerRigOptions:

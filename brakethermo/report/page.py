@@ -185,3 +185,12 @@ def consistency_text(c: dict[str, Any]) -> str:
     return (f"mean NIS {c['mean_nis']:.2f} per step, {c['state']} (95 % band"
             f" {lo:.2f}–{hi:.2f} for {c['dof_per_step']:g} measured value(s) a step;"
             f" lag-1 autocorrelation of the innovations {c['lag1_autocorrelation']:+.2f})")
+
+
+def verdict_text(summary: dict[str, Any]) -> str:
+    """A diagnosis.json's verdict in words: the name, or a set as "one of a / b (why)" with
+    the clause that made it a set (``verdict_why``; a file of an older run has none)."""
+    if summary.get("verdict_kind") != "set":
+        return str(summary["verdict"])
+    why = summary.get("verdict_why") or "the data cannot tell them apart"
+    return "one of " + " / ".join(summary["verdict_set"]) + f" ({why})"

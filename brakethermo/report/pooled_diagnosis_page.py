@@ -9,7 +9,14 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from brakethermo.report.page import Card, Page, Section, TableBlock, number_text
+from brakethermo.report.page import (
+    Card,
+    Page,
+    Section,
+    TableBlock,
+    number_text,
+    verdict_text,
+)
 
 
 def _per_session(summary: dict[str, Any]) -> list[tuple[str, str, list[str]]]:
@@ -32,9 +39,7 @@ def pooled_page(summary: dict[str, Any]) -> Page:
     stems = [stem for stem, _, _ in sessions]
     verdict = summary["verdict"]
     kind = summary.get("verdict_kind", "")
-    shown = ("none" if not summary["verdict_set"] else
-             " / ".join(summary["verdict_set"]) + (" (the data cannot tell them apart)"
-                                                    if kind == "set" else ""))
+    shown = verdict_text(summary)
     effects = [[e["name"], f"{number_text(e.get('shrink_pct'), '+.1f')} %", _interval(e),
                 "yes" if e.get("significant") else "no",
                 ", ".join(e.get("significant_in") or []) or "–",

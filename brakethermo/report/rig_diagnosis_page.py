@@ -15,6 +15,7 @@ from brakethermo.report.page import (
     TableBlock,
     as_number,
     finish_figure,
+    verdict_text,
 )
 
 RIG_NAMES = {"ebooster": "E-Booster", "emb": "EMB caliper", "roller-rig": "Roller rig",
@@ -24,11 +25,11 @@ if TYPE_CHECKING:
     from brakethermo.results.rig_diagnosis import RigDiagnosis
 
 
-
 def _interval(lo: object, hi: object) -> str:
     """A shrink interval for the table; a dash where none was drawn (too few units)."""
     a, b = as_number(lo), as_number(hi)
     return f"{a:+.0f} … {b:+.0f}" if math.isfinite(a) and math.isfinite(b) else "– (too few units)"
+
 
 def _pv_figure(r: RigDiagnosis) -> Figure:
     fig, ax = plt.subplots(figsize=(7, 4.2))
@@ -59,9 +60,7 @@ def _residual_figure(r: RigDiagnosis) -> Figure:
 def rig_diagnosis_page(r: RigDiagnosis) -> Page:
     """The page of a rig diagnosis."""
     s = r.summary
-    why = s.get("verdict_why") or "the data cannot tell them apart"
-    verdict = (" / ".join(s["verdict_set"]) + f" ({why})"
-               if s["verdict_kind"] == "set" else s["verdict"])
+    verdict = verdict_text(s).removeprefix("one of ")
     top = s["effects"][0] if s["effects"] else None
     rows = []
     for e in s["effects"]:
