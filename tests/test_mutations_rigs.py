@@ -210,3 +210,16 @@ def test_a_caliper_that_clamps_rarely_is_not_a_thousand_times_too_small() -> Non
     e = Expect("clamp_force", "N", 1e5, positive=True, least=200.0)
     assert _fault(v, e) is None
     assert "less than any use" in (_fault(v / 1000.0, e) or "")
+
+
+def test_a_pressure_sensor_its_check_warned_about_scores_nothing(sessions: dict[str, Path],
+                                                                 tmp_path: Path) -> None:
+    """A p_m sensor in bar labelled MPa printed a p_m RMSE of 45.8 MPa beside a warning
+    that the figures mean nothing (new-user test): the channel now scores nothing."""
+    bad = _mutate(sessions["ebv"], "master_cylinder_pressure", "x1000", tmp_path)
+    res = RUNNER.invoke(app, _command("ebooster", bad, sessions, tmp_path / "out"))
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.stdout[res.stdout.index("{"):])
+    assert all(summary["pressure_rmse_mpa"][w]["p_m"] is None for w in ("ukf", "ekf"))
+    assert any("master_cylinder_pressure" in w for w in summary["warnings"])
+    assert not any("--with-effect auto" in w for w in summary["warnings"])
