@@ -153,3 +153,26 @@ def test_a_loggers_no_reading_code_in_a_file_is_left_out(tmp_path: Path, code: f
     pq.write_table(table.set_column(i, table.schema.field(i), pa.array(temp)), bad)
     res = _estimate(bad, tmp_path)
     assert res.exit_code == 0, res.output
+
+
+def _air_in(unit: str, dst: Path) -> Path:
+    """The shipped multi-spot CSV with its air channel's unit cell saying ``unit``."""
+    lines = SAMPLE_CSV.read_text().splitlines(keepends=True)
+    dst.write_text(lines[0].replace("ambient_temp [degC]", f"ambient_temp [{unit}]")
+                   + "".join(lines[1:]))
+    return dst
+
+
+def test_an_air_temperature_no_session_runs_in_is_refused(tmp_path: Path) -> None:
+    """The air in degC labelled K read -249 degC and a four-spot session was diagnosed
+    with a named effect, exit 0 (review); the same values labelled degF (-4 degC air, a
+    cold day) are air a session may run in, and pass."""
+    res = runner.invoke(app, ["diagnose", str(_air_in("K", tmp_path / "air_K.csv")),
+                              "--out", str(tmp_path / "o")])
+    assert res.exit_code == 1, res.output
+    text = " ".join(res.output.split())
+    assert "ambient_temp" in text and "degC labelled K?" in text, text
+    assert "Traceback" not in res.output
+    res = runner.invoke(app, ["diagnose", str(_air_in("degF", tmp_path / "air_F.csv")),
+                              "--out", str(tmp_path / "o2")])
+    assert res.exit_code == 0, res.output

@@ -21,6 +21,9 @@ from brakethermo.errors import DataError
 from brakethermo.io.kinds import kind_hint
 from brakethermo.io.units import si_unit
 
+AIR_RANGE_C = (-40.0, 60.0)  # degC: the air of any session (whatif's scenarios' range too)
+KELVIN_C = 273.15
+
 GRID_DT = 0.1  # s, the OUTPUTS.md time base
 
 
@@ -192,6 +195,20 @@ class Session:
         self.require(name)
         return self.frame[name].to_numpy(dtype=float)
 
+    def _check_air(self, air_c: float, what: str) -> None:
+        """Refuse an air temperature no session is run in (:data:`AIR_RANGE_C`), naming
+        the likely unit slip: degC labelled K put a 24 degC day at -249 degC, and the
+        diagnosis then named an effect with confidence (review)."""
+        lo, hi = AIR_RANGE_C
+        if lo <= air_c <= hi:
+            return
+        hint = ("degC labelled K? set its unit to degC" if lo <= air_c + KELVIN_C <= hi
+                else "kelvin labelled degC? set its unit to K" if lo <= air_c - KELVIN_C <= hi
+                else "check its unit")
+        raise DataError(f"{what} reads {air_c:.0f} °C (median): no session is run in such"
+                        f" air ({lo:g} to {hi:g} °C): {hint}, or pass --ambient DEGC",
+                        path=self.path)
+
     def ambient_c(self, override_c: float | None = None) -> np.ndarray:
         """Ambient temperature on the grid, degC.
 
@@ -204,16 +221,19 @@ class Session:
         if self.has("ambient_temp"):
             amb = pd.Series(self.values("ambient_temp")).ffill().bfill().to_numpy()
             if np.isfinite(amb).all():
+                self._check_air(float(np.median(amb)), "channel 'ambient_temp'")
                 return amb
         if "ambient_temp_c" in self.metadata:
             try:
-                return np.full(n, float(self.metadata["ambient_temp_c"]))
+                air = float(self.metadata["ambient_temp_c"])
             except ValueError:
                 raise DataError(
                     f"session fact ambient_temp_c={self.metadata['ambient_temp_c']!r} is not"
                     " a number; fix it or pass --ambient",
                     path=self.path,
                 ) from None
+            self._check_air(air, "session fact ambient_temp_c")
+            return np.full(n, air)
         raise DataError(
             "no ambient temperature: no 'ambient_temp' channel and no session fact"
             " 'ambient_temp_c'; pass --ambient DEGC",
