@@ -129,8 +129,10 @@ def test_by_default_a_session_with_its_sensor_measures_where_its_curve_sits(tmp_
 def test_the_default_does_not_trust_a_pressure_sensor_that_is_off(tmp_path, fault):
     """The default places the curve with the session's own pressure sensor: one read in
     bar as MPa (its channel check flags it) is not used, the band stays the datasheet's
-    and the coverage warning against it still speaks; a sensor 2 MPa off that passes the
-    channel check reads so at rest, where a master cylinder holds none: not used either."""
+    and nothing is scored against it (its RMSE and a coverage warning sending the user to
+    diagnose would mean nothing: new-user test); a sensor 2 MPa off that passes the
+    channel check reads so at rest, where a master cylinder holds none: not used either,
+    and the coverage warning against it speaks."""
     sim = simulate_ebooster(EboosterSimConfig("open", seed=27, rate_hz=500.0, duration_s=12.0))
     p_m = sim.meas[PRESSURES["p_m"]]
     bad = replace(sim, meas={**sim.meas,
@@ -139,6 +141,9 @@ def test_the_default_does_not_trust_a_pressure_sensor_that_is_off(tmp_path, faul
     s = observe(path).summary
     assert s["band"]["pv_shift_sd_mm"] == pytest.approx(0.25)
     assert "suspect" in s["with_effect"]["skipped"] and s["with_effect"]["effects"] == {}
-    assert any("while the brake is applied" in w for w in s["warnings"])
+    flagged = any(w.startswith(f"channel '{PRESSURES['p_m']}'") for w in s["warnings"])
+    assert flagged is (fault == "x10")
+    assert (s["pressure_rmse_mpa"]["ukf"]["p_m"] is None) is flagged
+    assert any("while the brake is applied" in w for w in s["warnings"]) is not flagged
     if fault == "offset":
         assert "+2.00 MPa with the screw back at rest" in s["with_effect"]["skipped"]

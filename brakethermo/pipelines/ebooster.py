@@ -736,15 +736,7 @@ def observe(
             " and delta", path=session.path, channel=DELTA)
     noise_warning = _beyond_noise(tracks, lost, session.path, fit.train_session)
     tracks = {w: _withdrawn(t) if w in lost else t for w, t in tracks.items()}
-    # a pressure channel its check warned about scores nothing: its figures would mean
-    # nothing (a bar sensor labelled MPa printed a p_m RMSE of 45.8 MPa, and a coverage
-    # warning sent the user to diagnose and retraining)
-    validation = {
-        state: _series(session, ch, MPA, gaps=True)
-        for state, ch in PRESSURES.items()
-        if session.has(ch) and not any(w.startswith(f"channel '{ch}'")
-                                       for w in session.warnings)
-    }
+    validation = _validation(session)
     summary = _summary(session, spec, fit, tracks, validation, smooth, t_train, s2)
     summary["band"] = _band(shift_sd, shift_from, curve_sd)
     summary["warnings"] += [w for w in (shift_warning, noise_warning) if w]
@@ -757,6 +749,17 @@ def observe(
         for other in OBSERVERS if other != w]
     return EboosterResult(session, spec, fit, session.time, s2, delta, validation, tracks,
                           summary)
+
+
+def _validation(session: Session) -> dict[str, Array]:
+    """The session's pressure sensors (MPa) the observers are scored against, by state. A
+    channel its own check warned about scores nothing: its figures would mean nothing (a
+    bar sensor labelled MPa printed a p_m RMSE of 45.8 MPa, and a coverage warning sent
+    the user to diagnose and retraining)."""
+    return {state: _series(session, ch, MPA, gaps=True)
+            for state, ch in PRESSURES.items()
+            if session.has(ch) and not any(w.startswith(f"channel '{ch}'")
+                                           for w in session.warnings)}
 
 
 def _summary(
