@@ -288,7 +288,10 @@ def test_bad_inputs_exit_1(tmp_path: Path) -> None:
     rolling = tuple(Channel(c.name, c.unit, c.time[:1500], c.value[:1500]) for c in ch.values())
     assert "no braking" in _bad(tmp_path, rolling, facts)
     no_radius = {k: v for k, v in facts.items() if k != "wheel_radius_m"}
-    assert "radius" in _bad(tmp_path, tuple(ch.values()), no_radius)
+    # without a radius, and no free rolling to take one from (μ 0.3 throughout): refused
+    braked = tuple(Channel(c.name, c.unit, c.time, 0.3 * ch["normal_force"].value)
+                   if c.name == "drag_force" else c for c in ch.values())
+    assert "radius" in _bad(tmp_path, braked, no_radius)
     odd = tuple(
         Channel(c.name, "wibble/s" if c.name == "vehicle_speed" else c.unit, c.time, c.value)
         for c in ch.values()
@@ -515,3 +518,19 @@ def test_a_vehicle_speed_in_kmh_labelled_ms_is_named(tmp_path: Path) -> None:
     with pytest.raises(DataError, match="vehicle_speed looks like km/h labelled m/s") as err:
         mu_slip(path)
     assert err.value.channel == "vehicle_speed"
+
+
+def test_a_session_without_a_radius_takes_it_from_its_free_rolling(tmp_path: Path) -> None:
+    """A log with no wheel_radius_m fact was refused while its own free-rolling speeds gave
+    the radius, 0.300 m, and the message said so (new-user test): the radius is taken from
+    them, and said; the peak is the one the right --radius gives."""
+    sim = simulate_tyre_rig("dry", seed=8106)
+    facts = {k: v for k, v in sim.session.facts.items() if k != "wheel_radius_m"}
+    path = write_session(tmp_path / "no_radius.parquet", SessionData(sim.session.channels,
+                                                                      facts))
+    taken = summary(mu_slip(path))
+    assert taken["wheel_radius_m"] == pytest.approx(float(sim.session.facts["wheel_radius_m"]),
+                                                    rel=0.01)
+    assert any("taken from its free-rolling speeds" in w for w in taken["warnings"])
+    given = summary(mu_slip(path, MuSlipOptions(radius_m=taken["wheel_radius_m"])))
+    assert taken["peak"]["mu"] == pytest.approx(given["peak"]["mu"])

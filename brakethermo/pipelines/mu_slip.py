@@ -38,6 +38,7 @@ CHANNELS = ("vehicle_speed", "wheel_speed", "drag_force", "normal_force", "slip_
             "friction_coefficient")
 RADIUS_FACTS = ("wheel_radius_m", "rolling_radius_m")
 LOCK_SLIP = 0.95  # slip at which the wheel counts as locked
+RADIUS_RANGE_M = (0.05, 2.0)  # m: a wheel radius (--radius's range)
 
 
 @dataclass(frozen=True)
@@ -68,7 +69,8 @@ class MuSlipOptions:
                                   f" above its low end {lo:g} and at most {top:g}")
         if not 1.0 <= self.inflation < float("inf"):
             raise ConfigError(f"inflation must be at least 1, got {self.inflation}")
-        if self.radius_m is not None and not 0.05 <= self.radius_m <= 2.0:
+        if self.radius_m is not None and not (RADIUS_RANGE_M[0] <= self.radius_m
+                                              <= RADIUS_RANGE_M[1]):
             raise ConfigError(f"--radius {self.radius_m} m is not a wheel radius; give metres,"
                               " 0.05 to 2 (a tyre rig's wheel is some 0.2-0.4 m)")
 
@@ -109,9 +111,12 @@ def slip_and_mu(
                     ) from None
                 break
     if radius_m is None:
+        radius_m = free_rolling_radius(session, mu)
+    if radius_m is None:
         raise DataError(
-            "no wheel radius: the session has no slip_ratio channel and no fact"
-            f" {' or '.join(RADIUS_FACTS)}; pass --radius METRES",
+            "no wheel radius: the session has no slip_ratio channel, no fact"
+            f" {' or '.join(RADIUS_FACTS)} and too little free rolling (μ about 0) to take"
+            " it from the speeds; pass --radius METRES",
             path=session.path,
         )
     V = session.values("vehicle_speed")
@@ -119,6 +124,22 @@ def slip_and_mu(
         slip = (V - session.values("wheel_speed") * radius_m) / V
     slip[V < 1.0] = np.nan  # slip is undefined near standstill
     return slip, mu, radius_m
+
+
+def free_rolling_radius(session: Session, mu: np.ndarray) -> float | None:
+    """The wheel's rolling radius (m) from its free rolling: the median of V / ω where
+    μ is about nil (no brake torque: slip nil) and the carriage moves (V > 1 m/s), at
+    least :data:`MIN_FREE_SAMPLES` of them; None when there are fewer, or the ratio is no
+    wheel radius (:data:`RADIUS_RANGE_M`). A session without a radius fact was refused
+    while its own speeds gave 0.300 m (new-user test)."""
+    V, w = session.values("vehicle_speed"), session.values("wheel_speed")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = V / w
+        free = (np.abs(mu) < FREE_MU) & (V > 1.0) & np.isfinite(ratio) & (w > 0.0)
+    if free.sum() < MIN_FREE_SAMPLES:
+        return None
+    r = float(np.median(ratio[free]))
+    return r if RADIUS_RANGE_M[0] <= r <= RADIUS_RANGE_M[1] else None
 
 
 def _smoothed(session: Session, slip: np.ndarray) -> np.ndarray:
@@ -339,7 +360,7 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
                             " table, as the paper's 40 points; pass --points",
                             path=Path(path)) from None
         raise
-    warnings = _radius_warning(session, options.radius_m)
+    warnings = _radius_warning(session, options.radius_m, radius)
     frozen, where = np.zeros(mu.size, bool), []
     for channel in ("drag_force", "normal_force"):
         if session.has(channel) and not _mu_logged(session):
@@ -389,12 +410,19 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
                       np.interp(t_ramp, t_ramp[fin], s_ramp[fin]), np.flatnonzero(ok))
 
 
-def _radius_warning(session: Session, radius_m: float | None) -> list[str]:
-    """--radius beside a session fact that says otherwise: the option wins, and says so."""
+def _radius_warning(session: Session, radius_m: float | None, used: float | None
+                    ) -> list[str]:
+    """--radius beside a session fact that says otherwise: the option wins, and says so;
+    a radius taken from the free-rolling speeds (``used``, neither given nor a fact) is
+    said too."""
     if radius_m is not None and session.has("slip_ratio"):
         return [f"--radius {radius_m:g} m is not used: the session logs slip_ratio, which"
                 " needs no radius"]
     fact = next((k for k in RADIUS_FACTS if k in session.metadata), None)
+    if radius_m is None and fact is None and used is not None:
+        return [f"no wheel radius in the session: taken from its free-rolling speeds,"
+                f" {used:.3f} m (the median of V / ω where μ is about 0); pass --radius to"
+                " set it"]
     if radius_m is None or fact is None:
         return []
     try:
