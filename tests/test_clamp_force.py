@@ -348,11 +348,11 @@ def test_simulate_rig_emb_writes_a_readable_session(tmp_path: Path) -> None:
     bad = CliRunner().invoke(
         app, ["simulate", "--rig", "emb", "--set", "scenario=rusty", "--out", str(out)]
     )
-    assert bad.exit_code == 1 and "scenario='rusty'" in bad.output
+    assert bad.exit_code == 2 and "scenario='rusty'" in bad.output
     assert "Traceback" not in bad.output
     slow = CliRunner().invoke(app, ["simulate", "--rig", "emb", "--set", "force_lag_s=0.5",
                                     "--out", str(out)])
-    assert slow.exit_code == 1 and "force_lag_s=0.5 out of range" in slow.output
+    assert slow.exit_code == 2 and "force_lag_s=0.5 out of range" in slow.output
 
 
 @pytest.mark.parametrize("lag_s", [0.0, 0.008])

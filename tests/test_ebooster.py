@@ -334,11 +334,11 @@ def test_simulate_rig_ebooster_production_session_and_bad_settings(tmp_path):
     assert {"p_m", "pedal_force", "delta"} <= set(truth.columns) and len(truth) == 401
     bad = runner.invoke(app, [*args[:3], "--set", "scenario=race", "--out",
                               str(tmp_path / "c.csv")])
-    assert bad.exit_code == 1 and "unknown scenario 'race'" in bad.output
+    assert bad.exit_code == 2 and "unknown scenario 'race'" in bad.output
     assert "Traceback" not in bad.output
     for setting in ("duration_s=-1", "duration_s=0.001"):
         short = runner.invoke(app, [*args[:3], "--set", setting, "--out", str(tmp_path / "e.csv")])
-        assert short.exit_code == 1 and "duration must give" in short.output, short.output
+        assert short.exit_code == 2 and "duration must give" in short.output, short.output
     assert runner.invoke(app, ["simulate-ebooster", "--out", str(tmp_path / "d.csv")]).exit_code
 
 

@@ -184,9 +184,10 @@ def _simulate_rig(
     from brakethermo.sim.rigs import rig_settings
 
     t0 = time.perf_counter()
-    with option_values():  # a --set key the rig lacks, a value not of its type: usage
-        values = rig_settings(rig, settings, seed)
-    cfg = RIG_SIMULATORS[rig].config(**values)  # its own checks of the values: exit 1
+    # a --set key the rig lacks, a value not of its type or outside the simulator's own
+    # range: all usage errors (exit 2), as option_values says of any value a command checks
+    with option_values():
+        cfg = RIG_SIMULATORS[rig].config(**rig_settings(rig, settings, seed))
     session_path, truth_path = RIG_SIMULATORS[rig].run(cfg, out, fmt)
     facts = RIG_SIMULATORS[rig].truth_facts
     truth_facts = facts(cfg) if facts else {}

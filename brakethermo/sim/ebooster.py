@@ -105,6 +105,21 @@ class EboosterSimConfig:
     truth: BenchTruth = BenchTruth()
     pv_shift_mm: float = 0.0  # mm, this session's dead stroke against the truth's (seals, fluid)
 
+    def __post_init__(self) -> None:
+        # checked when the settings are made, as the other rigs' configs are: a value
+        # given by `simulate --set` is then a usage error, not one found while simulating
+        if self.scenario not in SCENARIOS:
+            raise ConfigError(f"unknown scenario '{self.scenario}'; use one of"
+                              f" {', '.join(SCENARIOS)}")
+        if not self.rate_hz > 0:
+            raise ConfigError(f"rate must be positive, got {self.rate_hz} Hz")
+        if self.duration_s is not None and not self.duration_s * self.rate_hz >= 10:
+            raise ConfigError(f"duration must give at least 10 samples at {self.rate_hz:g} Hz,"
+                              f" got {self.duration_s} s; set duration_s to a positive number"
+                              " of seconds")
+        if not -2.0 <= self.pv_shift_mm <= 2.0:
+            raise ConfigError(f"pv_shift_mm must be within ±2 mm, got {self.pv_shift_mm}")
+
 
 @dataclass(frozen=True)
 class EboosterSim:
@@ -456,15 +471,6 @@ def simulate_ebooster(cfg: EboosterSimConfig) -> EboosterSim:
     -------
     EboosterSim
     """
-    if cfg.scenario not in SCENARIOS:
-        raise ConfigError(f"unknown scenario '{cfg.scenario}'; use one of {', '.join(SCENARIOS)}")
-    if not cfg.rate_hz > 0:
-        raise ConfigError(f"rate must be positive, got {cfg.rate_hz} Hz")
-    if cfg.duration_s is not None and not cfg.duration_s * cfg.rate_hz >= 10:
-        raise ConfigError(f"duration must give at least 10 samples at {cfg.rate_hz:g} Hz, got "
-                          f"{cfg.duration_s} s; set duration_s to a positive number of seconds")
-    if not -2.0 <= cfg.pv_shift_mm <= 2.0:
-        raise ConfigError(f"pv_shift_mm must be within ±2 mm, got {cfg.pv_shift_mm}")
     # the p-V curve of a real booster moves between sessions (seal and rubber state,
     # fluid): the dead stroke before the central valve closes shifts by tenths of a mm
     tr = replace(cfg.truth, dead_stroke_mm=cfg.truth.dead_stroke_mm + cfg.pv_shift_mm)
@@ -592,6 +598,14 @@ class EboosterRigConfig:
     production: bool = False
     pv_shift_mm: float = 0.0
 
+    def __post_init__(self) -> None:
+        self.session_config()  # the simulator's checks, when the settings are made
+
+    def session_config(self) -> EboosterSimConfig:
+        """The bench session these settings simulate."""
+        return EboosterSimConfig(scenario=self.scenario, seed=self.seed, rate_hz=self.rate_hz,
+                                 duration_s=self.duration_s, pv_shift_mm=self.pv_shift_mm)
+
 
 PRODUCTION_CHANNELS = ("pushrod_displacement", "reaction_disk_delta")
 
@@ -605,8 +619,6 @@ def write_ebooster_simulation(
     -------
     (session path, truth path) — the truth is ``<stem>.truth.parquet`` beside it.
     """
-    sim = simulate_ebooster(EboosterSimConfig(
-        scenario=cfg.scenario, seed=cfg.seed, rate_hz=cfg.rate_hz, duration_s=cfg.duration_s,
-        pv_shift_mm=cfg.pv_shift_mm))
+    sim = simulate_ebooster(cfg.session_config())
     channels = PRODUCTION_CHANNELS if cfg.production else tuple(UNITS)
     return write_ebooster_session(sim, path, fmt, channels=channels)
