@@ -348,7 +348,7 @@ def test_simulate_rig_tyre_writes_a_readable_session_and_its_true_peak(tmp_path:
     bad = CliRunner().invoke(
         app, ["simulate", "--rig", "tyre", "--set", "tyre=slick", "--out", str(out)]
     )
-    assert bad.exit_code == 1 and "tyre='slick'" in bad.output
+    assert bad.exit_code == 2 and "tyre='slick'" in bad.output
     assert "Traceback" not in bad.output
 
 
