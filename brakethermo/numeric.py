@@ -39,3 +39,14 @@ def true_runs(flag: ArrayLike) -> np.ndarray:
     f = np.asarray(flag, dtype=bool).astype(np.int8)
     edges = np.flatnonzero(np.diff(np.concatenate(([0], f, [0]))))
     return edges.reshape(-1, 2)
+
+
+def held_max(v: ArrayLike, width: int) -> float:
+    """The largest value held over ``width`` samples: the maximum of a centred running
+    median (edges held at the nearest sample), so a spike shorter than half of it drops
+    out; the plain maximum of a series shorter than ``width``."""
+    from scipy.ndimage import median_filter
+
+    a = np.asarray(v, float)
+    held = median_filter(a, size=width, mode="nearest") if a.size >= width else a
+    return float(np.max(held))

@@ -15,7 +15,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy.ndimage import median_filter
 
 from brakethermo.diagnosis.verdict import VerdictRule, shrink_interval
 from brakethermo.errors import DataError
@@ -37,7 +36,7 @@ from brakethermo.models.clamp_force import (
     lag_scores,
     train,
 )
-from brakethermo.numeric import rmse
+from brakethermo.numeric import held_max, rmse
 from brakethermo.pipelines.rig_checks import (
     LOW_COVERAGE,
     MIN_APPLIED,
@@ -345,9 +344,7 @@ def held_peak(v: np.ndarray, dt: float) -> float:
     the motor current puts a one- to three-sample spike into the torque balance (its
     inertia term) and through it into the fusions, up to 10 % above any force the caliper
     reached; a median over that many samples drops it."""
-    w = max(2 * PEAK_SPIKE + 1, round(PEAK_HOLD_S / dt) | 1)
-    held = median_filter(v, size=w, mode="nearest") if v.size >= w else v
-    return float(np.max(held))
+    return held_max(v, max(2 * PEAK_SPIKE + 1, round(PEAK_HOLD_S / dt) | 1))
 
 
 def estimate_figures(est: ClampForceEstimates, dt: float) -> dict[str, Any]:

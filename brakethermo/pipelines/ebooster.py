@@ -36,6 +36,7 @@ from brakethermo.pipelines.rig_checks import (
     LOW_COVERAGE,
     MIN_APPLIED,
     Expect,
+    channel_warnings,
     check_rig_channels,
     in_band,
 )
@@ -361,7 +362,7 @@ def _refuse_reversed_delta(session: Session, s2: Array, delta: Array, fit: Boost
     is said by its own check, and would point at delta here)."""
     p_ch = PRESSURES["p_m"]
     if not (session.has(PEDAL) and session.has(p_ch)) or any(
-            w.startswith((f"channel '{PEDAL}'", f"channel '{p_ch}'")) for w in session.warnings):
+            channel_warnings(session, ch) for ch in (PEDAL, p_ch)):
         return
     force = leverage_force(_series(session, p_ch, MPA, gaps=True), s2,
                            _series(session, PEDAL, 1.0, gaps=True), spec.area_mm2,
@@ -476,7 +477,7 @@ def carry(with_effect: str | None, session: Session, s2: Array, fit: BoosterFit,
     channel = PRESSURES["p_m"]
     if not session.has(channel):
         return None, None, None
-    suspect = [w for w in session.warnings if w.startswith(f"channel '{channel}'")]
+    suspect = channel_warnings(session, channel)
     rest = _rest_reading(session, s2)
     if rest is not None and abs(rest) > REST_OFFSET_MPA:
         suspect.append(f"it reads {rest:+.2f} MPa with the screw back at rest, where a"
@@ -758,8 +759,7 @@ def _validation(session: Session) -> dict[str, Array]:
     the user to diagnose and retraining)."""
     return {state: _series(session, ch, MPA, gaps=True)
             for state, ch in PRESSURES.items()
-            if session.has(ch) and not any(w.startswith(f"channel '{ch}'")
-                                           for w in session.warnings)}
+            if session.has(ch) and not channel_warnings(session, ch)}
 
 
 def _summary(

@@ -132,14 +132,18 @@ def free_rolling_radius(session: Session, mu: np.ndarray) -> float | None:
     least :data:`MIN_FREE_SAMPLES` of them; None when there are fewer, or the ratio is no
     wheel radius (:data:`RADIUS_RANGE_M`). A session without a radius fact was refused
     while its own speeds gave 0.300 m (new-user test)."""
-    V, w = session.values("vehicle_speed"), session.values("wheel_speed")
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = V / w
-        free = (np.abs(mu) < FREE_MU) & (V > 1.0) & np.isfinite(ratio) & (w > 0.0)
-    if free.sum() < MIN_FREE_SAMPLES:
+    r, n = _speed_ratio(session, np.abs(mu) < FREE_MU)
+    if n < MIN_FREE_SAMPLES:
         return None
-    r = float(np.median(ratio[free]))
     return r if RADIUS_RANGE_M[0] <= r <= RADIUS_RANGE_M[1] else None
+
+
+def _speed_ratio(session: Session, where: np.ndarray) -> tuple[float, int]:
+    """The median of V / ω (m) over ``where`` with the carriage moving (V >= 1 m/s) and
+    the wheel turning, and how many samples it took (NaN over none)."""
+    V, w = session.values("vehicle_speed"), session.values("wheel_speed")
+    ok = where & np.isfinite(V) & np.isfinite(w) & (V >= 1.0) & (np.abs(w) > 1e-6)
+    return (float(np.median(V[ok] / w[ok])) if ok.any() else math.nan), int(ok.sum())
 
 
 def _smoothed(session: Session, slip: np.ndarray) -> np.ndarray:
@@ -313,10 +317,8 @@ def _radius_cause(session: Session, rolling: np.ndarray, radius_m: float, given:
     ``radius_m`` (m; ``given``: by --radius, else the session's fact) is not nil in free
     rolling: the radius the free-rolling speeds give (m) against it. A radius the user
     typed is the first suspect, before a unit the speeds' ratio may resemble."""
-    V, w = session.values("vehicle_speed"), session.values("wheel_speed")
-    ok = rolling & np.isfinite(V) & np.isfinite(w) & (V >= 1.0) & (np.abs(w) > 1e-6)
-    r_free = float(np.median(V[ok] / w[ok])) if ok.any() else math.nan
-    speeds = f"; the free-rolling speeds give {r_free:.3f} m" if ok.any() else ""
+    r_free, n = _speed_ratio(session, rolling)
+    speeds = f"; the free-rolling speeds give {r_free:.3f} m" if n else ""
     said = (f" with the wheel radius {radius_m:g} m"
             f" ({'--radius' if given else 'the session fact'}){speeds}")
     cause = ratio_cause(radius_m / r_free, "vehicle_speed", "wheel_speed", "the radius")
@@ -325,7 +327,7 @@ def _radius_cause(session: Session, rolling: np.ndarray, radius_m: float, given:
                 if cause.startswith("check the units") else cause)
         fact = next((k for k in RADIUS_FACTS if k in session.metadata), None)
         instead = [f"run without it (the session's {fact})"] if fact else []
-        instead += [f"give --radius {r_free:.3f}"] if ok.any() else []
+        instead += [f"give --radius {r_free:.3f}"] if n else []
         return ("wheel_speed", said, f"the given --radius {radius_m:g} m may be wrong: "
                 + " or ".join(instead or ["check it"]) + f"; else {unit}")
     fix = "fix the radius" if cause.startswith("check the units") else cause

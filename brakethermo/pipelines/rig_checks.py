@@ -19,7 +19,7 @@ import numpy as np
 from brakethermo.errors import DataError
 from brakethermo.io.session import Session
 from brakethermo.io.units import parse_unit
-from brakethermo.numeric import true_runs
+from brakethermo.numeric import held_max, true_runs
 
 # A 95 % band covering less than this of the applies on the session's own sensor is said
 # (an observer's band is checked wherever the session logs what it estimates)
@@ -117,11 +117,13 @@ def _held_peak(v: np.ndarray) -> float:
     maximum): the applies of a session, however few (a 99.5th percentile of a log that
     clamps 0.4 % of the time is its rest level: a 0.25 s apply of 8 kN in 60 s at 1 kHz
     read as 36 N, 'a thousand times too small')."""
-    a = np.abs(v)
-    if a.size < HELD_SAMPLES:
-        return float(np.max(a))
-    windows = np.lib.stride_tricks.sliding_window_view(a, HELD_SAMPLES)
-    return float(np.max(np.median(windows, axis=1)))
+    return held_max(np.abs(v), HELD_SAMPLES)
+
+
+def channel_warnings(session: Session, channel: str) -> list[str]:
+    """The warnings :func:`check_rig_channels` gave ``channel`` (in ``session.warnings``):
+    a channel so flagged is not trusted beyond being read."""
+    return [w for w in session.warnings if w.startswith(f"channel '{channel}'")]
 
 
 def check_rig_channels(session: Session, expects: Sequence[Expect]) -> list[str]:
