@@ -75,6 +75,8 @@ def _record(target: Path) -> None:
     of an output committed later, when the stage is swapped in)."""
     if not any(part.startswith(".") and _STAGE in part for part in target.parts):
         record_output(target)
+
+
 _NAME_KEEP = 100  # a temp name adds ~40 characters; file names stop at 255
 
 

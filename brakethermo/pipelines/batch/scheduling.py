@@ -20,8 +20,6 @@ SCHEDULER_TIMEOUT_S = 30.0  # connecting to a Dask scheduler
 WORKER_PRELOAD = ("brakethermo.pipelines.batch", "brakethermo.report.lap_report")
 
 
-
-
 @contextmanager
 def executor_for(options: BatchOptions) -> Iterator[Executor | None]:
     """The executor the options ask for; None means run in this process."""

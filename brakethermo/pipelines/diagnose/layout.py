@@ -126,8 +126,6 @@ def _phase_masks(layout: Layout) -> dict[str, np.ndarray]:
     return {"braking": layout.braking, "cooling": ~layout.braking}
 
 
-
-
 def _fast_straights(layout: Layout, speed: np.ndarray, segments: Segments, v_ref: float
                     ) -> np.ndarray:
     """Held-out straights that pass the knee speed, from the first crossing to the next
