@@ -355,14 +355,15 @@ def test_a_creep_force_the_wheel_torque_cannot_pass_is_implausible():
 def test_a_normal_force_logged_as_its_set_point_is_taken_with_a_word(tmp_path: Path) -> None:
     """An independent rig logged its air spring's load as one value throughout: refused
     as 'nothing was applied'. It is the load; a frozen sensor reads so too, and that is
-    said."""
+    said, in the log's own unit."""
     sim = simulate_roller_rig(RollerRigSimConfig(speed_kmh=30.0, seed=208, duration_s=10.0,
                                                  free_s=2.0))  # fmt: skip
-    chs = tuple(dataclasses.replace(c, value=np.full(np.shape(c.value), 10000.0))
+    chs = tuple(dataclasses.replace(c, value=np.full(np.shape(c.value), 10.0), unit="kN")
                 if c.name == "normal_force" else c for c in sim.session.channels)
     path = write_session(tmp_path / "setpoint.parquet", SessionData(chs, {}))
     res = run_roller_rig(path, RollerRigOptions(r0_mm=(350.0,), smoother=False))
-    assert any("set-point" in w and "normal_force" in w for w in res.summary["warnings"])
+    (said,) = [w for w in res.summary["warnings"] if "set-point" in w]
+    assert "normal_force" in said and "holds 10 kN" in said
     assert abs(res.summary["runs"][0]["radius_mm"] - 348.2) < 0.5
 
 

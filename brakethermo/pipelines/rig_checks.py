@@ -149,12 +149,13 @@ def check_rig_channels(session: Session, expects: Sequence[Expect]) -> list[str]
                 continue
         else:
             continue
+        shown = _as_logged(session, e)
         if e.setpoint and v.size > 1 and np.ptp(v) == 0.0 and 0.0 < v[0] <= e.most:
-            warnings.append(f"channel '{e.channel}' holds {float(v[0]):.4g} {e.unit}"
-                            " throughout: taken as the rig's set-point (a frozen sensor"
-                            " would read so too)")
+            warnings.append(f"channel '{e.channel}' holds {shown(float(v[0]))} throughout:"
+                            " taken as the rig's set-point (a frozen sensor would read so"
+                            " too)")
             continue
-        fault = _fault(v, e, _as_logged(session, e))
+        fault = _fault(v, e, shown)
         if fault is None:
             if e.measured and e.channel not in session.constants:
                 warnings.extend(_frozen_stretches(session, e))
