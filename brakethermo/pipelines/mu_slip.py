@@ -25,6 +25,7 @@ from brakethermo.io.session import Session
 from brakethermo.models.mu_slip import (
     FamilyFit,
     RelaxationChoice,
+    best_fit,
     choose_relaxation,
     fit_families,
     rudd_ekf,
@@ -482,8 +483,8 @@ def mu_slip(
     scale = variance_scale(consistency)
     if scale > 1.0:
         ekf = replace(ekf, var_filt=ekf.var_filt * scale, P_filt=ekf.P_filt * scale)
-    fams = fit_families(s, m)
-    best = min(fams, key=lambda f: f.heldout_rmse)
+    fams = fit_families(s, m, spline=True)
+    best = best_fit(fams)
     _check_past_peak(best, s, session)
     return MuSlipResult(
         session=session,

@@ -14,7 +14,6 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from brakethermo.models.mu_slip import FAMILIES
 from brakethermo.report.page import Card, Page, Section, TableBlock, consistency_text
 from brakethermo.results.mu_slip import MuSlipResult
 from brakethermo.rigs.tyre import rudd_mu
@@ -154,13 +153,8 @@ def _fits_figure(res: MuSlipResult) -> Figure:
     fig2, ax2 = plt.subplots(figsize=(9, 4))
     ax2.plot(res.slip, res.mu, ".", color="0.7", ms=2, label="points")
     sg = np.linspace(1e-4, float(res.slip.max()), 400)
-    fams = {f.name: f for f in FAMILIES}
     for f in res.families:
-        ax2.plot(
-            sg,
-            fams[f.name].curve(sg, *f.params.values()),
-            label=f"{f.name} (held-out {f.heldout_rmse:.4f})",
-        )
+        ax2.plot(sg, f(sg), label=f"{f.name} (held-out {f.heldout_rmse:.4f})")
     ax2.plot(sg, rudd_mu(sg, *res.ekf.x_filt[-1]), "--", label="EKF (one pass)")
     ax2.set_xlabel("slip (–)")
     ax2.set_ylabel("μ (–)")
