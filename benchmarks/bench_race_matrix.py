@@ -39,7 +39,7 @@ FAULTS = ("sensor_lag", "emissivity_error")
 
 
 def run_row(track: str, test_effect: str, race_effects: tuple[str, ...], seed: int,
-            test_laps: int, race_laps: int) -> list[dict]:
+            test_laps: int, race_laps: int, tuning: Path | None = None) -> list[dict]:
     """One test session's law, and every race estimated with it."""
     eff = () if test_effect == "none" else (test_effect,)
     rows = []
@@ -56,7 +56,7 @@ def run_row(track: str, test_effect: str, race_effects: tuple[str, ...], seed: i
             race, truth_path = write_simulation(simulate(SimConfig(
                 track=track, laps=race_laps, effects=reff, sensor="multi",
                 seed=seed + 1 + j, bike_seed=seed)), work / f"race{j}.parquet")
-            res = estimate_session(race, EstimateOptions(h_law=law))
+            res = estimate_session(race, EstimateOptions(h_law=law, tuning=tuning))
             sc = score_against_truth(res.frame, read_truth(truth_path),
                                      res.session.values("disc_temp_spot3"), res.open_loop)
             cov = [sc["coverage95"][s] for s in ("spot1", "spot2", "spot4")]
@@ -87,11 +87,12 @@ def main() -> None:
     ap.add_argument("--test-laps", type=int, default=2)
     ap.add_argument("--race-laps", type=int, default=3)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--tuning", type=Path, help="estimate's --tuning file for every race")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     tests, races = args.test_effects.split(","), tuple(args.race_effects.split(","))
     jobs = [(track, t, races, args.seed_base + 1000 * k + 100 * i + 50 * r, args.test_laps,
-             args.race_laps)
+             args.race_laps, args.tuning)
             for k, track in enumerate(args.tracks.split(",")) for i, t in enumerate(tests)
             for r in range(args.seeds)]
     with ProcessPoolExecutor(args.workers) as pool:
