@@ -84,3 +84,4 @@ def test_a_look_alike_the_first_beats_clearly_stays_behind_it() -> None:
     assert row["vs_first_pp"]["ci95"][0] > rule.clear_margin_pct
     assert d.verdict_set == ["drift", "scale"] and d.verdict == "drift"
     assert not any("fewest parameters" in r for r in d.reasons)
+    assert "shrinks more than scale" in d.reasons[0] and "alike" in d.reasons[0]

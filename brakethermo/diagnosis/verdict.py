@@ -466,12 +466,14 @@ def _verdict_set(sse_before: np.ndarray, rows: list[dict[str, Any]], significant
             verdict_set.append(name)
             if lo > rule.clear_margin_pct:
                 outscored.add(name)
-            why = (f"their corrections are alike ({r:.3f} > {rule.correlated:g}) and"
-                   " their shrink intervals overlap" if look_alike and
-                   lo > rule.clear_margin_pct else "")
-            reasons.append(f"{top} does not beat {name} clearly: {d:.1f} points (95 %"
-                           f" interval {lo:.1f} to {hi:.1f}{alike})"
-                           + (f"; {why}" if why else ""))
+            if name in outscored:
+                reasons.append(f"{top} shrinks more than {name} by {d:.1f} points (95 %"
+                               f" interval {lo:.1f} to {hi:.1f}) but is not named alone:"
+                               f" their corrections are alike ({r:.3f} >"
+                               f" {rule.correlated:g}) and their shrink intervals overlap")
+            else:
+                reasons.append(f"{top} does not beat {name} clearly: {d:.1f} points (95 %"
+                               f" interval {lo:.1f} to {hi:.1f}{alike})")
     # the fewest parameters first only among those the data cannot rank: a look-alike
     # the first beats clearly stays behind it (hot pads: a stiffness drift at 72 %, beating
     # a constant scale at 51 % by 4.6 to 42.2 points, corrections correlated 0.80, was
