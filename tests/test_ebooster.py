@@ -462,6 +462,8 @@ def test_a_training_result_says_what_it_cannot_support():
     edge = dataclasses.replace(FIT, damping=5.0, tau_z=1.0)
     (w,) = fit_warnings(edge)
     assert "edge of their range (damping = 5, tau_z = 1)" in w
+    # the training may have moved the disk: a disk the model does not describe is named too
+    assert "does not describe this disk" in w and f"{FIT.disk_rmse_mm:.3g} mm RMS" in w
     assert fit_warnings(dataclasses.replace(FIT, tau_z=0.0)) == []  # no zero: an answer
     flat = dataclasses.replace(FIT, disk=(*FIT.disk[:4], 2e-40))
     (w,) = fit_warnings(flat)

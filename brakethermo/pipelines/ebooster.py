@@ -308,7 +308,11 @@ def fit_warnings(fit: BoosterFit) -> list[str]:
             if any(b != 0.0 and abs(getattr(fit, k) - b) <= 0.01 * abs(b) for b in bounds)]
     if edge:
         out.append("the reaction disk's dynamics were fitted at the edge of their range ("
-                   + ", ".join(edge) + "): the training session did not move them")
+                   + ", ".join(edge) + "): the training session did not move them, or the"
+                   " paper's disk model does not describe this disk (its fit leaves"
+                   f" {fit.disk_rmse_mm:.3g} mm RMS of delta; an independent bench's disk,"
+                   " moved by pedal waves, left 0.13-0.18 mm): the observers then take"
+                   " little from delta")
     flat = [i + 1 for i, slope in enumerate(fit.disk[2:]) if slope <= 1e-6 * SLOPE_MAX]
     if flat:
         where = (f"below {fit.disk[0]:.0f} N" if flat[0] == 1 else
