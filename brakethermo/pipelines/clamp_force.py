@@ -608,7 +608,10 @@ def summary(res: ClampForceResult) -> dict[str, Any]:
                 "band_scale": c.band_scale, "adopted": c.adopted, "holds": c.holds,
                 "band_by_rate": {"rate_kn_s": [k / 1e3 for k in c.rate_knots],
                                  "heldout_rmse_kn": [float(np.sqrt(v)) / 1e3
-                                                     for v in c.rate_vars]}},
+                                                     for v in c.rate_vars]},
+                "band_by_force": {"force_kn": [k / 1e3 for k in c.force_knots],
+                                  "heldout_rmse_kn": [float(np.sqrt(v)) / 1e3
+                                                      for v in c.force_vars]}},
             "what": "trained on one half of the training session, estimated on the other,"
                     " both ways, scored against the sensor with its lag taken out; the filter's"
                     " Q is the paper's times the factor with the smallest held-out RMSE (the"
