@@ -230,19 +230,46 @@ def test_mcap_export_round_trip(race, tmp_path: Path) -> None:
 def test_zones_are_named_by_track_position_on_every_lap() -> None:
     """Three flying laps brake at 300, 900 and 1500 m; lap 2 misses the second zone and
     lap 3 adds a dab at 1200 m: the names stay with the corners (B1, B2, B3 on every
-    lap, the dab "B2+"), the out-lap's stops are named by their order."""
+    lap, the dab "B2+"); the out-lap's stops, at no flying lap's zone, are named after
+    the zone before them on the track (they were "out B1", "out B2" by their order)."""
     from brakethermo.report.braking_zones import zone_names
 
-    laps = {0: [100.0, 700.0], 1: [300.0, 900.0, 1500.0], 2: [305.0, 1490.0],
-            3: [295.0, 905.0, 1200.0, 1510.0]}
+    names = zone_names(*_laps_braking_at({
+        0: [100.0, 700.0], 1: [300.0, 900.0, 1500.0], 2: [305.0, 1490.0],
+        3: [295.0, 905.0, 1200.0, 1510.0]}))
+    assert names == ["B0+", "B1+", "B1", "B2", "B3", "B1", "B3", "B1", "B2", "B2+", "B3"]
+
+
+def _laps_braking_at(laps: dict[int, list[float]], offset: dict[int, float] | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Zones, lap and lap distance of 2000 m laps braking at the given distances (each
+    lap's distance from its first sample; ``offset``: m of the lap before its log began,
+    as an out-lap from the pit exit)."""
+    offset = offset or {}
     lap, dist, starts = [], [], []
     for n, ds in laps.items():
+        skip = int(offset.get(n, 0.0))
         base = len(lap)
-        lap += [n] * 2000
-        dist += list(np.arange(2000.0))
-        starts += [base + int(d) for d in ds]
-    lap_a, dist_a = np.array(lap), np.array(dist)
+        lap += [n] * (2000 - skip)
+        dist += list(np.arange(2000.0 - skip))
+        starts += [base + int(d) - skip for d in ds]
     zones = np.column_stack([starts, np.array(starts) + 20])
-    names = zone_names(zones, lap_a, dist_a)
-    assert names == ["out B1", "out B2", "B1", "B2", "B3", "B1", "B3", "B1", "B2", "B2+",
-                     "B3"]
+    return zones, np.array(lap), np.array(dist)
+
+
+def test_out_lap_stops_carry_the_flying_laps_names() -> None:
+    """The out-lap brakes where the flying laps do, and once where only some do (the
+    "B1+" dab at 600 m): its stops carry those names, from the line or from a pit exit
+    450 m down the lap. They were named by their order, "out B1" … "out B4", so from the
+    dab on every name was one off (the repro's "out B4" at the flying laps' "B3+")."""
+    from brakethermo.report.braking_zones import zone_names
+
+    flying = {1: [300.0, 600.0, 900.0, 1500.0], 2: [300.0, 900.0, 1500.0],
+              3: [300.0, 900.0, 1500.0]}
+    want_flying = ["B1", "B1+", "B2", "B3"] + ["B1", "B2", "B3"] * 2
+    from_line = zone_names(*_laps_braking_at({0: [310.0, 610.0, 900.0, 1490.0], **flying}))
+    assert from_line == ["B1", "B1+", "B2", "B3", *want_flying]
+    # from the pit exit at 450 m: the out-lap's own distance is 450 m short all lap
+    pit = zone_names(*_laps_braking_at({0: [610.0, 900.0, 1490.0], **flying},
+                                       offset={0: 450.0}))
+    assert pit == ["B1+", "B2", "B3", *want_flying]

@@ -10,7 +10,9 @@ Zones are named by where they are on the track, the same on every lap and on eve
 page (lap reports, diagnosis, what-if): braking starts of all flying laps are matched
 by lap distance, and the zones braked on in at least half of the flying laps are B1,
 B2, … in lap order; an occasional stop (a lift, a second dab) is named after the zone
-before it, "B3+". A lap that misses a zone does not renumber the ones after it.
+before it, "B3+". A lap that misses a zone does not renumber the ones after it. The
+out-lap's stops are named by the same track position (its distance counted back from the
+line it ends on, when it began at the pit exit), not by their order in the lap.
 """
 
 from __future__ import annotations
@@ -303,15 +305,76 @@ def cluster_names(ids: np.ndarray, lap_of_start: np.ndarray, n_clusters: int) ->
 
 
 def zone_names(zones: np.ndarray, lap: np.ndarray, dist: np.ndarray) -> list[str]:
-    """The track name of each detected zone (``[start, stop)`` rows, lap order); a zone
-    no flying lap shares (an out-lap stop) is named by its order in its lap, "out B2"."""
+    """The track name of each detected zone.
+
+    Parameters
+    ----------
+    zones : ndarray of int, shape (n, 2)
+        ``[start, stop)`` grid rows, in lap order.
+    lap : ndarray (K,) of int
+        Lap of each grid step; 0 is the out-lap.
+    dist : ndarray (K,) — m
+        Distance along each lap (:func:`lap_distance`).
+
+    Returns
+    -------
+    list of str
+        The flying laps' name of the zone at that track position (B1…, "B3+"); a stop
+        no flying lap shares is "B<k>+" after the regular zone before it. Without a
+        flying lap there is nothing to match: named by order, "out B2".
+    """
     starts = zones[:, 0] if len(zones) else np.empty(0, int)
     ids, centres = zone_clusters(starts, lap, dist)
     names = cluster_names(ids, lap[starts], len(centres))
-    out, seen = [], {}
-    for i, s in enumerate(starts):
-        n = int(lap[s])
-        seen[n] = seen.get(n, 0) + 1
-        # the out-lap's distance runs from the pit exit, not the line: named by its order
-        out.append(names[ids[i]] if ids[i] >= 0 and n >= 1 else f"out B{seen[n]}")
+    if not centres:
+        return [f"out B{k + 1}" for k in range(starts.size)]
+    pos = dist[starts].astype(float)
+    out_lap = lap[starts] < 1
+    if out_lap.any():
+        flying = lap >= 1
+        length = float(np.median([np.ptp(dist[lap == n]) for n in np.unique(lap[flying])]))
+        pos[out_lap] = _out_lap_position(pos[out_lap], float(np.max(dist[~flying])), length,
+                                         centres)
+    centre = np.asarray(centres)
+    out = []
+    for p in pos:
+        z = int(np.argmin(np.abs(centre - p)))
+        if abs(centre[z] - p) <= ZONE_MATCH_M:
+            out.append(names[z])
+            continue
+        # a stop of its own: after the zone before it on the track, as cluster_names
+        before = [names[j] for j in range(len(centres)) if centre[j] < p]
+        out.append(before[-1].rstrip("+") + "+" if before else "B0+")
     return out
+
+
+def _out_lap_position(d: np.ndarray, out_end: float, lap_length: float,
+                      centres: list[float]) -> np.ndarray:
+    """Track position of the out-lap's braking starts, m from the line.
+
+    Parameters
+    ----------
+    d : ndarray — m
+        The out-lap's distance at its braking starts, from its first sample.
+    out_end : float — m
+        The out-lap's distance at its last sample, where it crosses the line.
+    lap_length : float — m
+        A flying lap's length (median span of laps 1 on).
+    centres : list of float — m
+        The flying laps' zone positions (:func:`zone_clusters`).
+
+    Returns
+    -------
+    ndarray — m
+        ``d`` as it is (the log began at the line) or counted back from the line the
+        out-lap ends on (it began at the pit exit or mid-lap), whichever puts more of
+        its stops on the flying laps' zones (the start on a tie).
+    """
+    centre = np.asarray(centres)
+
+    def matched(p: np.ndarray) -> int:
+        return int(np.sum(np.min(np.abs(p[:, None] - centre[None, :]), axis=1)
+                          <= ZONE_MATCH_M)) if p.size else 0
+
+    from_end = lap_length - (out_end - d)
+    return from_end if matched(from_end) > matched(d) else d
