@@ -60,6 +60,10 @@ def run_row(track: str, test_effect: str, race_effects: tuple[str, ...], seed: i
             sc = score_against_truth(res.frame, read_truth(truth_path),
                                      res.session.values("disc_temp_spot3"), res.open_loop)
             cov = [sc["coverage95"][s] for s in ("spot1", "spot2", "spot4")]
+            choice = res.summary["run"]["online_choice"]
+            # the law's crown as the race judged it: uniform's lap-ahead shrink on spot 3
+            crown = next((r for r in choice.get("law_effects_tested", [])
+                          if r["name"] == "without crown_weights"), None)
             rows.append({
                 "track": track, "seed": seed, "test": test_effect, "race": race_effect,
                 "carried": carried, "online": res.summary["run"]["online_choice"].get("chosen"),
@@ -67,13 +71,28 @@ def run_row(track: str, test_effect: str, race_effects: tuple[str, ...], seed: i
                 "ratio": sc["contact_ratio"]["smoother"],
                 "open_loop_ratio": sc["contact_ratio"]["open-loop 1D-FE"],
                 "coverage_pct": 100.0 * float(np.mean(cov)),
+                "unmeasured_rmse_c": _spot_rmse(res.frame, read_truth(truth_path)),
+                "crown_test": None if crown is None else {
+                    "law": crown["law"], "shrink_pct": crown["shrink_pct"],
+                    "shrink_ci95_pct": crown["shrink_ci95_pct"]},
             })
             r = rows[-1]
             print(f"{track} seed {seed}: test {test_effect:20s} (carried {carried})  race"
                   f" {race_effect:20s} {r['ratio']:.2f}x (open loop {r['open_loop_ratio']:.2f}x)"
                   f"  coverage {r['coverage_pct']:3.0f} %"
-                  f"  online {r['online']} dropped {r['dropped']}", flush=True)
+                  f"  online {r['online']} dropped {r['dropped']}"
+                  + ("" if crown is None else f"  crown {crown['law']}: uniform's shrink"
+                     f" {crown['shrink_pct']:.1f} % {crown['shrink_ci95_pct']}")
+                  + "  spots 1/2/4 RMSE " + "/".join(
+                      f"{v:.1f}" for v in r["unmeasured_rmse_c"].values()), flush=True)
     return rows
+
+
+def _spot_rmse(est, truth) -> dict[str, float]:
+    """RMSE of each unmeasured spot against the truth, degC (a law's crown moves them)."""
+    n = min(len(est), len(truth))
+    return {s: float(np.sqrt(np.nanmean((est[s].to_numpy()[:n] - truth[s].to_numpy()[:n])**2)))
+            for s in ("spot1", "spot2", "spot4")}
 
 
 def main() -> None:
