@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from brakethermo.pipelines import online_choice
@@ -167,6 +168,12 @@ def test_the_race_judges_the_laws_uneven_crown_before_its_online_states(races, t
     crown = next(r for r in choice["law_effects_tested"] if r["name"] == "without crown_weights")
     assert crown["significant"] and choice["law_effects_dropped"] == ["crown_weights"]
     assert "thickness_gradient" not in choice["chosen"]
+    # the drop is said where the engineer reads it, with what it moves (it was silent)
+    assert crown["said"] in auto.summary["run"]["warnings"]
+    assert set(crown["peaks_apart_c"]) == {"spot1", "spot2", "spot3", "spot4"}
+    assert "--law-as-written" in crown["said"] and "spot 1 " in crown["said"]
+    from brakethermo.report.lap_report import _decisions
+    assert crown["said"] in _decisions(auto.summary)
     kept = estimate_session(path, EstimateOptions(h_law=law, smoother=False, online_auto=False))
     truth = read_truth(truth_path)
     assert _contact_rmse(auto.frame, truth) < 0.7 * _contact_rmse(kept.frame, truth)
@@ -270,7 +277,9 @@ def _earned_trial(monkeypatch: pytest.MonkeyPatch, written: float, without: floa
     monkeypatch.setattr(online_choice, "_lap_ahead", lambda run, lap, laps: run.pred)
 
     def run(sd: float) -> SimpleNamespace:
-        return SimpleNamespace(pred=y + rng.normal(0.0, sd, y.size), y_measured=y)
+        pred = y + rng.normal(0.0, sd, y.size)
+        frame = pd.DataFrame({s: pred for s in ("spot1", "spot2", "spot3", "spot4")})
+        return SimpleNamespace(pred=pred, y_measured=y, frame=frame)
 
     bare = f"without {online_choice.EARNED}"
     runs = {"reference": run(written), bare: run(without)}
@@ -474,6 +483,35 @@ def test_each_law_effect_row_says_its_outcome_and_its_signs_meaning(
     lag = online_choice._read_out({"name": "without sensor_lag", "shrink_pct": 1.0,
                                    "significant": False}, ())
     assert lag["outcome"] == "kept" and "with the law's sensor_lag dropped" in lag["meaning"]
+
+
+def test_a_law_part_dropped_or_kept_against_the_spot_is_said_with_its_evidence() -> None:
+    """What the race does with the law's parts is said with the shrink and interval it
+    measured, how far the unmeasured spots move and how to keep the law; a part kept where
+    the measured spot agreed is not said. (A race dropped a law's crown of 0.64, 1.07,
+    1.22 on spot 3 alone and the console said nothing: spots 1, 2, 4 ended 26-43 °C off.)"""
+    from brakethermo.pipelines.law_drops import said
+
+    crown = {"name": "without crown_weights", "shrink_pct": 16.6,
+             "shrink_ci95_pct": [13.8, 19.4], "law": [0.64, 1.07, 1.22],
+             "test": "uniform weights against the law's, a lap ahead",
+             "peaks_apart_c": {"spot1": -30.0, "spot2": -68.0, "spot3": 1.0, "spot4": 53.0}}
+    line = said(crown, True, 3)
+    assert line.startswith("the race dropped the h law's pad-crown weights w = 0.64, 1.07,")
+    assert "error was -17 % (95 % -19 to -14 %)" in line
+    assert "spot 1 -30 °C, spot 2 -68 °C, spot 4 +53 °C" in line and "spot 3 +1" not in line
+    assert "inner/outer split" in line and "`estimate --law-as-written`" in line
+    # kept though spot 3 leaned to uniform: said; kept where spot 3 agreed: not
+    assert said({**crown, "shrink_pct": 3.0, "shrink_ci95_pct": [-1.0, 7.0]}, False,
+                3).startswith("the race kept")
+    assert said({**crown, "shrink_pct": -3.0}, False, 3) is None
+    # the μ(T) row compares the other way (with it against without); untested: said so
+    mu = {"name": "without friction_temperature", "must_earn": True, "shrink_pct": -9.0,
+          "shrink_ci95_pct": [-12.0, -6.0], "test": "kept only where the race earns it"}
+    # μ(T) raised the error 9 %: without it, 9 % less (as the crown's, the drop's side)
+    assert "without it spot 3's error was -9 % (95 % -12 to -6 %)" in said(mu, True, 3)
+    untested = said({**mu, "shrink_pct": None, "shrink_ci95_pct": [None, None]}, True, 3)
+    assert "untested: fewer than two flying laps" in untested
 
 
 def test_decision_lines_read_a_summary_that_has_been_through_json() -> None:

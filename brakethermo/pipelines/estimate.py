@@ -39,6 +39,7 @@ from brakethermo.pipelines.estimate_table import (
 )
 from brakethermo.pipelines.h_factor_found import HFactorFound, h_factor_found, h_factor_warning
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
+from brakethermo.pipelines.law_drops import law_part_warnings
 from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.race_run import decided_run
@@ -259,11 +260,13 @@ def undecided_warning(choice: OnlineChoice | None) -> list[str]:
 
 def _frame_findings(frame: pd.DataFrame, session: Session, inputs: DiscInputs,
                     choice: OnlineChoice | None, warnings: list[str]) -> HFactorFound | None:
-    """The result's own checks (power scale, undecided race) appended to ``warnings``, and
-    what the online h factor found, when it ran."""
+    """The result's own checks (power scale, undecided race, the law's parts dropped)
+    appended to ``warnings``, and what the online h factor found, when it ran."""
     if "power_scale" in frame:
         warnings.extend(check_power_scale(frame["power_scale"].to_numpy(), inputs.q_brk > 0))
     warnings.extend(undecided_warning(choice))
+    # a law part dropped on the measured spot alone moves the unmeasured ones: said here
+    warnings.extend(law_part_warnings(None if choice is None else choice.facts))
     if "h_factor" not in frame:
         return None
     found = h_factor_found(frame["h_factor"].to_numpy(), inputs.braking,

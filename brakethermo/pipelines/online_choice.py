@@ -81,6 +81,7 @@ from brakethermo.diagnosis.verdict import (
     unit_sse,
 )
 from brakethermo.io.session import Session
+from brakethermo.pipelines.law_drops import said
 from brakethermo.pipelines.speculative import core
 from brakethermo.report.braking_zones import detect_zones
 
@@ -195,7 +196,7 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
             "rule": f"{UNDECIDED}; online effects left off, the h law's effects kept"
                     + (f" but its {EARNED}, which a race must earn" if unearned else ""),
             "candidates": list(candidates),
-            "law_effects_tested": [_read_out(r, unearned) for r in untested],
+            "law_effects_tested": [_read_out(r, unearned, base.spot) for r in untested],
             "law_effects_dropped": list(unearned)}, unearned)
     t = _trial(session, base, candidates, parts, flying)
     runs = _one_pass(t, cal, True, on_learned)
@@ -228,17 +229,21 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
         "laps": [int(v) for v in np.unique(t.lap[t.lap >= 1])],
         "chosen": chosen,
         "scores": rows,
-        "law_effects_tested": [_read_out(r, dropped) for r in tested],
+        "law_effects_tested": [_read_out(r, dropped, base.spot) for r in tested],
         "law_effects_dropped": list(dropped),
     }, dropped)
 
 
-def _read_out(row: dict[str, Any], dropped: tuple[str, ...]) -> dict[str, Any]:
-    """A ``law_effects_tested`` row with what it decided (``outcome``) and what the sign of
-    its figure means (``meaning``): the rows compare in different directions (the crown
-    and the lag: the law without the part against with it; an earned effect: with it
-    against without), so "without friction_temperature" at -9 % read as "removing μ(T)
-    makes the error 9 % worse" where the law's μ(T) had raised it by 9 % and was dropped."""
+def _read_out(row: dict[str, Any], dropped: tuple[str, ...], spot: int = 3
+              ) -> dict[str, Any]:
+    """A ``law_effects_tested`` row with what it decided (``outcome``), what the sign of
+    its figure means (``meaning``) and, for a part dropped (or kept against the measured
+    spot's lean), the sentence said on the console and the page (``said``,
+    :func:`~brakethermo.pipelines.law_drops.said`; ``spot``: the measured one): the rows
+    compare in different directions (the crown and the lag: the law without the part
+    against with it; an earned effect: with it against without), so "without
+    friction_temperature" at -9 % read as "removing μ(T) makes the error 9 % worse" where
+    the law's μ(T) had raised it by 9 % and was dropped."""
     name = row["name"].removeprefix("without ")
     if row.get("must_earn") and not np.isfinite(row["shrink_pct"]):
         meaning = (f"not tested (fewer than two flying laps): the law's {name} must be"
@@ -258,7 +263,9 @@ def _read_out(row: dict[str, Any], dropped: tuple[str, ...]) -> dict[str, Any]:
         meaning = ("shrink_pct: how much the lap-ahead error shrinks with uniform pad-crown"
                    " weights instead of the law's (positive favours dropping the law's;"
                    " dropped, significant: true, where it clears the rule)")
-    return {**row, "outcome": "dropped" if name in dropped else "kept", "meaning": meaning}
+    out = {**row, "outcome": "dropped" if name in dropped else "kept", "meaning": meaning}
+    line = said(out, name in dropped, spot)
+    return {**out, "said": line} if line else out
 
 
 @dataclass(frozen=True)
@@ -335,7 +342,8 @@ def _first_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration
         if name == CROWN:
             row = {**row, "law": list(cal.weights),
                    "test": f"uniform weights against the law's, {row['test']}"}
-        tested.append({**row, "name": f"without {name}"})
+        tested.append({**row, "name": f"without {name}", "peaks_apart_c": _peaks_apart(
+            runs["reference"], runs[f"without {name}"], t.lap)})
     return tested
 
 
@@ -354,7 +362,10 @@ def _judge_jointly(t: _Trial, joint: str, runs: dict[str, Any], rows: list[dict[
     own.pop("like_law", None)
     if j.gated:
         own["like_law"] = _LIKE_LAW_SAID.format(own["learned"])
-    tested.append(_earned_row(j.effect_row, p, not j.kept))
+    with_kz = j.kz_on and f"without {p} + {joint}" in runs
+    apart = (_peaks_apart(runs[joint], runs[f"without {p} + {joint}"], t.lap) if with_kz
+             else _peaks_apart(runs["reference"], runs[f"without {p}"], t.lap))
+    tested.append({**_earned_row(j.effect_row, p, not j.kept), "peaks_apart_c": apart})
 
 
 def _on_top(t: _Trial, runs: dict[str, Any], rows: list[dict[str, Any]],
@@ -415,7 +426,8 @@ def _later_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration, chosen: 
     for p in t.later:
         row = _lap_ahead_test(runs[f"without {p}"], ref, t.lap, t.cycles, t.rule)
         row["test"] = f"against the law without its {p}, {row['test']}"
-        tested.append(_earned_row(row, p, not row["significant"]))
+        tested.append({**_earned_row(row, p, not row["significant"]),
+                       "peaks_apart_c": _peaks_apart(ref, runs[f"without {p}"], t.lap)})
     return tested
 
 
@@ -690,6 +702,20 @@ def _lap_ahead_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
     d = decide(before, [CandidateEvidence("other", after)], rule)
     return {**d.rows[0], "test": "each model a whole lap ahead from its own filtered state,"
             f" flying laps {', '.join(str(int(v)) for v in laps)}"}
+
+
+def _peaks_apart(law: Any, other: Any, lap: np.ndarray) -> dict[str, float]:
+    """How far each spot's lap peak reads with the law's part (run ``law``) from without
+    it (``other``), °C, the mean over the decision's flying laps: what dropping a part
+    judged on one spot does to the spots the race does not measure."""
+    flying = np.unique(lap[lap >= 1])
+    out = {}
+    for s in ("spot1", "spot2", "spot3", "spot4"):
+        a, b = law.frame[s].to_numpy(dtype=float), other.frame[s].to_numpy(dtype=float)
+        diff = [np.nanmax(a[lap == n]) - np.nanmax(b[lap == n]) for n in flying
+                if np.isfinite(a[lap == n]).any() and np.isfinite(b[lap == n]).any()]
+        out[s] = float(np.mean(diff)) if diff else float("nan")
+    return out
 
 
 def _loglik(result: Any) -> np.ndarray:

@@ -245,6 +245,8 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
         lines.append(f"the h law's {name}: {verdict} — {row.get('test', '')}"
                      + (f", error {side} it {-shrink:+.0f} % ({_interval(-hi, -lo, '{:+.0f}')})"
                         if np.isfinite(shrink) else ""))
+        if row.get("said"):  # what it means for the unmeasured spots, and how to keep it
+            lines.append(str(row["said"]))
     run = (summary or {}).get("run") or {}
     found = ((run.get("effects") or {}).get("slipstream") or {}).get("found")
     if found and found.get("said"):
