@@ -254,6 +254,26 @@ def test_pooling_refuses_a_session_twice_or_two_of_one_name(tmp_path) -> None:
     assert done["effects"][0]["next_step"].endswith("--with-effect o/s/diagnosis.json")
 
 
+def test_pooling_refuses_a_session_named_pooled(tmp_path) -> None:
+    """A session of stem 'pooled' had its diagnosis.json replaced by the pooled one (exit
+    0): refused in one line, exit 1, before any session is read; alone it is no pool."""
+    from typer.testing import CliRunner
+
+    from brakethermo.cli import app
+    from brakethermo.errors import ConfigError
+    from brakethermo.pipelines.diagnose.sessions import distinct_sessions
+
+    a, b = tmp_path / "ft_a.mcap", tmp_path / "px" / "Pooled.mcap"
+    with pytest.raises(ConfigError, match="where the pooled diagnosis"):
+        distinct_sessions([a, b])
+    distinct_sessions([b])  # one session: no pooled folder is written
+    res = CliRunner().invoke(app, ["diagnose", str(a), str(b), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 1
+    assert "where the pooled diagnosis" in res.output
+    assert len(res.output.strip().splitlines()) == 1
+    assert not (tmp_path / "o" / "pooled").exists()
+
+
 def test_forward_selection_does_not_add_an_effect_its_combined_fit_leaves_at_a_bound():
     """The combined model brought in a wrong emissivity at its bound behind the verdict
     (independent generator, pyrometer-lag session) and identify-h carried it."""

@@ -123,9 +123,11 @@ def _diagnose_discs(sessions: list[Path], out: Path, options: DiagnoseOptions,
         Print the JSON summary (the pooled one when several) instead of tables.
     """
     from brakethermo.pipelines.diagnose import write_diagnosis, write_pooled
+    from brakethermo.pipelines.diagnose.sessions import distinct_sessions
     from brakethermo.pipelines.output_dir import check_session_folder
     from brakethermo.pipelines.outputs import to_json
 
+    distinct_sessions(sessions)  # one folder each, none the pooled one's
     for session in sessions:  # beside each session's own estimate only, before the work
         check_session_folder(out, session, "estimate")
     results, pooled = _run_with_progress(sessions, options, as_json)
@@ -211,9 +213,11 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
         raise ConfigError("--rig emb needs --train SESSION: the caliper session the"
                           " stiffness model is trained on (with the clamp-force sensor)")
     from brakethermo.io.kinds import KINDS, detect_rig, rig_kind
+    from brakethermo.pipelines.diagnose.sessions import distinct_sessions
     from brakethermo.pipelines.output_dir import check_output_dir, check_session_folder
 
     check_output_dir(out)
+    distinct_sessions(sessions)  # one folder each, none the pooled one's
     mine = rig_kind(rig).words  # every name of RIGS is a kind's
     for path in sessions:
         other = detect_rig(path, aliases) if len(sessions) > 1 else rig

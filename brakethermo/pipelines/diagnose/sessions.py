@@ -54,7 +54,7 @@ def diagnose_many(paths: Sequence[str | Path], options: DiagnoseOptions | None =
         Sessions of different discs, or a session without the four spots pooling needs.
     """
     options = options or DiagnoseOptions()
-    _distinct(paths)
+    distinct_sessions(paths)
     sessions = [load_timed(p, options.aliases)[0] for p in paths]
     discs = {s.path.name: disc_for(s, options.disc).id for s in sessions}
     if len(set(discs.values())) > 1:
@@ -80,9 +80,20 @@ def diagnose_many(paths: Sequence[str | Path], options: DiagnoseOptions | None =
     return results, pool(results)
 
 
-def _distinct(paths: Sequence[str | Path]) -> None:
+POOLED_FOLDER = "pooled"  # write_pooled's OUT/pooled/, beside the sessions' OUT/<stem>/
+
+
+def distinct_sessions(paths: Sequence[str | Path]) -> None:
     """Each session once and each in its own output folder (``OUT/<stem>/``): a file given
-    twice would count its evidence twice, two files of one stem would share a folder."""
+    twice would count its evidence twice, two files of one stem would share a folder, and
+    a session named ``pooled`` would have its diagnosis replaced by the pooled one.
+
+    Raises
+    ------
+    ConfigError
+        A file given twice, two files of one stem, or a session of stem ``pooled`` among
+        several (checked before any session is read).
+    """
     seen: dict[str, Path] = {}
     for p in map(Path, paths):
         other = seen.get(p.stem.casefold())
@@ -93,6 +104,11 @@ def _distinct(paths: Sequence[str | Path]) -> None:
                               " diagnosis goes to OUT/<name>/: rename one (or diagnose them"
                               " in separate calls)")
         seen[p.stem.casefold()] = p
+    clash = next((p for p in map(Path, paths) if p.stem.casefold() == POOLED_FOLDER), None)
+    if clash is not None and len(seen) > 1:
+        raise ConfigError(f"{clash}: a session named '{clash.stem}' would have its diagnosis"
+                          f" in OUT/{clash.stem}/, where the pooled diagnosis of these sessions"
+                          " goes: rename it (or diagnose it in a separate call)")
 
 
 def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
@@ -168,7 +184,7 @@ def write_pooled(summary: dict[str, Any], out_dir: str | Path) -> Path:
     from brakethermo.report.pooled_diagnosis_page import pooled_page
 
     summary.update(with_out(summary, out_dir))
-    path = write_json(Path(out_dir) / "pooled" / "diagnosis.json", summary)
+    path = write_json(Path(out_dir) / POOLED_FOLDER / "diagnosis.json", summary)
     write_page(pooled_page(summary), path.parent)
     return path
 
