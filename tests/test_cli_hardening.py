@@ -279,6 +279,10 @@ def test_spelling_and_defaults_are_the_same_everywhere():
     (("--rig", "roller-rig", "--set", "foo=1"), "KEY one of duration_s, free_s", 2),
     (("--rig", "roller-rig", "--set", "traction=bogus"), "expected true or false", 2),
     (("--set", "foo=1"), "a disc session takes cooling, ambient_c", 2),
+    # outside the simulator's range: usage too, as the rigs' (exited 1, new-user test)
+    (("--set", "cooling=0"), "--set cooling=0: cooling must be a finite factor", 2),
+    (("--set", "cooling=nan"), "--set cooling=nan: cooling must be", 2),
+    (("--set", "ambient_c=200"), "--set ambient_c=200: ambient_c must be an air", 2),
     (("--format", "mcap"), "--format mcap for a file named .parquet", 1),
     (("--grouped",), "--grouped is an MCAP layout", 1),
 ])

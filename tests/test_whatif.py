@@ -138,12 +138,17 @@ def test_cli_writes_parquet_summary_and_page(sim_race_session, tmp_path: Path) -
     (["--scenario", "duct=2"], "KEY one of", 2),
     (["--pads", "2"], "pads", 2),
     (["--tyre-temp", "900", "--cooling", "1.2"], "tyre-temp", 2),
-    ([], "at least one change", 1),
+    ([], "at least one change", 2),
+    (["--cooling", "1.2", "--scenario", "cooling=1.2"], "given twice", 2),
+    (["--scenario", "cooling=0"], "--scenario 'cooling=0': cooling=0: the factor", 2),
+    (["--scenario", "ambient=35,pads=7"], "pads=7: give the share", 2),
 ])
 def test_bad_options_one_line(sim_race_session, tmp_path: Path, args: list[str],
                               needle: str, code: int) -> None:
-    """A value out of an option's range is a usage error (exit 2, as Typer's own checks);
-    a datasheet that does not exist is a config problem (exit 1)."""
+    """A value out of an option's range is a usage error (exit 2, as Typer's own checks),
+    and so are no change and one change given twice (were exit 1); a scenario's value is
+    named as typed (was '--cooling 0.0' for --scenario cooling=0); a datasheet that does
+    not exist is a config problem (exit 1)."""
     r = runner.invoke(app, ["whatif", str(sim_race_session[0]), *args, "--draws", "0",
                             "--out", str(tmp_path)])
     assert r.exit_code == code, r.output

@@ -118,7 +118,9 @@ def _no_disc_options(rig: str, given: dict[str, bool]) -> None:
 
 def _disc_settings(settings: list[str]) -> dict[str, float]:
     """``--set cooling=1.2 --set ambient_c=35`` for a disc session (a key it does not
-    take, a value not a number: a usage error, exit 2)."""
+    take, a value not a number or outside the simulator's range: a usage error, exit 2)."""
+    from brakethermo.sim.session import check_air
+
     out: dict[str, float] = {}
     with option_values():
         for item in settings:
@@ -131,6 +133,10 @@ def _disc_settings(settings: list[str]) -> dict[str, float]:
                 out[key.strip()] = float(value)
             except ValueError:
                 raise ConfigError(f"--set {item}: {value!r} is not a number") from None
+            try:  # the simulator's own range, before anything is simulated
+                check_air(out.get("cooling", 1.0), out.get("ambient_c"))
+            except ConfigError as exc:
+                raise ConfigError(f"--set {item}: {exc}") from None
     return out
 
 

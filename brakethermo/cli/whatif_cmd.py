@@ -48,9 +48,28 @@ def parse_scenario(text: str) -> dict[str, object]:
         except ValueError:
             raise ConfigError(f"--scenario '{text}': {key}={value} is not a number") from None
         kw[FIELD[key]] = number
+        _check_value(text, key, value, number)
     if not kw:
         raise ConfigError(f"--scenario '{text}' changes nothing")
     return kw
+
+
+def _check_value(text: str, key: str, value: str, number: float) -> None:
+    """The range check of one ``--scenario`` value, said as the user typed it
+    (``--scenario 'cooling=0': cooling=0 …``, not the single option's ``--cooling 0.0``).
+
+    Raises
+    ------
+    ConfigError
+        ``number`` is outside the scenario's range for ``key``.
+    """
+    from brakethermo.pipelines.whatif import Scenario
+
+    try:
+        Scenario(**{FIELD[key]: number})  # type: ignore[arg-type]
+    except ConfigError as exc:
+        why = str(exc).partition(": ")[2] or str(exc)  # without the single option's name
+        raise ConfigError(f"--scenario '{text}': {key}={value.strip()}: {why}") from None
 
 
 def _fmt(x: float, spec: str = ".0f") -> str:
@@ -109,14 +128,16 @@ def whatif_cmd(
     from brakethermo.report.whatif_page import write_whatif_page
     from brakethermo.thermal.tyre_radiation import TyreView
 
+    # no change, or one change given twice, is a usage error too (exit 2), as a range is
     with option_values():
         scenarios = _scenarios(cooling, disc, ambient, pads, scenario)
         if not math.isfinite(tyre_temp) or not -20.0 <= tyre_temp <= 200.0:
             raise ConfigError(f"--tyre-temp {tyre_temp}: give the sidewall in degC, -20 to 200")
+        opts = WhatifOptions(scenarios=tuple(scenarios), h_law=h_law, spot=spot,
+                             disc=session_disc, tuning=tuning, aliases=aliases,
+                             ambient_c=session_ambient, draws=draws,
+                             tyre=TyreView(carcass_c=tyre_temp))
     check_session_folder(out, session, "estimate")  # beside this session's estimate only
-    opts = WhatifOptions(scenarios=tuple(scenarios), h_law=h_law, spot=spot, disc=session_disc,
-                         tuning=tuning, aliases=aliases, ambient_c=session_ambient, draws=draws,
-                         tyre=TyreView(carcass_c=tyre_temp))
     res = run_with_status(as_json, "whatif…", lambda: whatif_session(session, opts))
     folder = write_whatif(res, out)
     page = write_whatif_page(res.summary, res.frame, folder / "whatif")

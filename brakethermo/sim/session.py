@@ -114,17 +114,35 @@ class SimResult:
     groups: dict[str, dict[str, str]] = field(default_factory=dict)
 
 
+def check_air(cooling: float, ambient_c: float | None) -> None:
+    """The simulator's range of its air settings (``simulate --set`` checks them before
+    anything is simulated, as a usage error).
+
+    Parameters
+    ----------
+    cooling : float — dimensionless
+        Factor on the disc's convection.
+    ambient_c : float or None — degC
+        Air temperature (None: the track's).
+
+    Raises
+    ------
+    ConfigError
+        A value outside the range, or not finite.
+    """
+    if not (np.isfinite(cooling) and 0.0 < cooling <= 10.0):
+        raise ConfigError(f"cooling must be a finite factor in (0, 10], got {cooling}")
+    if ambient_c is not None and not (np.isfinite(ambient_c) and -40.0 <= ambient_c <= 60.0):
+        raise ConfigError(f"ambient_c must be an air temperature in [-40, 60] degC,"
+                          f" got {ambient_c}")
+
+
 def _validate(cfg: SimConfig) -> None:
     if cfg.laps < 1:
         raise ConfigError(f"--laps must be at least 1, got {cfg.laps}")
     if cfg.sensor not in ("multi", "single"):
         raise ConfigError(f"--sensor must be 'multi' or 'single', got '{cfg.sensor}'")
-    if not (np.isfinite(cfg.cooling) and 0.0 < cfg.cooling <= 10.0):
-        raise ConfigError(f"cooling must be a finite factor in (0, 10], got {cfg.cooling}")
-    if cfg.ambient_c is not None and not (np.isfinite(cfg.ambient_c)
-                                          and -40.0 <= cfg.ambient_c <= 60.0):
-        raise ConfigError(f"ambient_c must be an air temperature in [-40, 60] degC,"
-                          f" got {cfg.ambient_c}")
+    check_air(cfg.cooling, cfg.ambient_c)
     if not cfg.dt > 0 or abs(TRUTH_DT / cfg.dt - round(TRUTH_DT / cfg.dt)) > 1e-9:
         raise ConfigError(f"the thermal step must divide {TRUTH_DT} s, got {cfg.dt}")
     per = cfg.dt * RIDER_RATE_HZ  # the step is stepped on whole rider samples
