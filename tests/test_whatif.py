@@ -114,6 +114,18 @@ def test_summary_and_frame_follow_outputs_md(replayed) -> None:
     assert s["laps"][-1]["cooling x1.3"]["tyre_heat_kj"] < s["laps"][-1]["base"]["tyre_heat_kj"]
 
 
+def test_summary_holds_its_own_evidence_and_says_the_shipped_law(replayed) -> None:
+    """The μ assumption pointed to "run.online_choice in the estimate's summary.json",
+    which whatif never writes; without --h-law the shipped law was used silently (estimate
+    warns of it)."""
+    run = replayed.summary["run"]
+    assert run["online_choice"] == replayed.estimate.summary["run"]["online_choice"]
+    assert run["online_choice"]  # the race decided: its evidence is here
+    assert not any("estimate's summary.json" in a for a in replayed.summary["assumptions"])
+    assert run["h_law_choice"].startswith("shipped default for disc cc-340-8")
+    assert run["warnings"][0].startswith("no h law of this bike (no --h-law)")
+
+
 # ---------------------------------------------------------------- CLI and bad input
 def test_cli_writes_parquet_summary_and_page(sim_race_session, tmp_path: Path) -> None:
     r = runner.invoke(app, ["whatif", str(sim_race_session[0]), "--cooling", "1.2",
@@ -125,6 +137,12 @@ def test_cli_writes_parquet_summary_and_page(sim_race_session, tmp_path: Path) -
     assert (folder / "whatif" / "index.html").is_file()
     assert (folder / "whatif" / "contact.png").stat().st_size > 10_000
     assert summ["scenarios"][0]["cooling"] == 1.2
+    assert summ["run"]["h_law_choice"] == "given with --h-law" or "no h law" in " ".join(
+        summ["run"]["warnings"])
+    r = runner.invoke(app, ["whatif", str(sim_race_session[0]), "--cooling", "1.2",
+                            "--draws", "0", "--out", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    assert "warning: no h law of this bike" in " ".join(r.output.split())
 
 
 @pytest.mark.parametrize("args, needle, code", [

@@ -10,7 +10,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from brakethermo.cli._app import app, console, run_with_status
+from brakethermo.cli._app import app, console, print_warnings, run_with_status
 from brakethermo.cli._options import (
     AliasesOpt,
     AmbientOpt,
@@ -147,7 +147,9 @@ def whatif_cmd(
         typer.echo(to_json(res.summary))
         return
     console.print(_laps_table(res.summary, session))
-    console.print(f"h law: {escape(str(res.summary['run']['h_law']))}", highlight=False)
+    console.print(f"h law: {escape(str(res.summary['run']['h_law']))}"
+                  f" ({escape(res.summary['run']['h_law_choice'])})", highlight=False)
+    print_warnings(res.summary["run"]["warnings"])
     console.print(f"written: {escape(str(folder / 'whatif.parquet'))}, {escape(str(page))}")
 
 

@@ -202,7 +202,7 @@ def _mu_assumption(est: EstimateResult) -> str:
     if "friction_temperature" in dropped:
         return ("μ/μ_nom constant: the law carries an identified μ(T), but this race's own"
                 " held-out innovations did not support it and the estimate dropped it (its"
-                " evidence: run.online_choice in the estimate's summary.json)")
+                " evidence: run.online_choice in this what-if's whatif/summary.json)")
     return "μ/μ_nom constant: the law carries no identified μ(T)"
 
 
@@ -213,6 +213,26 @@ def _checked_law(h_law: str | Path | None, disc: DiscSpec) -> DiscCalibration:
     if mismatch:
         raise ConfigError(mismatch)
     return cal
+
+
+def _law_choice(options: WhatifOptions, est: EstimateResult) -> tuple[str, list[str]]:
+    """Which h law the replay ran on, in words, and the run's warnings: without ``--h-law``
+    the law shipped for the disc, said as ``estimate`` says it (it was used silently).
+
+    Returns
+    -------
+    choice : str
+        ``run.h_law_choice`` of the summary.
+    warnings : list of str
+        The estimate's warnings, after the shipped-law one where it applies.
+    """
+    from brakethermo.pipelines.models import SHIPPED_DEFAULT, SHIPPED_LAW_NOTE
+
+    warnings = list(est.summary["run"]["warnings"])
+    if options.h_law is not None:
+        return "given with --h-law", warnings
+    return (f"{SHIPPED_DEFAULT} for disc {est.disc.id}",
+            [f"no h law of this bike (no --h-law): {SHIPPED_LAW_NOTE}", *warnings])
 
 
 def _scenario_disc(scenario: Scenario, disc: DiscSpec) -> DiscSpec:
@@ -381,6 +401,24 @@ def _frame(est: EstimateResult, base: Replay, replays: list[Replay]) -> pd.DataF
     return pd.DataFrame(cols)
 
 
+def _assumptions(est: EstimateResult) -> list[str]:
+    """The replay's assumptions, in words (``assumptions`` of the summary)."""
+    return [
+        "same speed trace and the same braking power at every stop (the rider brakes"
+        " for the same corners)",
+        "the laps' own model corrections replayed on the changed model, so the model"
+        " predicts the change and the measured laps fix the rest",
+        "cooling scales the convection coefficient of faces and rims; ambient changes"
+        f" the air and h with its density (h ∝ ρ^{DENSITY_EXPONENT:g})",
+        "another disc keeps the identified h law, crown weights and k_z ratio to its"
+        " nominal",
+        "heat to the tyre: one disc's inner face to the sidewall annulus, exact view"
+        " factor of coaxial parallel annuli, grey bodies, shading ignored (an upper"
+        " bound of the direct exchange); two discs on the wheel give twice this",
+        _mu_assumption(est),
+    ]
+
+
 def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
     """Estimate the session, then replay its laps under each scenario."""
     t0 = time.perf_counter()
@@ -392,6 +430,7 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
     est = estimate_from_session(session, EstimateOptions(
         spot=options.spot, h_law=cal, disc=options.disc, tuning=options.tuning,
         aliases=options.aliases, ambient_c=options.ambient_c, score=False))
+    law_choice, warnings = _law_choice(options, est)
     h_sig = options.h_rel_sigma
     if h_sig is None:
         h_sig = H_REL_SIGMA if cal.h_rel_sigma is None else cal.h_rel_sigma
@@ -422,20 +461,7 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
         "laps": laps,
         "zones": {"base": zone_figures(base, zones, lap, names),
                   **{r.scenario.label: zone_figures(r, zones, lap, names) for r in replays}},
-        "assumptions": [
-            "same speed trace and the same braking power at every stop (the rider brakes"
-            " for the same corners)",
-            "the laps' own model corrections replayed on the changed model, so the model"
-            " predicts the change and the measured laps fix the rest",
-            "cooling scales the convection coefficient of faces and rims; ambient changes"
-            f" the air and h with its density (h ∝ ρ^{DENSITY_EXPONENT:g})",
-            "another disc keeps the identified h law, crown weights and k_z ratio to its"
-            " nominal",
-            "heat to the tyre: one disc's inner face to the sidewall annulus, exact view"
-            " factor of coaxial parallel annuli, grey bodies, shading ignored (an upper"
-            " bound of the direct exchange); two discs on the wheel give twice this",
-            _mu_assumption(est),
-        ],
+        "assumptions": _assumptions(est),
         "run": {
             "brakethermo": __version__,
             "h_law": est.summary["run"]["h_law"],
@@ -453,7 +479,11 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
             "replay_s": [r.time_s for r in replays],
             "read_s": read_s,
             "wall_time_s": time.perf_counter() - t0,
-            "warnings": est.summary["run"]["warnings"],
+            "h_law_choice": law_choice,
+            # the race's own decision on the law's effects, which the μ assumption cites:
+            # whatif writes no estimate summary.json of its own, so the evidence is here
+            "online_choice": est.summary["run"].get("online_choice", {}),
+            "warnings": warnings,
         },
     }
     return WhatifResult(est, base, replays, _frame(est, base, replays), summary)
