@@ -140,9 +140,13 @@ def test_cli_writes_parquet_summary_and_page(sim_race_session, tmp_path: Path) -
     assert summ["run"]["h_law_choice"] == "given with --h-law" or "no h law" in " ".join(
         summ["run"]["warnings"])
     r = runner.invoke(app, ["whatif", str(sim_race_session[0]), "--cooling", "1.2",
-                            "--draws", "0", "--out", str(tmp_path)])
+                            "--scenario", "cooling=1.3,ambient=35", "--draws", "0",
+                            "--out", str(tmp_path)])
     assert r.exit_code == 0, r.output
     assert "warning: no h law of this bike" in " ".join(r.output.split())
+    page = (folder / "whatif" / "index.html").read_text(encoding="utf-8")
+    assert "cooling x1.2 | cooling x1.3, ambient 35 °C" in page
+    assert "spread of 0 replays" not in page and "no spread over the h law" in page
 
 
 @pytest.mark.parametrize("args, needle, code", [
@@ -259,3 +263,31 @@ def test_a_change_given_twice_is_refused_and_mu_source_is_said() -> None:
     assert "from the identified μ(T)" in _mu_assumption(est(True, []))
     assert "dropped it" in _mu_assumption(est(False, ["friction_temperature"]))
     assert "carries no identified" in _mu_assumption(est(False, []))
+
+
+def test_charts_keep_scenarios_apart_and_the_legend_off_the_bars() -> None:
+    """Colours repeated after 7 scenarios and the legend sat on the bars; with --draws 0
+    the page spoke of "the spread of 0 replays"; the title joined scenario labels with
+    the commas that also join a combined scenario's changes."""
+    import matplotlib.pyplot as plt
+
+    from brakethermo.report.whatif_page import TITLE_SEP, _band_text, lap_figure, scenario_style
+
+    styles = [scenario_style(j) for j in range(12)]
+    assert len(set(styles)) == 12 and len({c for c, _, _ in styles}) == 12
+    assert scenario_style(0) != scenario_style(12)  # past the palette: another line style
+    labels = [f"cooling x{1 + j / 10:g}" for j in range(9)]
+    figs = {"peak_contact_c": 600.0, "peak_contact_band95_c": 5.0, "time_in_window_pct": 50.0,
+            "tyre_heat_kj": 10.0, "mu_rel_min": 1.0, "hottest_radius_c": 620.0}
+    laps = [{"lap": n, "base": figs, **{lab: figs for lab in labels}} for n in (1, 2)]
+    fig = lap_figure(laps, labels, (350.0, 750.0), mu_varies=False)
+    fig.canvas.draw()
+    (legend,) = fig.legends
+    box = legend.get_window_extent()
+    for ax in fig.axes:
+        assert not box.overlaps(ax.get_window_extent()), "the legend covers a panel"
+    plt.close(fig)
+    run = {"draws": 0, "h_rel_sigma": 0.08, "model_error_pct": 10.0}
+    assert "spread of 0" not in _band_text(run) and "no spread" in _band_text(run)
+    assert "spread of 12 replays" in _band_text({**run, "draws": 12})
+    assert "," not in TITLE_SEP

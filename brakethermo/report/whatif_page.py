@@ -24,8 +24,22 @@ from brakethermo.report.page import (
 )
 from brakethermo.results.laps import lap_label
 
-COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
+# 12 qualitative colours (tab10 without its grey, the as-run line's, and the green of the
+# window, then three darker tab20b/c hues): seven scenarios repeated the first colour
+COLORS = ("#1f77b4", "#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#bcbd22",
+          "#17becf", "#393b79", "#843c39", "#7b4173", "#637939")
 BASE_COLOR = "#444444"
+# past the palette, a scenario keeps a colour but changes its line style and bar hatch
+LINESTYLES = ("-", "--", ":", "-.")
+HATCHES = ("", "//", "..", "xx")
+TITLE_SEP = " | "  # a scenario's own label joins its changes with commas
+
+
+def scenario_style(j: int) -> tuple[str, str, str]:
+    """Colour, line style and bar hatch of the ``j``-th scenario (0-based): distinct for
+    ``len(COLORS) * len(LINESTYLES)`` scenarios."""
+    turn = (j // len(COLORS)) % len(LINESTYLES)
+    return COLORS[j % len(COLORS)], LINESTYLES[turn], HATCHES[turn]
 
 
 def _f(x: float | None, spec: str = ".0f") -> str:
@@ -55,11 +69,13 @@ def contact_figure(frame: pd.DataFrame, labels: Sequence[str], window: Sequence[
     for j, (sfx, lab) in enumerate(zip(_suffixes(len(labels)), labels, strict=True)):
         c = frame[f"contact_avg{sfx}"].to_numpy()
         s = frame[f"contact_avg_std{sfx}"].to_numpy()
-        col = COLORS[j % len(COLORS)]
+        col, ls, _ = scenario_style(j)
         ax.fill_between(t, c - 1.96 * s, c + 1.96 * s, color=col, alpha=0.15, lw=0)
-        ax.plot(t, c, color=col, lw=1.0, label=f"{shown(lab)} (95 % band)")
+        ax.plot(t, c, color=col, ls=ls, lw=1.0, label=f"{shown(lab)} (95 % band)")
     ax.set_title("Contact-band temperature: as run and replayed with each change")
-    return finish_figure(fig, ax, "time, min", "contact band, °C", loc="upper left", ncols=2)
+    # beside the axes, never over the traces, however many scenarios
+    return finish_figure(fig, ax, "time, min", "contact band, °C", loc="upper left",
+                         bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
 
 
 def lap_figure(laps: Sequence[Mapping[str, Any]], labels: Sequence[str],
@@ -79,12 +95,13 @@ def lap_figure(laps: Sequence[Mapping[str, Any]], labels: Sequence[str],
     for ax, (key, title) in zip(axes.ravel(), panels, strict=True):
         for j, k in enumerate(keys):
             vals = np.array([row[k][key] for row in laps], float)
-            col = BASE_COLOR if k == "base" else COLORS[(j - 1) % len(COLORS)]
+            col, _, hatch = (BASE_COLOR, "-", "") if k == "base" else scenario_style(j - 1)
             err = None
             if key == "peak_contact_c" and k != "base":
                 err = np.array([row[k]["peak_contact_band95_c"] for row in laps], float)
             ax.bar(x + (j - (len(keys) - 1) / 2) * width, vals, width, yerr=err, color=col,
-                   alpha=0.85, capsize=2, label="as run" if k == "base" else shown(k))
+                   hatch=hatch, alpha=0.85, capsize=2,
+                   label="as run" if k == "base" else shown(k))
         if key in ("peak_contact_c", "hottest_radius_c"):
             for w in window:
                 ax.axhline(w, color="#2ca02c", lw=0.8, ls="--")
@@ -93,8 +110,12 @@ def lap_figure(laps: Sequence[Mapping[str, Any]], labels: Sequence[str],
     for ax in axes[1]:
         ax.set_xticks(x, [str(v) for v in n])
         ax.set_xlabel("lap")
-    axes[0, 0].legend(fontsize=8)
-    fig.tight_layout()
+    # one legend for the four panels, below them: inside a panel it covered the bars
+    handles, names = axes[0, 0].get_legend_handles_labels()
+    rows = math.ceil(len(names) / 4)
+    fig.legend(handles, names, loc="lower center", ncols=min(4, len(names)), fontsize=8,
+               frameon=False)
+    fig.tight_layout(rect=(0.0, min(0.4, 0.035 * rows + 0.01), 1.0, 1.0))
     return fig
 
 
@@ -116,6 +137,17 @@ def _table(laps: Sequence[Mapping[str, Any]], labels: Sequence[str]) -> TableBlo
         rows.append(cells)
     return TableBlock(header, rows, "Per lap, contact band; ± is the 95 % band of the"
                       " scenario's peak (estimate, h-law uncertainty, model allowance).")
+
+
+def _band_text(run: Mapping[str, Any]) -> str:
+    """How the 95 % band is made; with no replays over the law (``--draws 0``) it has no
+    spread of them ("the spread of 0 replays" read as a spread that was measured)."""
+    law = (f"the spread of {run['draws']} replays over the h law's level (1-sigma"
+           f" {100 * run['h_rel_sigma']:.0f} %)" if run["draws"] > 0 else
+           "no spread over the h law's level (--draws 0: the law's uncertainty is left"
+           " out, so the band is narrower than the change's own)")
+    return (f"95 % band = the estimate's own band, {law}, and {run['model_error_pct']:g} %"
+            " of the change as a model-structure allowance, in quadrature.")
 
 
 def whatif_page(summary: Mapping[str, Any], frame: pd.DataFrame) -> Page:
@@ -151,15 +183,12 @@ def whatif_page(summary: Mapping[str, Any], frame: pd.DataFrame) -> Page:
     )
     run = summary["run"]
     facts = Section("How the band is made", paragraphs=[
-        f"95 % band = the estimate's own band, the spread of {run['draws']} replays over the"
-        f" h law's level (1-sigma {100 * run['h_rel_sigma']:.0f} %), and"
-        f" {run['model_error_pct']:g} % of the change as a model-structure allowance, in"
-        " quadrature.",
+        _band_text(run),
         f"Tyre view: rim {run['tyre_view']['rim_radius_m']:g} m, tyre"
         f" {run['tyre_view']['tyre_radius_m']:g} m, gap {run['tyre_view']['gap_m']:g} m,"
         f" sidewall {run['tyre_view']['carcass_c']:g} °C, ε {run['tyre_view']['emissivity']:g}.",
     ] + [f"warning: {w}" for w in run.get("warnings", [])])
-    return Page(title="What if", subtitle=", ".join(map(shown, labels)), cards=cards,
+    return Page(title="What if", subtitle=TITLE_SEP.join(map(shown, labels)), cards=cards,
                 sections=[main, facts], back_href="../index.html",
                 footer=f"brakethermo {run['brakethermo']}")
 
