@@ -85,3 +85,37 @@ def test_the_small_index_names_the_option_that_exists(tmp_path: Path) -> None:
     text = refresh_page_links(folder).read_text()
     assert "without --no-reports for them" in text
     assert "--no-reports" in CliRunner().invoke(app, ["estimate", "--help"]).output
+
+
+def test_a_whatif_on_the_same_law_by_another_path_is_not_stale(tmp_path: Path,
+                                                                monkeypatch) -> None:
+    """The batch records its law relative to its working folder, whatif --h-law as typed
+    (absolute): the page said "made with the h law h_law.toml; the estimate here now uses
+    h_law.toml: run whatif again" of one file. A law that really differs is named so the
+    two can be told apart, and a law file rewritten since is said to be."""
+    monkeypatch.chdir(tmp_path)
+    law_a, law_b = tmp_path / "o" / "ft_a" / "h_law.toml", tmp_path / "o" / "ft_b" / "h_law.toml"
+    for law, text in ((law_a, "a"), (law_b, "b")):
+        law.parent.mkdir(parents=True)
+        law.write_text(text)
+    folder = tmp_path / "o" / "race"
+    (folder / "whatif").mkdir(parents=True)
+    (folder / "whatif" / "index.html").write_text("<html></html>")
+    _summary(folder / "summary.json", "o/ft_a/h_law.toml")  # as the batch wrote it
+    _summary(folder / "whatif" / "summary.json", str(law_a))  # as whatif was given it
+    assert "run whatif again" not in page_links(folder)
+    _summary(folder / "whatif" / "summary.json", str(law_b))
+    links = page_links(folder)
+    assert "made with the h law ft_b/h_law.toml" in links
+    assert "now uses ft_a/h_law.toml" in links
+
+    def run(law: Path, sha: str) -> dict:
+        return {"run": {"h_law": str(law), "h_law_sha256": sha}}
+
+    # recorded bytes decide: one file under two spellings, or one file rewritten since
+    (folder / "summary.json").write_text(json.dumps(run(Path("o/ft_a/h_law.toml"), "1" * 64)))
+    (folder / "whatif" / "summary.json").write_text(json.dumps(run(law_a, "1" * 64)))
+    assert "run whatif again" not in page_links(folder)
+    (folder / "whatif" / "summary.json").write_text(json.dumps(run(law_a, "2" * 64)))
+    links = page_links(folder)
+    assert "an earlier version of the h law" in links and "rewritten since" in links

@@ -123,6 +123,9 @@ def test_summary_holds_its_own_evidence_and_says_the_shipped_law(replayed) -> No
     assert run["online_choice"]  # the race decided: its evidence is here
     assert not any("estimate's summary.json" in a for a in replayed.summary["assumptions"])
     assert run["h_law_choice"].startswith("shipped default for disc cc-340-8")
+    # the bytes of the law read, so a page can tell two spellings of one file apart
+    assert run["h_law_sha256"] == replayed.estimate.summary["run"]["h_law_sha256"]
+    assert len(run["h_law_sha256"]) == 64
     assert run["warnings"][0].startswith("no h law of this bike (no --h-law)")
 
 

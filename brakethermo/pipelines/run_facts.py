@@ -5,6 +5,8 @@ made for (another disc, another layering, speeds beyond its data).
 
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -15,11 +17,23 @@ from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
 
 
+def law_sha256(source: str | Path) -> str | None:
+    """SHA-256 of the h law file a run read (None: no file, as a calibration made in
+    memory): a later page tells the same law under two spellings of its path (relative,
+    absolute) from another law, and a file since rewritten from the one read."""
+    try:
+        path = Path(source)
+        return hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
+    except (OSError, ValueError):
+        return None
+
+
 def model_facts(cal: DiscCalibration, tuning: EstimateTuning, model: DiscFEModel
                 ) -> dict[str, Any]:
     """The run facts of the law, the mesh and the filter settings."""
     return {
         "h_law": cal.source,
+        "h_law_sha256": law_sha256(cal.source) if cal.source else None,
         "nodes": tuning.nodes,
         "layers": tuning.layers,
         "layer_growth": tuning.layer_growth,

@@ -465,6 +465,7 @@ def whatif_session(path: str | Path, options: WhatifOptions) -> WhatifResult:
         "run": {
             "brakethermo": __version__,
             "h_law": est.summary["run"]["h_law"],
+            "h_law_sha256": est.summary["run"].get("h_law_sha256"),
             "disc": est.disc.id,
             "window_c": list(est.disc.window_c),
             "measured_spot": options.spot,

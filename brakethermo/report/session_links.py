@@ -36,24 +36,70 @@ def _rig_of(folder: Path) -> str | None:
     return None if kind is None else kind.command
 
 
-def _law_of(path: Path) -> str | None:
+def _law_of(path: Path) -> tuple[str, str | None] | None:
+    """The h law a run recorded in its summary: its path as given, and the SHA-256 of
+    the file it read (None in a summary written before that was recorded)."""
     try:
-        return json.loads(path.read_text(encoding="utf-8"))["run"]["h_law"]
+        run = json.loads(path.read_text(encoding="utf-8"))["run"]
+        law, sha = run["h_law"], run.get("h_law_sha256")
     except (OSError, ValueError, KeyError, TypeError):
         return None
+    if not isinstance(law, str):
+        return None
+    return law, sha if isinstance(sha, str) else None
+
+
+def _same_law(made: tuple[str, str | None], now: tuple[str, str | None]) -> bool:
+    """Whether two runs read the same h law: by the bytes they read when both recorded
+    them, else by the file the paths name (a batch records a law relative to its working
+    folder, ``whatif --h-law`` as typed, perhaps absolute: two spellings of one file)."""
+    if made[1] is not None and now[1] is not None:
+        return made[1] == now[1]
+    if made[0] == now[0]:
+        return True
+    a, b = Path(made[0]), Path(now[0])
+    try:
+        return a.resolve() == b.resolve() or (a.is_file() and b.is_file() and a.samefile(b))
+    except OSError:
+        return False
+
+
+def _one_file(a: str, b: str) -> bool:
+    try:
+        return Path(a).resolve() == Path(b).resolve()
+    except OSError:
+        return False
+
+
+def _told_apart(made: str, now: str) -> tuple[str, str]:
+    """The two laws' paths cut to what tells them apart: the file names when they differ,
+    else as many trailing folders as it takes."""
+    a, b = Path(made).parts, Path(now).parts
+    for n in range(1, max(len(a), len(b)) + 1):
+        if a[-n:] != b[-n:]:
+            return str(Path(*a[-n:])), str(Path(*b[-n:]))
+    return made, now
 
 
 def _note(folder: Path, href: str) -> str:
     """What a reader must know before following a link: a what-if replayed on another h
-    law than the estimate now beside it (a later estimate replaced the one it anchored to).
+    law than the estimate now beside it (a later estimate replaced the one it anchored to,
+    or the law file was rewritten since).
     """
     if href != "whatif/index.html":
         return ""
     made, now = _law_of(folder / "whatif" / "summary.json"), _law_of(folder / "summary.json")
-    if made is None or now is None or made == now:
+    if made is None or now is None or _same_law(made, now):
         return ""
-    return (f" (made with the h law {Path(made).name}; the estimate here now uses"
-            f" {Path(now).name}: run whatif again to compare with it)")
+    if _one_file(made[0], now[0]):  # one file, other bytes: identify-h rewrote it since
+        shas = (f" (sha256 {made[1][:12]}…, now {now[1][:12]}…)"
+                if made[1] is not None and now[1] is not None else "")
+        return (f" (made with an earlier version of the h law {made[0]}{shas}; the estimate"
+                " here now uses that file as rewritten since: run whatif again to compare"
+                " with it)")
+    old, new = _told_apart(made[0], now[0])
+    return (f" (made with the h law {old}; the estimate here now uses {new}: run whatif"
+            " again to compare with it)")
 
 
 def page_links(folder: Path) -> str:
