@@ -214,6 +214,9 @@ def test_the_batch_page_follows_commands_run_into_its_folder(folder: Path, tmp_p
     assert refresh_batch_index(options.out) == index
     page = index.read_text()
     assert page.count("replaced by another command since") == 1
+    # the row said "up to date" above "its results were replaced … since"
+    race_row = page[page.index('href="race/index.html"'):].split("</tr>")[0]
+    assert ">replaced<br>" in race_row and "up to date" not in race_row
     assert 'href="race/index.html"' in page and 'href="fp1/index.html"' in page
     assert refresh_batch_index(tmp_path) is None  # no batch there: nothing written
     assert not (tmp_path / "index.html").exists()
@@ -223,6 +226,26 @@ def test_the_batch_page_follows_commands_run_into_its_folder(folder: Path, tmp_p
     write_session_parquet(other / "quali.parquet", 1, seed=7)
     run_batch(other, _options(tmp_path, reports=False), job=JOB)
     assert "quali" in index.read_text()
+
+
+def test_a_row_whose_law_was_rewritten_is_stale_not_up_to_date(folder: Path,
+                                                                tmp_path: Path) -> None:
+    """identify-h into a batch's test-session folder rewrote the law a race was estimated
+    with; the race's row still said "up to date" (the manifest records the law's bytes)."""
+    from brakethermo.pipelines.batch.index import refresh_batch_index
+
+    options = _options(tmp_path)
+    outcomes = {o.name: o for o in run_batch(folder, options, job=JOB).outcomes}
+    race = outcomes["race"]
+    assert race.h_law_used is not None
+    law = Path(race.h_law_used)
+    assert refresh_batch_index(options.out) is not None
+    assert "stale" not in (options.out / "index.html").read_text()
+    law.write_text(law.read_text() + "\n# identified again\n")
+    page = refresh_batch_index(options.out).read_text()  # type: ignore[union-attr]
+    row = page[page.index('href="race/index.html"'):].split("</tr>")[0]
+    assert ">stale<br>" in row and "up to date" not in row, row
+    assert "was rewritten since" in row and law.parent.name in row
 
 
 def test_another_session_of_a_name_in_out_fails_alone(folder: Path, tmp_path: Path) -> None:

@@ -15,7 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from brakethermo.io.atomic import write_text_atomic
-from brakethermo.pipelines.batch.discovery import REPLACED, outputs_replaced
+from brakethermo.pipelines.batch.discovery import REPLACED, outputs_replaced, read_manifest
+from brakethermo.pipelines.batch.tasks import DEFAULT_LAW, file_sha256
 
 INDEX_ROWS = "batch_index.json"
 
@@ -46,8 +47,41 @@ def refresh_batch_index(out: str | Path) -> Path | None:
     except (OSError, ValueError, KeyError, TypeError):
         return None
     for row in rows:
-        if (row.get("status") in ("ok", "skipped", "earlier batch")
-                and outputs_replaced(out / str(row["name"]))):
-            row.update(reason=REPLACED, peaks_c={}, replaced=True, h_law=None,
-                       h_law_reason="")
+        if row.get("status") not in ("ok", "skipped", "earlier batch"):
+            continue
+        if outputs_replaced(out / str(row["name"])):
+            # "up to date" beside "replaced since" contradicted itself: say which
+            row.update(status=REPLACED_STATUS, reason=REPLACED, peaks_c={}, replaced=True,
+                       h_law=None, h_law_reason="")
+            continue
+        changed = law_changed(out, read_manifest(out / str(row["name"])))
+        if changed is not None:
+            row.update(status=STALE_STATUS, replaced=True,
+                       reason=f"the h law it was estimated with ({changed}) was rewritten"
+                              " since (identify-h or another batch): its peaks are of the"
+                              " old law; batch this folder again for the new one")
     return write_batch_index(out, folder, rows)
+
+
+REPLACED_STATUS = "replaced"  # another command's results now in the session's folder
+STALE_STATUS = "stale"  # the batch's results, of a law rewritten since
+
+
+def law_changed(out: Path, manifest: dict[str, Any] | None) -> str | None:
+    """The law file a session was estimated with, when it holds other bytes now than the
+    manifest recorded (else None: the same, the shipped law, or a file no longer found).
+    The manifest names it as the batch was given it, perhaps relative to the folder the
+    batch ran in; a law identified in the batch is also found under ``out``."""
+    if not isinstance(manifest, dict):
+        return None
+    used, sha = manifest.get("h_law_used"), manifest.get("h_law_sha256")
+    if not isinstance(used, str) or not used or not isinstance(sha, str) or sha == DEFAULT_LAW:
+        return None
+    path = Path(used)
+    for candidate in (path, out / path.parent.name / path.name):
+        if candidate.is_file():
+            try:
+                return None if file_sha256(candidate) == sha else str(candidate)
+            except OSError:
+                return None
+    return None
