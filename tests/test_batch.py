@@ -248,6 +248,29 @@ def test_a_row_whose_law_was_rewritten_is_stale_not_up_to_date(folder: Path,
     assert "was rewritten since" in row and law.parent.name in row
 
 
+def test_pages_later_commands_wrote_into_out_are_linked(folder: Path, tmp_path: Path
+                                                       ) -> None:
+    """`diagnose a b --out OUT` into a batch's --out wrote OUT/pooled/ and OUT/<b>/ (a
+    session the batch never read); the index linked neither, even after a re-batch."""
+    from brakethermo.pipelines.batch.index import refresh_batch_index
+
+    options = _options(tmp_path)
+    run_batch(folder, options, job=JOB)
+    pooled, other = options.out / "pooled", options.out / "ft_b" / "diagnosis"
+    for page in (pooled, other):
+        page.mkdir(parents=True)
+        (page / "index.html").write_text("<html></html>")
+    (pooled / "diagnosis.json").write_text("{}")
+    (options.out / ".stage-x").mkdir()  # a staging folder is no page
+    for page in (refresh_batch_index(options.out).read_text(),  # type: ignore[union-attr]
+                 (run_batch(folder, options, job=JOB), options.out / "index.html")[1]
+                 .read_text()):
+        assert 'href="pooled/index.html">pooled diagnosis</a>' in page
+        assert 'href="ft_b/diagnosis/index.html">diagnosis</a>' in page
+        assert ".stage-x" not in page
+        assert page.count('href="race/index.html"') == 1  # a session stays in its row
+
+
 def test_another_session_of_a_name_in_out_fails_alone(folder: Path, tmp_path: Path) -> None:
     """A second day's race.parquet batched into the first day's --out replaced the first
     race's results with no word (estimate and the other commands refuse it): that session

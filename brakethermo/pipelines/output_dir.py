@@ -184,7 +184,13 @@ def refresh_indexes(folder: str | Path) -> None:
     from brakethermo.report.session_links import refresh_page_links
 
     refresh_page_links(folder)
-    out = Path(folder).parent
+    refresh_out_index(Path(folder).parent)
+
+
+def refresh_out_index(out: str | Path) -> None:
+    """Redraw the batch's ``out/index.html`` (if a batch wrote one) after a command wrote
+    into ``out``: its rows, and the pages of folders that are none of its sessions."""
+    out = Path(out)
     # only where a page is: the batch package brings the report stack (matplotlib), 0.3-
     # 0.6 s of the wall of an estimate that writes no page
     if (out / "index.html").is_file():

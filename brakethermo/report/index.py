@@ -37,6 +37,35 @@ def _diagnosis_cell(folder: Path) -> str | None:
     return str(d.get("verdict", "none"))
 
 
+# The pages another command writes into a folder of OUT, and how the index names them.
+OTHER_PAGES = (("index.html", "page"), ("diagnosis/index.html", "diagnosis"),
+               ("whatif/index.html", "what if"))
+
+
+def other_pages(out: Path, names: Iterable[str]) -> list[dict[str, Any]]:
+    """The folders of ``out`` that are no session of the batch's rows (``names``) but
+    hold pages later commands wrote there (``diagnose A B --out OUT``'s ``pooled/`` and
+    the folder of a session the batch never read): each with its pages' links, so the
+    index reaches every page in ``out``."""
+    rows = {str(n).casefold() for n in names}
+    found = []
+    try:
+        folders = sorted(p for p in out.iterdir() if p.is_dir())
+    except OSError:
+        return found
+    for folder in folders:
+        if folder.name.startswith(".") or folder.name.casefold() in rows:
+            continue  # a staging folder, or a session of the table
+        links = [{"href": f"{folder.name}/{page}",
+                  "label": "pooled diagnosis" if page == "index.html"
+                  and folder.name == "pooled" and (folder / "diagnosis.json").is_file()
+                  else label}
+                 for page, label in OTHER_PAGES if (folder / page).is_file()]
+        if links:
+            found.append({"name": folder.name, "links": links})
+    return found
+
+
 def write_batch_index(
     out: str | Path, folder: str | Path, sessions: Iterable[dict[str, Any]]
 ) -> Path:
@@ -76,7 +105,8 @@ def write_batch_index(
     env = template_environment()
     env.filters["temp"] = temp_text
     html = env.get_template("batch.html.j2").render(
-        sessions=rows, folder=str(folder), footer=f"brakethermo {__version__}"
+        sessions=rows, folder=str(folder), footer=f"brakethermo {__version__}",
+        others=other_pages(out, [r["name"] for r in rows]),
     )
     index = out / "index.html"
     write_text_atomic(index, html)

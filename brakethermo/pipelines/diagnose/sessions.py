@@ -184,8 +184,11 @@ def write_pooled(summary: dict[str, Any], out_dir: str | Path) -> Path:
     from brakethermo.report.pooled_diagnosis_page import pooled_page
 
     summary.update(with_out(summary, out_dir))
+    from brakethermo.pipelines.output_dir import refresh_out_index
+
     path = write_json(Path(out_dir) / POOLED_FOLDER / "diagnosis.json", summary)
     write_page(pooled_page(summary), path.parent)
+    refresh_out_index(out_dir)  # a batch's index there links the pooled page
     return path
 
 
