@@ -145,3 +145,45 @@ def test_cli_progress_and_choice_lines(folder, tmp_path, monkeypatch):
     text = " ".join(res.output.split())
     assert "race_mugello: h law batch — identified from a_mugello (same disc cc-340-8" in text
     assert max(len(line) for line in res.output.splitlines()) <= 80
+
+
+def test_an_assumed_disc_and_a_law_of_another_disc_are_said_on_the_console(tmp_path):
+    """A CSV without session facts was taken for disc cc-340-8 with no word, the batch
+    reporting "same disc cc-340-8" as if known; batch --h-law with a law of another disc
+    ran with exit 0, status ok, the mismatch said only inside summary.json."""
+    from _synth_race import write_session_csv
+    from typer.testing import CliRunner
+
+    from brakethermo.cli import app
+    from brakethermo.config import config_dir
+    from brakethermo.pipelines.batch.laws import session_facts
+    from brakethermo.pipelines.models import DISC_ASSUMED, assumed_disc
+
+    folder = tmp_path / "day"
+    folder.mkdir()
+    race = write_session_csv(folder / "race_hand.csv", 1, seed=4)
+    session = LawRunner().load(race, BatchOptions(out=tmp_path / "o"))
+    assert assumed_disc(session).startswith(DISC_ASSUMED)
+    assert assumed_disc(session, "cc-340-8") is None
+    facts = session_facts(session)
+    assert facts["disc"] == "cc-340-8" and facts["disc_assumed"] == "yes"
+    laws = [_outcome("test_day", "2026-01-01", disc="cc-340-8")]
+    assert "same disc cc-340-8 (assumed: the file's facts name no disc)" in choose_law(
+        facts, laws).reason
+    assert "assumed" not in choose_law({"disc": "cc-340-8"}, laws).reason
+
+    shipped = config_dir() / "hlaw" / "cc-340-8.toml"
+    other = tmp_path / "other_disc_law.toml"
+    other.write_text(shipped.read_text().replace('disc = "cc-340-8"', 'disc = "cc-355-9"'))
+    res = CliRunner().invoke(app, ["batch", str(folder), "--out", str(tmp_path / "o"),
+                                   "--h-law", str(other), "--no-reports"],
+                             env={"COLUMNS": "200"})
+    assert res.exit_code == 0, res.output
+    text = " ".join(res.output.split())
+    assert "warning: race_hand: the session's facts name no disc" in text
+    assert "warning: race_hand: " + str(other) + ": this h law was identified on disc" \
+           " 'cc-355-9'" in text
+    res = CliRunner().invoke(app, ["batch", str(folder), "--out", str(tmp_path / "o"),
+                                   "--h-law", str(other), "--no-reports", "--json"])
+    row = json.loads(res.output)["sessions"][0]
+    assert row["status"] == "skipped" and len(row["warnings"]) == 2  # said again

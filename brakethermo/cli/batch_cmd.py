@@ -12,7 +12,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from brakethermo.cli._app import app, console
+from brakethermo.cli._app import app, console, print_warnings
 from brakethermo.cli._options import (
     SESSION_FORMATS,
     AliasesOpt,
@@ -169,6 +169,8 @@ def _render(result: BatchResult, out: Path, reports: bool) -> None:
         if o.kind == "single" and o.h_law_reason:
             console.print(f"{escape(o.name)}: h law {escape(_law_tag(o.h_law_source))} — "
                           f"{escape(o.h_law_reason)}")
+    # the disc assumed, or a law of another disc, was said only inside summary.json
+    print_warnings(f"{o.name}: {w}" for o in result.outcomes for w in o.warnings)
     share = ", ".join(
         f"{k.removesuffix('_s')} {v:.1f} s ({f:.0%})"
         for k, (v, f) in result.step_shares().items()

@@ -40,7 +40,12 @@ from brakethermo.pipelines.estimate_table import (
 from brakethermo.pipelines.h_factor_found import HFactorFound, h_factor_found, h_factor_warning
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs, load_timed
 from brakethermo.pipelines.law_drops import law_part_warnings
-from brakethermo.pipelines.models import DiscCalibration, calibration_for, disc_for
+from brakethermo.pipelines.models import (
+    DiscCalibration,
+    assumed_disc,
+    calibration_for,
+    disc_for,
+)
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.race_run import decided_run
 from brakethermo.pipelines.run_facts import law_warnings, model_facts
@@ -299,7 +304,8 @@ def estimate_from_session(
     y = _measurement(inputs, options.spot, session.path)
     cal = calibration or calibration_for(disc, options.h_law)
     tuning = calibrated_tuning(cal, options)
-    warnings = [*session.warnings, *inputs.warnings,
+    assumed = assumed_disc(session, options.disc)
+    warnings = [*session.warnings, *inputs.warnings, *([assumed] if assumed else []),
                 *law_warnings(cal, disc, tuning, inputs.speed)]
     choice, run, t_choice = decided_run(session, options, disc, inputs, y, cal, tuning,
                                         calibration)

@@ -21,6 +21,27 @@ def disc_for(session: Session, disc: str | Path | None = None) -> DiscSpec:
     return load_disc(disc or session.metadata.get("disc") or DEFAULT_DISC)
 
 
+# Words that start the warnings about the disc a run assumed or a law made for another:
+# batch repeats these (and only these) of a session's warnings on its console.
+DISC_ASSUMED = "the session's facts name no disc"
+OTHER_DISC = "this h law was identified on disc"
+
+
+def assumed_disc(session: Session, disc: str | Path | None = None) -> str | None:
+    """What to say when the disc is neither given nor a fact of the session (a CSV of a
+    logger that writes no facts): the default disc was assumed (else None)."""
+    if disc or session.metadata.get("disc"):
+        return None
+    return (f"{DISC_ASSUMED}: processed as the default disc {DEFAULT_DISC} — if it runs"
+            " another, name it (estimate/diagnose --disc, whatif --disc-of-session) or add a"
+            " 'disc' fact to the file")
+
+
+def disc_warnings(warnings: list[str]) -> list[str]:
+    """The warnings of a run about its disc: assumed, or the law's is another."""
+    return [w for w in warnings if w.startswith(DISC_ASSUMED) or OTHER_DISC in w]
+
+
 def shipped_h_law(disc: DiscSpec) -> Path | None:
     """The h law shipped for this disc (identified from the sample test session), if any."""
     path = config_dir() / "hlaw" / f"{disc.id}.toml"
@@ -166,7 +187,7 @@ def other_disc(cal: DiscCalibration, disc: DiscSpec, option: str = "--disc") -> 
     ``option`` is the command's option that names the session's disc."""
     if cal.disc_id is None or cal.disc_id == disc.id:
         return None
-    return (f"{cal.source}: this h law was identified on disc '{cal.disc_id}' but the session"
+    return (f"{cal.source}: {OTHER_DISC} '{cal.disc_id}' but the session"
             f" runs disc '{disc.id}': identify-h on a test session of disc '{disc.id}', or"
             f" name the session's disc with {option} if its facts are wrong")
 

@@ -211,4 +211,5 @@ def skipped_outcome(path: Path, name: str, manifest: dict[str, Any], out: Path) 
         h_law_reason=str(manifest.get("h_law_reason", "")),
         session_date=str(manifest.get("session_date", "")),
         facts={str(k): str(v) for k, v in dict(manifest.get("facts") or {}).items()},
+        warnings=[str(w) for w in manifest.get("warnings") or []],
     )

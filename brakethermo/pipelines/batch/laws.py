@@ -20,6 +20,14 @@ from brakethermo.pipelines.batch.tasks import (
 )
 
 MULTI_SPOT = tuple(f"disc_temp_spot{i}" for i in range(1, 5))
+DISC_ASSUMED_FACT = "disc_assumed"  # a session fact of the batch's own: no disc was named
+
+
+def _disc_words(facts: dict[str, str]) -> str:
+    """``disc <id>``, said to be assumed where the file's facts named none."""
+    disc = facts.get("disc", "")
+    return (f"disc {disc} (assumed: the file's facts name no disc)"
+            if facts.get(DISC_ASSUMED_FACT) else f"disc {disc}")
 
 
 def is_multi_spot(session: Session) -> bool:
@@ -28,11 +36,14 @@ def is_multi_spot(session: Session) -> bool:
 
 
 def session_facts(session: Session) -> dict[str, str]:
-    """What the h-law choice matches on: disc id as processed, track, vehicle, date."""
+    """What the h-law choice matches on: disc id as processed, track, vehicle, date (and
+    ``disc_assumed`` where no fact named the disc)."""
     from brakethermo.pipelines.models import DEFAULT_DISC
 
     meta = session.metadata
     facts = {"disc": str(meta.get("disc") or DEFAULT_DISC)}
+    if not meta.get("disc"):  # no fact names it: the default was assumed, and is said so
+        facts[DISC_ASSUMED_FACT] = "yes"
     for key in ("track", "vehicle", "date"):
         if meta.get(key):
             facts[key] = str(meta[key])
@@ -74,7 +85,8 @@ def choose_law(facts: dict[str, str], outcomes: Iterable[SessionOutcome]) -> Law
         passed = f"; laws of other discs not used: {', '.join(others)}" if others else ""
         return LawChoice(
             None, DEFAULT_LAW,
-            f"no law identified in this batch for disc {disc}: shipped default{passed}",
+            f"no law identified in this batch for {_disc_words(facts)}: shipped"
+            f" default{passed}",
         )  # fmt: skip
 
     def matches(o: SessionOutcome, key: str) -> bool:
@@ -88,7 +100,7 @@ def choose_law(facts: dict[str, str], outcomes: Iterable[SessionOutcome]) -> Law
         return matches(o, "track"), matches(o, "vehicle"), o.session_date, mtime
 
     best = max(same_disc, key=rank)
-    why = [f"same disc {disc}"]
+    why = [f"same {_disc_words(facts)}"]
     why += [f"same {k} {facts[k]}" for k in ("track", "vehicle") if matches(best, k)]
     if len(same_disc) > 1:
         why.append(f"newest of {len(same_disc)} for this disc")

@@ -165,6 +165,7 @@ def _write_outputs(
         report("identifying h(V)" if not single else "estimating")
         run = runner.run(session, stage, task.options, task.h_law if single else None)
         outcome.timings.update(run.timings)
+        outcome.warnings = list(getattr(run, "warnings", []))
         if single:
             outcome.h_law_source = task.h_law_source
             outcome.h_law_reason = task.h_law_reason
@@ -223,6 +224,7 @@ def _write_outputs(
             "facts": outcome.facts,
             "laps": outcome.laps,
             "peaks_c": outcome.peaks,
+            "warnings": outcome.warnings,  # said again when a later batch skips it
         }
         manifest["outputs_sha256"] = output_fingerprints(stage)
         write_text_atomic(stage / MANIFEST, json.dumps(manifest, indent=2) + "\n")
@@ -261,6 +263,7 @@ class PipelineRunner:
             estimate_from_session,
             write_estimate,
         )
+        from brakethermo.pipelines.models import disc_warnings
 
         timings: dict[str, float] = {}
         law_out = None
@@ -299,7 +302,8 @@ class PipelineRunner:
         _flatten(write_estimate(result, stage), stage)
         timings["write_s"] = timings.get("write_s", 0.0) + time.perf_counter() - t
         return RunOutput(
-            result.frame, np.asarray(result.node_radii), law_out, timings, disc=disc_of(result)
+            result.frame, np.asarray(result.node_radii), law_out, timings, disc=disc_of(result),
+            warnings=disc_warnings(result.summary["run"]["warnings"]),
         )
 
 

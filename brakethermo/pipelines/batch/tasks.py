@@ -110,6 +110,9 @@ class RunOutput:
     disc : DiscSpec or None
         The datasheet the session was processed with (the session's ``disc`` fact or
         the default disc when None).
+    warnings : list of str
+        The estimate's warnings about the disc (assumed; a law of another disc), which
+        the batch says on its console.
     """
 
     frame: pd.DataFrame
@@ -117,6 +120,7 @@ class RunOutput:
     h_law: Path | None = None
     timings: dict[str, float] = field(default_factory=dict)
     disc: DiscSpec | None = None
+    warnings: list[str] = field(default_factory=list)
 
 
 class SessionRunner(Protocol):
@@ -213,6 +217,9 @@ class SessionOutcome:
         ``read_s``, ``identify_s``, ``estimate_s``, ``report_s``, ``mcap_s``...
     session : Session or None
         The loaded session of a deferred outcome.
+    warnings : list of str
+        What the console must say of the session's disc: assumed (no ``disc`` fact), or
+        a law of another disc (:func:`~brakethermo.pipelines.models.disc_warnings`).
     """
 
     path: Path
@@ -231,6 +238,7 @@ class SessionOutcome:
     facts: dict[str, str] = field(default_factory=dict)
     timings: dict[str, float] = field(default_factory=dict)
     session: Session | None = None
+    warnings: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-able record (without the session)."""
@@ -248,6 +256,7 @@ class SessionOutcome:
             "h_law_reason": self.h_law_reason,
             "facts": self.facts,
             "timings_s": {k: round(v, 3) for k, v in self.timings.items()},
+            "warnings": list(self.warnings),
         }
 
 
