@@ -187,3 +187,8 @@ def test_an_assumed_disc_and_a_law_of_another_disc_are_said_on_the_console(tmp_p
                                    "--h-law", str(other), "--no-reports", "--json"])
     row = json.loads(res.output)["sessions"][0]
     assert row["status"] == "skipped" and len(row["warnings"]) == 2  # said again
+    res = CliRunner().invoke(app, ["estimate", str(race), "--out", str(tmp_path / "e"),
+                                   "--no-reports"], env={"COLUMNS": "200"})
+    assert res.exit_code == 0, res.output
+    assert "warning: the session's facts name no disc: processed as the default disc" \
+           " cc-340-8" in " ".join(res.output.split())

@@ -47,7 +47,7 @@ from brakethermo.pipelines.inputs import (
     disc_inputs,
     load_timed,
 )
-from brakethermo.pipelines.models import DiscCalibration, disc_for, shipped_h_law
+from brakethermo.pipelines.models import DiscCalibration, assumed_disc, disc_for, shipped_h_law
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.pipelines.race_filter import disc_model
 from brakethermo.pipelines.tuning import (
@@ -804,7 +804,8 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
             **_filter_facts(forward),
             "timings_s": timings,
             "wall_time_s": timings["total_s"],
-            "warnings": list(session.warnings) + list(inputs.warnings) + notes,
+            "warnings": [*session.warnings, *inputs.warnings, *notes,
+                         *filter(None, [assumed_disc(session, options.disc)])],
         },
     }
     return IdentifyResult(session, law, law_ukf, calibration, samples, structure, fit_mask,

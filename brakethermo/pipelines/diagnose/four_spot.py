@@ -60,7 +60,7 @@ from brakethermo.pipelines.diagnose.single_spot import diagnose_single_spot
 from brakethermo.pipelines.diagnose.where import _marginals, where_table
 from brakethermo.pipelines.estimate import SENSOR_FLOOR_C
 from brakethermo.pipelines.inputs import DiscInputs, disc_inputs
-from brakethermo.pipelines.models import disc_for
+from brakethermo.pipelines.models import assumed_disc, disc_for
 from brakethermo.pipelines.race_run import SIGMA_MEAS_FLOOR_C
 from brakethermo.pipelines.tuning import EstimateTuning, read_tuning
 from brakethermo.results.laps import slow_laps
@@ -397,7 +397,9 @@ class _FourSpot:
                 "effects_tried": list(self.names),
                 "timings_s": self.timings,
                 "wall_time_s": time.perf_counter() - t_start,
-                "input_warnings": list(self.session.warnings) + list(inputs.warnings),
+                "input_warnings": [*self.session.warnings, *inputs.warnings,
+                                   *filter(None, [assumed_disc(self.session,
+                                                               self.options.disc)])],
             },
         }
 

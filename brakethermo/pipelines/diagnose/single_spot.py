@@ -36,7 +36,7 @@ from brakethermo.pipelines.diagnose.where import _marginals, where_table
 from brakethermo.pipelines.estimate import SENSOR_FLOOR_C
 from brakethermo.pipelines.h_factor_found import h_factor_found
 from brakethermo.pipelines.inputs import DiscInputs
-from brakethermo.pipelines.models import SHIPPED_LAW_NOTE
+from brakethermo.pipelines.models import SHIPPED_LAW_NOTE, assumed_disc
 from brakethermo.results.laps import whole_flying_laps
 from brakethermo.thermal.disc import DiscSpec
 
@@ -122,7 +122,8 @@ def diagnose_single_spot(
             + SHIPPED_LAW_NOTE],
         "run": {"brakethermo": __version__, "disc": disc.id, "effects_tried": list(names),
                 "timings_s": {}, "wall_time_s": time.perf_counter() - t_start,
-                "input_warnings": list(session.warnings) + list(inputs.warnings)},
+                "input_warnings": [*session.warnings, *inputs.warnings,
+                                   *filter(None, [assumed_disc(session, options.disc)])]},
     }
     return DiagnoseResult(session, summary, inputs.time, inputs.lap, y, ref_pred, best_pred,
                           dist, nis, {}, ref_sse, evidence)
