@@ -118,4 +118,5 @@ def test_a_whatif_on_the_same_law_by_another_path_is_not_stale(tmp_path: Path,
     assert "run whatif again" not in page_links(folder)
     (folder / "whatif" / "summary.json").write_text(json.dumps(run(law_a, "2" * 64)))
     links = page_links(folder)
-    assert "an earlier version of the h law" in links and "rewritten since" in links
+    assert f"read the h law {law_a} with other contents" in links
+    assert "rewritten between them" in links

@@ -84,19 +84,19 @@ def _told_apart(made: str, now: str) -> tuple[str, str]:
 def _note(folder: Path, href: str) -> str:
     """What a reader must know before following a link: a what-if replayed on another h
     law than the estimate now beside it (a later estimate replaced the one it anchored to,
-    or the law file was rewritten since).
+    or the law file was rewritten between the two runs).
     """
     if href != "whatif/index.html":
         return ""
     made, now = _law_of(folder / "whatif" / "summary.json"), _law_of(folder / "summary.json")
     if made is None or now is None or _same_law(made, now):
         return ""
-    if _one_file(made[0], now[0]):  # one file, other bytes: identify-h rewrote it since
-        shas = (f" (sha256 {made[1][:12]}…, now {now[1][:12]}…)"
+    if _one_file(made[0], now[0]):  # one file, other bytes: rewritten between the runs
+        shas = (f" (sha256 {made[1][:12]}… and {now[1][:12]}…)"
                 if made[1] is not None and now[1] is not None else "")
-        return (f" (made with an earlier version of the h law {made[0]}{shas}; the estimate"
-                " here now uses that file as rewritten since: run whatif again to compare"
-                " with it)")
+        return (f" (the what-if and the estimate here read the h law {made[0]} with other"
+                f" contents{shas}: it was rewritten between them; run the older again to"
+                " compare them)")
     old, new = _told_apart(made[0], now[0])
     return (f" (made with the h law {old}; the estimate here now uses {new}: run whatif"
             " again to compare with it)")
