@@ -182,14 +182,17 @@ def calibration_for(disc: DiscSpec, h_law: str | Path | DiscCalibration | None
     return read_calibration(path)
 
 
-def other_disc(cal: DiscCalibration, disc: DiscSpec, option: str = "--disc") -> str | None:
+def other_disc(cal: DiscCalibration, disc: DiscSpec, option: str = "estimate --disc"
+               ) -> str | None:
     """What to say when the law was identified on another disc than ``disc`` (else None);
-    ``option`` is the command's option that names the session's disc."""
+    ``option`` is the command's option that names the session's disc (batch has none:
+    the session's ``disc`` fact does it there, and is named too)."""
     if cal.disc_id is None or cal.disc_id == disc.id:
         return None
     return (f"{cal.source}: {OTHER_DISC} '{cal.disc_id}' but the session"
             f" runs disc '{disc.id}': identify-h on a test session of disc '{disc.id}', or"
-            f" name the session's disc with {option} if its facts are wrong")
+            f" name the session's disc with {option} (or its 'disc' fact) if its facts are"
+            " wrong")
 
 
 def own_h_law(folder: str | Path, session: Session) -> DiscCalibration | None:
