@@ -342,3 +342,24 @@ def test_the_laws_kz_says_its_scale_and_agrees_with_the_diagnosis(identified, tm
     assert "# kz_factor here is kz_ratio" in carried.read_text()
     again = read_calibration(carried)
     assert again.effects["thickness_gradient"]["kz_factor"] == pytest.approx(cal.kz_ratio)
+
+
+def test_a_flat_law_is_warned_and_recorded_at_its_bound() -> None:
+    """identify-h --with-effect none wrote b = 2.4e-06 at its bound 0 with
+    ``structure.at_bounds`` empty and no warning; now the law check warns (its text names
+    the effect selection) and records ``reference.b``; a rising law says nothing."""
+    from types import SimpleNamespace
+
+    from brakethermo.pipelines.identify_h import _law_check
+    from brakethermo.thermal.hlaw import HLaw
+
+    v = np.linspace(25.0, 80.0, 100)
+    notes: list[str] = []
+    structure = SimpleNamespace(at_bounds={})
+    check = _law_check(HLaw(v_ref=97.2, a=76.8, b=2.4e-06), v, structure, notes)
+    assert check is not None and check["b_at_bound"]
+    assert structure.at_bounds == {("reference", "b"): pytest.approx(2.4e-06)}
+    assert len(notes) == 1 and "absorbed an unmodelled effect" in notes[0]
+    notes.clear()
+    assert _law_check(HLaw(v_ref=97.2, a=180.0, b=0.6), v, None, notes) is None and not notes
+

@@ -208,3 +208,18 @@ def test_a_race_faster_than_the_laws_data_is_warned(tmp_path: Path) -> None:
     assert "runs to 322 km/h" in said and "(300 km/h)" in said
     assert not [w for w in law_warnings(cal, disc, tuning, fast * 300.0 / 322.0)
                 if "runs to" in w]
+
+
+def test_a_law_flat_with_speed_is_implausible() -> None:
+    """identify-h --with-effect none wrote b = 2.4e-06 (its bound 0), h = 76.8 at every
+    speed, with nothing said; an independent generator's sessions gave b = 0.066. Forced
+    convection rises with speed: both are flagged, a V^0.6 law is not."""
+    from brakethermo.thermal.hlaw_check import law_speed_check
+
+    v = np.linspace(80.0, 300.0, 200) / 3.6
+    flat = law_speed_check(HLaw(v_ref=350 / 3.6, a=76.8, b=2.4e-06), v)
+    assert flat is not None and flat["b_at_bound"] and flat["rise"] == pytest.approx(1.0, abs=1e-4)
+    assert "lower bound 0" in flat["text"] and "--with-effect" in flat["text"]
+    weak = law_speed_check(HLaw(v_ref=350 / 3.6, a=100.0, b=0.066), v)
+    assert weak is not None and not weak["b_at_bound"] and weak["rise"] < weak["rise_needed"]
+    assert law_speed_check(HLaw(v_ref=350 / 3.6, a=180.0, b=0.6), v) is None

@@ -59,6 +59,7 @@ from brakethermo.pipelines.tuning import (
 )
 from brakethermo.thermal.disc import DiscSpec, kz_scales
 from brakethermo.thermal.hlaw import HLaw, read_h_law
+from brakethermo.thermal.hlaw_check import law_speed_check
 from brakethermo.thermal.model import DiscFEModel
 from brakethermo.thermal.power import normalise_weights
 
@@ -732,6 +733,21 @@ def _bound_notes(structure: StructureFit | None) -> list[str]:
             for (name, param), value in (structure.at_bounds if structure else {}).items()]
 
 
+def _law_check(law: HLaw, speed: np.ndarray, structure: StructureFit | None,
+               notes: list[str]) -> dict[str, Any] | None:
+    """The written law's plausibility as forced convection (:func:`law_speed_check` on
+    its off-brake speeds, m/s), warned about in ``notes``; an exponent at its bound is
+    recorded in the structure's ``at_bounds`` as ``reference.b`` too. The fit is left as
+    it is: the warning says what the law probably absorbed and how to find out."""
+    check = law_speed_check(law, speed)
+    if check is None:
+        return None
+    notes.append(check["text"])
+    if structure is not None and check["b_at_bound"]:
+        structure.at_bounds[("reference", "b")] = check["b"]
+    return check
+
+
 def identify_from_session(session: Session, options: IdentifyOptions) -> IdentifyResult:
     """Run identify-h on a loaded session (see :func:`identify_h`)."""
     t0 = time.perf_counter()
@@ -760,6 +776,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
     notes.extend(_bound_notes(structure))
     if fit_mask.any():  # what its h samples reach: beyond, the law grows as its power branch
         law = replace(law, x_data=float(np.nanmax(np.abs(inputs.speed[fit_mask]))) / law.v_ref)
+    law_check = _law_check(law, inputs.speed[fit_mask], structure, notes)
     calibration = _calibration(session, law, structure, est_tuning)
     sigma_crown, sigma_temp, adapt_power, band_scale, validation = validate_filter(
         session, calibration, options
@@ -782,6 +799,7 @@ def identify_from_session(session: Session, options: IdentifyOptions) -> Identif
         "metadata": session.metadata,
         "law": _law_dict(law),
         "law_ukf_only": None if law_ukf is None else _law_dict(law_ukf),
+        "law_check": law_check,
         "fit": _fit_facts(fit_mask, h_std, residual),
         "structure": None if structure is None else structure.facts(),
         "k_z": kz_scales(disc, calibration.kz_ratio),  # kz_ratio in W/(m K), over nominal
@@ -883,5 +901,6 @@ def write_identify(result: IdentifyResult, out_dir: str | Path,
     plot_h_law(result.samples, result.fit_mask, result.law, folder / "h_law.png",
                title=result.stem, law_ukf=result.law_ukf if result.structure else None,
                straights=result.straights, level=result.summary.get("evidence"),
-               carried=tuple(cal.effects))
+               carried=tuple(cal.effects),
+               warning=(result.summary.get("law_check") or {}).get("text", ""))
     return folder

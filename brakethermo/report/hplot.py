@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,10 +31,20 @@ def _carried_note(ax: Any, carried: tuple[str, ...]) -> None:
                 bbox={"fc": "white", "ec": "0.7", "alpha": 0.9})
 
 
+def _warning_note(fig: Figure, warning: str) -> float:
+    """Say below the plot, in red, why the law drawn is not to be trusted; the share of
+    the figure's height it takes (0 without a warning), left free by the layout."""
+    if not warning:
+        return 0.0
+    text = textwrap.fill("WARNING: " + warning, 150)
+    fig.text(0.5, 0.01, text, ha="center", va="bottom", fontsize=8, color="darkred")
+    return 0.03 + 0.028 * text.count("\n")
+
+
 def plot_h_law(
     samples: pd.DataFrame, fit_mask: np.ndarray, law: HLaw, path: Path, title: str = "",
     law_ukf: HLaw | None = None, straights: pd.DataFrame | None = None,
-    level: dict[str, Any] | None = None, carried: tuple[str, ...] = (),
+    level: dict[str, Any] | None = None, carried: tuple[str, ...] = (), warning: str = "",
 ) -> Path:
     """The written h(V) law and the evidence it was fitted to.
 
@@ -63,6 +74,9 @@ def plot_h_law(
     carried : tuple of str
         Effects the law carries that change h on some straights (``slipstream``): the
         straights are judged against the bare law, and the figure says so.
+    warning : str
+        What makes the law implausible (``thermal.hlaw_check``), drawn over the plot so
+        that a flat law is not read as a finding; ``""`` = none.
     """
     fig = Figure(figsize=(9.0, 5.5), dpi=110)
     ax = fig.add_subplot()
@@ -84,11 +98,12 @@ def plot_h_law(
     ax.axvline(knee_kmh, c="k", ls="--", lw=1)
     ax.text(knee_kmh, 0.02, f"knee {law.knee:.2f}·V_ref = {knee_kmh:.0f} km/h ",
             transform=ax.get_xaxis_transform(), va="bottom", ha="right", fontsize=9)
+    bottom = _warning_note(fig, warning)
     ax.set_xlabel("speed [km/h]")
     ax.set_ylabel("h [W/(m² K)]")
     ax.grid(alpha=0.3)
     ax.legend(loc="upper left", markerscale=2, fontsize=8)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0))
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png")
     return path
