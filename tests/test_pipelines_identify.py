@@ -363,3 +363,10 @@ def test_a_flat_law_is_warned_and_recorded_at_its_bound() -> None:
     notes.clear()
     assert _law_check(HLaw(v_ref=97.2, a=180.0, b=0.6), v, None, notes) is None and not notes
 
+
+def test_the_console_prints_a_vector_effect() -> None:
+    """"effect slipstream: " was printed blank: only scalar values were printed."""
+    from brakethermo.cli.identify_cmd import _vector_text
+
+    text = _vector_text("straight_factor", [0.923, 1.0, 1.6])
+    assert text == "straight_factor x3 from 0.923 to 1.6, median 1"

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
+import numpy as np
 import typer
 from rich.markup import escape
 from rich.table import Table
@@ -145,9 +146,10 @@ def _print_structure(s: StructureFit, session: Session, disc: str | None) -> Non
         units = {p.name: p.unit for p in EFFECTS[name].params} if name in EFFECTS else {}
         # in h_law.toml kz_factor is a share of the in-plane k(T), as the law's k_z ratio
         console.print(f"effect {name}: " + ", ".join(
-            f"{k} = {v:.3g}{_unit_text(units.get(k, ''))}"
-            + (f" ({_kz_text(v, session, disc)})" if k == "kz_factor" else "")
-            for k, v in values.items() if isinstance(v, float)), highlight=False)
+            (f"{k} = {v:.3g}{_unit_text(units.get(k, ''))}"
+             + (f" ({_kz_text(v, session, disc)})" if k == "kz_factor" else ""))
+            if isinstance(v, float) else _vector_text(k, v)
+            for k, v in values.items()), highlight=False)
     console.print(
         "open-loop RMSE per spot °C: "
         + ", ".join(f"{k} {v:.1f} (uniform {s.rmse_uniform_c[k]:.1f})"
@@ -169,6 +171,16 @@ def _print_evidence(ev: dict[str, Any] | None) -> None:
             f" cools as measured with this law x{ev['factor']:.3f}"
             f" [{ev['ci95'][0]:.3f}, {ev['ci95'][1]:.3f}] (h_law.png; identify.json"
             " evidence); the law is written as fitted", highlight=False)
+
+
+def _vector_text(name: str, values: list[float]) -> str:
+    """A per-segment parameter (a slipstream's straight factors, a zone's crown balance)
+    in one line: how many, their range and median (h_law.toml has them all)."""
+    if not values:
+        return f"{name}: none"
+    v = np.asarray(values, float)
+    return (f"{name} x{v.size} from {v.min():.3g} to {v.max():.3g}, median"
+            f" {float(np.median(v)):.3g}")
 
 
 def _unit_text(unit: str) -> str:

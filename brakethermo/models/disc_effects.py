@@ -178,29 +178,70 @@ class ExtendedDisc:
         return np.array(lo), np.array(hi)
 
     def at_bounds(self, p: np.ndarray) -> dict[tuple[str, str], float]:
-        """``(effect, param): value`` of the effects' own strength parameters that ``p``
-        leaves at a bound of their range (within 1 % of the range, in the fitted space: a
-        bounded least-squares fit stops near its bound, not on it — 0.6002 on a bound of
-        0.6), unless that bound is the effect's absent value: the data push them past what
-        the effect's form allows. Shape parameters (:attr:`EffectParam.shape`) are not
-        judged."""
+        """``(effect, param): value`` of the effects' parameters that ``p`` leaves at a
+        bound of their range (within 1 % of the range, in the fitted space: a bounded
+        least-squares fit stops near its bound, not on it — 0.6002 on a bound of 0.6).
+
+        The data push such a parameter past what the effect's form allows. Per-segment
+        values count one by one, named ``param[i]`` (``i`` the zone or straight): a
+        slipstream straight at 1.6 or a zone's crown balance at 1.5 is as clamped as a
+        scalar (found at 1.6 and 0.400 with nothing said). A slipstream straight is judged
+        as the multiplier of h it is written as (:meth:`values`). A bound that is the
+        effect's absent value counts too (a named pyrometer lag at its 0.01 s floor: the
+        fit found no lag). Shape parameters (:attr:`EffectParam.shape`) are not judged.
+        """
+        return self._at_bounds(p, [sl for sl in self.slots if sl.effect != "reference"
+                                   and not sl.param.shape])
+
+    def reference_at_bounds(self, p: np.ndarray) -> dict[tuple[str, str], float]:
+        """:meth:`at_bounds` of the reference's own parameters (h's ``a`` and ``b``, the
+        power scale, the mean crown weights ``w1``, ``w2`` relative to ``w3``)."""
+        return self._at_bounds(p, [sl for sl in self.slots if sl.effect == "reference"])
+
+    def _at_bounds(self, p: np.ndarray, slots: list[Slot]) -> dict[tuple[str, str], float]:
+        """:meth:`at_bounds` over ``slots``."""
         lo, hi = self.bounds()
-        p_neutral = self.neutral()
         tol = 1e-2 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
-        return {(sl.effect, sl.param.name): float(sl.param.from_fit(p[sl.index]))
-                for sl in self.slots if sl.segment < 0 and sl.effect != "reference"
-                and not sl.param.shape
-                and abs(p[sl.index] - p_neutral[sl.index]) > tol[sl.index]
-                and (p[sl.index] <= lo[sl.index] + tol[sl.index]
-                     or p[sl.index] >= hi[sl.index] - tol[sl.index])}
+        x = np.asarray(p, float).copy()
+        shown = self.latent_slots("slipstream")
+        if shown:  # judged as written: the multipliers of h, not the raw factors
+            raw = np.exp(x[[sl.index for sl in shown]])
+            x[[sl.index for sl in shown]] = np.log(self._as_multipliers(raw))
+        out: dict[tuple[str, str], float] = {}
+        for sl in slots:
+            i = sl.index
+            if x[i] <= lo[i] + tol[i] or x[i] >= hi[i] - tol[i]:
+                name = sl.param.name if sl.segment < 0 else f"{sl.param.name}[{sl.segment}]"
+                out[(sl.effect, name)] = float(sl.param.from_fit(x[i]))
+        return out
 
     def at_bounds_words(self, p: np.ndarray) -> str:
         """:meth:`at_bounds` in words, ``""`` when none (``"ratio = 0.6, at the edge of its
-        range 0.6 to 1.5"``)."""
-        ranges = {(s.effect, s.param.name): (s.param.lower, s.param.upper) for s in self.slots}
-        return "; ".join(f"{key[1]} = {v:.3g}, at the edge of its range"
-                         f" {ranges[key][0]:g} to {ranges[key][1]:g}"
-                         for key, v in self.at_bounds(p).items())
+        range 0.6 to 1.5"``; per-segment values together, ``"straight_factor[0] = 1.6,
+        straight_factor[4] = 0.4, at the edges of its range 0.4 to 1.6"``)."""
+        return self.bound_words(self.at_bounds(p))
+
+    def reference_at_bounds_words(self, p: np.ndarray) -> str:
+        """:meth:`reference_at_bounds` in words, ``""`` when none."""
+        return self.bound_words(self.reference_at_bounds(p))
+
+    def bound_words(self, found: dict[tuple[str, str], float]) -> str:
+        """Bound findings in words, grouped by parameter (segments together)."""
+        params = {(s.effect, s.param.name): s.param for s in self.slots}
+        groups: dict[tuple[str, str], dict[str, float]] = {}
+        for (effect, name), v in found.items():
+            groups.setdefault((effect, name.split("[", 1)[0]), {})[name] = v
+        parts = []
+        for key, values in groups.items():
+            par = params[key]
+            # a bound that is the effect's absent value (the lag's 0.01 s): it found none
+            absent = all(np.isclose(v, par.neutral, rtol=0.05) for v in values.values())
+            parts.append(", ".join(f"{n} = {v:.3g}" for n, v in values.items())
+                         + f", at the edge{'s' if len(values) > 1 else ''} of its range"
+                         f" {par.lower:g} to {par.upper:g}"
+                         + (" (the effect's absent value: the fit found none)" if absent
+                            else ""))
+        return "; ".join(parts)
 
     def prior(self) -> tuple[np.ndarray, np.ndarray]:
         """Prior mean and standard deviation (inf = none) in the fitted space."""

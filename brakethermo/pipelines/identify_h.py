@@ -326,6 +326,7 @@ def fit_structure(
                         f_scale=20.0, ftol=1e-4, xtol=1e-4, max_nfev=30)
     p = with_fixed(sol.x[None])[0]
     law, w, kz, scale = unpack(p)
+    at_bounds = _structure_at_bounds(p, lo, hi)
     uniform = np.array([*p0[:4], 0.0, 0.0, 0.0, 0.0])
     return law, StructureFit(
         weights=(float(w[0]), float(w[1]), float(w[2])),
@@ -335,7 +336,20 @@ def fit_structure(
         layers=est.layers,
         rmse_c=_spot_rmse(run(p), y),
         rmse_uniform_c=_spot_rmse(run(uniform), y),
+        at_bounds=at_bounds,
     )
+
+
+def _structure_at_bounds(p: np.ndarray, lo: np.ndarray, hi: np.ndarray
+                         ) -> dict[tuple[str, str], float]:
+    """:func:`fit_structure`'s crown weights, k_z ratio and power scale (log-fitted, from
+    index 4 of ``p``) at a bound of their range ``lo``..``hi``, within 1 % of it in the
+    fitted space (a bounded fit stops near its bound); the exponent b is judged by
+    :func:`_law_check`, with what a flat law means."""
+    span = hi[4:] - lo[4:]
+    edge = (p[4:] <= lo[4:] + 1e-2 * span) | (p[4:] >= hi[4:] - 1e-2 * span)
+    return {("reference", n): float(np.exp(x)) for n, x, e
+            in zip(("w1", "w2", "kz_ratio", "scale"), p[4:], edge, strict=True) if e}
 
 
 def _law_with_knee(a: float, b: float, gain: float, v_ref: float, knee: float) -> HLaw:
@@ -391,7 +405,11 @@ def fit_with_effects(
     kz = ext.values(p, "thickness_gradient")["kz_factor"]
     assert isinstance(kz, float)
     fitted = {name: ext.values(p, name) for name in effects}
-    at_bounds = ext.at_bounds(p)
+    # the reference's own (h's a and b, the mean crown weights, the power scale) as well:
+    # crown weights at w1 = 0.05 or a power scale at 3 are as clamped as any effect's
+    # (h's exponent b is judged by _law_check, with what a flat law means)
+    at_bounds = {**{k: v for k, v in ext.reference_at_bounds(p).items() if k[1] != "b"},
+                 **ext.at_bounds(p)}
     return law, StructureFit(
         weights=ext.weights(p),
         kz_ratio=kz,
@@ -723,14 +741,29 @@ def _evidence_facts(level: dict[str, Any]) -> dict[str, Any]:
 
 
 def _bound_notes(structure: StructureFit | None) -> list[str]:
-    """A note per fitted parameter that sits at a bound of its range."""
-    return [f"{name}.{param} = {value:.4g} sits at the bound the fit allows: the data push it"
-            " further than the model's range, so the effect's form does not fit them "
-            + ("(part of every law's structure, kept: read the law's h(V) above the knee and"
-               " its k_z with care; `brakethermo diagnose` tests the effect)"
-               if name in STRUCTURE_EFFECTS else
-               "(check the carried effects against `brakethermo diagnose`)")
-            for (name, param), value in (structure.at_bounds if structure else {}).items()]
+    """A note per fitted parameter that sits at a bound of its range (per-segment values
+    of one parameter together)."""
+    grouped: dict[tuple[str, str], list[str]] = {}
+    for (name, param), value in (structure.at_bounds if structure else {}).items():
+        grouped.setdefault((name, param.split("[", 1)[0]), []).append(
+            f"{name}.{param} = {value:.4g}")
+    return [", ".join(values) + (" sit" if len(values) > 1 else " sits")
+            + " at the bound the fit allows: the data push it further than the model's"
+            " range, so " + _bound_why(name) for (name, _), values in grouped.items()]
+
+
+def _bound_why(name: str) -> str:
+    """What a parameter of ``name`` (an effect, or ``reference``) at a bound means."""
+    if name == "reference":
+        return ("the reference model (h(V), crown weights, power scale) has absorbed"
+                " something it does not model (`brakethermo diagnose` tests the effects;"
+                " identify-h --with-effect carries them)")
+    if name in STRUCTURE_EFFECTS:
+        return ("the effect's form does not fit them (part of every law's structure, kept:"
+                " read the law's h(V) above the knee and its k_z with care; `brakethermo"
+                " diagnose` tests the effect)")
+    return ("the effect's form does not fit them (kept as named; check the carried effects"
+            " against `brakethermo diagnose`)")
 
 
 def _law_check(law: HLaw, speed: np.ndarray, structure: StructureFit | None,

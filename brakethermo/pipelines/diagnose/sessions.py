@@ -120,8 +120,12 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
     names = [e.name for e in results[0].evidence]
     by_session = [{e.name: e for e in r.evidence} for r in results]
     ref = np.concatenate([r.reference_sse for r in results if r.reference_sse is not None])
+    # a fit at a bound in any run is said pooled too (as a rig's pooled diagnosis does):
+    # the pooled row was never at a bound, and a slipstream straight at 1.6 went unsaid
     evidence = [end_to_end([b[n] for b in by_session], leading(_rows(results, n)),
-                           n_params=0, signature=None, at_bound="")
+                           n_params=0, signature=None, at_bound="; ".join(
+                               f"{b[n].at_bound} (in {r.stem})" for r, b
+                               in zip(results, by_session, strict=True) if b[n].at_bound))
                 for n in names if all(n in b for b in by_session)]
     blind_sets = [{u["name"]: u["why"] for u in r.summary.get("untestable", [])}
                   for r in results]
