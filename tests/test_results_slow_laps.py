@@ -30,3 +30,20 @@ def test_the_page_says_which_laps_are_slow():
     assert text.startswith(" Lap 7 took 1.43 x the typical lap time") and "no flying lap" in text
     two = _slow_text({"slow_laps": {"6": 1.3, "7": 1.43}})
     assert two.startswith(" Laps 6, 7 took 1.30, 1.43 x") and "no flying laps" in two
+
+
+def test_the_reference_section_warns_of_a_flat_reference_law() -> None:
+    """diagnose ft_a ft_b: the page said "Fitted: h_a = 104, h_b = 2.8e-06" and nothing
+    flagged the law at its bound; the law check and any other bound are said in red."""
+    from brakethermo.report.diagnose_report import _reference_section
+
+    check = {"text": "h(V) law implausible for forced convection: exponent b = 2.8e-06"}
+    test = {"train_laps": [2, 4], "heldout_laps": [3, 5], "slow_laps": {},
+            "reference": {"contains": ["x"], "fitted": {"h_a": 104.0, "h_b": 2.8e-06},
+                          "law_check": check,
+                          "at_bounds": {"reference.b": 2.8e-06, "reference.w1": 0.05}}}
+    notes = _reference_section(test).notes
+    assert notes[0].startswith("Fitted: h_a = 104")
+    assert notes[1] == "WARNING: " + check["text"]
+    assert "reference.w1 = 0.05" in notes[2] and "reference.b" not in notes[2]
+

@@ -205,16 +205,35 @@ def _slow_text(summary: dict[str, Any]) -> str:
 
 def _reference_section(summary: dict[str, Any]) -> Section:
     """What the reference model contains, what it was fitted on, and its fitted values."""
+    ref = summary["reference"]
     return Section(
         "The reference model",
         [f"Fitted on laps {', '.join(map(str, summary['train_laps']))}; every 'after' figure"
          f" below is measured on laps {', '.join(map(str, summary['heldout_laps']))}, which"
          " no fit saw (the out-lap is used by neither)." + _slow_text(summary)],
-        [TableBlock(["contains"], [[c] for c in summary["reference"]["contains"]])],
-        notes=["Fitted: " + ", ".join(
-            f"{k} = {num(v, '.3g') if not isinstance(v, list) else [round(x, 3) for x in v]}"
-            for k, v in summary["reference"]["fitted"].items())],
+        [TableBlock(["contains"], [[c] for c in ref["contains"]])],
+        notes=_reference_notes(ref),
     )
+
+
+def _reference_notes(ref: dict[str, Any]) -> list[str]:
+    """The reference's fitted values (none: nothing said) and what makes them suspect: an
+    h law flat with speed, a parameter at a bound of its range (found: "Fitted: h_a = 104,
+    h_b = 2.8e-06" with nothing said)."""
+    notes = []
+    if ref.get("fitted"):
+        notes.append("Fitted: " + ", ".join(
+            f"{k} = {num(v, '.3g') if not isinstance(v, list) else [round(x, 3) for x in v]}"
+            for k, v in ref["fitted"].items()))
+    if ref.get("law_check"):
+        notes.append("WARNING: " + ref["law_check"]["text"])
+    shown = {k: v for k, v in (ref.get("at_bounds") or {}).items() if k != "reference.b"}
+    if shown:
+        notes.append("WARNING: at a bound of its range: " + ", ".join(
+            f"{k} = {num(v, '.3g')}" for k, v in shown.items())
+            + " (the data push it past the reference's range: read the 'before' figures"
+            " with care)")
+    return notes
 
 
 def _consistency_section(cons: dict[str, Any], time: np.ndarray, nis: np.ndarray) -> Section:

@@ -57,6 +57,7 @@ def pooled_page(summary: dict[str, Any]) -> Page:
                 f"Pooled verdict: {shown}.",
                 *summary.get("verdict_reasons", []),
                 *(f"Note: {n}" for n in summary.get("notes", [])),
+                *(f"WARNING: {w}" for w in summary.get("warnings", [])),
                 f"Rule: {summary.get('verdict_rule', '')}"]),
             Section("Next steps", paragraphs=list(summary.get("next_steps", [])) or ["none"]),
             Section("Candidates", tables=[TableBlock(

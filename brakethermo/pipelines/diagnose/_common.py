@@ -20,6 +20,7 @@ MIN_SHRINK_PCT = 10.0  # % — lower bootstrap bound a verdict needs
 
 
 CORRELATED = 0.8  # correlation of two effects' held-out corrections flagged as ambiguous
+REFERENCE_WARNING = "reference model: "  # prefix of the warnings on the reference fit
 
 
 PRIOR_WEIGHT_C = 5.0  # degC: one prior sigma costs like one residual of this size

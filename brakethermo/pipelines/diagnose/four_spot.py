@@ -27,6 +27,7 @@ from brakethermo.pipelines.diagnose._common import (
     CORRELATED,
     MIN_SHRINK_PCT,
     RACE_SPOT,
+    REFERENCE_WARNING,
     RULE,
     SETTLE_S,
     Candidate,
@@ -65,6 +66,7 @@ from brakethermo.pipelines.race_run import SIGMA_MEAS_FLOOR_C
 from brakethermo.pipelines.tuning import EstimateTuning, read_tuning
 from brakethermo.results.laps import slow_laps
 from brakethermo.thermal.disc import DiscSpec
+from brakethermo.thermal.hlaw_check import law_speed_check
 from brakethermo.thermal.model import DiscFEModel
 
 
@@ -313,6 +315,18 @@ class _FourSpot:
             })
         return sorted(out, key=lambda e: e["rank"])
 
+    def reference_warnings(self) -> list[str]:
+        """Warnings on the reference fit: its h law implausible, a parameter at a bound."""
+        check = self.law_check()
+        out = [] if check is None else [f"{REFERENCE_WARNING}{check['text']}"]
+        # h's exponent at its bound is the law check's, said once with what it means
+        words = self.ref.bound_words({k: v for k, v in self.ref.reference_at_bounds(
+            self.p_ref).items() if k[1] != "b"})
+        if words:
+            out.append(f"{REFERENCE_WARNING}{words} (the data push it past the reference's"
+                       " range: read its 'before' figures with care)")
+        return out
+
     def alike(self, decision: Decision, significant: list[Candidate]) -> list[str]:
         """Warnings for two significant effects whose corrections move the prediction alike."""
         warnings: list[str] = []
@@ -349,7 +363,16 @@ class _FourSpot:
             ],
             "fitted": {"h_a": law.a, "h_b": law.b, "power_scale": float(np.exp(p_ref[2])),
                        "crown_weights": list(ref.weights(p_ref))},
+            "at_bounds": {f"{e}.{p}": v for (e, p), v in ref.reference_at_bounds(p_ref).items()},
+            "law_check": self.law_check(),
         }
+
+    def law_check(self) -> dict[str, Any] | None:
+        """The reference h law's plausibility (``thermal.hlaw_check``) over the fitted and
+        held-out laps' speeds: a law flat with speed has absorbed what a candidate may
+        explain, and every 'before' figure rests on it."""
+        used = self.layout.train | self.layout.held
+        return law_speed_check(self.ref.law(self.p_ref), self.inputs.speed[used])
 
     def summary(self, decision: Decision, ranked: list[Candidate],
                 significant: list[Candidate], selection: dict[str, Any], t_start: float
@@ -390,7 +413,7 @@ class _FourSpot:
             "effects": self.effects_out(decision),
             **decision.summary(),
             "combined": selection,
-            "warnings": self.alike(decision, significant),
+            "warnings": self.reference_warnings() + self.alike(decision, significant),
             "run": {
                 "brakethermo": __version__,
                 "disc": self.disc.id,

@@ -15,6 +15,7 @@ from brakethermo.diagnosis.verdict import (
 )
 from brakethermo.errors import ConfigError, DataError
 from brakethermo.pipelines.diagnose._common import (
+    REFERENCE_WARNING,
     RULE,
     DiagnoseOptions,
     DiagnoseResult,
@@ -169,6 +170,9 @@ def pool(results: Sequence[DiagnoseResult]) -> dict[str, Any]:
         "per_session": [{"session": r.stem, "verdict": r.summary["verdict"],
                          "verdict_set": r.summary["verdict_set"]} for r in results],
         "notes": notes,
+        # each run's warnings on its own reference fit (an h law flat with speed)
+        "warnings": [f"{r.stem}: {w}" for r in results for w in r.summary.get("warnings", [])
+                     if w.startswith(REFERENCE_WARNING)],
         "run": {"brakethermo": __version__, "disc": first["run"]["disc"],
                 "pooled_units": int(ref.shape[0])},
     }
