@@ -47,3 +47,16 @@ def test_the_reference_section_warns_of_a_flat_reference_law() -> None:
     assert notes[1] == "WARNING: " + check["text"]
     assert "reference.w1 = 0.05" in notes[2] and "reference.b" not in notes[2]
 
+
+def test_the_reference_section_says_what_a_single_spot_race_fits() -> None:
+    """A single-spot race's page read "Fitted on laps ; every 'after' figure ... laps 1, 2,
+    3, 4, 5, which no fit saw" and "Fitted: " with nothing after it: nothing is fitted
+    offline there."""
+    from brakethermo.report.diagnose_report import _reference_section
+
+    race = {"train_laps": [], "heldout_laps": [1, 2, 3, 4, 5], "slow_laps": {},
+            "reference": {"contains": ["the race estimator"], "fitted": {}}}
+    section = _reference_section(race)
+    text = " ".join(section.paragraphs)
+    assert "Fitted on laps ;" not in text and "Nothing is fitted offline" in text
+    assert "laps 1, 2, 3, 4, 5" in text and section.notes == []

@@ -208,12 +208,24 @@ def _reference_section(summary: dict[str, Any]) -> Section:
     ref = summary["reference"]
     return Section(
         "The reference model",
-        [f"Fitted on laps {', '.join(map(str, summary['train_laps']))}; every 'after' figure"
-         f" below is measured on laps {', '.join(map(str, summary['heldout_laps']))}, which"
-         " no fit saw (the out-lap is used by neither)." + _slow_text(summary)],
+        [_fitted_on_text(summary) + _slow_text(summary)],
         [TableBlock(["contains"], [[c] for c in ref["contains"]])],
         notes=_reference_notes(ref),
     )
+
+
+def _fitted_on_text(summary: dict[str, Any]) -> str:
+    """Which laps the reference was fitted on and which the 'after' figures score; a
+    single-spot race fits nothing offline (its reference is the race estimator, scored
+    by one-step innovations), and the page said "Fitted on laps ;" there."""
+    held = ", ".join(map(str, summary["heldout_laps"]))
+    if not summary["train_laps"]:
+        return (f"Nothing is fitted offline: the reference runs the race estimator with the"
+                f" given h law, and every figure below scores its one-step-ahead predictions"
+                f" (from past readings only) on laps {held or 'none'}.")
+    return (f"Fitted on laps {', '.join(map(str, summary['train_laps']))}; every 'after'"
+            f" figure below is measured on laps {held}, which no fit saw (the out-lap is"
+            " used by neither).")
 
 
 def _reference_notes(ref: dict[str, Any]) -> list[str]:
