@@ -201,6 +201,13 @@ def test_at_bounds_covers_per_segment_values_the_lag_floor_and_the_reference() -
     assert ("reference", "w1") not in ext.at_bounds(p)  # a candidate's own only
 
 
+def test_effects_refuse_a_strength_by_name() -> None:
+    """``--with-effect friction_temperature=0.5`` was refused as an unknown effect; the
+    strength is simulate's syntax, and the message says so and names the effect."""
+    with pytest.raises(ConfigError, match=r"strengths are not taken here.*friction_temperature$"):
+        parse_effects("friction_temperature=0.5")
+
+
 def test_slipstream_factors_are_departures_from_the_sessions_own_h() -> None:
     ext, _ = _toy(("slipstream",))
     p = ext.neutral()

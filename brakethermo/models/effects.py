@@ -251,6 +251,13 @@ def parse_effects(text: str | None) -> tuple[str, ...]:
     if words:
         raise ConfigError(f"'{words[0]}' stands alone, not in a list of effects (got"
                           f" '{text}'); give it alone, or name the effects")
+    # NAME=STRENGTH is simulate's syntax: here an effect is fitted, its strength found
+    strengths = [n for n in names if "=" in n and n.split("=", 1)[0].strip() in EFFECTS]
+    if strengths:
+        bare = ", ".join(n.split("=", 1)[0].strip() for n in strengths)
+        raise ConfigError(f"'{strengths[0]}': strengths are not taken here (the fit finds"
+                          f" them; NAME=STRENGTH is `simulate --effects`); name the effect"
+                          f" alone: {bare}")
     unknown = [n for n in names if n not in EFFECTS]
     if unknown:
         raise ConfigError(
