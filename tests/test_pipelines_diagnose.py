@@ -300,3 +300,10 @@ def test_forward_selection_does_not_add_an_effect_its_combined_fit_leaves_at_a_b
 
     out = _forward_selection([first, edge, fine], fit, describe, at_bound)
     assert out["effects"] == ["thickness_gradient", "sensor_lag"]
+
+
+def test_an_empty_effect_list_is_a_usage_error(tmp_path: Path) -> None:
+    """``diagnose --effects ''`` quietly ran all seven effects."""
+    res = CliRunner().invoke(app, ["diagnose", str(tmp_path / "none.parquet"), "--effects",
+                                   "", "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "empty list of effects" in " ".join(res.output.split())

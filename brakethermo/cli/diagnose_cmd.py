@@ -37,6 +37,15 @@ def _laps(text: str | None) -> tuple[int, ...] | None:
         raise ConfigError(f"--holdout-laps {text!r}: give lap numbers like 2,4,6") from None
 
 
+def _not_empty(value: str) -> str:
+    """Refuse an empty ``--effects`` as a usage error: taken as 'all', ``--effects ''``
+    quietly ran all seven effects, the opposite of what an empty list reads as."""
+    if not value.strip():
+        raise typer.BadParameter("an empty list of effects; give 'all' (the default) or"
+                                 f" effect names: {', '.join(EFFECT_NAMES)}")
+    return value
+
+
 @app.command("diagnose")
 def diagnose_command(
     sessions: Annotated[
@@ -48,7 +57,8 @@ def diagnose_command(
     ],
     out: OutDir = Path("out"),
     effects: Annotated[
-        str, typer.Option(help=f"'all' or a comma-separated list of: {', '.join(EFFECT_NAMES)}.")
+        str, typer.Option(help=f"'all' or a comma-separated list of: {', '.join(EFFECT_NAMES)}.",
+                          callback=_not_empty)
     ] = "all",
     holdout_laps: Annotated[
         str | None,
