@@ -302,6 +302,20 @@ def test_forward_selection_does_not_add_an_effect_its_combined_fit_leaves_at_a_b
     assert out["effects"] == ["thickness_gradient", "sensor_lag"]
 
 
+def test_pooled_params_give_a_median_of_vectors_or_say_why_not() -> None:
+    """Pooled ``params`` was ``{}`` for list-valued effects (46 and 47 slipstream
+    straights, 9 and 10 braking zones), though OUTPUTS.md promises the runs' median: lists
+    of one length get the element-wise median, others ``params_not_pooled`` with why."""
+    from brakethermo.pipelines.diagnose.pooled import _median_params, _unpooled_params
+
+    same = [{"zone_balance": [0.1, 0.3], "beta": 0.2}, {"zone_balance": [0.3, 0.5], "beta": 0.4}]
+    assert _median_params(same) == {"zone_balance": [0.2, 0.4], "beta": pytest.approx(0.3)}
+    assert _unpooled_params(same) == {}
+    ragged = [{"straight_factor": [1.0, 1.1]}, {"straight_factor": [1.0, 1.2, 0.9]}]
+    assert _median_params(ragged) == {}
+    assert "different counts in the runs (2, 3)" in _unpooled_params(ragged)["straight_factor"]
+
+
 def test_an_empty_effect_list_is_a_usage_error(tmp_path: Path) -> None:
     """``diagnose --effects ''`` quietly ran all seven effects."""
     res = CliRunner().invoke(app, ["diagnose", str(tmp_path / "none.parquet"), "--effects",

@@ -105,13 +105,40 @@ def _median_params(params: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """The sessions' median of each parameter (element-wise for lists of one length)."""
     out: dict[str, Any] = {}
     for k in params[0]:
+        arr = _stacked([p.get(k) for p in params])
+        if arr is not None:
+            med = np.median(arr, axis=0)
+            out[k] = med.tolist() if arr.ndim > 1 else float(med)
+    return out
+
+
+def _stacked(vals: list[Any]) -> np.ndarray | None:
+    """The runs' values of one parameter as one array, ``None`` when they do not stack
+    (lists of different lengths, a run without the parameter)."""
+    if any(v is None for v in vals):
+        return None
+    if any(isinstance(v, list) for v in vals) and len({len(v) for v in vals}) > 1:
+        return None
+    try:
+        return np.asarray(vals, float)
+    except (TypeError, ValueError):
+        return None
+
+
+def _unpooled_params(params: Sequence[dict[str, Any]]) -> dict[str, str]:
+    """Why a parameter has no pooled median (``params_not_pooled``): per-segment values
+    whose counts differ between the runs (9 braking zones against 10, 46 straights
+    against 47) have no element-wise median; OUTPUTS.md promised one and ``params`` was
+    silently ``{}``."""
+    out: dict[str, str] = {}
+    for k in params[0]:
         vals = [p.get(k) for p in params]
-        try:
-            arr = np.asarray(vals, float)
-        except (TypeError, ValueError):  # lists of different lengths (per-straight factors)
+        if _stacked(vals) is not None:
             continue
-        med = np.median(arr, axis=0)
-        out[k] = med.tolist() if arr.ndim > 1 else float(med)
+        counts = [len(v) if isinstance(v, list) else (0 if v is None else 1) for v in vals]
+        out[k] = (f"per-segment values of different counts in the runs"
+                  f" ({', '.join(map(str, counts))}): no element-wise median; each run's"
+                  " values are in params_per_session")
     return out
 
 
@@ -134,6 +161,8 @@ def pooled_effect(name: str, summaries: Sequence[dict[str, Any]], stems: Sequenc
         "per_phase": tree["per_phase"],
         "params": _median_params([r["params"] for r in rows]),
         "params_per_session": {st: r["params"] for st, r in zip(stems, rows, strict=True)},
+        **({"params_not_pooled": why} if (why := _unpooled_params([r["params"] for r in rows]))
+           else {}),
         "evidence": "; ".join(f"{st}: {r['evidence']}" for st, r in zip(stems, rows,
                                                                           strict=True)),
     }
