@@ -283,6 +283,19 @@ def test_spelling_and_defaults_are_the_same_everywhere():
     (("--set", "cooling=0"), "--set cooling=0: cooling must be a finite factor", 2),
     (("--set", "cooling=nan"), "--set cooling=nan: cooling must be", 2),
     (("--set", "ambient_c=200"), "--set ambient_c=200: ambient_c must be an air", 2),
+    # an unknown rig was a KeyError traceback (exit 1)
+    (("--rig", "foo"), "unknown rig; simulated rigs: ebooster, emb, roller-rig, tyre", 2),
+    (("--rig", "roller_rig"), "did you mean 'roller-rig'?", 2),
+    (("--rig", "Tyre"), "did you mean 'tyre'?", 2),
+    # the roller rig's ranges exited 1 (checked while simulating)
+    (("--rig", "roller-rig", "--set", "speed_kmh=500"), "speed_kmh=500.0 out of range", 2),
+    (("--rig", "roller-rig", "--set", "radius_m=5"), "radius_m=5.0 out of range", 2),
+    (("--rig", "roller-rig", "--set", "torque_max=-100"), "torque_max=-100.0 out of", 2),
+    (("--rig", "roller-rig", "--set", "duration_s=0.5"), "duration_s=0.5 out of range", 2),
+    (("--rig", "roller-rig", "--set", "rate_hz=0"), "rate_hz=0.0 out of range", 2),
+    (("--rig", "roller-rig", "--set", "free_s=1000"), "free_s=1000.0 out of range", 2),
+    # a tyre session shorter than its ramp was written at the ramp's length (6.9 s)
+    (("--rig", "tyre", "--set", "duration_s=1"), "give duration_s of at least 6.9", 2),
     (("--format", "mcap"), "--format mcap for a file named .parquet", 1),
     (("--grouped",), "--grouped is an MCAP layout", 1),
 ])
@@ -297,6 +310,23 @@ def test_simulate_options_that_would_be_ignored_are_refused(tmp_path, args, need
                                    "--out", str(tmp_path / "s.parquet")])
     assert res.exit_code == code and needle in " ".join(res.output.split()), res.output
     assert not (tmp_path / "s.parquet").exists()
+
+
+def test_a_tyre_session_is_as_long_as_asked(tmp_path) -> None:
+    """duration_s=1 wrote a 6.8 s file; a duration the ramp allows is honoured."""
+    import pyarrow.parquet as pq
+
+    res = CliRunner().invoke(app, ["simulate", "--rig", "tyre", "--set", "duration_s=8",
+                                   "--out", str(tmp_path / "t.parquet")])
+    assert res.exit_code == 0, res.output
+    time = pq.read_table(tmp_path / "t.truth.parquet").column("time").to_numpy()
+    assert time[-1] == pytest.approx(8.0, abs=0.002)
+
+
+def test_diagnose_an_unknown_rig_is_a_usage_error(tmp_path) -> None:
+    """diagnose --rig foo exited 1, as if the session were wrong."""
+    res = _invoke("diagnose", tmp_path / "rr.mcap", "--rig", "foo", "--out", tmp_path / "o")
+    assert res.exit_code == 2 and "diagnose reads rig sessions of" in res.output, res.output
 
 
 def test_a_write_interrupted_leaves_no_empty_folder_and_keeps_an_old_one(tmp_path):

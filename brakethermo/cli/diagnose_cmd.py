@@ -20,6 +20,7 @@ from brakethermo.cli._options import (
     JsonOpt,
     OutDir,
     TuningOpt,
+    option_values,
 )
 from brakethermo.errors import ConfigError
 from brakethermo.models.effects import EFFECT_NAMES
@@ -95,6 +96,11 @@ def diagnose_command(
     shrinks."""
     if radius is not None and not 0.05 <= radius <= 2.0:
         raise ConfigError(f"--radius {radius} m is not a wheel radius; give metres, 0.05 to 2")
+    if rig is not None and RIG_NAMES.get(rig, rig) not in RIGS:
+        # a rig name the command does not know is a usage error (exit 2), as simulate's
+        with option_values():
+            raise ConfigError(f"--rig {rig!r}: diagnose reads rig sessions of"
+                              f" {', '.join(RIGS)}")
     # the first session says which: several rig sessions are refused one clear line on
     if rig is None and sessions and not sessions[0].suffix.lower() == ".toml":
         from brakethermo.io.kinds import detect_rig

@@ -16,7 +16,7 @@ from brakethermo.cli._app import app, console
 from brakethermo.cli._options import JsonOpt, option_values
 from brakethermo.errors import ConfigError
 from brakethermo.sim.effects import EFFECT_NAMES, STRENGTH_MAX, parse_effects
-from brakethermo.sim.rigs import RIG_SIMULATORS
+from brakethermo.sim.rigs import RIG_SIMULATORS, rig_name
 
 if TYPE_CHECKING:
     from brakethermo.sim.session import SimConfig
@@ -79,6 +79,7 @@ def simulate_cmd(
     from brakethermo.pipelines.output_dir import check_output_file
     from brakethermo.sim.session import SimConfig
 
+    rig = _known_rig(rig)
     check_output_file(out)
     fmt = infer_format(out, fmt)
     if grouped and fmt != "mcap":
@@ -89,15 +90,8 @@ def simulate_cmd(
                                "--disc": disc != "cc-340-8", "--grouped": grouped})
         _simulate_rig(rig, rig_set or [], seed, out, fmt, as_json)
         return
-    cfg = SimConfig(
-        track=track,
-        laps=laps,
-        effects=parse_effects(effects),
-        sensor=sensor,
-        seed=seed,
-        disc=disc,
-        **_disc_settings(rig_set or []),
-    )
+    cfg = SimConfig(track=track, laps=laps, effects=parse_effects(effects), sensor=sensor,
+                    seed=seed, disc=disc, **_disc_settings(rig_set or []))
     summary = _simulate_disc(cfg, out, fmt, grouped)
     if as_json:
         typer.echo(json.dumps(summary))
@@ -106,6 +100,15 @@ def simulate_cmd(
 
 
 DISC_SETTINGS = ("cooling", "ambient_c")
+
+
+def _known_rig(rig: str | None) -> str | None:
+    """``--rig`` as given, or None; an unknown rig is a usage error (exit 2), said before
+    the output's checks (it was a KeyError traceback)."""
+    if rig is None:
+        return None
+    with option_values():
+        return rig_name(rig)
 
 
 def _no_disc_options(rig: str, given: dict[str, bool]) -> None:
@@ -193,7 +196,8 @@ def _simulate_rig(
     # a --set key the rig lacks, a value not of its type or outside the simulator's own
     # range: all usage errors (exit 2), as option_values says of any value a command checks
     with option_values():
-        cfg = RIG_SIMULATORS[rig].config(**rig_settings(rig, settings, seed))
+        kwargs = rig_settings(rig, settings, seed)
+        cfg = RIG_SIMULATORS[rig].config(**kwargs)
     session_path, truth_path = RIG_SIMULATORS[rig].run(cfg, out, fmt)
     facts = RIG_SIMULATORS[rig].truth_facts
     truth_facts = facts(cfg) if facts else {}

@@ -107,13 +107,34 @@ def _convert(text: str, kind: Any, key: str) -> Any:
         raise ConfigError(f"--set {key}={text}: expected {expected}") from None
 
 
+def rig_name(rig: str) -> str:
+    """The rig's name as ``--rig`` takes it (ConfigError listing the simulated rigs).
+
+    Parameters
+    ----------
+    rig : str
+        The name given.
+
+    Returns
+    -------
+    str
+        ``rig`` itself, one of :data:`RIG_SIMULATORS`.
+    """
+    if rig in RIG_SIMULATORS:
+        return rig
+    # the likely slips (roller_rig, Tyre) are named, not taken: the name is the
+    # session's fact and the output's title, spelled one way
+    near = rig.strip().lower().replace("_", "-").replace(" ", "-")
+    hint = f" (did you mean '{near}'?)" if near in RIG_SIMULATORS else ""
+    raise ConfigError(f"--rig {rig}: unknown rig{hint}; simulated rigs:"
+                      f" {', '.join(RIG_SIMULATORS)}")
+
+
 def rig_settings(rig: str, settings: Sequence[str], seed: int) -> dict[str, Any]:
     """The keyword arguments of the rig's config from ``KEY=VALUE`` settings (and the
     command's seed), each of its field's type (ConfigError: a key the config does not
     have, a value not of its type); the config's own checks of the values come after."""
-    if rig not in RIG_SIMULATORS:
-        raise ConfigError(f"unknown rig '{rig}'; simulated rigs: {', '.join(RIG_SIMULATORS)}")
-    cls = RIG_SIMULATORS[rig].config
+    cls = RIG_SIMULATORS[rig_name(rig)].config
     hints = typing.get_type_hints(cls)
     fields = {f.name for f in dataclasses.fields(cls)}
     values: dict[str, Any] = {"seed": seed} if "seed" in fields else {}

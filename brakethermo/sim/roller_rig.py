@@ -77,6 +77,12 @@ class RollerRigSimConfig:
     seed: int = 0
     rig: str = "roller-rig"
 
+    def __post_init__(self) -> None:
+        # checked when the settings are made, as the other rigs' configs are: a value
+        # given by `simulate --set` is then a usage error (exit 2), not one found while
+        # simulating (it exited 1 with speed_kmh=500)
+        self.validated()
+
     def validated(self) -> RollerRigSimConfig:
         """Self, after range checks (ConfigError naming the field)."""
         checks = {

@@ -243,6 +243,38 @@ def _rig_channels(
     ]
 
 
+def _braking(tyre: str, seed: int, rig: TyreRig) -> tuple[
+        tuple[float, float], np.random.Generator, float, float, np.ndarray]:
+    """The truth tyre's peak (μ, slip), the session's generator (its phase drawn), the
+    free-rolling wheel speed (rad/s), the load's phase (rad) and the integrated ramp to
+    lock, release and spin-up (:func:`_ramp_to_lock`)."""
+    mu_of, peak = tyre_curve(tyre, rig.speed, rig.load)
+    rng = np.random.default_rng(seed)
+    # free rolling: the slip at which the tyre force balances the rolling resistance
+    s_free = brentq(lambda x: mu_of(x, rig.load) - rig.rolling_resistance, 0.0,
+                    peak[1])
+    omega0 = rig.speed * (1.0 - s_free) / rig.radius
+    phase = rng.uniform(0.0, 2.0 * math.pi)
+    # ramp, slide and spin-up integrated; free rolling before and after is steady
+    return peak, rng, omega0, phase, _ramp_to_lock(rig, mu_of, omega0, phase)
+
+
+def least_duration_s(tyre: str, seed: int = 0, rig: TyreRig | None = None) -> float:
+    """The shortest session the ramp needs, s: free rolling, the ramp to lock, the
+    locked slide, the spin-up and the tail (the length written without ``duration_s``).
+
+    Parameters
+    ----------
+    tyre : str — a truth tyre (:data:`TYRES`).
+    seed : int — random seed (the load's phase moves the lock by a few ms).
+    rig : TyreRig, optional
+    """
+    rig = rig or TyreRig()
+    core = _braking(tyre, seed, rig)[4]
+    n = round(rig.free_s * rig.rate_hz) + core.shape[0] + round(rig.tail_s * rig.rate_hz)
+    return (n - 1) / rig.rate_hz
+
+
 def simulate_tyre_rig(
     tyre: str = "dry",
     *,
@@ -262,16 +294,8 @@ def simulate_tyre_rig(
     log_slip : bool — also log the rig's own ``slip_ratio`` channel.
     """
     rig = rig or TyreRig()
-    mu_of, peak = tyre_curve(tyre, rig.speed, rig.load)
-    rng = np.random.default_rng(seed)
+    peak, rng, omega0, phase, core = _braking(tyre, seed, rig)
     V, R = rig.speed, rig.radius
-    # free rolling: the slip at which the tyre force balances the rolling resistance
-    s_free = brentq(lambda x: mu_of(x, rig.load) - rig.rolling_resistance, 0.0,
-                    peak[1])
-    omega0 = V * (1.0 - s_free) / R
-    phase = rng.uniform(0.0, 2.0 * math.pi)
-    # ramp, slide and spin-up integrated; free rolling before and after is steady
-    core = _ramp_to_lock(rig, mu_of, omega0, phase)
     time, omega, Fx_t, Fz_t = _whole_session(rig, core, omega0, phase, duration_s)
     slip = np.clip((V - omega * R) / V, 0.0, 1.0)
 
@@ -300,7 +324,8 @@ class TyreRigSimConfig:
     ----------
     tyre : str — the truth tyre, a brush model: ``dry`` (asphalt), ``wet`` or ``low-mu``.
     duration_s : float or None — pad the session with free rolling to this length, s
-        (default: free rolling, ramp to lock, release and a short tail).
+        (default: free rolling, ramp to lock, release and a short tail); shorter than
+        that (:func:`least_duration_s`) is refused.
     log_slip : bool — also log the rig's own ``slip_ratio`` channel.
     seed : int
     """
@@ -317,6 +342,17 @@ class TyreRigSimConfig:
             raise ConfigError(
                 f"tyre simulation: duration_s={self.duration_s!r} out of range (0 to 3600 s)"
             )
+        # the ramp to lock cannot be cut short: a shorter duration was written at the
+        # ramp's own length while the summary echoed the value asked
+        if self.duration_s is not None:
+            least = least_duration_s(self.tyre, self.seed)
+            if self.duration_s < least:
+                raise ConfigError(
+                    f"tyre simulation: duration_s={self.duration_s:g} s is shorter than the"
+                    f" session needs: free rolling, the ramp to lock, the release and the"
+                    f" tail take {least:.3f} s ({self.tyre} tyre, seed {self.seed}); give"
+                    f" duration_s of at least {math.ceil(least * 10) / 10:g} or leave it out"
+                )
 
 
 def simulate_tyre_config(cfg: TyreRigSimConfig) -> TyreSimResult:
