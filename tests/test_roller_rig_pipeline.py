@@ -380,3 +380,47 @@ def test_an_option_that_changes_the_model_is_named_as_a_cause(sessions: dict[str
     assert implausible and all("--tuning paper" in w for w in implausible), implausible
     plain = run_roller_rig(sessions["15"], RollerRigOptions(smoother=False))
     assert not any("an option given" in w for w in plain.summary["warnings"])
+
+
+def _modified_rig(tmp: Path) -> Path:
+    """The shipped datasheet with a 0.46 m roller (0.4525 m shipped), id roller-rig-mod."""
+    from brakethermo.config import config_dir
+
+    text = (config_dir() / "rigs" / "roller-rig.toml").read_text()
+    lines = []
+    section = ""
+    for line in text.splitlines():
+        if line.startswith("["):
+            section = line.strip()
+        if line.startswith("id ="):
+            line = 'id = "roller-rig-mod"'
+        elif section == "[roller]" and line.startswith("radius"):
+            line = "radius = 0.46"
+        lines.append(line)
+    path = tmp / "rig_mod.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_session_of_another_rig_datasheet_is_said_and_its_roller_radius_counts(tmp_path):
+    """A session simulated on a 0.46 m roller and read with the shipped datasheet gave
+    342.553 ± 0.071 mm against its reference 348.20 mm, with no word: the session's
+    rig_datasheet fact was ignored and the simulator wrote no roller_radius_m."""
+    sim = simulate_roller_rig(RollerRigSimConfig(**SHORT, speed_kmh=30.0, seed=209,
+                                                 rig=str(_modified_rig(tmp_path))))
+    assert sim.session.facts["roller_radius_m"] == "0.46"
+    facts = {k: v for k, v in sim.session.facts.items() if k != "roller_radius_m"}
+    old = tmp_path / "old.mcap"
+    write_session(old, SessionData(sim.session.channels, facts))
+    res = run_roller_rig(old, RollerRigOptions(r0_mm=(340.0,)))
+    said = " ".join(res.summary["warnings"])
+    assert "names the rig datasheet 'roller-rig-mod'" in said and "give --rig" in said
+    assert "departs from the session's reference rolling_radius_ref 348.20 mm" in said
+    assert "0.4600 m would give the reference" in said
+    new = write_roller_rig_simulation(sim, tmp_path / "new.mcap")[0]
+    res = run_roller_rig(new, RollerRigOptions(r0_mm=(340.0,)))
+    assert res.summary["runs"][0]["radius_mm"] == pytest.approx(348.2, abs=1.0)
+    assert res.summary["filter"]["roller_radius_source"].startswith("session fact")
+    said = " ".join(res.summary["warnings"])
+    assert "departs from the session's reference" not in said
+    assert "names the rig datasheet 'roller-rig-mod'" in said  # the rest is still not its

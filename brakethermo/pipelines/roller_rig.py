@@ -70,9 +70,46 @@ def session_spec(session: Session, spec: RollerRigSpec) -> tuple[RollerRigSpec, 
             raise DataError(f"session fact {key}={fact!r} is not a roller radius in metres"
                             f" ({lo:g}-{hi:g}); fix it, or leave it out for the datasheet's"
                             f" {spec.roller_radius:g} m", path=session.path)
+        said = ("as" if value == spec.roller_radius else "the datasheet")
         return replace(spec, roller_radius=value), (
-            f"session fact {key} (the datasheet {spec.id} says {spec.roller_radius:g} m)")
+            f"session fact {key} ({said} {spec.id} says {spec.roller_radius:g} m)")
     return spec, f"datasheet {spec.id}"
+
+
+DATASHEET_FACT = "rig_datasheet"  # the session's rig datasheet id (the simulator writes it)
+
+
+def datasheet_warning(session: Session, spec: RollerRigSpec, roller_source: str) -> list[str]:
+    """A warning when the session names another rig datasheet than the one read.
+
+    A session simulated on ``roller-rig-mod`` (roller radius 0.46 m) and read with the
+    shipped datasheet (0.4525 m) gave 342.55 mm against its reference 348.20 mm, and no
+    word: the fact was ignored.
+
+    Parameters
+    ----------
+    session : Session
+    spec : RollerRigSpec
+        The datasheet read (``--rig``), with the session's own roller radius if it
+        states one.
+    roller_source : str
+        Where the roller radius came from (:func:`session_spec`).
+
+    Returns
+    -------
+    list of str
+        One sentence naming both datasheets and ``--rig``, or nothing.
+    """
+    named = session.metadata.get(DATASHEET_FACT)
+    if named is None or str(named).strip() in ("", spec.id):
+        return []
+    radius = (f"the roller radius {spec.roller_radius:g} m is the session's own"
+              if roller_source.startswith("session fact") else
+              f"its roller radius {spec.roller_radius:g} m, which the session does not state,"
+              " turns the speed ratio into the wheel radius")
+    return [f"the session names the rig datasheet {named!r} (fact {DATASHEET_FACT}); this run"
+            f" read {spec.id!r} (--rig): {radius}, and its inertias, motor and contact are"
+            f" taken as {named!r}'s; give --rig with the TOML file of {named!r}"]
 
 
 REF_EXPECT = Expect("rolling_radius_ref", "m", 2.0, positive=True, role="score")
@@ -412,6 +449,8 @@ def run_roller_rig(path: str | Path, options: RollerRigOptions | None = None) ->
     ref = session.constant("rolling_radius_ref")
     # a reference the checks found implausible (said in the warnings) scores nothing
     ref_mm = ref * 1e3 if ref is not None and 0.0 < ref <= REF_EXPECT.most else None
+    warnings += [*datasheet_warning(session, spec, roller_source),
+                 *reference_warning(runs[0], ref_mm, spec)]
     elapsed = time.perf_counter() - t_start
     result = RollerRigResult(
         stem=session.path.stem, session=session, spec=spec, options=opts, time=t,
@@ -671,6 +710,47 @@ def ratio_band(run: GuessRun, ratio_mm: float, free: np.ndarray) -> GuessRun:
     return replace(run, radius_std_mm=np.sqrt(run.radius_std_mm**2 + e**2),
                    filter_std_mm=np.sqrt(run.filter_std_mm**2 + e**2),
                    ratio_offset_mm=float(np.mean(d)), ratio_error_mm=e)
+
+
+REF_SIGMAS = 5.0  # an estimate this many of its 1σ from the session's reference is said ...
+REF_FLOOR_MM = 0.5  # ... when also this far (a reference logged to 0.01 mm, measured)
+
+
+def reference_warning(run: GuessRun, ref_mm: float | None, spec: RollerRigSpec) -> list[str]:
+    """A warning when the final radius departs from the session's own reference
+    (``rolling_radius_ref``) far beyond its band.
+
+    The speed ratio, and with it the filter's radius, scales with the roller radius: a
+    wrong roller radius or rig datasheet moves the estimate by the same factor while its
+    band stays narrow (342.553 ± 0.071 mm against 348.20 mm, 80σ, with no word).
+
+    Parameters
+    ----------
+    run : GuessRun
+        The first guess's run (every guess ends at the same radius).
+    ref_mm : float or None
+        The session's reference radius, mm (None: none, or an implausible one).
+    spec : RollerRigSpec
+        The datasheet read, with the session's roller radius.
+
+    Returns
+    -------
+    list of str
+        One sentence with both radii, the departure in σ and the roller radius that
+        would give the reference, or nothing.
+    """
+    if ref_mm is None:
+        return []
+    end, sd = float(run.radius_mm[-1]), float(run.radius_std_mm[-1])
+    off = end - ref_mm
+    if not (math.isfinite(off) and abs(off) > max(REF_SIGMAS * sd, REF_FLOOR_MM)):
+        return []
+    roller = spec.roller_radius * ref_mm / end  # the speed ratio's radius scales with it
+    return [f"the estimate {end:.2f} ± {sd:.2f} mm departs from the session's reference"
+            f" rolling_radius_ref {ref_mm:.2f} mm by {off:+.2f} mm ({abs(off) / sd:.0f}x its"
+            f" 1σ): the speed ratio scales with the roller radius ({spec.roller_radius:g} m"
+            f" here; {roller:.4f} m would give the reference) — check --rig (the rig"
+            " datasheet) and the session's roller_radius_m, or the reference"]
 
 
 def ratio_warning(run: GuessRun, ratio_mm: float, free: np.ndarray) -> str | None:

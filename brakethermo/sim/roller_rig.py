@@ -337,6 +337,9 @@ def simulate_roller_rig(cfg: RollerRigSimConfig) -> RollerRigSimResult:
     facts = {
         "rig": "roller-rig",
         "rig_datasheet": machine.id,
+        # the roller radius simulated, so that a reader without this datasheet still
+        # turns the speed ratio into the right wheel radius
+        "roller_radius_m": f"{machine.roller_radius:g}",
         "roller_supply_hz": f"{cfg.supply_hz:g}",
         "speed_kmh": f"{cfg.speed_kmh:g}",
         "simulated": "true",
