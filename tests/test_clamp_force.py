@@ -724,3 +724,20 @@ def test_a_band_the_sessions_own_sensor_refutes_is_said(tmp_path: Path) -> None:
     assert loud["coverage_95_kf"]["applied"] < 0.8
     said = [w for w in loud["warnings"] if "kf's 95 % band covers" in w]
     assert said and "diagnose --rig emb" in said[0] and "--retrain" in said[0]
+
+
+def test_a_session_too_short_for_its_sensors_lag_is_scored_against_its_sensor(
+        tmp_path: Path) -> None:
+    """A 2 s session logging clamp_force was said to have no sensor (has_sensor false,
+    rmse_kn null, no word): its lag cannot be chosen on 2 s, and that set the sensor
+    aside. It is scored against the sensor as logged, and the lag text says why."""
+    train = write_emb_simulation(simulate_emb("nominal", seed=6331, duration_s=12),
+                                 tmp_path / "train.mcap")[0]
+    short = write_emb_simulation(simulate_emb("nominal", seed=6332, duration_s=2),
+                                 tmp_path / "short.mcap")[0]
+    summ = cfp.summary(cfp.clamp_force(short, train))
+    assert summ["has_sensor"] is True
+    assert 0.0 < summ["rmse_kn"]["kf"] < 1.0
+    assert summ["sensor_lag"]["this_session"] is None
+    assert "against its own sensor as logged" in summ["sensor_lag"]["text"]
+    assert "too short to choose the sensor's lag" in summ["sensor_lag"]["text"]

@@ -473,6 +473,11 @@ def lag_text(res: ClampForceResult) -> str | None:
     if tr is not None and tr.at_edge:
         parts.append(f"the training sensor may lag more than the largest candidate"
                      f" ({SENSOR_LAGS_S[-1] * 1e3:g} ms) tried")
+    if sc is None and res.data.force is not None:
+        parts.append(f"this session's RMSE is against its own sensor as logged: at"
+                     f" {res.data.force.size * res.data.ts:.1f} s it is too short to choose"
+                     f" the sensor's lag on (at least {MIN_TRAIN_S:g} s; its"
+                     f" cross-validation uses {CV_BLOCK_S:g} s blocks)")
     if sc is not None and (sc.lag_s > 0.0 or (tr is not None and tr.lag_s > 0.0)):
         parts.append("this session's RMSE is against its own sensor"
                      + (f" de-lagged by about {sc.lag_s * 1e3:g} ms" if sc.lag_s > 0.0 else

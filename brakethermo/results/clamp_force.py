@@ -128,10 +128,14 @@ def estimator_series(est: ClampForceEstimates) -> dict[str, np.ndarray]:
 def scored_force(res: ClampForceResult) -> np.ndarray | None:
     """The estimated session's sensor (N) with its own lag taken out
     (:func:`~brakethermo.pipelines.clamp_force.choose_sensor_lag` on this session), what
-    ``rmse_kn`` scores against (None without the sensor)."""
+    ``rmse_kn`` scores against (None without the sensor).
+
+    A session too short to choose its sensor's lag on (a 2 s one) is scored against its
+    sensor as logged: it was said to have no sensor, and nothing was scored."""
     force, lag = res.data.force, res.scored_lag
-    return None if force is None or lag is None else sensor_delagged(force, lag.lag_s,
-                                                                     res.data.ts)
+    if force is None:
+        return None
+    return force if lag is None else sensor_delagged(force, lag.lag_s, res.data.ts)
 
 
 KF_NAMES = {"fixed": "the paper's KF (eq. 9-13)",
