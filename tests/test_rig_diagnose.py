@@ -175,7 +175,7 @@ def test_a_production_session_is_refused_in_one_line(tmp_path):
     assert r.exit_code == 1 and "master-cylinder pressure" in r.output
     assert "Traceback" not in r.output
     r = runner.invoke(app, ["diagnose", str(path), "--rig", "bogus", "--out", str(tmp_path)])
-    assert r.exit_code == 1 and "ebooster" in r.output and "tyre" in r.output
+    assert r.exit_code == 2 and "ebooster" in r.output and "tyre" in r.output
 
 
 @pytest.fixture(scope="module")
