@@ -382,3 +382,53 @@ def test_damaged_parquet_row_group_is_skipped_with_a_warning(tmp_path: Path) -> 
     assert "row group 3 of 4 (rows 2001-3000)" in warning
     assert session.channels["speed"].samples == 3000
     assert session.channels["speed"].gaps  # the lost 10 s show as a reported gap
+
+
+# -- absolute (epoch) float times -------------------------------------------------------------
+
+
+def _epoch_copy(src: Path, dst: Path, *, ns: bool = False) -> Path:
+    """``src`` with its time column as epoch seconds (float64 1.7e9 + t), or as
+    timestamp[ns] of the same instants, the rest as written."""
+    table = pq.read_table(src)
+    t = table.column("time").to_numpy()
+    i = table.schema.get_field_index("time")
+    if ns:
+        ticks = (np.round(t * 1e9).astype(np.int64) + 1_700_000_000 * 10**9)
+        col, kind = pa.array(ticks, pa.timestamp("ns")), pa.timestamp("ns")
+    else:
+        col, kind = pa.array(1.7e9 + t, pa.float64()), pa.float64()
+    field = table.schema.field(i).with_type(kind)
+    pq.write_table(table.set_column(i, field, col), dst)
+    return dst
+
+
+def test_epoch_float_times_give_the_logged_rate_on_a_rig_session(tmp_path: Path) -> None:
+    """A 1 kHz tyre session with float64 epoch seconds read at 1000.07 Hz, and its noise
+    0.0218 for 0.0308: the absolute times' 2.4e-7 s resolution leaked into the rate and
+    the grid. Now the same figures as its timestamp[ns] copy."""
+    from brakethermo.pipelines.mu_slip import mu_slip, summary
+    from brakethermo.sim.tyre_rig import simulate_tyre_rig, write_tyre_simulation
+
+    src = write_tyre_simulation(simulate_tyre_rig("wet", seed=4), tmp_path / "t.parquet")[0]
+    flo = _epoch_copy(src, tmp_path / "abs.parquet")
+    ns = _epoch_copy(src, tmp_path / "absns.parquet", ns=True)
+    assert load_session(flo, rate_hz=None).rate_hz == pytest.approx(1000.0, abs=1e-6)
+    a, b = summary(mu_slip(flo)), summary(mu_slip(ns))
+    assert a["noise_std_mu"] == pytest.approx(b["noise_std_mu"], rel=1e-6)
+
+
+def test_epoch_float_times_keep_a_disc_session_as_logged(tmp_path: Path) -> None:
+    """The same on a disc session: its native rates and its grid's values are those of
+    the session logged from 0 s."""
+    from _synth_race import write_session_parquet
+
+    src = write_session_parquet(tmp_path / "race.parquet", 1, seed=3)
+    flo = _epoch_copy(src, tmp_path / "race_abs.parquet")
+    s0, s1 = load_session(src), load_session(flo)
+    for name, info in s0.channels.items():
+        assert s1.channels[name].rate_hz == pytest.approx(info.rate_hz, rel=1e-9), name
+    assert s1.frame.shape == s0.frame.shape
+    np.testing.assert_allclose(s1.frame.to_numpy(float), s0.frame.to_numpy(float),
+                               rtol=1e-9, atol=1e-9)
+    assert s1.start_epoch_s == pytest.approx(1.7e9)
