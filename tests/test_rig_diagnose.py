@@ -201,6 +201,13 @@ def test_the_caliper_diagnosis_names_what_the_pads_did(caliper, pads, verdict):
     s = diagnose_emb(runs[pads], train_path=train_path).summary
     assert s["verdict"] == verdict and s["verdict_kind"] in ("single", "none")
     assert s["rig"] == "emb" and s["unit"] == "kN"
+    # OUTPUTS.md's diagnose keys: held-out units as laps, consistency a mean NIS with its
+    # χ² band (it was only a sentence, and train_laps/heldout_laps were missing)
+    assert s["train_laps"] == s["train_units"] and s["heldout_laps"] == s["heldout_units"]
+    c = s["consistency"]["per_channel"]["clamp_force"]
+    assert c["mean_nis"] > 0 and c["chi2_band"][0] < 1.0 < c["chi2_band"][1] and c["n"] > 0
+    assert "mean NIS" in s["consistency"]["summary"]
+    assert "no filter runs here" in s["consistency"]["note"]
 
 
 def test_a_caliper_session_of_a_second_is_estimated_or_refused_in_one_line(caliper,

@@ -302,6 +302,63 @@ def _negligible_reasons(case: RigCase, rows: dict[str, dict[str, Any]], size: di
         for n in sorted(negligible) if rows[n]["shrink_ci95_pct"][0] > RULE.min_shrink_pct]
 
 
+def rig_consistency(case: RigCase, residual: np.ndarray, split: _Split) -> dict[str, Any]:
+    """The reference's held-out residual as a mean NIS with its χ² band (OUTPUTS.md).
+
+    No filter runs on a rig diagnosis: the trained relation is compared with the sensor.
+    Its residual normalised by the spread the reference admits — its residual on the
+    training session where the rig has one, else on this session's fitting units —
+    is the normalised innovation a filter on that model would show, one component a
+    sample.
+
+    Parameters
+    ----------
+    case : RigCase
+    residual : ndarray (K,)
+        Reference minus sensor, the output's unit.
+    split : _Split
+
+    Returns
+    -------
+    dict
+        ``per_channel`` (the output's name: ``mean_nis``, ``chi2_band``,
+        ``lag1_autocorrelation``, ``state``, ``structured``, ``n``), ``sigma`` (the
+        output's unit) and ``sigma_source``, ``summary`` (a sentence) and ``note`` (that
+        no filter runs).
+    """
+    from brakethermo.estimation.consistency import nis_consistency
+
+    own = rmse(residual[split.fitting], 0.0)
+    sigma, source = ((case.train_rmse, "the reference's residual on its training session")
+                     if case.train_rmse else
+                     (own, "the reference's residual on this session's fitting units"))
+    sigma = max(float(sigma), 1e-12)
+    r = residual[split.held]
+    c = nis_consistency((r / sigma) ** 2, 1, r)
+    keys = ("mean_nis", "chi2_band", "lag1_autocorrelation", "state", "structured", "n")
+    band = f"{c['chi2_band'][0]:.2f}-{c['chi2_band'][1]:.2f}"
+    said = (f"held out, the reference's mean NIS is {c['mean_nis']:.3g} against its χ² band"
+            f" {band} (σ {sigma:.3g}{_unit_text(case.unit)}, {source}): {c['state']}"
+            + (f"; its residual is structured (lag-1 autocorrelation"
+               f" {c['lag1_autocorrelation']:.2f}), so the band says little" if c["structured"]
+               else ""))
+    return {"per_channel": {RIG_OUTPUT.get(case.rig, case.rig): {k: c[k] for k in keys}},
+            "sigma": sigma, "sigma_unit": case.unit, "sigma_source": source,
+            "summary": said,
+            "note": "no filter runs here: the trained relation is compared with the sensor"
+                    " directly; the NIS normalises its residual by sigma"}
+
+
+def _unit_text(unit: str) -> str:
+    """`` kN`` after a figure; nothing for a dimensionless one (it read "0.104 -")."""
+    return "" if unit in ("-", "") else f" {unit}"
+
+
+# what each rig's diagnosis compares with its sensor (the consistency's channel)
+RIG_OUTPUT = {"ebooster": "pressure", "emb": "clamp_force", "roller-rig": "creep_force",
+              "tyre": "mu"}
+
+
 def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
     """The diagnosis proper, whatever the rig (module docstring, steps 2-4)."""
     ctx, y, session = case.ctx, case.measured, case.session
@@ -358,10 +415,12 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
         "units": split.kind,
         "train_units": [int(v) for v in split.ids[0::2]],
         "heldout_units": [int(v) for v in split.held_ids],
+        # OUTPUTS.md's diagnose keys: a rig's laps are its units (``units`` says what)
+        "train_laps": [int(v) for v in split.ids[0::2]],
+        "heldout_laps": [int(v) for v in split.held_ids],
         "gap": {"rmse": gap, **_phases(ref - y, held, ctx, case.phases)},
         "where": _where(ref - y, held, ctx, case.rest),
-        "consistency": {"summary": "no filter runs here: the trained relation is compared"
-                        " with the sensor directly"},
+        "consistency": rig_consistency(case, ref - y, split),
         "effects": effects_out,
         **decision.summary(),
         "next_steps": [*decision.next_steps, *unexplained],
