@@ -535,3 +535,48 @@ def test_a_refused_folder_or_effect_is_one_line_alone(tmp_path: Path) -> None:
     res = CliRunner().invoke(app, ["diagnose", str(tmp_path / "s.mcap"), "--effects",
                                    "frictoin_temperature", "--out", str(tmp_path / "o")])
     assert res.exit_code == 1 and res.output.splitlines()[0].startswith("error:"), res.output
+
+
+def test_a_later_batch_keeps_the_earlier_batchs_rig_rows_and_links_only_its_own(tmp_path):
+    """`batch batchdir --out o` then `batch batch3 --out o` dropped batchdir's rig rows
+    from o/index.html and batch_index.json (README: the index keeps earlier batches'
+    sessions); a failed row, or a rig row whose folder holds another file's results,
+    linked those results and their verdict; an index of rig logs read "Disc temperature
+    reports"."""
+    from brakethermo.cli import app as cli
+    from brakethermo.report.index import write_batch_index
+    from brakethermo.sim.tyre_rig import simulate_tyre_rig, write_tyre_simulation
+
+    for folder, stem, seed in (("a", "ty1", 1), ("b", "ty2", 2)):
+        (tmp_path / folder).mkdir()
+        write_tyre_simulation(simulate_tyre_rig(seed=seed), tmp_path / folder / f"{stem}.mcap")
+    out = tmp_path / "out"
+    for folder in ("a", "b"):
+        res = CliRunner().invoke(cli, ["batch", str(tmp_path / folder), "--out", str(out)])
+        assert res.exit_code == 0, res.output
+    rows = json.loads((out / "batch_index.json").read_text())["sessions"]
+    assert [r["name"] for r in rows] == ["ty2", "ty1"]
+    assert rows[1]["reason"].startswith(f"from an earlier batch of {tmp_path / 'a'}")
+    page = (out / "index.html").read_text()
+    assert "ty1" in page and "Rig session reports" in page
+    assert "Disc temperature reports" not in page
+    # a folder of that stem holding another file's results and verdict
+    (out / "rr" / "diagnosis").mkdir(parents=True)
+    other = tmp_path / "other" / "rr.mcap"
+    other.parent.mkdir()
+    other.write_bytes(b"x")
+    for name in ("index.html", "diagnosis/index.html"):
+        (out / "rr" / name).write_text("<html></html>")
+    (out / "rr" / "diagnosis.json").write_text(json.dumps(
+        {"session": str(other), "verdict": "creep_slope"}))
+    mine = tmp_path / "b" / "rr.mcap"
+    mine.write_bytes(b"y")
+    for status in ("failed", "rig session"):
+        write_batch_index(out, tmp_path / "b", [{"name": "rr", "status": status,
+                                                 "file": str(mine), "reason": "r"}])
+        page = (out / "index.html").read_text()
+        assert 'href="rr/index.html"' not in page and "creep_slope" not in page, status
+    write_batch_index(out, tmp_path / "b", [{"name": "rr", "status": "rig session",
+                                             "file": str(other), "reason": "r"}])
+    page = (out / "index.html").read_text()
+    assert 'href="rr/index.html"' in page and "creep_slope" in page

@@ -411,3 +411,21 @@ def test_an_interval_not_drawn_shows_as_a_dash_not_nan():
     nan = float("nan")
     assert console(nan, nan) == "–" and page(nan, None).startswith("–")
     assert console(-3.2, 14.6) == "-3 … +15" == page(-3.2, 14.6)
+
+
+def test_a_pooled_diagnosis_of_another_rig_is_not_replaced(tmp_path):
+    """A second pooled diagnose (roller-rig sessions) into the --out of a first (EMB)
+    replaced OUT/pooled/diagnosis.json and its page, no word: refused before the work,
+    naming both; the same rig's pooled diagnosis is re-run as before."""
+    from brakethermo.cli.diagnose_cmd import _pooled_free
+    from brakethermo.errors import ConfigError
+
+    (tmp_path / "pooled").mkdir()
+    (tmp_path / "pooled" / "diagnosis.json").write_text(json.dumps(
+        {"rig": "emb", "sessions": ["a.mcap", "b.mcap", "c.mcap"]}))
+    with pytest.raises(ConfigError, match="holds the pooled diagnosis of 3 sessions of an EMB"
+                       " caliper rig; this call pools sessions of a roller rig and would"
+                       " replace it: give another --out"):
+        _pooled_free(tmp_path, "roller-rig")
+    _pooled_free(tmp_path, "emb")
+    _pooled_free(tmp_path / "elsewhere", "roller-rig")

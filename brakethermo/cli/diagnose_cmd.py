@@ -243,6 +243,8 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
             raise ConfigError(f"{path}: {what}, while the others are of {mine}; diagnose"
                               " pools the sessions of one rig: give each rig its own call")
         check_session_folder(out, path, rig_kind(rig).table)
+    if len(sessions) > 1:
+        _pooled_free(out, rig)
     results = [_one_rig(rig, path, effects, train, fit, radius, aliases) for path in sessions]
     folders = [write_rig_diagnosis(r, out) for r in results]
     pooled = pooled_path = None
@@ -266,6 +268,36 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
             console.print(f"  note: {escape(note)}", highlight=False)
         console.print(f"wrote {escape(str(pooled_path))} and its page"
                       f" {escape(str(pooled_path.parent / 'index.html'))}")
+
+
+def _pooled_free(out: Path, rig: str) -> None:
+    """Refuse, before the work, to pool over ``OUT/pooled`` of another rig or of disc
+    sessions: a second pooled call replaced the first's diagnosis.json and page, no word.
+
+    Parameters
+    ----------
+    out : Path
+        The ``--out`` folder.
+    rig : str
+        The rig of this call's sessions.
+    """
+    import json
+
+    from brakethermo.io.kinds import rig_kind
+
+    there = out / "pooled" / "diagnosis.json"
+    try:
+        held = json.loads(there.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return
+    was = held.get("rig") if isinstance(held, dict) else None
+    if was == rig:
+        return  # the same rig's pooled diagnosis, re-run: replaced as any output is
+    what = f"sessions of {rig_kind(was).words}" if was else "disc sessions"
+    n = len(held.get("sessions") or []) if isinstance(held, dict) else 0
+    raise ConfigError(f"{there}: holds the pooled diagnosis of {n or 'several'} {what};"
+                      f" this call pools sessions of {rig_kind(rig).words} and would replace"
+                      " it: give another --out")
 
 
 def _one_rig(rig: str, path: Path, effects: str, train: Path | None, fit: Path | None,

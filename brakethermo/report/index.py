@@ -66,6 +66,32 @@ def other_pages(out: Path, names: Iterable[str]) -> list[dict[str, Any]]:
     return found
 
 
+def _owns_folder(folder: Path, row: dict[str, Any]) -> bool:
+    """Whether the results in ``folder`` are the row's session's, to be linked.
+
+    A failed session wrote nothing there: what a folder of its name holds is another
+    run's (a failed ``batch2/rr.mcap`` linked an earlier ``rr.mcap``'s results and
+    verdict). A rig log's folder holds what its rig command or diagnose wrote, of the
+    file their ``summary.json`` or ``diagnosis.json`` names: linked when that is the
+    row's file (or none is named).
+    """
+    if row.get("status") == "failed":
+        return False
+    if row.get("status") != "rig session" or not row.get("file"):
+        return True
+    mine = Path(str(row["file"]))
+    for name in ("summary.json", "diagnosis.json"):
+        try:
+            said = json.loads((folder / name).read_text(encoding="utf-8")).get("session")
+            # both files still there and not one: another file of the same stem (paths
+            # written relative to another folder cannot tell, and keep the link)
+            if said and not Path(str(said)).samefile(mine):
+                return False
+        except (OSError, ValueError, AttributeError):
+            continue
+    return True
+
+
 def write_batch_index(
     out: str | Path, folder: str | Path, sessions: Iterable[dict[str, Any]]
 ) -> Path:
@@ -85,7 +111,8 @@ def write_batch_index(
     rows = []
     for s in sessions:
         page = out / str(s["name"]) / "index.html"
-        diagnosis = _diagnosis_cell(out / str(s["name"]))
+        owned = _owns_folder(out / str(s["name"]), s)
+        diagnosis = _diagnosis_cell(out / str(s["name"])) if owned else None
         rows.append(
             {
                 "name": s["name"],
@@ -97,15 +124,19 @@ def write_batch_index(
                 "replaced": bool(s.get("replaced")),
                 "h_law": s.get("h_law") or "–",
                 "h_law_reason": s.get("h_law_reason", ""),
-                "href": f"{s['name']}/index.html" if page.is_file() else None,
+                "href": f"{s['name']}/index.html" if owned and page.is_file() else None,
                 "diagnosis": diagnosis,
                 "diagnosis_href": f"{s['name']}/diagnosis/index.html" if diagnosis else None,
             }
         )
     env = template_environment()
     env.filters["temp"] = temp_text
+    rig = sum(r["status"] == "rig session" for r in rows)
+    # an index of rig logs only was titled "Disc temperature reports"
+    title = ("Rig session reports" if rows and rig == len(rows) else
+             "Disc temperature and rig session reports" if rig else "Disc temperature reports")
     html = env.get_template("batch.html.j2").render(
-        sessions=rows, folder=str(folder), footer=f"brakethermo {__version__}",
+        sessions=rows, folder=str(folder), footer=f"brakethermo {__version__}", title=title,
         others=other_pages(out, [r["name"] for r in rows]),
     )
     index = out / "index.html"

@@ -31,6 +31,44 @@ def write_index(out: Path, folder: Path, rows: list[dict[str, Any]]) -> Path:
     return write_batch_index(out, folder, rows)
 
 
+def earlier_rows(out: Path, listed: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The rows of the index an earlier batch left in ``out`` that ``listed`` lacks.
+
+    A session folder with a manifest is listed by
+    :func:`~brakethermo.pipelines.batch.discovery.earlier_sessions`; a rig log (no
+    folder of the batch's) has only its row, and a second batch of
+    another input folder into the same ``--out`` dropped them from the index.
+
+    Parameters
+    ----------
+    out : Path
+        The batch's output folder.
+    listed : list of dict
+        The rows this batch lists (its sessions and the earlier ones found by manifest).
+
+    Returns
+    -------
+    list of dict
+        The earlier index's other rows, each with its reason saying which batch it is from.
+    """
+    try:
+        saved = json.loads((out / INDEX_ROWS).read_text(encoding="utf-8"))
+        rows, folder = [dict(r) for r in saved["sessions"]], str(saved["folder"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+    have = {str(r.get("name", "")).casefold() for r in listed}
+    kept = []
+    for row in rows:
+        name = str(row.get("name", ""))
+        # a disc session's row without its folder's manifest lost its results: not kept
+        if name.casefold() in have or row.get("status") != "rig session":
+            continue
+        if not str(row.get("reason", "")).startswith("from an earlier batch"):
+            row["reason"] = f"from an earlier batch of {folder}: {row.get('reason', '')}"
+        kept.append(row)
+    return kept
+
+
 def refresh_batch_index(out: str | Path) -> Path | None:
     """Redraw a batch's ``out/index.html`` after another command wrote into ``out``: a
     session whose results were replaced since loses the batch's peaks and says so.

@@ -71,10 +71,10 @@ def _finish(out: Path, folder: Path, result: BatchResult, index: bool) -> None:
 
 def _write_index(out: Path, folder: Path, outcomes: list[SessionOutcome]) -> None:
     """``out/index.html``: these sessions, then those earlier batches left in ``out``."""
-    from brakethermo.pipelines.batch.index import write_index
+    from brakethermo.pipelines.batch.index import earlier_rows, write_index
 
-    write_index(out, folder, [*(o.to_json() for o in outcomes),
-                              *earlier_sessions(out, [o.name for o in outcomes])])
+    rows = [*(o.to_json() for o in outcomes), *earlier_sessions(out, [o.name for o in outcomes])]
+    write_index(out, folder, [*rows, *earlier_rows(out, rows)])
 
 
 def _check_places(folder: Path, out: Path) -> None:
