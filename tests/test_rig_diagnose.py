@@ -429,3 +429,21 @@ def test_a_pooled_diagnosis_of_another_rig_is_not_replaced(tmp_path):
         _pooled_free(tmp_path, "roller-rig")
     _pooled_free(tmp_path, "emb")
     _pooled_free(tmp_path / "elsewhere", "roller-rig")
+
+
+def test_the_console_table_says_a_dimensionless_unit_and_the_negligible_rows():
+    """The tyre's table read "before -" / "after -"; the booster's rows, all negligible,
+    came in the registry's order under "in the verdict's order"."""
+    from rich.console import Console
+
+    from brakethermo.cli.diagnose_cmd import _effects_table
+
+    rows = [{"name": n, "rmse_before": 0.083, "rmse_after": a, "shrink_pct": p,
+             "shrink_ci95_pct": [p - 5, p + 5], "negligible": neg}
+            for n, a, p, neg in (("curve_shape", 0.033, 60.0, False),
+                                 ("relaxation", 0.07, 15.0, True))]
+    con = Console(width=200, record=True)
+    con.print(_effects_table(rows, "-", 3))
+    text = " ".join(con.export_text().split())
+    assert "before -" not in text and "after -" not in text and "before" in text
+    assert "relaxation (negligible)" in text and "negligible ones after" in text

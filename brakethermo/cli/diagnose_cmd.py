@@ -323,9 +323,10 @@ def _one_rig(rig: str, path: Path, effects: str, train: Path | None, fit: Path |
 def _render_rig(result: Any, folder: Path, rig: str) -> None:
     """A rig diagnosis on the console."""
     s = result.summary
-    u = s["unit"]
+    u = "" if s["unit"] in ("-", "") else s["unit"]  # "0.083 -" read as text
+    us = f" {u}" if u else ""
     console.print(f"[bold]{escape(result.stem)}[/] ({rig}): the reference relation's held-out"
-                  f" RMSE {s['gap']['rmse']:.3f} {u}, bias {s['gap']['bias']:+.3f} {u}"
+                  f" RMSE {s['gap']['rmse']:.3f}{us}, bias {s['gap']['bias']:+.3f}{us}"
                   f" ({s['units']}s {s['heldout_units']} held out)")
     console.print(_effects_table(s["effects"], u, 3))
     console.print(f"verdict: [bold]{escape(_verdict_text(s))}[/]")
@@ -338,13 +339,17 @@ def _render_rig(result: Any, folder: Path, rig: str) -> None:
 
 def _effects_table(effects: list[dict], unit: str, digits: int) -> Table:
     """The candidates in the verdict's order, as a console table."""
-    table = Table(title="Effects in the verdict's order (held-out shrink)",
-                  title_justify="left")
-    for col in ("effect", f"before {unit}", f"after {unit}", "shrink %", "95 % interval"):
+    weak = any(e.get("negligible") for e in effects)
+    table = Table(title="Effects in the verdict's order (held-out shrink)" + (
+        "; negligible ones after, by shrink" if weak else ""), title_justify="left")
+    # a dimensionless output's unit "-" read as text ("before -")
+    said = "" if unit in ("-", "") else f" {unit}"
+    for col in ("effect", f"before{said}", f"after{said}", "shrink %", "95 % interval"):
         table.add_column(col, justify="left" if col == "effect" else "right", no_wrap=True)
     for e in effects:
         lo, hi = e["shrink_ci95_pct"]
-        table.add_row(e["name"], f"{e['rmse_before']:.{digits}f}",
+        table.add_row(e["name"] + (" (negligible)" if e.get("negligible") else ""),
+                      f"{e['rmse_before']:.{digits}f}",
                       f"{e['rmse_after']:.{digits}f}", f"{e['shrink_pct']:+.1f}",
                       _interval(lo, hi))
     return table

@@ -75,19 +75,21 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
                  + s["reference"]["contains"][0],
         cards=[
             Card("verdict", verdict),
-            Card("gap, held out", f"{s['gap']['rmse']:.3f}", f"{s['unit']} RMS"),
+            Card("gap, held out", f"{s['gap']['rmse']:.3f}",
+                 "RMS" if s["unit"] in ("-", "") else f"{s['unit']} RMS"),
             Card("mean bias (model − sensor)", f"{s['gap']['bias']:+.3f}", s["unit"]),
             Card("best shrink", f"{top['shrink_pct']:+.0f}" if top else "–", "%"),
         ],
         sections=[
             Section("Where the reference parts from this session",
                     paragraphs=["Held-out RMSE by phase: " + ", ".join(
-                        f"{k} {v:.3f} {s['unit']}" for k, v in s["gap"]["per_phase"].items()
+                        f"{k} {v:.3f}{_unit_said(s['unit'])}"
+                        for k, v in s["gap"]["per_phase"].items()
                         if math.isfinite(v))],
                     figures={"pv": _pv_figure(r), "residual": _residual_figure(r)}),
             Section("Which effect", paragraphs=[s["verdict_rule"], *s["verdict_reasons"]],
-                    tables=[TableBlock(["effect", f"before {s['unit']}",
-                                        f"after {s['unit']}", "shrink %",
+                    tables=[TableBlock(["effect", "before" + _unit_said(s["unit"]),
+                                        "after" + _unit_said(s["unit"]), "shrink %",
                                         "95 % interval", "fitted", "evidence"], rows)]),
             Section("Next", paragraphs=list(s["next_steps"]) or ["nothing to do: the"
                     " reference holds on this session"]),
@@ -95,3 +97,9 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
         footer=f"brakethermo {s['run']['brakethermo']}",
         back_href="../index.html",
     )
+
+
+def _unit_said(unit: str) -> str:
+    """`` MPa`` after a figure or a heading; nothing for a dimensionless output (the tyre's
+    μ: "before -" read as text)."""
+    return "" if unit in ("-", "") else f" {unit}"

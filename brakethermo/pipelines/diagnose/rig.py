@@ -379,11 +379,14 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
     negligible = {n for n in names if not size[n] >= cut}
     decision = decide(ref_sse, [e for e in evidence if e.name not in negligible], RULE)
     rows = {r["name"]: r for r in decision.rows}
-    for e in evidence:
-        if e.name in negligible:
-            point, lo, hi = shrink_interval(ref_sse, e.sse, RULE)
-            rows[e.name] = {"name": e.name, "shrink_pct": point, "shrink_ci95_pct": [lo, hi],
-                            "significant": False, "rank": len(rows) + 1}
+    # the negligible ones after those the verdict weighed, by their shrink: they came in
+    # the registry's order under a title saying "in the verdict's order"
+    shrinks = {e.name: shrink_interval(ref_sse, e.sse, RULE) for e in evidence
+               if e.name in negligible}
+    for name in sorted(shrinks, key=lambda n: -shrinks[n][0]):
+        point, lo, hi = shrinks[name]
+        rows[name] = {"name": name, "shrink_pct": point, "shrink_ci95_pct": [lo, hi],
+                      "significant": False, "rank": len(rows) + 1}
     best = decision.verdict if decision.verdict != "none" else None
     gap = rmse((ref - y)[held], 0.0)
     unexplained = ([] if best is not None or decision.undecided
