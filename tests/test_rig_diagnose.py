@@ -447,3 +447,22 @@ def test_the_console_table_says_a_dimensionless_unit_and_the_negligible_rows():
     text = " ".join(con.export_text().split())
     assert "before -" not in text and "after -" not in text and "before" in text
     assert "relaxation (negligible)" in text and "negligible ones after" in text
+
+
+def test_each_candidates_evidence_is_its_own():
+    """The roller rig's three candidates showed one sentence, the reference's residual
+    ("+172.867 N at low input, +416.021 N at high input" each): each now adds its own."""
+    import numpy as np
+
+    from brakethermo.models.rig_effects import RigContext
+    from brakethermo.pipelines.diagnose.rig import _evidence
+
+    x = np.linspace(0.0, 1.0, 200)
+    ctx = RigContext(x, np.ones_like(x), x, lambda z: z)
+    held = np.ones_like(x, dtype=bool)
+    res = 100.0 + 300.0 * x
+    said = {name: _evidence(name, res, held, ctx, "N", after=res * k)
+            for name, k in (("creep_slope", 0.1), ("friction_level", 0.5))}
+    assert said["creep_slope"] != said["friction_level"]
+    assert "; with creep_slope: model minus sensor +13.693 N" in said["creep_slope"]
+    assert " - " not in _evidence("curve_shape", res / 1e3, held, ctx, "-")

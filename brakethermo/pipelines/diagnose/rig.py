@@ -405,7 +405,7 @@ def run_case(case: RigCase, t_start: float) -> RigDiagnosis:
             "units": dict(zip(e.params, e.units, strict=True)),
             "extension": e.extension, "separate_by": e.separate_by,
             "evidence": _evidence(name, ref - y, held, ctx, case.unit, split.kind,
-                                  case.phases),
+                                  case.phases, after=preds[name] - y),
             "at_bound": edge[name] or None,
             **({"vs_first_pp": r["vs_first_pp"]} if "vs_first_pp" in r else {}),
         })
@@ -532,8 +532,23 @@ def _where(err: np.ndarray, held: np.ndarray, ctx: RigContext, rest: float
 
 def _evidence(name: str, res: np.ndarray, held: np.ndarray, ctx: RigContext, unit: str,
               kind: str = "apply cycle",
-              phases: tuple[str, str, str] = ("applying", "releasing", "holding")) -> str:
-    """A sentence computed from the reference's held-out residual (model minus sensor)."""
+              phases: tuple[str, str, str] = ("applying", "releasing", "holding"),
+              after: np.ndarray | None = None) -> str:
+    """A sentence computed from the reference's held-out residual (model minus sensor)
+    and, given ``after`` (the effect's own residual), the same figures with the effect:
+    the reference's alone read the same for every candidate of one form (the roller
+    rig's three: "+172.867 N at low input, +416.021 N at high input" each)."""
+    said = _residual_text(name, res, held, ctx, unit, kind, phases)
+    if after is None or said == "too few held-out samples":
+        return said
+    return f"{said}; with {name}: {_residual_text(name, after, held, ctx, unit, kind, phases)}"
+
+
+def _residual_text(name: str, res: np.ndarray, held: np.ndarray, ctx: RigContext, unit: str,
+                   kind: str, phases: tuple[str, str, str]) -> str:
+    """The held-out residual ``res`` (model minus sensor) in the figures the candidate
+    ``name`` is told by (halves, phases, low and high input)."""
+    u = _unit_text(unit)  # "+0.012 -" read as text for the tyre's μ
     r, x, v = res[held], ctx.x[held], ctx.v[held]
     ok = np.isfinite(r)
     r, x, v = r[ok], x[ok], v[ok]
@@ -541,18 +556,18 @@ def _evidence(name: str, res: np.ndarray, held: np.ndarray, ctx: RigContext, uni
         return "too few held-out samples"
     if "drift" in name:
         half = r.size // 2
-        return (f"model minus sensor {np.mean(r[:half]):+.3f} {unit} in the first half of the"
-                f" held-out {kind}s, {np.mean(r[half:]):+.3f} {unit} in the second")
+        return (f"model minus sensor {np.mean(r[:half]):+.3f}{u} in the first half of the"
+                f" held-out {kind}s, {np.mean(r[half:]):+.3f}{u} in the second")
     if name in ("rate_dependent", "hysteresis"):
         moving = 0.05 * float(np.percentile(np.abs(v), 95))
         up, down = v > moving, v < -moving
         corr = np.corrcoef(r, v)[0, 1] if np.std(v) > 0 else float("nan")
         return (f"model minus sensor {np.mean(r[up]) if up.any() else float('nan'):+.3f}"
-                f" {unit} {phases[0]}, {np.mean(r[down]) if down.any() else float('nan'):+.3f}"
-                f" {unit} {phases[1]}; correlation with the input's speed {corr:+.2f}")
+                f"{u} {phases[0]}, {np.mean(r[down]) if down.any() else float('nan'):+.3f}"
+                f"{u} {phases[1]}; correlation with the input's speed {corr:+.2f}")
     lo, hi = np.percentile(x, [25, 75])
-    return (f"model minus sensor {np.mean(r[x <= lo]):+.3f} {unit} at low input,"
-            f" {np.mean(r[x >= hi]):+.3f} {unit} at high input")
+    return (f"model minus sensor {np.mean(r[x <= lo]):+.3f}{u} at low input,"
+            f" {np.mean(r[x >= hi]):+.3f}{u} at high input")
 
 
 def write_rig_diagnosis(result: RigDiagnosis, out_dir: str | Path) -> Path:
