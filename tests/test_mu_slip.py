@@ -561,3 +561,21 @@ def test_a_session_without_a_radius_takes_it_from_its_free_rolling(tmp_path: Pat
     assert any("taken from its free-rolling speeds" in w for w in taken["warnings"])
     given = summary(mu_slip(path, MuSlipOptions(radius_m=taken["wheel_radius_m"])))
     assert taken["peak"]["mu"] == pytest.approx(given["peak"]["mu"])
+
+
+def test_a_free_rolling_radius_no_tyre_rig_has_is_said_with_the_likely_unit(
+        tmp_path: Path) -> None:
+    """A log without a radius whose carriage speed is km/h labelled m/s: 1.081 m was taken
+    from its free rolling, no word. Now a warning names km/h and the 0.300 m it gives."""
+    from brakethermo.pipelines.mu_slip import _implausible_radius
+
+    said = " ".join(_implausible_radius(1.081))
+    assert "outside a tyre rig's 0.15-0.6 m" in said and "km/h labelled m/s" in said
+    assert "0.300 m" in said
+    assert "m/s labelled km/h" in " ".join(_implausible_radius(0.0834))
+    assert _implausible_radius(0.30) == []
+    sim = simulate_tyre_rig("dry", seed=8106)
+    facts = {k: v for k, v in sim.session.facts.items() if k != "wheel_radius_m"}
+    path = write_session(tmp_path / "no_radius.parquet", SessionData(sim.session.channels,
+                                                                      facts))
+    assert not any("outside a tyre rig" in w for w in summary(mu_slip(path))["warnings"])

@@ -413,6 +413,40 @@ def ramp_points(path: str | Path, options: MuSlipOptions, *, aliases: Path | Non
                       np.interp(t_ramp, t_ramp[fin], s_ramp[fin]), np.flatnonzero(ok))
 
 
+TYRE_RIG_RADIUS_M = (0.15, 0.6)  # m: the wheels tyre rigs run, scooter to truck
+KMH = 3.6  # km/h per m/s
+
+
+def _implausible_radius(radius_m: float) -> list[str]:
+    """A warning when the radius the free-rolling speeds give is no tyre rig's wheel.
+
+    A log whose carriage speed is in km/h labelled m/s gives 3.6x the radius: 1.081 m
+    was taken, no word, for a 0.300 m wheel.
+
+    Parameters
+    ----------
+    radius_m : float
+        The radius taken, m.
+
+    Returns
+    -------
+    list of str
+        One sentence naming the likely unit slip and the radius it would give, or nothing.
+    """
+    lo, hi = TYRE_RIG_RADIUS_M
+    if lo <= radius_m <= hi:
+        return []
+    kmh = (f"; a vehicle_speed in km/h labelled m/s gives 3.6x the radius (that would be"
+           f" {radius_m / KMH:.3f} m): check the speed channel's unit" if
+           lo <= radius_m / KMH <= hi else
+           f"; a vehicle_speed in m/s labelled km/h gives 1/3.6 of it (that would be"
+           f" {radius_m * KMH:.3f} m): check the speed channel's unit" if
+           lo <= radius_m * KMH <= hi else
+           "; check the units of vehicle_speed (m/s) and wheel_speed (rad/s)")
+    return [f"the wheel radius the free-rolling speeds give, {radius_m:.3f} m, is outside a"
+            f" tyre rig's {lo:g}-{hi:g} m{kmh}, or pass --radius"]
+
+
 def _radius_warning(session: Session, radius_m: float | None, used: float | None
                     ) -> list[str]:
     """--radius beside a session fact that says otherwise: the option wins, and says so;
@@ -425,7 +459,7 @@ def _radius_warning(session: Session, radius_m: float | None, used: float | None
     if radius_m is None and fact is None and used is not None:
         return [f"no wheel radius in the session: taken from its free-rolling speeds,"
                 f" {used:.3f} m (the median of V / ω where μ is about 0); pass --radius to"
-                " set it"]
+                " set it", *_implausible_radius(used)]
     if radius_m is None or fact is None:
         return []
     try:
