@@ -203,3 +203,16 @@ def test_inspect_fits_80_columns_with_names_whole(tmp_path, monkeypatch) -> None
     assert max(len(line) for line in lines) <= 80
     row = next(line for line in lines if line.startswith("disc_temp_spot1"))
     assert "disc_temp.spot1" in row, result.output
+
+
+def test_inspect_says_the_rate_a_rig_log_is_logged_at(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """A 1 kHz tyre log was described as "6167 points at 10 Hz" (the disc grid) only."""
+    from brakethermo.sim.tyre_rig import simulate_tyre_rig, write_tyre_simulation
+
+    monkeypatch.setenv("COLUMNS", "200")
+    path = write_tyre_simulation(simulate_tyre_rig(seed=3), tmp_path / "ty.mcap")[0]
+    code, output = run(str(path))
+    assert code == 0, output
+    said = " ".join(output.split())
+    assert "the disc pipelines' grid; logged at up to 1000 Hz, the rate the rig commands" in said

@@ -121,14 +121,23 @@ def _render(session: Session) -> None:
     for key, value in session.metadata.items():
         facts.add_row(escape(str(key)), escape(str(value)))
     facts.add_row("format", escape(session.format))
-    facts.add_row(
-        "duration",
-        f"{info['duration_s']:.1f} s ({info['grid_points']} points at {session.rate_hz:g} Hz)",
-    )
+    facts.add_row("duration", _duration_text(session, info))
     if session.start_epoch_s is not None:
         facts.add_row("start (epoch s)", f"{session.start_epoch_s:.3f}")
     console.print(facts)
     print_warnings(session.warnings)
+
+
+def _duration_text(session: Session, info: dict[str, Any]) -> str:
+    """The session's length and its grid, and the rate it is logged at where faster: a
+    1 kHz rig log read "6167 points at 10 Hz", the disc pipelines' grid, not what the
+    rig commands read."""
+    text = f"{info['duration_s']:.1f} s ({info['grid_points']} points at {session.rate_hz:g} Hz"
+    native = max((c.rate_hz for c in session.channels.values()), default=0.0)
+    if native > 1.5 * session.rate_hz:
+        text += (f", the disc pipelines' grid; logged at up to {native:.6g} Hz, the rate the"
+                 " rig commands read")
+    return text + ")"
 
 
 @app.command("inspect")
