@@ -129,6 +129,8 @@ def process_session(
         if rig is not None:  # a rig log in the folder is not a disc session that failed
             kind = KINDS[rig]
             outcome.status, outcome.kind = RIG_SESSION, rig  # not "single": no disc spot
+            # nor a disc: the facts had the default disc's id (disc: cc-340-8) for a rig
+            outcome.facts.pop("disc", None)
             outcome.reason = (f"{kind.words} session, not a disc one: {kind.command} reads"
                               " it (batch estimates the disc sessions)")
     outcome.wall_s = time.perf_counter() - t0
