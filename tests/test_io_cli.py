@@ -214,5 +214,5 @@ def test_inspect_says_the_rate_a_rig_log_is_logged_at(tmp_path: Path,
     path = write_tyre_simulation(simulate_tyre_rig(seed=3), tmp_path / "ty.mcap")[0]
     code, output = run(str(path))
     assert code == 0, output
-    said = " ".join(output.split())
+    said = " ".join(output.replace("│", " ").split())  # a wrapped table cell
     assert "the disc pipelines' grid; logged at up to 1000 Hz, the rate the rig commands" in said
