@@ -177,31 +177,36 @@ class ExtendedDisc:
         lo, hi = zip(*(s.param.bounds_fit for s in self.slots), strict=True)
         return np.array(lo), np.array(hi)
 
-    def at_bounds(self, p: np.ndarray) -> dict[tuple[str, str], float]:
+    def at_bounds(self, p: np.ndarray, every: bool = False) -> dict[tuple[str, str], float]:
         """``(effect, param): value`` of the effects' parameters that ``p`` leaves at a
         bound of their range (within 1 % of the range, in the fitted space: a bounded
         least-squares fit stops near its bound, not on it — 0.6002 on a bound of 0.6).
 
-        The data push such a parameter past what the effect's form allows. Per-segment
-        values count one by one, named ``param[i]`` (``i`` the zone or straight): a
-        slipstream straight at 1.6 or a zone's crown balance at 1.5 is as clamped as a
-        scalar (found at 1.6 and 0.400 with nothing said). A slipstream straight is judged
-        as the multiplier of h it is written as (:meth:`values`). A bound that is the
-        effect's absent value counts too (a named pyrometer lag at its 0.01 s floor: the
-        fit found no lag). Shape parameters (:attr:`EffectParam.shape`) are not judged.
+        By default the effect's form is stretched: a strength parameter pushed past what
+        the form allows, not at the effect's absent value — what a verdict sets aside and
+        identify-h's selection drops. ``every`` adds what is reported but decides nothing:
+        per-segment values one by one, named ``param[i]`` (``i`` the zone or straight; a
+        slipstream straight judged as the multiplier of h it is written as,
+        :meth:`values`: found at 1.6 and 0.400 with nothing said), and a bound that is the
+        effect's absent value (a named pyrometer lag at its 0.01 s floor: the fit found
+        none). One straight of 46 at its bound set a true slipstream aside when it
+        decided. Shape parameters (:attr:`EffectParam.shape`) are not judged.
         """
         return self._at_bounds(p, [sl for sl in self.slots if sl.effect != "reference"
-                                   and not sl.param.shape])
+                                   and not sl.param.shape and (every or sl.segment < 0)],
+                               every)
 
     def reference_at_bounds(self, p: np.ndarray) -> dict[tuple[str, str], float]:
         """:meth:`at_bounds` of the reference's own parameters (h's ``a`` and ``b``, the
         power scale, the mean crown weights ``w1``, ``w2`` relative to ``w3``)."""
         return self._at_bounds(p, [sl for sl in self.slots if sl.effect == "reference"])
 
-    def _at_bounds(self, p: np.ndarray, slots: list[Slot]) -> dict[tuple[str, str], float]:
-        """:meth:`at_bounds` over ``slots``."""
+    def _at_bounds(self, p: np.ndarray, slots: list[Slot], every: bool = True
+                   ) -> dict[tuple[str, str], float]:
+        """:meth:`at_bounds` over ``slots`` (``every``: also at the absent value)."""
         lo, hi = self.bounds()
         tol = 1e-2 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+        neutral = self.neutral()
         x = np.asarray(p, float).copy()
         shown = self.latent_slots("slipstream")
         if shown:  # judged as written: the multipliers of h, not the raw factors
@@ -210,16 +215,18 @@ class ExtendedDisc:
         out: dict[tuple[str, str], float] = {}
         for sl in slots:
             i = sl.index
+            if not every and abs(x[i] - neutral[i]) <= tol[i]:
+                continue
             if x[i] <= lo[i] + tol[i] or x[i] >= hi[i] - tol[i]:
                 name = sl.param.name if sl.segment < 0 else f"{sl.param.name}[{sl.segment}]"
                 out[(sl.effect, name)] = float(sl.param.from_fit(x[i]))
         return out
 
-    def at_bounds_words(self, p: np.ndarray) -> str:
+    def at_bounds_words(self, p: np.ndarray, every: bool = False) -> str:
         """:meth:`at_bounds` in words, ``""`` when none (``"ratio = 0.6, at the edge of its
         range 0.6 to 1.5"``; per-segment values together, ``"straight_factor[0] = 1.6,
         straight_factor[4] = 0.4, at the edges of its range 0.4 to 1.6"``)."""
-        return self.bound_words(self.at_bounds(p))
+        return self.bound_words(self.at_bounds(p, every))
 
     def reference_at_bounds_words(self, p: np.ndarray) -> str:
         """:meth:`reference_at_bounds` in words, ``""`` when none."""

@@ -104,6 +104,9 @@ class StructureFit:
     rmse_uniform_c: dict[str, float]
     effects: dict[str, dict[str, Any]] = field(default_factory=dict)
     at_bounds: dict[tuple[str, str], float] = field(default_factory=dict)  # (effect, param)
+    # of at_bounds, the effects' forms stretched (ExtendedDisc.at_bounds): what selection
+    # drops; a straight or zone at its bound, or a lag the fit found none of, is only said
+    stretched: dict[tuple[str, str], float] = field(default_factory=dict)
 
     def facts(self) -> dict[str, Any]:
         """``structure`` of identify.json."""
@@ -409,7 +412,7 @@ def fit_with_effects(
     # crown weights at w1 = 0.05 or a power scale at 3 are as clamped as any effect's
     # (h's exponent b is judged by _law_check, with what a flat law means)
     at_bounds = {**{k: v for k, v in ext.reference_at_bounds(p).items() if k[1] != "b"},
-                 **ext.at_bounds(p)}
+                 **ext.at_bounds(p, every=True)}
     return law, StructureFit(
         weights=ext.weights(p),
         kz_ratio=kz,
@@ -420,6 +423,7 @@ def fit_with_effects(
         rmse_uniform_c=_spot_rmse(ext.predict(p0)[0], y),
         effects=fitted,
         at_bounds=at_bounds,
+        stretched=ext.at_bounds(p),
     )
 
 
@@ -630,7 +634,7 @@ def _refit_carried(session: Session, inputs: DiscInputs, y: np.ndarray, disc: Di
     dropped: dict[str, str] = {}
     while selection["mode"] == "auto":
         edge: dict[str, list[str]] = {}
-        for (name, param), value in structure.at_bounds.items():
+        for (name, param), value in structure.stretched.items():
             if name in effects and name not in STRUCTURE_EFFECTS:
                 edge.setdefault(name, []).append(f"{param} = {value:.4g}")
         if not edge:
@@ -743,13 +747,22 @@ def _evidence_facts(level: dict[str, Any]) -> dict[str, Any]:
 def _bound_notes(structure: StructureFit | None) -> list[str]:
     """A note per fitted parameter that sits at a bound of its range (per-segment values
     of one parameter together)."""
+    if structure is None:
+        return []
     grouped: dict[tuple[str, str], list[str]] = {}
-    for (name, param), value in (structure.at_bounds if structure else {}).items():
+    stretched: set[str] = set()
+    for (name, param), value in structure.at_bounds.items():
         grouped.setdefault((name, param.split("[", 1)[0]), []).append(
             f"{name}.{param} = {value:.4g}")
+        if name == "reference" or (name, param) in structure.stretched:
+            stretched.add(name)
     return [", ".join(values) + (" sit" if len(values) > 1 else " sits")
-            + " at the bound the fit allows: the data push it further than the model's"
-            " range, so " + _bound_why(name) for (name, _), values in grouped.items()]
+            + (" at the bound the fit allows: the data push it further than the model's"
+               " range, so " + _bound_why(name) if name in stretched else
+               " at the edge of its range: a single zone's or straight's value, or the"
+               " effect's absent value (a lag the fit found none of) — said, not taken as"
+               " the effect's form failing")
+            for (name, _), values in grouped.items()]
 
 
 def _bound_why(name: str) -> str:

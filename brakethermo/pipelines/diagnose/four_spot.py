@@ -311,6 +311,10 @@ class _FourSpot:
                 "fit_s": c.fit_s,
                 **({"vs_first_pp": row["vs_first_pp"]} if "vs_first_pp" in row else {}),
                 **({"at_bound": row["at_bound"]} if "at_bound" in row else {}),
+                # reported, deciding nothing: a straight's or zone's value, or the
+                # effect's absent value, at the edge of its range
+                **({"edges": edges} if (edges := ext.at_bounds_words(c.p, every=True))
+                   and "at_bound" not in row else {}),
                 "rank": row["rank"],
             })
         return sorted(out, key=lambda e: e["rank"])
