@@ -23,6 +23,7 @@ from brakethermo.thermal.tyre_radiation import (
     tyre_heat,
 )
 
+CONFIG_HLAW = Path(__file__).resolve().parents[1] / "configs" / "hlaw"
 runner = CliRunner()
 
 
@@ -140,8 +141,8 @@ def test_cli_writes_parquet_summary_and_page(sim_race_session, tmp_path: Path) -
     assert (folder / "whatif" / "index.html").is_file()
     assert (folder / "whatif" / "contact.png").stat().st_size > 10_000
     assert summ["scenarios"][0]["cooling"] == 1.2
-    assert summ["run"]["h_law_choice"] == "given with --h-law" or "no h law" in " ".join(
-        summ["run"]["warnings"])
+    assert summ["run"]["h_law_choice"].startswith("shipped default")  # no --h-law given
+    assert "no h law" in " ".join(summ["run"]["warnings"])
     r = runner.invoke(app, ["whatif", str(sim_race_session[0]), "--cooling", "1.2",
                             "--scenario", "cooling=1.3,ambient=35", "--draws", "0",
                             "--out", str(tmp_path)])
@@ -150,6 +151,18 @@ def test_cli_writes_parquet_summary_and_page(sim_race_session, tmp_path: Path) -
     page = (folder / "whatif" / "index.html").read_text(encoding="utf-8")
     assert "cooling x1.2 | cooling x1.3, ambient 35 °C" in page
     assert "spread of 0 replays" not in page and "no spread over the h law" in page
+    # the law identify-h wrote for this session beside its outputs, as estimate takes it
+    # (whatif took the shipped law and said "no h law of this bike", review)
+    law = folder / "h_law.toml"
+    law.write_text((CONFIG_HLAW / "cc-340-8.toml").read_text(encoding="utf-8").replace(
+        'session = "sample_sessions/mugello_test_multi.mcap"',
+        f'session = "{sim_race_session[0].name}"'))
+    r = runner.invoke(app, ["whatif", str(sim_race_session[0]), "--cooling", "1.2",
+                            "--draws", "0", "--out", str(tmp_path), "--json"])
+    assert r.exit_code == 0, r.output
+    run = json.loads(r.output)["run"]
+    assert run["h_law_choice"].startswith("identified from this session")
+    assert Path(run["h_law"]) == law and not any("no h law" in w for w in run["warnings"])
 
 
 @pytest.mark.parametrize("args, needle, code", [

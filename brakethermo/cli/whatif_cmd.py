@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -122,6 +123,7 @@ def whatif_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Replay the session's own laps with a change: window, peaks, friction, heat to the tyre."""
+    from brakethermo.pipelines.models import OWN_LAW, own_h_law
     from brakethermo.pipelines.output_dir import check_session_folder, refresh_indexes
     from brakethermo.pipelines.outputs import to_json
     from brakethermo.pipelines.whatif import WhatifOptions, whatif_session, write_whatif
@@ -138,6 +140,11 @@ def whatif_cmd(
                              ambient_c=session_ambient, draws=draws,
                              tyre=TyreView(carcass_c=tyre_temp))
     check_session_folder(out, session, "estimate")  # beside this session's estimate only
+    # as estimate chooses: the law identify-h wrote for this session beside its outputs
+    # before the shipped one (whatif took the shipped law, and its page was then called
+    # stale beside an estimate on the session's own)
+    if h_law is None and (own := own_h_law(out / session.stem, session)) is not None:
+        opts = replace(opts, h_law=own.source, h_law_reason=OWN_LAW)
     res = run_with_status(as_json, "whatif…", lambda: whatif_session(session, opts))
     folder = write_whatif(res, out)
     page = write_whatif_page(res.summary, res.frame, folder / "whatif")

@@ -195,8 +195,12 @@ def other_disc(cal: DiscCalibration, disc: DiscSpec, option: str = "estimate --d
             " wrong")
 
 
-def own_h_law(folder: str | Path, session: Session) -> DiscCalibration | None:
-    """The law identify-h wrote for this very session into ``folder``, read, if any.
+OWN_LAW = "identified from this session by identify-h (beside it in --out)"
+
+
+def own_h_law(folder: str | Path, session: Session | Path) -> DiscCalibration | None:
+    """The law identify-h wrote for this very session (read, or its file) into
+    ``folder``, read, if any.
 
     identify-h writes ``OUT/<stem>/h_law.toml`` and records the session in ``[extra]``;
     a law there of another session with the same file stem is not this session's.
@@ -205,7 +209,8 @@ def own_h_law(folder: str | Path, session: Session) -> DiscCalibration | None:
     if not path.is_file():
         return None
     cal = read_calibration(path)
-    if cal.identified_on is not None and Path(cal.identified_on).name != session.path.name:
+    name = session.name if isinstance(session, Path) else session.path.name
+    if cal.identified_on is not None and Path(cal.identified_on).name != name:
         return None
     return cal
 
@@ -230,6 +235,6 @@ def choose_h_law(
         return Path(given), "given with --h-law"
     own = own_h_law(folder, session)
     if own is not None:
-        return own, "identified from this session by identify-h (beside it in --out)"
+        return own, OWN_LAW
     shipped = shipped_h_law(disc)
     return shipped, f"{SHIPPED_DEFAULT} for disc {disc.id}"

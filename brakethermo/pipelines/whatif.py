@@ -124,6 +124,7 @@ class WhatifOptions:
     ----------
     scenarios : tuple of Scenario
     h_law : path, optional — the law of the session's disc (default: the shipped one).
+    h_law_reason : str — why that law, as ``estimate`` says it (``run.h_law_choice``).
     spot : int — the measured spot of the estimate.
     disc, tuning, aliases : optional — as for ``estimate``.
     ambient_c : float, optional — degC, the session's air when it logs none.
@@ -137,6 +138,7 @@ class WhatifOptions:
 
     scenarios: tuple[Scenario, ...] = (Scenario(),)
     h_law: str | Path | None = None
+    h_law_reason: str = "given with --h-law"
     spot: int = 3
     disc: str | Path | None = None
     tuning: str | Path | None = None
@@ -230,7 +232,7 @@ def _law_choice(options: WhatifOptions, est: EstimateResult) -> tuple[str, list[
 
     warnings = list(est.summary["run"]["warnings"])
     if options.h_law is not None:
-        return "given with --h-law", warnings
+        return options.h_law_reason, warnings
     return (f"{SHIPPED_DEFAULT} for disc {est.disc.id}",
             [f"no h law of this bike (no --h-law): {SHIPPED_LAW_NOTE}", *warnings])
 
