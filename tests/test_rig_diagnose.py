@@ -429,6 +429,14 @@ def test_a_pooled_diagnosis_of_another_rig_is_not_replaced(tmp_path):
         _pooled_free(tmp_path, "roller-rig")
     _pooled_free(tmp_path, "emb")
     _pooled_free(tmp_path / "elsewhere", "roller-rig")
+    # disc sessions pooled over a rig's pooled/ (review: only rig pools were checked), and
+    # a rig name no longer known (an AttributeError)
+    with pytest.raises(ConfigError, match="3 sessions of an EMB caliper rig; this call pools"
+                       " disc sessions"):
+        _pooled_free(tmp_path, None)
+    (tmp_path / "pooled" / "diagnosis.json").write_text(json.dumps({"rig": "bogus"}))
+    with pytest.raises(ConfigError, match="sessions of rig 'bogus'"):
+        _pooled_free(tmp_path, None)
 
 
 def test_the_console_table_says_a_dimensionless_unit_and_the_negligible_rows():

@@ -146,6 +146,8 @@ def _diagnose_discs(sessions: list[Path], out: Path, options: DiagnoseOptions,
     distinct_sessions(sessions)  # one folder each, none the pooled one's
     for session in sessions:  # beside each session's own estimate only, before the work
         check_session_folder(out, session, "estimate")
+    if len(sessions) > 1:
+        _pooled_free(out, None)
     results, pooled = _run_with_progress(sessions, options, as_json)
     folders = [write_diagnosis(r, out) for r in results]
     pooled_path = write_pooled(pooled, out) if pooled is not None else None
@@ -270,16 +272,17 @@ def _diagnose_rig(rig: str, sessions: list[Path], out: Path, effects: str,
                       f" {escape(str(pooled_path.parent / 'index.html'))}")
 
 
-def _pooled_free(out: Path, rig: str) -> None:
+def _pooled_free(out: Path, rig: str | None) -> None:
     """Refuse, before the work, to pool over ``OUT/pooled`` of another rig or of disc
-    sessions: a second pooled call replaced the first's diagnosis.json and page, no word.
+    sessions (or, for disc sessions, of a rig's): a second pooled call replaced the
+    first's diagnosis.json and page, no word.
 
     Parameters
     ----------
     out : Path
         The ``--out`` folder.
-    rig : str
-        The rig of this call's sessions.
+    rig : str or None
+        The rig of this call's sessions; None for disc sessions.
     """
     import json
 
@@ -292,12 +295,17 @@ def _pooled_free(out: Path, rig: str) -> None:
         return
     was = held.get("rig") if isinstance(held, dict) else None
     if was == rig:
-        return  # the same rig's pooled diagnosis, re-run: replaced as any output is
-    what = f"sessions of {rig_kind(was).words}" if was else "disc sessions"
+        return  # the same rig's (or disc) pooled diagnosis, re-run: replaced as any output
+
+    def words(kind: str | None) -> str:
+        known = rig_kind(kind) if kind else None
+        return (f"sessions of {known.words}" if known is not None else
+                f"sessions of rig '{kind}'" if kind else "disc sessions")
+
     n = len(held.get("sessions") or []) if isinstance(held, dict) else 0
-    raise ConfigError(f"{there}: holds the pooled diagnosis of {n or 'several'} {what};"
-                      f" this call pools sessions of {rig_kind(rig).words} and would replace"
-                      " it: give another --out")
+    raise ConfigError(f"{there}: holds the pooled diagnosis of {n or 'several'} {words(was)};"
+                      f" this call pools {words(rig)} and would replace it: give another"
+                      " --out")
 
 
 def _one_rig(rig: str, path: Path, effects: str, train: Path | None, fit: Path | None,
