@@ -557,6 +557,7 @@ def test_a_later_batch_keeps_the_earlier_batchs_rig_rows_and_links_only_its_own(
     rows = json.loads((out / "batch_index.json").read_text())["sessions"]
     assert [r["name"] for r in rows] == ["ty2", "ty1"]
     assert "disc" not in rows[0]["facts"]  # it read the default disc's cc-340-8
+    assert "disc_assumed" not in rows[0]["facts"]  # nor "a disc was assumed" (review)
     assert rows[1]["reason"].startswith(f"from an earlier batch of {tmp_path / 'a'}")
     page = (out / "index.html").read_text()
     assert "ty1" in page and "Rig session reports" in page

@@ -20,9 +20,9 @@ from typing import Any
 import pandas as pd
 
 from brakethermo.io.atomic import atomic_entries, write_bytes_atomic
+from brakethermo.pipelines.output_dir import refresh_indexes
 from brakethermo.pipelines.outputs import write_json, write_parquet
 from brakethermo.report.page import Page, Section, write_page
-from brakethermo.report.session_links import refresh_page_links
 
 WARNINGS = "Warnings"
 
@@ -78,5 +78,5 @@ def write_rig_outputs(
         write_page(page, tmp)
         for name, data in (attachments or {}).items():
             write_bytes_atomic(tmp / name, data)
-    refresh_page_links(folder)  # a diagnosis already beside it is linked
+    refresh_indexes(folder)  # a diagnosis already beside it is linked; a batch's index too
     return folder

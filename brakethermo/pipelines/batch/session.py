@@ -24,7 +24,7 @@ from brakethermo.io.atomic import write_text_atomic
 from brakethermo.io.kinds import KINDS, detect_rig
 from brakethermo.io.session import Session
 from brakethermo.pipelines.batch.discovery import MANIFEST, output_fingerprints
-from brakethermo.pipelines.batch.laws import is_multi_spot, session_facts
+from brakethermo.pipelines.batch.laws import DISC_ASSUMED_FACT, is_multi_spot, session_facts
 from brakethermo.pipelines.batch.tasks import (
     DEFAULT_LAW,
     RIG_SESSION,
@@ -131,6 +131,7 @@ def process_session(
             outcome.status, outcome.kind = RIG_SESSION, rig  # not "single": no disc spot
             # nor a disc: the facts had the default disc's id (disc: cc-340-8) for a rig
             outcome.facts.pop("disc", None)
+            outcome.facts.pop(DISC_ASSUMED_FACT, None)  # nor a disc taken for want of one
             outcome.reason = (f"{kind.words} session, not a disc one: {kind.command} reads"
                               " it (batch estimates the disc sessions)")
     outcome.wall_s = time.perf_counter() - t0

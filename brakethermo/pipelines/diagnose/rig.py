@@ -574,11 +574,10 @@ def write_rig_diagnosis(result: RigDiagnosis, out_dir: str | Path) -> Path:
     """``<out>/<stem>/diagnosis.json``, ``diagnosis.parquet`` and ``diagnosis/index.html``;
     the rig command's own files in the same folder are left as they are, its page (or a
     small index, the page's back link) links the diagnosis."""
-    from brakethermo.pipelines.output_dir import replace_session_dir
+    from brakethermo.pipelines.output_dir import refresh_indexes, replace_session_dir
     from brakethermo.pipelines.outputs import write_json, write_parquet
     from brakethermo.report.page import write_page
     from brakethermo.report.rig_diagnosis_page import rig_diagnosis_page
-    from brakethermo.report.session_links import refresh_page_links
 
     folder = Path(out_dir) / result.stem
     result.summary = filled(result.summary, {
@@ -595,5 +594,6 @@ def write_rig_diagnosis(result: RigDiagnosis, out_dir: str | Path) -> Path:
                       {"brakethermo": __version__, "session": str(result.session.path)})
         write_json(stage / "diagnosis.json", result.summary)
         write_page(rig_diagnosis_page(result), stage / "diagnosis")
-    refresh_page_links(folder)  # the rig command's page links it (or a small index does)
+    refresh_indexes(folder)  # the rig command's page links it (or a small index does), and
+    # a batch's index over OUT shows its verdict
     return folder
