@@ -216,3 +216,13 @@ def test_inspect_says_the_rate_a_rig_log_is_logged_at(tmp_path: Path,
     assert code == 0, output
     said = " ".join(output.replace("│", " ").split())  # a wrapped table cell
     assert "the disc pipelines' grid; logged at up to 1000 Hz, the rate the rig commands" in said
+
+
+def test_inspect_says_a_disc_sessions_fast_channels_without_the_rig_commands() -> None:
+    """A disc race's 100 Hz wheel speed read "the rate the rig commands read" (review):
+    the rig commands read no disc session."""
+    code, output = run(str(Path(__file__).resolve().parents[1] / "sample_sessions"
+                           / "mugello_race_single.parquet"))
+    assert code == 0, output
+    said = " ".join(output.replace("│", " ").split())
+    assert "logged at up to 100 Hz" in said and "rig commands" not in said

@@ -135,8 +135,13 @@ def _duration_text(session: Session, info: dict[str, Any]) -> str:
     text = f"{info['duration_s']:.1f} s ({info['grid_points']} points at {session.rate_hz:g} Hz"
     native = max((c.rate_hz for c in session.channels.values()), default=0.0)
     if native > 1.5 * session.rate_hz:
-        text += (f", the disc pipelines' grid; logged at up to {native:.6g} Hz, the rate the"
-                 " rig commands read")
+        # the rig commands read a rig log at its own rate; a disc session's fast channels
+        # (100 Hz wheel speed) are read on the grid
+        from brakethermo.io.kinds import session_kind
+
+        rig = session_kind({*session.available, *session.channels}) not in (None, "disc")
+        text += (f", the disc pipelines' grid; logged at up to {native:.6g} Hz"
+                 + (", the rate the rig commands read" if rig else ""))
     return text + ")"
 
 

@@ -312,8 +312,6 @@ def fit_spline(s: Array, mu: Array, fold: NDArray[np.int_]) -> FamilyFit | None:
                      heldout_err=err)
 
 
-
-
 # Relaxation lengths tried, m: none, a racing slick's few centimetres, a road tyre's
 # 0.2-0.5 m, and what a lagging load cell adds at speed
 RELAXATION_M = (0.0, 0.03, 0.05, 0.08, 0.12, 0.18, 0.25, 0.35, 0.5, 0.7, 1.0, 1.4)

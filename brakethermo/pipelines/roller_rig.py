@@ -109,7 +109,7 @@ def datasheet_warning(session: Session, spec: RollerRigSpec, roller_source: str)
               " turns the speed ratio into the wheel radius")
     return [f"the session names the rig datasheet {named!r} (fact {DATASHEET_FACT}); this run"
             f" read {spec.id!r} (--rig): {radius}, and its inertias, motor and contact are"
-            f" taken as {named!r}'s; give --rig with the TOML file of {named!r}"]
+            f" {spec.id!r}'s, not {named!r}'s; give --rig with the TOML file of {named!r}"]
 
 
 REF_EXPECT = Expect("rolling_radius_ref", "m", 2.0, positive=True, role="score")
@@ -747,8 +747,9 @@ def reference_warning(run: GuessRun, ref_mm: float | None, spec: RollerRigSpec) 
         return []
     roller = spec.roller_radius * ref_mm / end  # the speed ratio's radius scales with it
     return [f"the estimate {end:.2f} ± {sd:.2f} mm departs from the session's reference"
-            f" rolling_radius_ref {ref_mm:.2f} mm by {off:+.2f} mm ({abs(off) / sd:.0f}x its"
-            f" 1σ): the speed ratio scales with the roller radius ({spec.roller_radius:g} m"
+            f" rolling_radius_ref {ref_mm:.2f} mm by {off:+.2f} mm"
+            + (f" ({abs(off) / sd:.0f}x its 1σ)" if sd > 0.0 else "")
+            + f": the speed ratio scales with the roller radius ({spec.roller_radius:g} m"
             f" here; {roller:.4f} m would give the reference) — check --rig (the rig"
             " datasheet) and the session's roller_radius_m, or the reference"]
 
