@@ -457,6 +457,15 @@ def test_the_console_table_says_a_dimensionless_unit_and_the_negligible_rows():
     assert "relaxation (negligible)" in text and "negligible ones after" in text
 
 
+def test_the_rig_page_says_no_dimensionless_unit():
+    """The page's mean-bias card and fitted parameters still printed "-" as a unit (review):
+    the page's helper gives nothing for a dimensionless output, " MPa" otherwise."""
+    from brakethermo.report.rig_diagnosis_page import _unit_said
+
+    assert _unit_said("-") == "" == _unit_said("")
+    assert _unit_said("MPa") == " MPa"
+
+
 def test_each_candidates_evidence_is_its_own():
     """The roller rig's three candidates showed one sentence, the reference's residual
     ("+172.867 N at low input, +416.021 N at high input" each): each now adds its own."""

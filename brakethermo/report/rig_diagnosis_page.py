@@ -65,7 +65,8 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
     rows = []
     for e in s["effects"]:
         lo, hi = e["shrink_ci95_pct"]
-        params = ", ".join(f"{k} {v:+.3g} {e['units'][k]}" for k, v in e["params"].items())
+        params = ", ".join(f"{k} {v:+.3g}{_unit_said(e['units'][k])}"
+                           for k, v in e["params"].items())
         rows.append([e["name"], f"{e['rmse_before']:.3f}", f"{e['rmse_after']:.3f}",
                      f"{e['shrink_pct']:+.1f}", _interval(lo, hi), params,
                      e["evidence"]])
@@ -77,7 +78,8 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
             Card("verdict", verdict),
             Card("gap, held out", f"{s['gap']['rmse']:.3f}",
                  "RMS" if s["unit"] in ("-", "") else f"{s['unit']} RMS"),
-            Card("mean bias (model − sensor)", f"{s['gap']['bias']:+.3f}", s["unit"]),
+            Card("mean bias (model − sensor)", f"{s['gap']['bias']:+.3f}",
+                 _unit_said(s["unit"]).strip()),
             Card("best shrink", f"{top['shrink_pct']:+.0f}" if top else "–", "%"),
         ],
         sections=[
