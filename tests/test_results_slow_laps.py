@@ -46,6 +46,11 @@ def test_the_reference_section_warns_of_a_flat_reference_law() -> None:
     assert notes[0].startswith("Fitted: h_a = 104")
     assert notes[1] == "WARNING: " + check["text"]
     assert "reference.w1 = 0.05" in notes[2] and "reference.b" not in notes[2]
+    # an exponent at its upper bound (3) is no flat law: the law check says nothing of it,
+    # the bound note does (review: it was dropped with the lower one)
+    test["reference"] |= {"law_check": None, "at_bounds": {"reference.b": 3.0}}
+    notes = _reference_section(test).notes
+    assert any("reference.b = 3" in n for n in notes)
 
 
 def test_the_reference_section_says_what_a_single_spot_race_fits() -> None:

@@ -59,7 +59,7 @@ from brakethermo.pipelines.tuning import (
 )
 from brakethermo.thermal.disc import DiscSpec, kz_scales
 from brakethermo.thermal.hlaw import HLaw, read_h_law
-from brakethermo.thermal.hlaw_check import law_speed_check
+from brakethermo.thermal.hlaw_check import B_LAW_CHECKED, law_speed_check
 from brakethermo.thermal.model import DiscFEModel
 from brakethermo.thermal.power import normalise_weights
 
@@ -411,7 +411,8 @@ def fit_with_effects(
     # the reference's own (h's a and b, the mean crown weights, the power scale) as well:
     # crown weights at w1 = 0.05 or a power scale at 3 are as clamped as any effect's
     # (h's exponent b is judged by _law_check, with what a flat law means)
-    at_bounds = {**{k: v for k, v in ext.reference_at_bounds(p).items() if k[1] != "b"},
+    at_bounds = {**{k: v for k, v in ext.reference_at_bounds(p).items()
+                    if k[1] != "b" or v > B_LAW_CHECKED},
                  **ext.at_bounds(p, every=True)}
     return law, StructureFit(
         weights=ext.weights(p),

@@ -16,6 +16,7 @@ from scipy.special import chdtri  # scipy.stats costs 0.5 s of import
 
 from brakethermo.report.page import Card, Page, Section, TableBlock, as_number
 from brakethermo.report.page import number_text as num
+from brakethermo.thermal.hlaw_check import B_LAW_CHECKED
 
 SPOT_COLOURS = ("#1f77b4", "#2ca02c", "#ff7f0e", "#d62728")
 DIST_BIN_M = 25.0
@@ -239,7 +240,8 @@ def _reference_notes(ref: dict[str, Any]) -> list[str]:
             for k, v in ref["fitted"].items()))
     if ref.get("law_check"):
         notes.append("WARNING: " + ref["law_check"]["text"])
-    shown = {k: v for k, v in (ref.get("at_bounds") or {}).items() if k != "reference.b"}
+    shown = {k: v for k, v in (ref.get("at_bounds") or {}).items()
+             if k != "reference.b" or v > B_LAW_CHECKED}
     if shown:
         notes.append("WARNING: at a bound of its range: " + ", ".join(
             f"{k} = {num(v, '.3g')}" for k, v in shown.items())

@@ -19,6 +19,9 @@ from brakethermo.thermal.hlaw import HLaw
 
 B_LOWER = 0.0  # the exponent's lower bound in every fit of the law
 B_HAIR = 0.01  # an exponent this close to its bound sits on it (a bounded fit stops near)
+# an exponent at a bound below this is at its lower bound, which law_speed_check says; one
+# above it (the upper bound, 3) is said as any parameter at a bound
+B_LAW_CHECKED = 1.0
 # Forced convection off a disc rises as about V^0.5 (laminar) to V^0.8 (turbulent): a law
 # rising less than V^0.2 between the session's slow and fast speeds does not follow it.
 MIN_RISE_EXPONENT = 0.2

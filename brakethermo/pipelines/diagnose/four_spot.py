@@ -66,7 +66,7 @@ from brakethermo.pipelines.race_run import SIGMA_MEAS_FLOOR_C
 from brakethermo.pipelines.tuning import EstimateTuning, read_tuning
 from brakethermo.results.laps import slow_laps
 from brakethermo.thermal.disc import DiscSpec
-from brakethermo.thermal.hlaw_check import law_speed_check
+from brakethermo.thermal.hlaw_check import B_LAW_CHECKED, law_speed_check
 from brakethermo.thermal.model import DiscFEModel
 
 
@@ -323,9 +323,10 @@ class _FourSpot:
         """Warnings on the reference fit: its h law implausible, a parameter at a bound."""
         check = self.law_check()
         out = [] if check is None else [f"{REFERENCE_WARNING}{check['text']}"]
-        # h's exponent at its bound is the law check's, said once with what it means
+        # h's exponent at its lower bound is the law check's, said once with what it
+        # means; at its upper bound (3) it is said here
         words = self.ref.bound_words({k: v for k, v in self.ref.reference_at_bounds(
-            self.p_ref).items() if k[1] != "b"})
+            self.p_ref).items() if k[1] != "b" or v > B_LAW_CHECKED})
         if words:
             out.append(f"{REFERENCE_WARNING}{words} (the data push it past the reference's"
                        " range: read its 'before' figures with care)")
