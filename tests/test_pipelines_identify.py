@@ -262,7 +262,8 @@ def test_a_selected_effect_whose_refit_ends_at_a_bound_is_dropped(monkeypatch):
             edge[("emissivity_error", "ratio")] = 0.6001
         elif "sensor_lag" in effects:  # at a bound only once the other is gone
             edge[("sensor_lag", "tau_s")] = 3.0
-        return start, SimpleNamespace(at_bounds=edge), "thin-skin"
+        # what selection acts on: the stretched forms (7e5dd12), recorded in at_bounds too
+        return start, SimpleNamespace(at_bounds=edge, stretched=edge), "thin-skin"
 
     monkeypatch.setattr(ih, "_refit", fake_refit)
     notes: list[str] = []
