@@ -460,7 +460,7 @@ def test_the_console_table_says_a_dimensionless_unit_and_the_negligible_rows():
 def test_the_rig_page_says_no_dimensionless_unit():
     """The page's mean-bias card and fitted parameters still printed "-" as a unit (review):
     the page's helper gives nothing for a dimensionless output, " MPa" otherwise."""
-    from brakethermo.report.rig_diagnosis_page import _unit_said
+    from brakethermo.io.units import unit_suffix as _unit_said
 
     assert _unit_said("-") == "" == _unit_said("")
     assert _unit_said("MPa") == " MPa"

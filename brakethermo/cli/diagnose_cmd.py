@@ -330,13 +330,14 @@ def _one_rig(rig: str, path: Path, effects: str, train: Path | None, fit: Path |
 
 def _render_rig(result: Any, folder: Path, rig: str) -> None:
     """A rig diagnosis on the console."""
+    from brakethermo.io.units import unit_suffix
+
     s = result.summary
-    u = "" if s["unit"] in ("-", "") else s["unit"]  # "0.083 -" read as text
-    us = f" {u}" if u else ""
+    us = unit_suffix(s["unit"])
     console.print(f"[bold]{escape(result.stem)}[/] ({rig}): the reference relation's held-out"
                   f" RMSE {s['gap']['rmse']:.3f}{us}, bias {s['gap']['bias']:+.3f}{us}"
                   f" ({s['units']}s {s['heldout_units']} held out)")
-    console.print(_effects_table(s["effects"], u, 3))
+    console.print(_effects_table(s["effects"], s["unit"], 3))
     console.print(f"verdict: [bold]{escape(_verdict_text(s))}[/]")
     for reason in s.get("verdict_reasons", []):
         console.print(f"  {escape(reason)}", highlight=False)
@@ -347,11 +348,12 @@ def _render_rig(result: Any, folder: Path, rig: str) -> None:
 
 def _effects_table(effects: list[dict], unit: str, digits: int) -> Table:
     """The candidates in the verdict's order, as a console table."""
+    from brakethermo.io.units import unit_suffix
+
     weak = any(e.get("negligible") for e in effects)
     table = Table(title="Effects in the verdict's order (held-out shrink)" + (
         "; negligible ones after, by shrink" if weak else ""), title_justify="left")
-    # a dimensionless output's unit "-" read as text ("before -")
-    said = "" if unit in ("-", "") else f" {unit}"
+    said = unit_suffix(unit)
     for col in ("effect", f"before{said}", f"after{said}", "shrink %", "95 % interval"):
         table.add_column(col, justify="left" if col == "effect" else "right", no_wrap=True)
     for e in effects:

@@ -338,3 +338,9 @@ def to_si(
     if unit.scale == 1.0 and unit.offset == 0.0:
         return values, text
     return values * unit.scale + unit.offset, text
+
+
+def unit_suffix(unit: str) -> str:
+    """`` kN`` after a figure or a heading; nothing for a dimensionless output, ``"-"`` or
+    ``""`` (the tyre's μ: "0.083 -" and "before -" read as text)."""
+    return "" if unit in ("-", "") else f" {unit}"

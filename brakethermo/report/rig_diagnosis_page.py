@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 
+from brakethermo.io.units import unit_suffix
 from brakethermo.report.page import (
     Card,
     Page,
@@ -65,7 +66,7 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
     rows = []
     for e in s["effects"]:
         lo, hi = e["shrink_ci95_pct"]
-        params = ", ".join(f"{k} {v:+.3g}{_unit_said(e['units'][k])}"
+        params = ", ".join(f"{k} {v:+.3g}{unit_suffix(e['units'][k])}"
                            for k, v in e["params"].items())
         rows.append([e["name"], f"{e['rmse_before']:.3f}", f"{e['rmse_after']:.3f}",
                      f"{e['shrink_pct']:+.1f}", _interval(lo, hi), params,
@@ -77,21 +78,21 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
         cards=[
             Card("verdict", verdict),
             Card("gap, held out", f"{s['gap']['rmse']:.3f}",
-                 "RMS" if s["unit"] in ("-", "") else f"{s['unit']} RMS"),
+                 f"{unit_suffix(s['unit'])} RMS".strip()),
             Card("mean bias (model − sensor)", f"{s['gap']['bias']:+.3f}",
-                 _unit_said(s["unit"]).strip()),
+                 unit_suffix(s["unit"]).strip()),
             Card("best shrink", f"{top['shrink_pct']:+.0f}" if top else "–", "%"),
         ],
         sections=[
             Section("Where the reference parts from this session",
                     paragraphs=["Held-out RMSE by phase: " + ", ".join(
-                        f"{k} {v:.3f}{_unit_said(s['unit'])}"
+                        f"{k} {v:.3f}{unit_suffix(s['unit'])}"
                         for k, v in s["gap"]["per_phase"].items()
                         if math.isfinite(v))],
                     figures={"pv": _pv_figure(r), "residual": _residual_figure(r)}),
             Section("Which effect", paragraphs=[s["verdict_rule"], *s["verdict_reasons"]],
-                    tables=[TableBlock(["effect", "before" + _unit_said(s["unit"]),
-                                        "after" + _unit_said(s["unit"]), "shrink %",
+                    tables=[TableBlock(["effect", "before" + unit_suffix(s["unit"]),
+                                        "after" + unit_suffix(s["unit"]), "shrink %",
                                         "95 % interval", "fitted", "evidence"], rows)]),
             Section("Next", paragraphs=list(s["next_steps"]) or ["nothing to do: the"
                     " reference holds on this session"]),
@@ -99,9 +100,3 @@ def rig_diagnosis_page(r: RigDiagnosis) -> Page:
         footer=f"brakethermo {s['run']['brakethermo']}",
         back_href="../index.html",
     )
-
-
-def _unit_said(unit: str) -> str:
-    """`` MPa`` after a figure or a heading; nothing for a dimensionless output (the tyre's
-    μ: "before -" read as text)."""
-    return "" if unit in ("-", "") else f" {unit}"

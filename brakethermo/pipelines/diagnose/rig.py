@@ -49,6 +49,7 @@ from brakethermo.diagnosis.verdict import (
 )
 from brakethermo.errors import ConfigError, DataError
 from brakethermo.io.session import Session
+from brakethermo.io.units import unit_suffix
 from brakethermo.models.ebooster import BoosterFit, load_fit
 from brakethermo.models.rig_effects import BOOSTER_EFFECTS, EMB_EFFECTS, RigContext, RigEffect
 from brakethermo.numeric import rmse
@@ -338,7 +339,7 @@ def rig_consistency(case: RigCase, residual: np.ndarray, split: _Split) -> dict[
     keys = ("mean_nis", "chi2_band", "lag1_autocorrelation", "state", "structured", "n")
     band = f"{c['chi2_band'][0]:.2f}-{c['chi2_band'][1]:.2f}"
     said = (f"held out, the reference's mean NIS is {c['mean_nis']:.3g} against its χ² band"
-            f" {band} (σ {sigma:.3g}{_unit_text(case.unit)}, {source}): {c['state']}"
+            f" {band} (σ {sigma:.3g}{unit_suffix(case.unit)}, {source}): {c['state']}"
             + (f"; its residual is structured (lag-1 autocorrelation"
                f" {c['lag1_autocorrelation']:.2f}), so the band says little" if c["structured"]
                else ""))
@@ -347,11 +348,6 @@ def rig_consistency(case: RigCase, residual: np.ndarray, split: _Split) -> dict[
             "summary": said,
             "note": "no filter runs here: the trained relation is compared with the sensor"
                     " directly; the NIS normalises its residual by sigma"}
-
-
-def _unit_text(unit: str) -> str:
-    """`` kN`` after a figure; nothing for a dimensionless one (it read "0.104 -")."""
-    return "" if unit in ("-", "") else f" {unit}"
 
 
 # what each rig's diagnosis compares with its sensor (the consistency's channel)
@@ -548,7 +544,7 @@ def _residual_text(name: str, res: np.ndarray, held: np.ndarray, ctx: RigContext
                    kind: str, phases: tuple[str, str, str]) -> str:
     """The held-out residual ``res`` (model minus sensor) in the figures the candidate
     ``name`` is told by (halves, phases, low and high input)."""
-    u = _unit_text(unit)  # "+0.012 -" read as text for the tyre's μ
+    u = unit_suffix(unit)  # "+0.012 -" read as text for the tyre's μ
     r, x, v = res[held], ctx.x[held], ctx.v[held]
     ok = np.isfinite(r)
     r, x, v = r[ok], x[ok], v[ok]
