@@ -72,6 +72,7 @@ def run_row(track: str, test_effect: str, race_effects: tuple[str, ...], seed: i
                 "open_loop_ratio": sc["contact_ratio"]["open-loop 1D-FE"],
                 "coverage_pct": 100.0 * float(np.mean(cov)),
                 "unmeasured_rmse_c": _spot_rmse(res.frame, read_truth(truth_path)),
+                "crown_noise": (choice.get("crown_noise") or {}).get("chosen"),
                 "crown_test": None if crown is None else {
                     "law": crown["law"], "shrink_pct": crown["shrink_pct"],
                     "shrink_ci95_pct": crown["shrink_ci95_pct"]},
@@ -81,6 +82,7 @@ def run_row(track: str, test_effect: str, race_effects: tuple[str, ...], seed: i
                   f" {race_effect:20s} {r['ratio']:.2f}x (open loop {r['open_loop_ratio']:.2f}x)"
                   f"  coverage {r['coverage_pct']:3.0f} %"
                   f"  online {r['online']} dropped {r['dropped']}"
+                  + ("" if r["crown_noise"] is None else f" crown noise {r['crown_noise']:g}")
                   + ("" if crown is None else f"  crown {crown['law']}: uniform's shrink"
                      f" {crown['shrink_pct']:.1f} % {crown['shrink_ci95_pct']}")
                   + "  spots 1/2/4 RMSE " + "/".join(

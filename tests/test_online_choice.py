@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from brakethermo.pipelines import online_choice
+from brakethermo.pipelines import crown_noise, online_choice
 from brakethermo.pipelines.estimate import EstimateOptions, estimate_session
 from brakethermo.pipelines.truth_score import read_truth
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
@@ -48,10 +48,16 @@ def test_a_disc_of_other_kz_switches_kz_on_and_gains(races) -> None:
     assert auto.summary["run"]["layers"] == 6
     # and finer radial nodes: its face follows the pads' flux profile
     assert auto.summary["run"]["nodes"] == 15 and "15 radial nodes" in choice["layering"]
+    # on that thinner skin the race chose its crown-split noise by its own likelihood
+    noise = choice["crown_noise"]
+    assert [r["factor"] for r in noise["tests"]] == list(crown_noise.FACTORS)
+    assert auto.summary["run"]["sigma_crown"] == noise["chosen"]
+    assert noise["changed"] is (noise["chosen"] != noise["law"])
     off = estimate_session(path, EstimateOptions(smoother=False, adapt_kz=False,
                                                  adapt_slipstream=False))
     truth = read_truth(truth_path)
     assert _contact_rmse(auto.frame, truth) < 0.6 * _contact_rmse(off.frame, truth)
+    assert "crown_noise" not in off.summary["run"]["online_choice"]
 
 
 def test_a_matching_disc_is_not_made_worse_and_flags_force(races) -> None:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -56,6 +56,12 @@ class DiscInputs:
     measured: tuple[int, ...]
     warnings: tuple[str, ...] = ()
     per_reading: tuple[int, ...] = (1, 1, 1, 1)
+
+    def head(self, steps: int) -> DiscInputs:
+        """The inputs of the first ``steps`` grid points (the race's first laps)."""
+        return replace(self, time=self.time[:steps], lap=self.lap[:steps],
+                       speed=self.speed[:steps], q_brk=self.q_brk[:steps],
+                       t_amb=self.t_amb[:steps], spots=self.spots[:steps])
 
     @property
     def steady(self) -> np.ndarray:

@@ -57,6 +57,11 @@ by default. Instead the race decides:
    otherwise "explain", moving the unmeasured spots the wrong way. When the uniform
    crown wins, the online candidates are judged again on it.
 
+8. **the crown-split noise of a thinner skin**: a race that switches k_z on below the
+   law's chooses the law's crown-split noise or a lower one by its one-step predictive
+   likelihood on these laps (:mod:`brakethermo.pipelines.crown_noise`), beside its own
+   filter.
+
 The crown balance is not a candidate: on the measured spot it does what a k_z change
 does, and on races where neither the test session's split nor its k_z held, letting the
 race pick it moved the unmeasured spots the wrong way (README, accuracy); it stays off
@@ -285,18 +290,34 @@ class _Trial:
     rule: VerdictRule
 
 
+def decision_units(part: Session) -> tuple[np.ndarray, np.ndarray, VerdictRule]:
+    """The lap of each grid point of the decision's laps ``part``, its braking cycle (-1
+    before the first: the unit the bootstrap resamples) and the rule the tests apply."""
+    lap = part.frame["lap"].to_numpy()
+    zones = detect_zones(part.time, part.values("brake_pressure_front"))
+    cycles = np.full(lap.size, -1)
+    for j, (a, _) in enumerate(zones):
+        cycles[a:] = j
+    return lap, cycles, VerdictRule(min_shrink_pct=MIN_SHRINK_PCT)
+
+
+def thin_skin_learned(choice: OnlineChoice) -> float | None:
+    """The k_z factor (of the law's) a race switched on below the law's — a thinner
+    thermal skin than the law's disc — or None."""
+    row = next((r for r in choice.facts.get("scores", []) if r.get("name") == JOINT), None)
+    if (row is None or JOINT not in choice.facts.get("chosen", [])
+            or not row.get("learned", 1.0) < 1.0):
+        return None
+    return float(row["learned"])
+
+
 def _trial(session: Session, base: EstimateOptions, candidates: tuple[str, ...],
            parts: tuple[str, ...], flying: list[int]) -> _Trial:
     """The decision's shared setup on the first :data:`DECISION_LAPS` flying laps."""
     part = head(session, min(DECISION_LAPS, flying[-1]))
     off = {ONLINE_FLAGS[c]: False for c in candidates}
     quick = replace(base, smoother=False, score=False, online_auto=False)
-    lap = part.frame["lap"].to_numpy()
-    zones = detect_zones(part.time, part.values("brake_pressure_front"))
-    cycles = np.full(lap.size, -1)
-    for j, (a, _) in enumerate(zones):
-        cycles[a:] = j
-    rule = VerdictRule(min_shrink_pct=MIN_SHRINK_PCT)
+    lap, cycles, rule = decision_units(part)
     first = tuple(p for p in parts if p in FIRST)
     later = tuple(p for p in parts if p == EARNED)
     joint = JOINT if JOINT in candidates and later else None
@@ -334,7 +355,7 @@ def _first_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration
     tested = []
     for name in t.first:
         if name in BY_LIKELIHOOD:
-            row = _likelihood_test(runs["reference"], runs[f"without {name}"], t.lap, t.cycles,
+            row = likelihood_test(runs["reference"], runs[f"without {name}"], t.lap, t.cycles,
                                    t.rule)
         else:
             row = _lap_ahead_test(runs["reference"], runs[f"without {name}"], t.lap, t.cycles,
@@ -537,7 +558,7 @@ def _joint_test(runs: dict[str, Any], joint: str, p: str, lap: np.ndarray,
     return _Joint(combos, effect_row["significant"], kz_on, gated, effect_row, kz_row)
 
 
-def _likelihood_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
+def likelihood_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
                      rule: VerdictRule) -> dict[str, Any]:
     """Does ``other`` predict the flying laps' readings one step ahead with a higher
     likelihood, per braking cycle, by more than :data:`MIN_LOGLIK_GAIN` at the lower end

@@ -29,7 +29,7 @@ from brakethermo.io.session import Session
 from brakethermo.models.disc import DiscStateSpace
 from brakethermo.models.effects import true_from_reading
 from brakethermo.models.reduced import ReducedStateSpace
-from brakethermo.pipelines import scoring
+from brakethermo.pipelines import crown_noise, scoring
 from brakethermo.pipelines.estimate_table import crown_term
 from brakethermo.pipelines.inputs import DiscInputs
 from brakethermo.pipelines.models import DiscCalibration
@@ -43,6 +43,7 @@ from brakethermo.pipelines.online_choice import (
     droppable,
     kz_allowed,
     law_without,
+    thin_skin_learned,
 )
 from brakethermo.pipelines.race_filter import (
     EffectPlan,
@@ -55,7 +56,7 @@ from brakethermo.pipelines.race_filter import (
     ukf_for,
     warm_modes,
 )
-from brakethermo.pipelines.speculative import Speculation
+from brakethermo.pipelines.speculative import Speculation, core
 from brakethermo.pipelines.tuning import EstimateTuning, user_tuning_keys
 from brakethermo.thermal.disc import DiscSpec
 from brakethermo.thermal.model import DiscFEModel
@@ -108,21 +109,19 @@ def _race_layering(choice: OnlineChoice, tuning: EstimateTuning, options: Estima
     pads' flux, which 10 nodes smear (8 development races, 10 -> 15 nodes: 0.66 -> 0.58
     of the single-spot baseline, 7 better; 20 nodes no better than 15).
     Returns the tuning and what was changed, in words (None: nothing)."""
-    row = next((r for r in choice.facts.get("scores", [])
-                if r.get("name") == "thickness_gradient"), None)
-    if (row is None or "thickness_gradient" not in choice.facts.get("chosen", [])
-            or not row.get("learned", 1.0) < 1.0):
+    learned = thin_skin_learned(choice)
+    if learned is None:
         return tuning, None
-    thin, said = _thin_skin(tuning, options)
+    thin, said = thin_skin(tuning, options)
     if not said:
         return tuning, None
     return thin, (
-        f"{' and '.join(said)}: the race's k_z came out {row['learned']:.2f} of the law's,"
+        f"{' and '.join(said)}: the race's k_z came out {learned:.2f} of the law's,"
         " a thinner thermal skin")
 
 
-def _thin_skin(tuning: EstimateTuning, options: EstimateOptions
-               ) -> tuple[EstimateTuning, list[str]]:
+def thin_skin(tuning: EstimateTuning, options: EstimateOptions
+              ) -> tuple[EstimateTuning, list[str]]:
     """``tuning`` with the thin-skin layers and radial nodes where neither the options
     nor the user's tuning file set them (:func:`_race_layering`), and what changed, in
     words (empty: nothing)."""
@@ -193,19 +192,29 @@ def _reading_noise(y: np.ndarray, tuning: EstimateTuning, options: EstimateOptio
             f" times sqrt({per_reading}): each reading spans {per_reading} grid points")
 
 
+def _readings(y: np.ndarray, plan: EffectPlan) -> np.ndarray:
+    """The readings as the filter takes them: emissivity-corrected where the law says."""
+    return y if plan.emissivity_ratio is None else true_from_reading(y, plan.emissivity_ratio)
+
+
 def _filtered(disc: DiscSpec, inputs: DiscInputs, y: np.ndarray, cal: DiscCalibration,
               tuning: EstimateTuning, options: EstimateOptions,
-              cancel: threading.Event | None = None) -> RaceRun:
-    """Build the race's filter for ``cal`` and ``tuning`` and run it (and the smoother)."""
+              cancel: threading.Event | None = None, sigma_meas: float | None = None
+              ) -> RaceRun:
+    """Build the race's filter for ``cal`` and ``tuning`` and run it (and the smoother);
+    ``sigma_meas`` (degC): the reading noise of a run over the race's first laps only,
+    the whole race's (else measured from ``y``)."""
     h = cal.law(inputs.speed)
     model = disc_model(disc, tuning, cal.weights, cal.kz_ratio)
     spot_radius = float(disc.spot_radii[options.spot - 1])
     plan = effect_plan(cal.effects, tuning)
-    if plan.emissivity_ratio is not None:
-        y = true_from_reading(y, plan.emissivity_ratio)
-    tuning, sigma_meas_source = _reading_noise(y, tuning, options,
-                                               inputs.per_reading[options.spot - 1],
-                                               inputs.steady)
+    y = _readings(y, plan)
+    if sigma_meas is None:
+        tuning, sigma_meas_source = _reading_noise(y, tuning, options,
+                                                   inputs.per_reading[options.spot - 1],
+                                                   inputs.steady)
+    else:
+        tuning, sigma_meas_source = replace(tuning, sigma_meas=sigma_meas), "the race's"
     ssm = build_state_space(model, inputs, h, tuning, cal.power_scale, plan, spot_radius)
     filt, order = filter_space(ssm, model, inputs, h, cal.power_scale, options.modes)
     readout = readout_rows(filt, np.asarray(disc.spot_radii), tuning.adapt_power)
@@ -252,7 +261,7 @@ def _kz_learned(disc: DiscSpec, inputs: DiscInputs, cal: DiscCalibration,
     head start, and the filter takes the modes
     :func:`~brakethermo.pipelines.race_filter.session_modes` keeps when its model, law and
     inputs are these (the README's k_z race: its filter starts 0.6-1.2 s earlier)."""
-    thin, said = _thin_skin(tuning, options)
+    thin, said = thin_skin(tuning, options)
     # a crown the race may drop is in the modes' model, and not known yet
     warm = bool(said) and CROWN not in parts
 
@@ -314,4 +323,40 @@ def decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
         return choice, replace(guess.result(), speculative=True), t_choice
     if guess is not None:
         guess.abandon()
+    if crown_noise.free(choice, options):
+        choice, run = _with_crown_noise(session, options, disc, inputs, y, cal, tuning, choice)
+        return choice, run, t_choice
     return choice, _filtered(disc, inputs, y, cal, tuning, options), t_choice
+
+
+def _with_crown_noise(session: Session, options: EstimateOptions, disc: DiscSpec,
+                      inputs: DiscInputs, y: np.ndarray, cal: DiscCalibration,
+                      tuning: EstimateTuning, choice: OnlineChoice
+                      ) -> tuple[OnlineChoice, RaceRun]:
+    """The race's filter at the law's crown-split noise and, beside it on the core it
+    leaves, the decision's laps at lower ones (:mod:`~brakethermo.pipelines.crown_noise`);
+    the race's filter again at the noise its likelihood chose, where not the law's."""
+    part = crown_noise.decision_part(session)
+    sigma = tuning.sigma_crown
+    noise = _reading_noise(_readings(y, effect_plan(cal.effects, tuning)), tuning, options,
+                           inputs.per_reading[options.spot - 1], inputs.steady)[0].sigma_meas
+    trial = replace(tuning, smoother=False)
+
+    def run(steps: int, sigma_crown: float) -> crown_noise.Innovations:
+        with core():
+            r = _filtered(disc, inputs.head(steps), y[:steps], cal,
+                          replace(trial, sigma_crown=sigma_crown), options, sigma_meas=noise)
+        return crown_noise.Innovations(r.forward.innovation[:, 0],
+                                       r.forward.innovation_var[:, 0])
+
+    with ThreadPoolExecutor(1, "brakethermo-crown-noise") as pool:
+        tried = pool.submit(crown_noise.trials, len(part.frame), sigma, run)
+        race = _filtered(disc, inputs, y, cal, tuning, options)
+        law = crown_noise.Innovations(race.forward.innovation[:, 0],
+                                      race.forward.innovation_var[:, 0])
+        fact = crown_noise.judge(part, law, tried.result(), sigma, choice.facts["chosen"])
+    choice = replace(choice, facts={**choice.facts, "crown_noise": fact})
+    if fact["changed"]:
+        race = _filtered(disc, inputs, y, cal, replace(tuning, sigma_crown=fact["chosen"]),
+                         options)
+    return choice, race

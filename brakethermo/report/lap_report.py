@@ -219,6 +219,20 @@ def _on_top_text(top: dict[str, Any] | None) -> str:
             f" {as_number(top.get('shrink_pct')):.0f} % ({_interval(lo, hi)})")
 
 
+def _crown_noise_text(fact: dict[str, Any]) -> str:
+    """The race's choice of its crown-split noise (``online_choice.crown_noise``), in words."""
+    tried = []
+    for r in fact.get("tests", []):
+        lo, hi = (as_number(v) for v in r.get("loglik_gain_ci95", [None] * 2))
+        tried.append(f"{as_number(r.get('sigma_crown')):g}:"
+                     f" {as_number(r.get('loglik_gain_per_reading')):+.3f} nats per reading"
+                     f" (95 % {lo:+.3f} to {hi:+.3f})")
+    law, chosen = as_number(fact.get("law")), as_number(fact.get("chosen"))
+    verdict = (f"lowered to {chosen:g} from the law's {law:g}" if fact.get("changed") else
+               f"the law's {law:g} kept")
+    return f"crown-split noise: {verdict} — {fact.get('test', '')}; " + "; ".join(tried)
+
+
 def _decisions(summary: dict[str, Any] | None) -> list[str]:
     """The race's own choices (online states, the law's effects kept or dropped), in words."""
     choice = ((summary or {}).get("run") or {}).get("online_choice") or {}
@@ -253,6 +267,8 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
         lines.append(str(found["said"]))
     if choice.get("layering"):
         lines.append(f"layering: {choice['layering']}")
+    if choice.get("crown_noise"):
+        lines.append(_crown_noise_text(choice["crown_noise"]))
     if choice.get("forced_or_from_law"):
         lines.append("forced by option or carried by the law: " + ", ".join(
             f"{k} {'on' if v else 'off'}" for k, v in choice["forced_or_from_law"].items()))
