@@ -556,3 +556,28 @@ def test_an_h_factor_left_off_alone_is_judged_again_on_top_of_kz(tmp_path) -> No
                                                      adapt_slipstream=False))
     truth = read_truth(truth_path)
     assert _contact_rmse(auto.frame, truth) < _contact_rmse(kz_only.frame, truth)
+
+
+def test_a_law_that_carries_kz_still_gives_a_thinner_race_disc_its_thin_skin(races, tmp_path
+                                                                            ) -> None:
+    """identify-h found the test disc's k_z: the law carries it, online in every race and so
+    not a candidate; a race disc well below it still gets the thin-skin mesh (and chooses
+    its crown noise there), one like it does not."""
+    import re
+
+    shipped = Path(__file__).parents[1] / "configs" / "hlaw" / "cc-340-8.toml"
+    text = shipped.read_text()
+    kz = float(re.search(r"^kz_ratio = (.*)$", text, re.M).group(1))
+    law = tmp_path / "carries_kz.toml"
+    law.write_text(text + f"\n[effects.thickness_gradient]\nkz_factor = {kz!r}\n")
+    low = estimate_session(races["low_kz"][0], EstimateOptions(h_law=law, smoother=False))
+    choice = low.summary["run"]["online_choice"]
+    assert "thickness_gradient" not in [r["name"] for r in choice["scores"]]
+    assert choice["law_kz_learned"] < online_choice.KZ_LIKE_LAW[0]
+    assert f"came out {choice['law_kz_learned']:.2f} of the law's" in choice["layering"]
+    assert low.summary["run"]["nodes"] * low.summary["run"]["layers"] == 90
+    assert "the law's k_z online" in choice["crown_noise"]["test"]
+    normal = estimate_session(races["normal"][0], EstimateOptions(h_law=law, smoother=False))
+    choice = normal.summary["run"]["online_choice"]
+    assert online_choice.KZ_LIKE_LAW[0] <= choice["law_kz_learned"] <= online_choice.KZ_LIKE_LAW[1]
+    assert "layering" not in choice and "crown_noise" not in choice

@@ -236,7 +236,18 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
         "scores": rows,
         "law_effects_tested": [_read_out(r, dropped, base.spot) for r in tested],
         "law_effects_dropped": list(dropped),
+        **_law_kz(runs["reference"], cal, t.lap),
     }, dropped)
+
+
+def _law_kz(run: Any, cal: DiscCalibration, lap: np.ndarray) -> dict[str, float]:
+    """``law_kz_learned``: where the h law carries a k_z (identify-h found the test disc's),
+    the race's k_z is online from the start, not a candidate; what it learned (a factor of
+    the law's, :func:`_learned`) says whether the race disc has a thinner skin still
+    (:func:`thin_skin_learned`)."""
+    if JOINT not in cal.effects or STRUCTURAL[JOINT] not in run.state_space.index:
+        return {}
+    return {"law_kz_learned": _learned(run, STRUCTURAL[JOINT], lap)}
 
 
 def _read_out(row: dict[str, Any], dropped: tuple[str, ...], spot: int = 3
@@ -303,12 +314,18 @@ def decision_units(part: Session) -> tuple[np.ndarray, np.ndarray, VerdictRule]:
 
 def thin_skin_learned(choice: OnlineChoice) -> float | None:
     """The k_z factor (of the law's) a race switched on below the law's — a thinner
-    thermal skin than the law's disc — or None."""
+    thermal skin than the law's disc — or None. Where the law carries a k_z (online in
+    every race), the factor the race learned on it, when below :data:`KZ_LIKE_LAW`: a
+    development race on a disc 0.42x its baseline test disc's k_z learned 0.47 on the law's
+    coarser layering and ran 1.25x the single-spot baseline."""
     row = next((r for r in choice.facts.get("scores", []) if r.get("name") == JOINT), None)
-    if (row is None or JOINT not in choice.facts.get("chosen", [])
-            or not row.get("learned", 1.0) < 1.0):
-        return None
-    return float(row["learned"])
+    if row is not None and JOINT in choice.facts.get("chosen", []):
+        learned = row.get("learned", 1.0)
+        return float(learned) if learned < 1.0 else None
+    carried = choice.facts.get("law_kz_learned")
+    if carried is not None and np.isfinite(carried) and carried < KZ_LIKE_LAW[0]:
+        return float(carried)
+    return None
 
 
 def _trial(session: Session, base: EstimateOptions, candidates: tuple[str, ...],

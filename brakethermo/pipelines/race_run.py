@@ -354,7 +354,8 @@ def _with_crown_noise(session: Session, options: EstimateOptions, disc: DiscSpec
         race = _filtered(disc, inputs, y, cal, tuning, options)
         law = crown_noise.Innovations(race.forward.innovation[:, 0],
                                       race.forward.innovation_var[:, 0])
-        fact = crown_noise.judge(part, law, tried.result(), sigma, choice.facts["chosen"])
+        fact = crown_noise.judge(part, law, tried.result(), sigma,
+                                 choice.facts["chosen"] or ["the law's k_z"])
     choice = replace(choice, facts={**choice.facts, "crown_noise": fact})
     if fact["changed"]:
         race = _filtered(disc, inputs, y, cal, replace(tuning, sigma_crown=fact["chosen"]),
