@@ -581,3 +581,45 @@ def test_a_law_that_carries_kz_still_gives_a_thinner_race_disc_its_thin_skin(rac
     choice = normal.summary["run"]["online_choice"]
     assert online_choice.KZ_LIKE_LAW[0] <= choice["law_kz_learned"] <= online_choice.KZ_LIKE_LAW[1]
     assert "layering" not in choice and "crown_noise" not in choice
+
+
+@pytest.mark.parametrize(("law_kz", "uniform_kz", "learned", "dropped"), [
+    (6.0, 2.0, 0.45, True),    # uniform + k_z far better, at a k_z the race may switch on
+    (6.0, 2.0, 0.9, False),    # ... but at a k_z like the law's: the race would leave it off
+    (2.0, 2.2, 0.45, False),   # the law's crown with k_z online is as good
+])
+def test_an_uneven_crown_lost_with_kz_off_is_judged_again_with_kz_online(
+        monkeypatch, law_kz, uniform_kz, learned, dropped) -> None:
+    """A race disc of lower k_z on other pads: with the law's k_z the uniform crown
+    predicts the measured spot worse, with k_z online in both far better; dropped then,
+    and k_z goes on with it (the configuration tested)."""
+    from types import SimpleNamespace
+
+    from brakethermo.diagnosis.verdict import VerdictRule
+
+    rng = np.random.default_rng(7)
+    lap = np.repeat(np.arange(1, 5), 400)
+    y = 300.0 + 100.0 * np.sin(np.arange(lap.size) / 30.0)
+    monkeypatch.setattr(online_choice, "_lap_ahead", lambda run, lap, laps: run.pred)
+    monkeypatch.setattr(online_choice, "_learned", lambda run, param, lap: learned)
+
+    def run(sd: float) -> SimpleNamespace:
+        return SimpleNamespace(pred=y + rng.normal(0.0, sd, y.size), y_measured=y)
+
+    runs = {"reference": run(6.0), online_choice.JOINT: run(law_kz),
+            online_choice.CROWN_KZ: run(uniform_kz)}
+    trial = SimpleNamespace(lap=lap, cycles=np.arange(lap.size) // 80,
+                            rule=VerdictRule(min_shrink_pct=online_choice.MIN_SHRINK_PCT))
+    row = {"shrink_pct": -100.0, "shrink_ci95_pct": [-120.0, -90.0], "significant": False,
+           "test": "uniform weights against the law's, a lap ahead"}
+    out = online_choice._crown_with_kz(trial, runs, row)
+    assert out["significant"] is dropped and out["with_kz"]["significant"] is dropped
+    assert out["with_kz"]["kz_learned"] == learned
+    if dropped:
+        assert out["test"].startswith("uniform weights against the law's with k_z online")
+        assert "with k_z off: -100 %" in out["test"]
+        rows = [{"name": online_choice.JOINT, "significant": False}]
+        online_choice._on_with_uniform_crown(rows)
+        assert rows[0]["significant"] and "uniform crown" in rows[0]["with_uniform_crown"]
+    else:
+        assert out["shrink_pct"] == -100.0  # the row as tested with k_z off

@@ -137,6 +137,7 @@ JOINT = "thickness_gradient"  # judged together with the law's later parts (_joi
 # already follows what friction does over a race.
 EARNED = "friction_temperature"
 UNIFORM_CROWN = (1.0, 1.0, 1.0)
+CROWN_KZ = f"without {CROWN} + {JOINT}"  # uniform weights with k_z online (_crown_with_kz)
 # weights all within this of uniform: nothing worth a filter pass (the test sessions
 # without a pad split give 0.8-1.25: the crown's usual unevenness and the model's own)
 CROWN_TOLERANCE = 0.3
@@ -215,6 +216,8 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     rows = _online_rows(runs, candidates, t.lap, t.cycles, t.rule)
     if t.joint is not None:
         _judge_jointly(t, t.joint, runs, rows, tested)
+    if any((r.get("with_kz") or {}).get("significant") for r in tested):
+        _on_with_uniform_crown(rows)
     chosen = [r["name"] for r in rows if r["significant"]]
     alike = [c for c in chosen if c in CONFOUNDED]
     chosen = [c for c in chosen if c not in alike[1:]]
@@ -353,6 +356,9 @@ def _one_pass(t: _Trial, law: DiscCalibration, with_first: bool,
     variants["reference"] = (replace(t.quick, **t.off), law)
     variants.update({f"without {p}": (replace(t.quick, **t.off), law_without(law, p))
                      for p in (*t.first, *t.later) if with_first or p in t.later})
+    if with_first and CROWN in t.first and kz in t.candidates:
+        variants[CROWN_KZ] = (replace(t.quick, **{**t.off, ONLINE_FLAGS[kz]: True}),
+                              law_without(law, CROWN))
     if t.joint is not None:
         variants.update({f"without {p} + {t.joint}": (
             replace(t.quick, **{**t.off, ONLINE_FLAGS[t.joint]: True}), law_without(law, p))
@@ -380,9 +386,48 @@ def _first_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration
         if name == CROWN:
             row = {**row, "law": list(cal.weights),
                    "test": f"uniform weights against the law's, {row['test']}"}
+            if not row["significant"] and CROWN_KZ in runs:
+                row = _crown_with_kz(t, runs, row)
         tested.append({**row, "name": f"without {name}", "peaks_apart_c": _peaks_apart(
             runs["reference"], runs[f"without {name}"], t.lap)})
     return tested
+
+
+def _on_with_uniform_crown(rows: list[dict[str, Any]]) -> None:
+    """k_z on, whatever its own test on the uniform crown said: the crown was dropped
+    because uniform weights *with k_z online* beat the law's (:func:`_crown_with_kz`)."""
+    row = next(r for r in rows if r["name"] == JOINT)
+    if not row["significant"]:
+        row["significant"] = True
+        row["with_uniform_crown"] = ("switched on with the uniform crown: the law's crown was"
+                                     " dropped for uniform weights with k_z online")
+
+
+def _crown_with_kz(t: _Trial, runs: dict[str, Any], row: dict[str, Any]) -> dict[str, Any]:
+    """The law's uneven crown against uniform weights with k_z online in both, where it won
+    with k_z off: a race disc of lower k_z on other pads (or pads bedded otherwise) needs
+    both changes, and with the law's k_z the uniform crown predicts the measured spot
+    worse (a development race: -106 % with k_z off; 2.71x the single-spot baseline with the
+    law's crown kept, 0.49x with uniform weights and k_z on). Dropped (``with_kz``) only
+    where uniform + k_z beats the law's crown + k_z *and* the law as written by the rule,
+    at a k_z the race may switch on (:func:`kz_allowed`): that configuration is then the
+    race's (:func:`choose_online` switches k_z on with it)."""
+    learned = _learned(runs[CROWN_KZ], STRUCTURAL[JOINT], t.lap)
+    kz_on = _lap_ahead_test(runs[JOINT], runs[CROWN_KZ], t.lap, t.cycles, t.rule)
+    law = _lap_ahead_test(runs["reference"], runs[CROWN_KZ], t.lap, t.cycles, t.rule)
+    won = kz_on["significant"] and law["significant"] and kz_allowed(learned)
+    joint = {"shrink_pct": kz_on["shrink_pct"], "shrink_ci95_pct": kz_on["shrink_ci95_pct"],
+             "against_law_as_written": {k: law[k] for k in ("shrink_pct", "shrink_ci95_pct",
+                                                            "significant")},
+             "kz_learned": learned, "significant": won}
+    out = {**row, "with_kz": joint}
+    if won:
+        out.update(shrink_pct=kz_on["shrink_pct"], shrink_ci95_pct=kz_on["shrink_ci95_pct"],
+                   significant=True,
+                   test=(f"uniform weights against the law's with k_z online in both (with k_z"
+                         f" off: {row['shrink_pct']:.0f} %), {kz_on['test']}; k_z goes on with"
+                         f" it (learned {learned:.2f} of the law's)"))
+    return out
 
 
 def _judge_jointly(t: _Trial, joint: str, runs: dict[str, Any], rows: list[dict[str, Any]],

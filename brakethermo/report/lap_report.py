@@ -243,6 +243,8 @@ def _decisions(summary: dict[str, Any] | None) -> list[str]:
         lines.append(f"online {row.get('name')}: {verdict} — {row.get('test', '')}, shrink"
                      f" {as_number(row.get('shrink_pct')):.0f} % ({_interval(lo, hi)})"
                      + (f"; {row['like_law']}" if row.get("like_law") else "")
+                     + (f"; {row['with_uniform_crown']}" if row.get("with_uniform_crown")
+                        else "")
                      + _on_top_text(row.get("on_top"))
                      + (f"; on the laps it decided on, {row['by_lap']}"
                         if row.get("by_lap") and verdict == "left off" else ""))
