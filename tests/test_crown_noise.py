@@ -83,3 +83,27 @@ def test_the_page_says_which_noise_the_race_kept_and_the_evidence() -> None:
     kept = _decisions({"run": {"online_choice": {"crown_noise": {**fact, "changed": False,
                                                                  "chosen": 0.4}}}})
     assert any("the law's 0.4 kept" in x for x in kept)
+
+
+def test_a_noise_whose_filter_breaks_down_loses_and_is_said() -> None:
+    from brakethermo.errors import DataError
+    from brakethermo.report.lap_report import _decisions
+
+    rng = np.random.default_rng(4)
+    part = _part()
+    n = len(part.frame)
+
+    def run(steps: int, noise: float) -> crown_noise.Innovations:
+        if noise < 0.15:
+            raise DataError("race.parquet: the filter's covariance broke down at step 812")
+        return _innovations(rng, steps, 1.0, 1.0)
+
+    tried = crown_noise.trials(n, 0.4, run)
+    assert isinstance(tried[0.25], str) and "step 812" in tried[0.25]
+    fact = crown_noise.judge(part, _innovations(rng, n, 1.2, 1.6), tried, 0.4, ["k_z"])
+    lost = next(r for r in fact["tests"] if r["factor"] == 0.25)
+    assert not lost["significant"] and "step 812" in lost["failed"]
+    assert fact["chosen"] == pytest.approx(0.2)  # the half that ran and won
+    line = next(x for x in _decisions({"run": {"online_choice": {"crown_noise": fact}}})
+                if x.startswith("crown-split noise"))
+    assert "0.1: the filter failed there (race.parquet" in line

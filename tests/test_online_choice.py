@@ -623,3 +623,17 @@ def test_an_uneven_crown_lost_with_kz_off_is_judged_again_with_kz_online(
         assert rows[0]["significant"] and "uniform crown" in rows[0]["with_uniform_crown"]
     else:
         assert out["shrink_pct"] == -100.0  # the row as tested with k_z off
+
+
+def test_a_kz_forced_by_the_uniform_crown_has_the_laws_mu_t_judged_at_kz_online(
+        monkeypatch) -> None:
+    """k_z that goes on with a dropped crown (whatever its own test): the law's μ(T) is
+    judged with k_z online in both, the level the race runs, not with k_z off."""
+    trial, runs = _earned_trial(monkeypatch, 4.0, 4.0, with_kz=4.0)
+    j = online_choice._joint_test(runs, "thickness_gradient", online_choice.EARNED,
+                                  trial.lap, trial.cycles, trial.rule, False, forced=True)
+    assert j.kz_on and not j.gated
+    assert "k_z online in both" in j.effect_row["test"]
+    free = online_choice._joint_test(runs, "thickness_gradient", online_choice.EARNED,
+                                     trial.lap, trial.cycles, trial.rule, False)
+    assert not free.kz_on and "k_z online in both" not in free.effect_row["test"]

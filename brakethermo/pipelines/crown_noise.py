@@ -3,24 +3,25 @@
 identify-h chooses the crown-split process noise (``sigma_crown``: how far the braking
 power's share between the pad's crowns may wander) on its four-spot test session, for
 the test disc. A race that switches k_z on and learns it below the law's runs a thinner
-thermal skin (identify-h's thin-skin layering, :func:`~brakethermo.pipelines.race_run.
-thin_skin`): its face follows the pads' flux closely, and the law's noise can let the one
-measured spot shift power between the crowns against what the spots it does not measure
-do. On an independent generator's low-k_z race (its own 2D disc) with the law of a μ(T)
-test session, spots 2 and 4 ran 26 and 22 °C RMS, 1.00x the single-spot baseline. A fixed
-lower noise helped there but cost races whose test bike had a pad split (0.95 -> 1.45x),
-so the race chooses:
+thermal skin (identify-h's thin-skin layering,
+:func:`~brakethermo.pipelines.race_run.thin_skin`): its face follows the pads' flux
+closely, and the law's noise can let the one measured spot shift power between the
+crowns against what the spots it does not measure do. On an independent generator's
+low-k_z race (its own 2D disc) with the law of a μ(T) test session, spots 2 and 4 ran 26
+and 22 °C RMS, 1.00x the single-spot baseline. A fixed lower noise helped there but cost
+races whose test bike had a pad split (0.95 -> 1.45x), so the race chooses:
 
-the filter runs over the decision's laps (:data:`~brakethermo.pipelines.online_choice.
-DECISION_LAPS`) at :data:`FACTORS` of the law's noise, on the mesh and with the states
-and reading noise the race runs, beside the race's own filter at the law's noise; the
-noise whose one-step predictive likelihood over those laps (predictions from past
-readings only) is best is kept where its gain over the law's clears
-:data:`~brakethermo.pipelines.online_choice.MIN_LOGLIK_GAIN` nats per reading at the lower
-end of a 95 % bootstrap interval over braking cycles — a noise is the filter's model of
-what it does not know, judged by the proper score as the pyrometer lag is — and the race's
-filter runs again on it. A noise too low for the race shows there: on that race, a
-quarter of the law's sent the states astray from the out-lap on (-15 nats per reading).
+the filter runs over the decision's laps
+(:data:`~brakethermo.pipelines.online_choice.DECISION_LAPS`) at :data:`FACTORS` of the
+law's noise, on the mesh and with the states and reading noise the race runs, beside the
+race's own filter at the law's noise; the noise whose one-step predictive likelihood over
+those laps (predictions from past readings only) is best is kept where its gain over the
+law's clears :data:`~brakethermo.pipelines.online_choice.MIN_LOGLIK_GAIN` nats per
+reading at the lower end of a 95 % bootstrap interval over braking cycles — a noise is
+the filter's model of what it does not know, judged by the proper score as the pyrometer
+lag is — and the race's filter runs again on it. A noise too low for the race shows
+there: on that race, a quarter of the law's sent the states astray from the out-lap on
+(-15 nats per reading).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from brakethermo.errors import BrakethermoError
 from brakethermo.io.session import Session
 from brakethermo.pipelines.online_choice import (
     DECISION_LAPS,
@@ -41,6 +43,7 @@ from brakethermo.pipelines.online_choice import (
     likelihood_test,
     thin_skin_learned,
 )
+from brakethermo.pipelines.speculative import Cancelled
 from brakethermo.pipelines.tuning import user_tuning_keys
 
 if TYPE_CHECKING:
@@ -77,15 +80,22 @@ def decision_part(session: Session) -> Session:
 
 
 def trials(steps: int, sigma: float, run: Callable[[int, float], Innovations]
-           ) -> dict[float, Innovations]:
+           ) -> dict[float, Innovations | str]:
     """Each of :data:`FACTORS` of the law's noise ``sigma`` run by ``run(steps, noise)``
     over the first ``steps`` grid points, one after the other (on the caller's thread:
-    the core the race's own filter leaves)."""
-    return {f: run(steps, sigma * f) for f in FACTORS}
+    the core the race's own filter leaves). A filter that breaks down at a noise (or is
+    stopped with the race) leaves why, in words: that noise lost."""
+    out: dict[float, Innovations | str] = {}
+    for f in FACTORS:
+        try:
+            out[f] = run(steps, sigma * f)
+        except (BrakethermoError, Cancelled) as exc:
+            out[f] = str(exc) or type(exc).__name__
+    return out
 
 
-def judge(part: Session, law: Innovations, tried: dict[float, Innovations], sigma: float,
-          chosen: list[str]) -> dict[str, Any]:
+def judge(part: Session, law: Innovations, tried: dict[float, Innovations | str],
+          sigma: float, chosen: list[str]) -> dict[str, Any]:
     """The ``run.online_choice.crown_noise`` fact: each tried noise against the law's
     ``sigma`` (``law``: the race's own filter at it, over ``part``'s steps), and the noise
     the race keeps (``chosen``; ``changed`` when it is not the law's)."""
@@ -94,6 +104,10 @@ def judge(part: Session, law: Innovations, tried: dict[float, Innovations], sigm
     ref = Innovations(law.innovation[:n], law.innovation_var[:n])
     tests = []
     for f, other in tried.items():
+        if isinstance(other, str):
+            tests.append({"factor": f, "sigma_crown": sigma * f, "failed": other,
+                          "significant": False})
+            continue
         row = likelihood_test(ref, other, lap, cycles, rule)
         tests.append({"factor": f, "sigma_crown": sigma * f, **{k: row[k] for k in (
             "loglik_gain_per_reading", "loglik_gain_ci95", "significant")}})

@@ -99,6 +99,11 @@ class EstimateOptions:
         in the user's tuning file, and which of the h law's test-session effects hold for
         it (:mod:`brakethermo.pipelines.online_choice`); False: the law as written
         (``estimate --law-as-written``).
+    bands : bool
+        False: the bands leave out the crown balance's term (an open loop of the model
+        beside the filter): for the race's internal filter-only passes (its decision's,
+        its crown-noise trials') whose bands nobody reads (a 24-lap k_z race: 1.4 s of
+        its 3.9 s of such terms).
     modes : int, optional
         Reduced-order filter (:mod:`brakethermo.models.reduced`): at most this many
         thermal modes; 0 runs the full-order filter; ``None`` reduces a model of more
@@ -123,6 +128,7 @@ class EstimateOptions:
     workers: int = 1
     online_auto: bool = True
     modes: int | None = None
+    bands: bool = True
 
     def __post_init__(self) -> None:
         check_overrides(self.overrides())

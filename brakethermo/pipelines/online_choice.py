@@ -55,7 +55,9 @@ by default. Instead the race decides:
    *before* the online states: a crown the race does not have makes the measured spot
    run hotter or cooler than the model, which an online k_z (or the power scale) would
    otherwise "explain", moving the unmeasured spots the wrong way. When the uniform
-   crown wins, the online candidates are judged again on it.
+   crown wins, the online candidates are judged again on it. Where it loses with the
+   law's k_z and k_z is a candidate, it is judged again with k_z online in both
+   (:func:`_crown_with_kz`): a race disc of lower k_z on other pads needs both changes.
 
 8. **the crown-split noise of a thinner skin**: a race that switches k_z on below the
    law's chooses the law's crown-split noise or a lower one by its one-step predictive
@@ -214,9 +216,12 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
     if dropped_first:
         runs = _one_pass(t, cal, False, on_learned)
     rows = _online_rows(runs, candidates, t.lap, t.cycles, t.rule)
+    # a crown dropped for uniform weights *with k_z online*: k_z goes on with it, and the
+    # law's μ(T) is judged at that k_z level
+    kz_forced = any((r.get("with_kz") or {}).get("significant") for r in tested)
     if t.joint is not None:
-        _judge_jointly(t, t.joint, runs, rows, tested)
-    if any((r.get("with_kz") or {}).get("significant") for r in tested):
+        _judge_jointly(t, t.joint, runs, rows, tested, kz_forced)
+    if kz_forced:
         _on_with_uniform_crown(rows)
     chosen = [r["name"] for r in rows if r["significant"]]
     alike = [c for c in chosen if c in CONFOUNDED]
@@ -231,7 +236,8 @@ def choose_online(session: Session, base: EstimateOptions, candidates: tuple[str
                  " interval over braking cycles) and the predictive log-likelihood improves,"
                  f" on flying laps 1-{min(DECISION_LAPS, flying[-1])}; of k_z and the crown"
                  " balance (one spot cannot tell them apart) only the better; the law's"
-                 " pyrometer lag and uneven pad crown are judged first; its μ(T) is kept"
+                 " pyrometer lag and uneven pad crown are judged first (the crown again"
+                 " with k_z online where it lost with the law's k_z); its μ(T) is kept"
                  " only where the race earns it"
                  + (", judged together with k_z" if t.joint is not None else "")),
         "laps": [int(v) for v in np.unique(t.lap[t.lap >= 1])],
@@ -336,7 +342,7 @@ def _trial(session: Session, base: EstimateOptions, candidates: tuple[str, ...],
     """The decision's shared setup on the first :data:`DECISION_LAPS` flying laps."""
     part = head(session, min(DECISION_LAPS, flying[-1]))
     off = {ONLINE_FLAGS[c]: False for c in candidates}
-    quick = replace(base, smoother=False, score=False, online_auto=False)
+    quick = replace(base, smoother=False, score=False, online_auto=False, bands=False)
     lap, cycles, rule = decision_units(part)
     first = tuple(p for p in parts if p in FIRST)
     later = tuple(p for p in parts if p == EARNED)
@@ -379,7 +385,7 @@ def _first_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration
     for name in t.first:
         if name in BY_LIKELIHOOD:
             row = likelihood_test(runs["reference"], runs[f"without {name}"], t.lap, t.cycles,
-                                   t.rule)
+                                  t.rule)
         else:
             row = _lap_ahead_test(runs["reference"], runs[f"without {name}"], t.lap, t.cycles,
                                   t.rule)
@@ -388,8 +394,12 @@ def _first_tests(t: _Trial, runs: dict[str, Any], cal: DiscCalibration
                    "test": f"uniform weights against the law's, {row['test']}"}
             if not row["significant"] and CROWN_KZ in runs:
                 row = _crown_with_kz(t, runs, row)
-        tested.append({**row, "name": f"without {name}", "peaks_apart_c": _peaks_apart(
-            runs["reference"], runs[f"without {name}"], t.lap)})
+        # what dropping it does to the unmeasured spots, in the configuration it was
+        # dropped in
+        law, other = ((JOINT, CROWN_KZ) if (row.get("with_kz") or {}).get("significant")
+                      else ("reference", f"without {name}"))
+        tested.append({**row, "name": f"without {name}",
+                       "peaks_apart_c": _peaks_apart(runs[law], runs[other], t.lap)})
     return tested
 
 
@@ -397,6 +407,7 @@ def _on_with_uniform_crown(rows: list[dict[str, Any]]) -> None:
     """k_z on, whatever its own test on the uniform crown said: the crown was dropped
     because uniform weights *with k_z online* beat the law's (:func:`_crown_with_kz`)."""
     row = next(r for r in rows if r["name"] == JOINT)
+    row.pop("like_law", None)
     if not row["significant"]:
         row["significant"] = True
         row["with_uniform_crown"] = ("switched on with the uniform crown: the law's crown was"
@@ -431,14 +442,14 @@ def _crown_with_kz(t: _Trial, runs: dict[str, Any], row: dict[str, Any]) -> dict
 
 
 def _judge_jointly(t: _Trial, joint: str, runs: dict[str, Any], rows: list[dict[str, Any]],
-                   tested: list[dict[str, Any]]) -> None:
-    """``joint`` and the law's :data:`EARNED` effect judged together (:func:`_joint_test`):
-    the joint verdict replaces ``joint``'s own test in ``rows``, the effect's row joins
-    ``tested``."""
+                   tested: list[dict[str, Any]], kz_forced: bool = False) -> None:
+    """``joint`` and the law's :data:`EARNED` effect judged together (:func:`_joint_test`;
+    ``kz_forced``: k_z goes on whatever, :func:`_crown_with_kz`): the joint verdict
+    replaces ``joint``'s own test in ``rows``, the effect's row joins ``tested``."""
     own = next(r for r in rows if r["name"] == joint)
     allowed = kz_allowed(own["learned"])
     (p,) = t.later
-    j = _joint_test(runs, joint, p, t.lap, t.cycles, t.rule, allowed)
+    j = _joint_test(runs, joint, p, t.lap, t.cycles, t.rule, allowed, kz_forced)
     # the joint verdict replaces the structural test's
     own.update({k: j.kz_row[k] for k in ("shrink_pct", "shrink_ci95_pct", "test")},
                significant=j.kz_on, joint_test=j.combos)
@@ -554,7 +565,8 @@ class _Joint:
 
 
 def _joint_test(runs: dict[str, Any], joint: str, p: str, lap: np.ndarray,
-                cycles: np.ndarray, rule: VerdictRule, allowed: bool = True) -> _Joint:
+                cycles: np.ndarray, rule: VerdictRule, allowed: bool = True,
+                forced: bool = False) -> _Joint:
     """k_z and the law's :data:`EARNED` effect ``p``, judged together: a 2 x 2 of the law
     with or without ``p`` and k_z off or online, each a whole lap ahead from its own
     filtered state (online states frozen at the lap's start) on the flying laps after
@@ -566,7 +578,9 @@ def _joint_test(runs: dict[str, Any], joint: str, p: str, lap: np.ndarray,
     factor then has to beat its own counterpart at the other's final level — ``p`` is
     kept only where the law with it beats the law without it, with k_z as it will run,
     and k_z goes on (only when ``allowed``: learned outside :data:`KZ_LIKE_LAW`) only
-    where it beats k_z off on the law as the race will use it.
+    where it beats k_z off on the law as the race will use it. ``forced``: k_z goes on
+    whatever (the law's crown was dropped for uniform weights with k_z online), and
+    ``p`` is judged at that level.
     """
     laps = np.unique(lap[lap >= 2])
     units = np.where(np.isin(lap, laps), cycles, -1)
@@ -603,10 +617,10 @@ def _joint_test(runs: dict[str, Any], joint: str, p: str, lap: np.ndarray,
             return pair("reference", law_kz, "k_z online against off, on the law as written")
         return pair(base, base_kz, f"k_z online against off, on the law without its {p}")
 
-    kz_try = allowed and won_kz
+    kz_try = forced or (allowed and won_kz)
     effect_row = effect(kz_try)
     kz_row = kz(effect_row["significant"])
-    kz_on = kz_try and kz_row["significant"]
+    kz_on = forced or (kz_try and kz_row["significant"])
     if kz_try and not kz_on:
         # no configuration where each factor beats its counterpart at the other's level
         # (k_z helps at one μ(T) level only): k_z stays off, the effect judged as the
@@ -621,7 +635,7 @@ def _joint_test(runs: dict[str, Any], joint: str, p: str, lap: np.ndarray,
 
 
 def likelihood_test(ref: Any, other: Any, lap: np.ndarray, cycles: np.ndarray,
-                     rule: VerdictRule) -> dict[str, Any]:
+                    rule: VerdictRule) -> dict[str, Any]:
     """Does ``other`` predict the flying laps' readings one step ahead with a higher
     likelihood, per braking cycle, by more than :data:`MIN_LOGLIK_GAIN` at the lower end
     of the 95 % bootstrap interval?"""

@@ -3,9 +3,11 @@ law and tuning that decision leaves.
 
 The race chooses the online effects nobody forced and the parts of the h law it drops
 (:mod:`brakethermo.pipelines.online_choice`); a race that switched k_z on at a factor
-below the law's (under 0.67, the decision's gate) gets identify-h's thin-skin layering;
-the filter is built and run on the outcome (:mod:`brakethermo.pipelines.race_filter`),
-the reading noise measured from the measured spot itself. On a long race the run for
+below the law's (under 0.67, the decision's gate), or learned one that low on a law that
+carries its k_z, gets identify-h's thin-skin layering, and chooses its crown-split noise
+there (:mod:`brakethermo.pipelines.crown_noise`); the filter is built and run on the
+outcome (:mod:`brakethermo.pipelines.race_filter`), the reading noise measured from the
+measured spot itself. On a long race the run for
 "nothing switched on, nothing dropped" starts before the decision, on a guess
 (:mod:`brakethermo.pipelines.speculative`). The estimate pipeline
 (:mod:`brakethermo.pipelines.estimate`) turns the run into its table and scores.
@@ -37,6 +39,7 @@ from brakethermo.pipelines.online_choice import (
     CROWN,
     DECISION_LAPS,
     EARNED,
+    JOINT,
     ONLINE_FLAGS,
     OnlineChoice,
     choose_online,
@@ -104,10 +107,12 @@ def _race_layering(choice: OnlineChoice, tuning: EstimateTuning, options: Estima
                    ) -> tuple[EstimateTuning, str | None]:
     """identify-h's thin-skin layering, on finer radial nodes, for a race whose disc
     conducts through the thickness worse than the law's (the race chose k_z and learned
-    it lower): heat stays nearer the face, and the law's layering, built for its own disc,
-    is too coarse to hold the skin; a face that thin follows the radial profile of the
-    pads' flux, which 10 nodes smear (8 development races, 10 -> 15 nodes: 0.66 -> 0.58
-    of the single-spot baseline, 7 better; 20 nodes no better than 15).
+    it lower, or learned it below 0.67 on a law that carries it,
+    :func:`~brakethermo.pipelines.online_choice.thin_skin_learned`): heat stays nearer
+    the face, and the law's layering, built for its own disc, is too coarse to hold the
+    skin; a face that thin follows the radial profile of the pads' flux, which 10 nodes
+    smear (8 development races, 10 -> 15 nodes: 0.66 -> 0.58 of the single-spot
+    baseline, 7 better; 20 nodes no better than 15).
     Returns the tuning and what was changed, in words (None: nothing)."""
     learned = thin_skin_learned(choice)
     if learned is None:
@@ -232,14 +237,19 @@ def _filtered(disc: DiscSpec, inputs: DiscInputs, y: np.ndarray, cal: DiscCalibr
     # the band's crown term is an open loop of the model on the inputs alone: beside a
     # smoother's pass, on the core it leaves (the README's k_z race, 15 x 6 nodes:
     # 0.4 s); the decision's filter-only passes fill the cores already
-    pool = ThreadPoolExecutor(1, "brakethermo-crown") if tuning.smoother else None
+    pool = (ThreadPoolExecutor(1, "brakethermo-crown") if tuning.smoother and options.bands
+            else None)
     crown = None if pool is None else pool.submit(crown_term, *crown_args)
     t0 = time.perf_counter()
     try:
         forward, states, out, out_var, windows, forward_s = run_filter(
             ukf, x0, P0, y, readout, tuning.smoother, options.workers, nodes)
         smoother_s = time.perf_counter() - t0 - forward_s
-        crown_std = crown_term(*crown_args) if crown is None else crown.result()
+        if not options.bands:  # a pass whose bands nobody reads: no crown term
+            crown_std = np.zeros((inputs.q_brk.size, 5 + (0 if nodes is None else
+                                                         nodes.shape[0])))
+        else:
+            crown_std = crown_term(*crown_args) if crown is None else crown.result()
     finally:
         if pool is not None:  # abandoned or interrupted: nobody waits for the band's term
             pool.shutdown(wait=False, cancel_futures=True)
@@ -290,7 +300,9 @@ def decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
     switched on, the law's μ(T) unearned" starts before the decision on its own thread
     (:mod:`brakethermo.pipelines.speculative`): a 25-lap race that decides so, 8.3 → 6.3–7 s
     in process; one whose decision learns a k_z it may switch on stops the guess then, and
-    computes the thin-skin filter's modes beside the decision (:func:`_kz_learned`)."""
+    computes the thin-skin filter's modes beside the decision (:func:`_kz_learned`). A
+    race on a thinner skin then chooses its crown-split noise beside its filter
+    (:func:`_with_crown_noise`)."""
     chooses = _choice_inputs(options, cal, calibration)
     guess = null = None
     # what the race most often decides: no online state, the law's μ(T) not earned
@@ -318,12 +330,13 @@ def decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
         for name in choice.dropped:
             cal = law_without(cal, name)
     t_choice = time.perf_counter()
+    noise_free = crown_noise.free(choice, options)
     if (guess is not None and not guess.abandoned and choice is not None and tuning == null
-            and choice.dropped == unearned):
+            and choice.dropped == unearned and not noise_free):
         return choice, replace(guess.result(), speculative=True), t_choice
     if guess is not None:
         guess.abandon()
-    if crown_noise.free(choice, options):
+    if noise_free:
         choice, run = _with_crown_noise(session, options, disc, inputs, y, cal, tuning, choice)
         return choice, run, t_choice
     return choice, _filtered(disc, inputs, y, cal, tuning, options), t_choice
@@ -336,28 +349,34 @@ def _with_crown_noise(session: Session, options: EstimateOptions, disc: DiscSpec
     """The race's filter at the law's crown-split noise and, beside it on the core it
     leaves, the decision's laps at lower ones (:mod:`~brakethermo.pipelines.crown_noise`);
     the race's filter again at the noise its likelihood chose, where not the law's."""
+    t0 = time.perf_counter()
     part = crown_noise.decision_part(session)
     sigma = tuning.sigma_crown
     noise = _reading_noise(_readings(y, effect_plan(cal.effects, tuning)), tuning, options,
                            inputs.per_reading[options.spot - 1], inputs.steady)[0].sigma_meas
-    trial = replace(tuning, smoother=False)
+    trial, stop = replace(tuning, smoother=False), threading.Event()
+    quiet = replace(options, bands=False)  # nobody reads a trial's bands
 
     def run(steps: int, sigma_crown: float) -> crown_noise.Innovations:
         with core():
             r = _filtered(disc, inputs.head(steps), y[:steps], cal,
-                          replace(trial, sigma_crown=sigma_crown), options, sigma_meas=noise)
+                          replace(trial, sigma_crown=sigma_crown), quiet, stop, noise)
         return crown_noise.Innovations(r.forward.innovation[:, 0],
                                        r.forward.innovation_var[:, 0])
 
     with ThreadPoolExecutor(1, "brakethermo-crown-noise") as pool:
         tried = pool.submit(crown_noise.trials, len(part.frame), sigma, run)
-        race = _filtered(disc, inputs, y, cal, tuning, options)
+        try:
+            race = _filtered(disc, inputs, y, cal, tuning, options)
+        except BaseException:  # a bad race or Ctrl-C: the trials stop with it
+            stop.set()
+            raise
         law = crown_noise.Innovations(race.forward.innovation[:, 0],
                                       race.forward.innovation_var[:, 0])
-        fact = crown_noise.judge(part, law, tried.result(), sigma,
-                                 choice.facts["chosen"] or ["the law's k_z"])
-    choice = replace(choice, facts={**choice.facts, "crown_noise": fact})
+        online = [*choice.facts["chosen"], *(["the law's k_z"] if JOINT in cal.effects else [])]
+        fact = crown_noise.judge(part, law, tried.result(), sigma, online)
     if fact["changed"]:
         race = _filtered(disc, inputs, y, cal, replace(tuning, sigma_crown=fact["chosen"]),
                          options)
-    return choice, race
+    fact["seconds"] = time.perf_counter() - t0  # the race's filter (both, when re-run) within
+    return replace(choice, facts={**choice.facts, "crown_noise": fact}), race

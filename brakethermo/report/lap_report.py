@@ -223,6 +223,10 @@ def _crown_noise_text(fact: dict[str, Any]) -> str:
     """The race's choice of its crown-split noise (``online_choice.crown_noise``), in words."""
     tried = []
     for r in fact.get("tests", []):
+        if r.get("failed"):
+            tried.append(f"{as_number(r.get('sigma_crown')):g}: the filter failed there"
+                         f" ({r['failed']})")
+            continue
         lo, hi = (as_number(v) for v in r.get("loglik_gain_ci95", [None] * 2))
         tried.append(f"{as_number(r.get('sigma_crown')):g}:"
                      f" {as_number(r.get('loglik_gain_per_reading')):+.3f} nats per reading"
