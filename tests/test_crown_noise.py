@@ -57,14 +57,15 @@ def _choice(learned: float, chosen: bool = True) -> OnlineChoice:
 
 
 def test_only_a_thinner_skin_with_a_noise_nobody_set_chooses(tmp_path) -> None:
-    assert crown_noise.free(_choice(0.5), EstimateOptions())
-    assert not crown_noise.free(_choice(1.4), EstimateOptions())  # a thicker skin
-    assert not crown_noise.free(_choice(0.5, chosen=False), EstimateOptions())
-    assert not crown_noise.free(None, EstimateOptions())
-    assert not crown_noise.free(_choice(0.5), EstimateOptions(sigma_crown=0.3))
+    assert crown_noise.free(_choice(0.5), EstimateOptions(), 8)
+    assert not crown_noise.free(_choice(1.4), EstimateOptions(), 8)  # a thicker skin
+    assert not crown_noise.free(_choice(0.5, chosen=False), EstimateOptions(), 8)
+    assert not crown_noise.free(None, EstimateOptions(), 8)
+    assert not crown_noise.free(_choice(0.5), EstimateOptions(), 7)  # a short race
+    assert not crown_noise.free(_choice(0.5), EstimateOptions(sigma_crown=0.3), 8)
     user = tmp_path / "tuning.toml"
     user.write_text("[estimate]\nsigma_crown = 0.3\n")
-    assert not crown_noise.free(_choice(0.5), EstimateOptions(tuning=user))
+    assert not crown_noise.free(_choice(0.5), EstimateOptions(tuning=user), 8)
 
 
 def test_the_page_says_which_noise_the_race_kept_and_the_evidence() -> None:
@@ -107,3 +108,20 @@ def test_a_noise_whose_filter_breaks_down_loses_and_is_said() -> None:
     line = next(x for x in _decisions({"run": {"online_choice": {"crown_noise": fact}}})
                 if x.startswith("crown-split noise"))
     assert "0.1: the filter failed there (race.parquet" in line
+
+
+def test_a_long_race_on_a_thinner_skin_runs_on_the_noise_it_chose(tmp_path) -> None:
+    """End to end: a 9-lap race on a low-k_z disc switches k_z on below the law's, tries
+    the lower noises over its decision laps and runs on the one it kept."""
+    from brakethermo.pipelines.estimate import estimate_session
+    from brakethermo.sim.session import SimConfig, simulate, write_simulation
+
+    path, _ = write_simulation(simulate(SimConfig(
+        laps=9, sensor="single", seed=61123, effects={"thickness_gradient": 1.0})),
+        tmp_path / "race.parquet")
+    run = estimate_session(path, EstimateOptions(smoother=False)).summary["run"]
+    noise = run["online_choice"]["crown_noise"]
+    assert [r["factor"] for r in noise["tests"]] == list(crown_noise.FACTORS)
+    assert run["sigma_crown"] == noise["chosen"]
+    assert noise["changed"] is (noise["chosen"] != noise["law"])
+    assert "flying laps 1, 2, 3, 4, 5, 6, 7, 8" in noise["test"] and noise["seconds"] > 0

@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from brakethermo.pipelines import crown_noise, online_choice
+from brakethermo.pipelines import online_choice
 from brakethermo.pipelines.estimate import EstimateOptions, estimate_session
 from brakethermo.pipelines.truth_score import read_truth
 from brakethermo.sim.session import SimConfig, simulate, write_simulation
@@ -48,11 +48,8 @@ def test_a_disc_of_other_kz_switches_kz_on_and_gains(races) -> None:
     assert auto.summary["run"]["layers"] == 6
     # and finer radial nodes: its face follows the pads' flux profile
     assert auto.summary["run"]["nodes"] == 15 and "15 radial nodes" in choice["layering"]
-    # on that thinner skin the race chose its crown-split noise by its own likelihood
-    noise = choice["crown_noise"]
-    assert [r["factor"] for r in noise["tests"]] == list(crown_noise.FACTORS)
-    assert auto.summary["run"]["sigma_crown"] == noise["chosen"]
-    assert noise["changed"] is (noise["chosen"] != noise["law"])
+    # too short a race to choose its crown-split noise (test_crown_noise: a long one)
+    assert "crown_noise" not in choice
     off = estimate_session(path, EstimateOptions(smoother=False, adapt_kz=False,
                                                  adapt_slipstream=False))
     truth = read_truth(truth_path)
@@ -576,7 +573,7 @@ def test_a_law_that_carries_kz_still_gives_a_thinner_race_disc_its_thin_skin(rac
     assert choice["law_kz_learned"] < online_choice.KZ_LIKE_LAW[0]
     assert f"came out {choice['law_kz_learned']:.2f} of the law's" in choice["layering"]
     assert low.summary["run"]["nodes"] * low.summary["run"]["layers"] == 90
-    assert "the law's k_z online" in choice["crown_noise"]["test"]
+    assert "crown_noise" not in choice  # 4 laps: too short to choose it
     normal = estimate_session(races["normal"][0], EstimateOptions(h_law=law, smoother=False))
     choice = normal.summary["run"]["online_choice"]
     assert online_choice.KZ_LIKE_LAW[0] <= choice["law_kz_learned"] <= online_choice.KZ_LIKE_LAW[1]

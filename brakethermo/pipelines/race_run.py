@@ -310,8 +310,8 @@ def decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
     # a race no longer than the decision's laps has a filter pass as short as one of the
     # decision's: nothing to win there, and the decision would lose a core
     # (and on one core the guess would only queue the decision behind it)
-    if (chooses is not None and sum(lap.lap >= 1 for lap in session.laps) > DECISION_LAPS
-            and (os.cpu_count() or 1) > 1):
+    flying = sum(lap.lap >= 1 for lap in session.laps)
+    if chooses is not None and flying > DECISION_LAPS and (os.cpu_count() or 1) > 1:
         null = replace(tuning, **{ONLINE_FLAGS[c]: False for c in chooses[0]})
         bare = law_without(cal, EARNED) if unearned else cal
         guess = Speculation(partial(_filtered, disc, inputs, y, bare, null, options))
@@ -330,7 +330,7 @@ def decided_run(session: Session, options: EstimateOptions, disc: DiscSpec,
         for name in choice.dropped:
             cal = law_without(cal, name)
     t_choice = time.perf_counter()
-    noise_free = crown_noise.free(choice, options)
+    noise_free = crown_noise.free(choice, options, flying)
     if (guess is not None and not guess.abandoned and choice is not None and tuning == null
             and choice.dropped == unearned and not noise_free):
         return choice, replace(guess.result(), speculative=True), t_choice
