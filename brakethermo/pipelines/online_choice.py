@@ -342,7 +342,7 @@ def _trial(session: Session, base: EstimateOptions, candidates: tuple[str, ...],
     """The decision's shared setup on the first :data:`DECISION_LAPS` flying laps."""
     part = head(session, min(DECISION_LAPS, flying[-1]))
     off = {ONLINE_FLAGS[c]: False for c in candidates}
-    quick = replace(base, smoother=False, score=False, online_auto=False, bands=False)
+    quick = replace(base, smoother=False, score=False, online_auto=False)
     lap, cycles, rule = decision_units(part)
     first = tuple(p for p in parts if p in FIRST)
     later = tuple(p for p in parts if p == EARNED)
