@@ -101,9 +101,8 @@ class EstimateOptions:
         (``estimate --law-as-written``).
     bands : bool
         False: the bands leave out the crown balance's term (an open loop of the model
-        beside the filter): for the race's internal filter-only passes (its decision's,
-        its crown-noise trials') whose bands nobody reads (a 24-lap k_z race: 1.4 s of
-        its 3.9 s of such terms).
+        beside the filter): for the race's crown-noise trials, whose bands nobody reads
+        (:func:`~brakethermo.pipelines.race_run._with_crown_noise`).
     modes : int, optional
         Reduced-order filter (:mod:`brakethermo.models.reduced`): at most this many
         thermal modes; 0 runs the full-order filter; ``None`` reduces a model of more
